@@ -1,0 +1,99 @@
+"""Association: IoU, the fused cost matrix and exact greedy assignment, as masked array operations.
+
+Greedy "take the best remaining entry" under a strict total order equals repeated rounds of
+"match every entry that is the best of both its row and its column": the globally best entry is
+always such an entry, and an entry that is best in its row and column is never displaced by the
+sequential algorithm. A round is a few reductions; a frame needs a handful of rounds.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+_BIG = jnp.iinfo(jnp.int32).max
+
+
+def iou_matrix(a, b):
+    """IoU of boxes a [O, 4] against b [N, 4] (x1, y1, x2, y2) -> [O, N] float32; 0 for an empty union."""
+    ax1, ay1, ax2, ay2 = (a[:, None, k] for k in range(4))
+    bx1, by1, bx2, by2 = (b[None, :, k] for k in range(4))
+    iw = jnp.maximum(0.0, jnp.minimum(ax2, bx2) - jnp.maximum(ax1, bx1))
+    ih = jnp.maximum(0.0, jnp.minimum(ay2, by2) - jnp.maximum(ay1, by1))
+    inter = iw * ih
+    union = (ax2 - ax1) * (ay2 - ay1) + (bx2 - bx1) * (by2 - by1) - inter
+    return jnp.where(union > 0, inter / jnp.where(union > 0, union, 1.0), 0.0)
+
+
+def predicted_boxes(p2, truncate: bool):
+    """Track boxes [N, 4] from the 2D filter positions (top-left x, y, bottom-right x, y) [N, 4].
+
+    With truncation, as the code: x = trunc(tl_x), w = trunc(|x - br_x|), box (x, y, x + w, y + h).
+    """
+    if truncate:
+        x = jnp.trunc(p2[:, 0]); y = jnp.trunc(p2[:, 1])
+        w = jnp.trunc(jnp.abs(x - p2[:, 2])); h = jnp.trunc(jnp.abs(y - p2[:, 3]))
+    else:
+        x = p2[:, 0]; y = p2[:, 1]
+        w = jnp.abs(p2[:, 2] - x); h = jnp.abs(p2[:, 3] - y)
+    return jnp.stack([x, y, x + w, y + h], axis=1)
+
+
+def centroid_distance(obj_z3, trk_p3):
+    """Euclidean distance [O, N] between object and track centroids; z3 = (min corner, max corner) [.., 6]."""
+    oc = (obj_z3[:, :3] + obj_z3[:, 3:]) / 2.0
+    tc = (trk_p3[:, :3] + trk_p3[:, 3:]) / 2.0
+    dx = oc[:, None, 0] - tc[None, :, 0]
+    dy = oc[:, None, 1] - tc[None, :, 1]
+    dz = oc[:, None, 2] - tc[None, :, 2]
+    return jnp.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+def fused_cost(iou, age_ok, dist, both3d, a_c, a_l, alpha_c):
+    """Cost 1 - M_f = alpha_c (1 - IoU') + alpha_l min(d, a_l) / a_l, [O, N].
+
+    IoU' = IoU where IoU >= a_c and the track's age allows the camera term, else 0; the LiDAR term is
+    1 (no match) unless both have a 3D box.
+    """
+    iou_c = jnp.where((iou >= a_c) & age_ok[None, :], iou, 0.0)
+    m_l = jnp.where(both3d, jnp.minimum(dist, a_l) / a_l, 1.0)
+    return alpha_c * (1.0 - iou_c) + (1.0 - alpha_c) * m_l
+
+
+def greedy_min(cost, valid, col_key, limit):
+    """Greedy matching on the smallest cost while cost < limit -> match [O, N] bool.
+
+    Ties go to the smaller ``col_key`` (track id), then the smaller row: the order of the authors'
+    column-major ``minCoeff`` over tracks kept in id order.
+    """
+    n_rows, n_cols = cost.shape
+    rows = jnp.arange(n_rows, dtype=jnp.int32)[:, None]
+    c0 = jnp.where(valid & (cost < limit), cost, jnp.inf)
+
+    def cond(carry):
+        return carry[3]
+
+    def body(carry):
+        free_r, free_c, match, _ = carry
+        c = jnp.where(free_r[:, None] & free_c[None, :], c0, jnp.inf)
+        rmin = jnp.min(c, axis=1, keepdims=True)
+        at_rmin = c == rmin
+        rkey = jnp.min(jnp.where(at_rmin, col_key[None, :], _BIG), axis=1, keepdims=True)
+        cmin = jnp.min(c, axis=0, keepdims=True)
+        at_cmin = c == cmin
+        crow = jnp.min(jnp.where(at_cmin, rows, _BIG), axis=0, keepdims=True)
+        new = at_rmin & (col_key[None, :] == rkey) & at_cmin & (rows == crow) & (c < jnp.inf)
+        return (free_r & ~jnp.any(new, axis=1), free_c & ~jnp.any(new, axis=0), match | new, jnp.any(new))
+
+    init = (jnp.ones(n_rows, bool), jnp.ones(n_cols, bool), jnp.zeros((n_rows, n_cols), bool), jnp.any(c0 < jnp.inf))
+    return jax.lax.while_loop(cond, body, init)[2]
+
+
+def greedy_max(score, valid, threshold):
+    """Greedy matching on the largest score while score > threshold -> match [R, C] bool.
+
+    Ties go to the first entry in row-major order (the authors' de-duplication scan).
+    """
+    neg = jnp.where(valid & (score > threshold), -score, jnp.inf)
+    cols = jnp.arange(score.shape[1], dtype=jnp.int32)
+    return greedy_min(neg, jnp.ones_like(valid), cols, jnp.inf)

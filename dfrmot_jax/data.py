@@ -1,0 +1,286 @@
+"""A KITTI split packed into padded arrays: all sequences concatenated along time.
+
+``load_split`` reads detections for many sequences and packs them (host numpy) into a ``Split``:
+detections ``[T, M2]`` (2D) and ``[T, M3]`` (3D) with masks, ``T`` the total frame count of the
+split, a ``reset`` flag on each sequence's first frame. ``prepare_frames`` turns a split into the
+device inputs of the scan (``Frames``) for one set of static ``Options``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from .geometry import project_box3d_to_image
+from .io.kitti import (
+    Calib,
+    Detections2D,
+    Detections3D,
+    KittiFormatError,
+    read_calib,
+    read_detections_2d,
+    read_detections_3d,
+    read_tracking_labels,
+    sequence_lengths,
+)
+from .params import Options
+
+CLASS_NAMES = {"car": "Car", "pedestrian": "Pedestrian"}
+DEFAULT_IMAGE_SIZE = (1242, 375)
+
+
+class SequenceDets(NamedTuple):
+    """One sequence's raw detections as read from its files (rows in file order)."""
+
+    name: str
+    n_frames: int
+    det2d: Detections2D
+    det3d: Detections3D
+    calib: Calib
+
+
+class Split(NamedTuple):
+    """Many sequences packed along time (host numpy arrays).
+
+    names [S], lengths [S], offsets [S]: sequence s owns global frames offsets[s] .. offsets[s]+lengths[s]-1.
+    reset [T] bool (first frame of a sequence), seq [T] int32, frame [T] int32 (frame within sequence).
+    box2d [T, M2, 4] f64, score2d [T, M2] f64, valid2d [T, M2] bool, row2d [T, M2] int32 (file row).
+    box3d [T, M3, 4] f64 (the 3D detector's image box), proj3d [T, M3, 4] f64 (its 8 corners projected
+    with P2, clipped), score3d [T, M3], dims3d [T, M3, 3] (h, w, l), loc3d [T, M3, 3] (x, y, z),
+    rot_y3d [T, M3], alpha3d [T, M3], valid3d [T, M3] bool, row3d [T, M3] int32.
+    """
+
+    names: tuple[str, ...]
+    lengths: np.ndarray
+    offsets: np.ndarray
+    reset: np.ndarray
+    seq: np.ndarray
+    frame: np.ndarray
+    box2d: np.ndarray
+    score2d: np.ndarray
+    valid2d: np.ndarray
+    row2d: np.ndarray
+    box3d: np.ndarray
+    proj3d: np.ndarray
+    score3d: np.ndarray
+    dims3d: np.ndarray
+    loc3d: np.ndarray
+    rot_y3d: np.ndarray
+    alpha3d: np.ndarray
+    valid3d: np.ndarray
+    row3d: np.ndarray
+    cls: str = "car"
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.reset.shape[0])
+
+    def sequence_slice(self, s: int) -> slice:
+        return slice(int(self.offsets[s]), int(self.offsets[s] + self.lengths[s]))
+
+
+def detection_dir(root: Path, detector: str | Path, cls: str) -> Path:
+    """A detector given by name (``ROOT/detections/<name>/<class>/``) or as a directory path."""
+    by_name = Path(root) / "detections" / str(detector) / cls
+    if by_name.is_dir():
+        return by_name
+    as_path = Path(detector)
+    if as_path.is_dir():
+        return as_path
+    known = sorted(p.name for p in (Path(root) / "detections").glob("*") if p.is_dir())
+    raise KittiFormatError(str(by_name), None, None,
+                           f"unknown detector {str(detector)!r}: not a directory; detectors under the root: {known}")
+
+
+def sequences_with_class(root: Path, cls: str) -> list[str]:
+    """Sequences whose ground truth has at least one object of the class (car: 20 of 21)."""
+    name = CLASS_NAMES[cls]
+    out = []
+    for f in sorted((Path(root) / "label_02").glob("*.txt")):
+        labels = read_tracking_labels(f)
+        if np.any(labels.type == name):
+            out.append(f.stem)
+    return out
+
+
+def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
+                   image_size=DEFAULT_IMAGE_SIZE) -> list[SequenceDets]:
+    """Read detections and calib of each sequence (default: those whose ground truth has the class)."""
+    root = Path(root)
+    if cls not in CLASS_NAMES:
+        raise ValueError(f"class {cls!r}: expected one of {sorted(CLASS_NAMES)}")
+    d2 = detection_dir(root, det2d, cls)
+    d3 = detection_dir(root, det3d, cls)
+    if sequences is None:
+        sequences = sequences_with_class(root, cls)
+    lengths = sequence_lengths(root, sequences)
+    out = []
+    for name in sequences:
+        out.append(SequenceDets(
+            name=name,
+            n_frames=lengths[name],
+            det2d=read_detections_2d(d2 / f"{name}.txt"),
+            det3d=read_detections_3d(d3 / f"{name}.txt"),
+            calib=read_calib(root / "calib" / f"{name}.txt"),
+        ))
+        for kind, det, path in (("2D", out[-1].det2d, d2), ("3D", out[-1].det3d, d3)):
+            if det.frame.size and det.frame.max() >= lengths[name]:
+                line = int(np.argmax(det.frame >= lengths[name])) + 1
+                raise KittiFormatError(str(path / f"{name}.txt"), line, "frame",
+                                       f"{kind} detection at frame {int(det.frame.max())} beyond the sequence "
+                                       f"({lengths[name]} frames)")
+    return out
+
+
+def _rows_by_frame(frames: np.ndarray, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Slot of each row within its frame and the per-frame counts."""
+    counts = np.bincount(frames, minlength=n_frames)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    slot = np.arange(frames.size) - starts[frames]
+    return slot, counts
+
+
+def pack(seqs: list[SequenceDets], cls: str = "car", image_size=DEFAULT_IMAGE_SIZE,
+         min_slots: int = 1) -> Split:
+    """Pack sequences into a ``Split`` (M2, M3 = the largest detection counts of any frame)."""
+    lengths = np.array([s.n_frames for s in seqs], dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    T = int(lengths.sum())
+    per2, per3 = [], []
+    for s in seqs:
+        per2.append(_rows_by_frame(s.det2d.frame, s.n_frames))
+        per3.append(_rows_by_frame(s.det3d.frame, s.n_frames))
+    m2 = max([min_slots] + [int(c.max(initial=0)) for _, c in per2])
+    m3 = max([min_slots] + [int(c.max(initial=0)) for _, c in per3])
+
+    box2d = np.zeros((T, m2, 4)); score2d = np.zeros((T, m2)); valid2d = np.zeros((T, m2), bool)
+    row2d = np.full((T, m2), -1, np.int32)
+    box3d = np.zeros((T, m3, 4)); proj3d = np.zeros((T, m3, 4)); score3d = np.zeros((T, m3))
+    dims3d = np.ones((T, m3, 3)); loc3d = np.zeros((T, m3, 3)); loc3d[..., 2] = 10.0
+    rot_y3d = np.zeros((T, m3)); alpha3d = np.zeros((T, m3)); valid3d = np.zeros((T, m3), bool)
+    row3d = np.full((T, m3), -1, np.int32)
+    reset = np.zeros(T, bool); seq = np.zeros(T, np.int32); frame = np.zeros(T, np.int32)
+    for k, s in enumerate(seqs):
+        o = int(offsets[k])
+        reset[o] = True
+        seq[o:o + s.n_frames] = k
+        frame[o:o + s.n_frames] = np.arange(s.n_frames)
+        slot, _ = per2[k]
+        t = o + s.det2d.frame
+        box2d[t, slot] = s.det2d.box; score2d[t, slot] = s.det2d.score; valid2d[t, slot] = True
+        row2d[t, slot] = np.arange(s.det2d.frame.size)
+        slot, _ = per3[k]
+        d = s.det3d
+        t = o + d.frame
+        box3d[t, slot] = d.box; score3d[t, slot] = d.score; valid3d[t, slot] = True
+        dims3d[t, slot] = d.dims; loc3d[t, slot] = d.loc; rot_y3d[t, slot] = d.rot_y; alpha3d[t, slot] = d.alpha
+        row3d[t, slot] = np.arange(d.frame.size)
+        if d.frame.size:
+            proj3d[t, slot] = project_box3d_to_image(d.dims, d.loc, d.rot_y, s.calib.P2, image_size)
+    return Split(names=tuple(s.name for s in seqs), lengths=lengths, offsets=offsets, reset=reset, seq=seq,
+                 frame=frame, box2d=box2d, score2d=score2d, valid2d=valid2d, row2d=row2d, box3d=box3d,
+                 proj3d=proj3d, score3d=score3d, dims3d=dims3d, loc3d=loc3d, rot_y3d=rot_y3d, alpha3d=alpha3d,
+                 valid3d=valid3d, row3d=row3d, cls=cls)
+
+
+def load_split(root, det2d="rrc", det3d="pointrcnn", cls: str = "car", sequences=None,
+               image_size=DEFAULT_IMAGE_SIZE) -> Split:
+    """Read and pack a split: ``load_split(root, "rrc", "pointrcnn", "car")``."""
+    return pack(load_sequences(root, det2d, det3d, cls, sequences, image_size), cls, image_size)
+
+
+# ---------------------------------------------------------------------------------------------
+# Inputs of the scan for one set of static options
+
+
+class Frames(NamedTuple):
+    """Per-frame device inputs of the tracker (float32 / bool), leading axis T.
+
+    reset [T]; box2 [T, M2, 4] and box3 [T, M3, 4] (x1, y1, x2, y2; integer-valued when truncating;
+    box3 is the 3D detection's image box chosen by ``Options.merge``); score2 [T, M2]; score3 [T, M3];
+    valid2 [T, M2]; valid3 [T, M3]; lo3, hi3 [T, M3, 3]: the internal 3D box corners (``Options.centroid``).
+    """
+
+    reset: np.ndarray
+    box2: np.ndarray
+    score2: np.ndarray
+    valid2: np.ndarray
+    box3: np.ndarray
+    score3: np.ndarray
+    valid3: np.ndarray
+    lo3: np.ndarray
+    hi3: np.ndarray
+
+
+def truncate_2d_box(box: np.ndarray) -> np.ndarray:
+    """The 2D loader's integer box: x = trunc(x1), w = |x - trunc(x2)| (C++ stoi), as x1, y1, x1+w, y1+h."""
+    x = np.trunc(box[..., 0]); y = np.trunc(box[..., 1])
+    w = np.abs(x - np.trunc(box[..., 2])); h = np.abs(y - np.trunc(box[..., 3]))
+    return np.stack([x, y, x + w, y + h], axis=-1)
+
+
+def truncate_3d_box(box: np.ndarray) -> np.ndarray:
+    """The 3D loader's integer image box: x = trunc(x1), w = trunc(|x - x2|)."""
+    x = np.trunc(box[..., 0]); y = np.trunc(box[..., 1])
+    w = np.trunc(np.abs(x - box[..., 2])); h = np.trunc(np.abs(y - box[..., 3]))
+    return np.stack([x, y, x + w, y + h], axis=-1)
+
+
+def box3d_extent(dims: np.ndarray, loc: np.ndarray, centroid: str) -> tuple[np.ndarray, np.ndarray]:
+    """Internal 3D box (min corner, max corner) [..., 3] in float32, as the authors' loader builds it.
+
+    legacy: min = (z, y, x), max = min + (l, w, h)      (published runs)
+    head:   min = (z, -x, -y), max = min + (l, h, w)    (code at HEAD)
+    kitti:  min = (x - l/2, y - h, z - w/2), max = (x + l/2, y, z + w/2)   (geometric centre (x, y - h/2, z))
+    """
+    h, w, l = (dims[..., i].astype(np.float32) for i in range(3))
+    x, y, z = (loc[..., i].astype(np.float32) for i in range(3))
+    if centroid == "legacy":
+        lo = np.stack([z, y, x], -1); ext = np.stack([l, w, h], -1)
+        return lo, lo + ext
+    if centroid == "head":
+        lo = np.stack([z, -x, -y], -1); ext = np.stack([l, h, w], -1)
+        return lo, lo + ext
+    if centroid == "kitti":
+        half = np.float32(0.5)
+        lo = np.stack([x - half * l, y - h, z - half * w], -1)
+        hi = np.stack([x + half * l, y, z + half * w], -1)
+        return lo, hi
+    raise ValueError(f"centroid {centroid!r}")
+
+
+def image_box_3d(split_box3d: np.ndarray, split_proj3d: np.ndarray, options: Options) -> np.ndarray:
+    """The image box a 3D detection carries under the options (before truncation)."""
+    use_proj = options.merge == "calib_projection" or options.modality == "3d"
+    return split_proj3d if use_proj else split_box3d
+
+
+def prepare_frames(split: Split, options: Options) -> Frames:
+    """Host-side, once per (split, options): truncation, image-box choice and 3D box convention."""
+    options.validate()
+    box3 = image_box_3d(split.box3d, split.proj3d, options)
+    valid3 = split.valid3d & np.all(np.isfinite(box3), axis=-1)
+    box3 = np.where(np.isfinite(box3), box3, 0.0)
+    if options.truncate:
+        box2 = truncate_2d_box(split.box2d)
+        box3 = truncate_3d_box(box3)
+    else:
+        box2 = split.box2d
+    lo3, hi3 = box3d_extent(split.dims3d, split.loc3d, options.centroid)
+    return Frames(
+        reset=split.reset.copy(),
+        box2=box2.astype(np.float32), score2=split.score2d.astype(np.float32), valid2=split.valid2d.copy(),
+        box3=box3.astype(np.float32), score3=split.score3d.astype(np.float32), valid3=valid3,
+        lo3=lo3, hi3=hi3,
+    )
+
+
+def object_boxes(frames: Frames, options: Options) -> np.ndarray:
+    """[T, O, 4] the image box of each object slot of the tracker's ``detections`` output."""
+    if options.modality == "2d":
+        return frames.box2
+    if options.modality == "3d":
+        return frames.box3
+    return np.concatenate([frames.box2, frames.box3], axis=1)

@@ -1,0 +1,212 @@
+"""Tracker parameters: dynamic ``Params`` (arrays, vmappable) and static ``Options`` (compilations).
+
+Every field of ``Params`` is a number; a batch of settings is the same ``Params`` with a leading
+axis ``[B]`` on every leaf (see ``stack_params``). ``Options`` holds the choices that change the
+program: each distinct ``Options`` value is its own compilation.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+
+class Params(NamedTuple):
+    """Dynamic tracker settings. Defaults are the ``dfr2023`` preset (published RRC+PointRCNN run).
+
+    score_2d:   keep a 2D detection when score >= score_2d.
+    score_3d:   keep a 3D detection when score >= score_3d.
+    merge_iou:  a 2D and a 3D detection are the same object when their IoU > merge_iou.
+    a_c:        camera gate: IoU below a_c counts as 0 in M_c.
+    a_l:        LiDAR gate and scale (metres): M_l = min(d, a_l) / a_l.
+    alpha_c:    camera weight of the fused matrix; alpha_l = 1 - alpha_c.
+    a_f:        fused gate: a pair is matched while M_f > a_f (cost 1 - M_f < 1 - a_f).
+    epsilon:    memory age (frames): a track unmatched for more than epsilon frames is deleted;
+                its camera term is used only while age <= epsilon.
+    gain_alpha, gain_beta, gain_gamma:  fixed gains of the alpha-beta-gamma filter (filter="fixed_gain").
+    kf_q:       process noise (white-noise jerk spectral density, dt = 1 frame) of the Kalman filter.
+    kf_r:       measurement noise variance (pixels^2 or m^2) of the Kalman filter.
+    kf_p0:      initial variance of velocity and acceleration at a track's first observation.
+    keep_lost:  output="filtered" only: frames a lost track keeps being written with its predicted box.
+    min_hits:   a track is written only once it has been matched (including its birth) min_hits times.
+    """
+
+    score_2d: Any = 0.45
+    score_3d: Any = 4.0
+    merge_iou: Any = 0.25
+    a_c: Any = 0.05
+    a_l: Any = 8.0
+    alpha_c: Any = 0.5
+    a_f: Any = 0.0
+    epsilon: Any = 30
+    gain_alpha: Any = 0.9
+    gain_beta: Any = 0.9
+    gain_gamma: Any = 0.1
+    kf_q: Any = 1.0
+    kf_r: Any = 1.0
+    kf_p0: Any = 100.0
+    keep_lost: Any = 0
+    min_hits: Any = 1
+
+
+INT_PARAMS = frozenset({"epsilon", "keep_lost", "min_hits"})
+
+#: Valid ranges (inclusive) used to validate user input; sweeps draw inside them.
+PARAM_RANGES: dict[str, tuple[float, float]] = {
+    "score_2d": (-1e9, 1e9),
+    "score_3d": (-1e9, 1e9),
+    "merge_iou": (0.0, 1.0),
+    "a_c": (0.0, 1.0),
+    "a_l": (1e-3, 1e3),
+    "alpha_c": (0.0, 1.0),
+    "a_f": (-1.0, 1.0),
+    "epsilon": (0, 10_000),
+    "gain_alpha": (0.0, 2.0),
+    "gain_beta": (0.0, 2.0),
+    "gain_gamma": (0.0, 2.0),
+    "kf_q": (1e-9, 1e9),
+    "kf_r": (1e-9, 1e9),
+    "kf_p0": (0.0, 1e12),
+    "keep_lost": (0, 10_000),
+    "min_hits": (1, 10_000),
+}
+
+
+FILTERS = ("fixed_gain", "kalman")
+MERGES = ("detector_box", "calib_projection")
+CENTROIDS = ("legacy", "head", "kitti")
+MODALITIES = ("fused", "2d", "3d")
+OUTPUTS = ("detections", "filtered")
+
+
+class Options(NamedTuple):
+    """Static choices; each distinct value compiles its own program.
+
+    filter:    "fixed_gain" (authors' code, alpha-beta-gamma) | "kalman" (the paper's constant-
+               acceleration Kalman filter with covariances).
+    merge:     which image box a 3D detection has for de-duplication and as its own 2D box:
+               "detector_box" (the 3D detector's box, code) | "calib_projection" (8 corners projected
+               with P2 and clipped to the image, paper).
+    centroid:  3D box convention for the LiDAR distance: "legacy" (published runs), "head" (code at
+               HEAD), "kitti" (geometric centre in camera coordinates).
+    truncate:  integer truncation of detection and predicted boxes (code: True).
+    modality:  "fused" | "2d" (camera only) | "3d" (LiDAR only; 2D box from the calib projection).
+    output:    "detections" (this frame's detections with their raw boxes, code) | "filtered" (every
+               written track with its filtered box, lost tracks for keep_lost frames predicted).
+    capacity:  track slots N per lane; 0 = chosen from the data.
+    """
+
+    filter: str = "fixed_gain"
+    merge: str = "detector_box"
+    centroid: str = "legacy"
+    truncate: bool = True
+    modality: str = "fused"
+    output: str = "detections"
+    capacity: int = 0
+
+    def validate(self) -> "Options":
+        for name, allowed in (("filter", FILTERS), ("merge", MERGES), ("centroid", CENTROIDS),
+                              ("modality", MODALITIES), ("output", OUTPUTS)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"option {name}={getattr(self, name)!r}: expected one of {allowed}")
+        if not isinstance(self.truncate, (bool, np.bool_)):
+            raise ValueError(f"option truncate={self.truncate!r}: expected True or False")
+        if int(self.capacity) < 0:
+            raise ValueError(f"option capacity={self.capacity!r}: expected >= 0")
+        return self
+
+
+PRESETS: dict[str, tuple[Params, Options]] = {
+    # The published RRC + PointRCNN run (Bench-Evals): a_l = 8, legacy axes.
+    "dfr2023": (Params(), Options()),
+    # The authors' C++ code at HEAD: a_l = 10, head axes.
+    "dfr_head": (Params(a_l=10.0), Options(centroid="head")),
+}
+
+
+def preset(name: str) -> tuple[Params, Options]:
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}: expected one of {sorted(PRESETS)}")
+    return PRESETS[name]
+
+
+def validate_params(params: Params) -> Params:
+    """Raise ValueError naming the field when a value is outside PARAM_RANGES or not finite."""
+    for name, value in params._asdict().items():
+        arr = np.asarray(value, dtype=np.float64)
+        lo, hi = PARAM_RANGES[name]
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"parameter {name}: not finite ({value!r})")
+        if np.any(arr < lo) or np.any(arr > hi):
+            raise ValueError(f"parameter {name}={value!r}: outside [{lo}, {hi}]")
+        if name in INT_PARAMS and np.any(arr != np.round(arr)):
+            raise ValueError(f"parameter {name}={value!r}: expected an integer")
+    return params
+
+
+def replace(params: Params, **changes) -> Params:
+    unknown = set(changes) - set(Params._fields)
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {sorted(unknown)}: expected among {list(Params._fields)}")
+    return params._replace(**changes)
+
+
+def parse_assignment(text: str, params: Params, options: Options) -> tuple[Params, Options]:
+    """Apply one ``name=value`` (CLI ``--set``) to params or options."""
+    if "=" not in text:
+        raise ValueError(f"--set {text!r}: expected name=value")
+    name, raw = (s.strip() for s in text.split("=", 1))
+    if name in Params._fields:
+        try:
+            value = int(raw) if name in INT_PARAMS else float(raw)
+        except ValueError:
+            raise ValueError(f"--set {name}: {raw!r} is not a number") from None
+        return validate_params(params._replace(**{name: value})), options
+    if name in Options._fields:
+        if name == "truncate":
+            if raw.lower() not in ("true", "false", "1", "0"):
+                raise ValueError(f"--set truncate: {raw!r} is not true/false")
+            value = raw.lower() in ("true", "1")
+        elif name == "capacity":
+            value = int(raw)
+        else:
+            value = raw
+        return params, options._replace(**{name: value}).validate()
+    raise ValueError(f"--set {name}: unknown; parameters are {list(Params._fields)}, options {list(Options._fields)}")
+
+
+def as_arrays(params: Params) -> Params:
+    """Params with float32 / int32 numpy leaves (keeps any leading batch axis)."""
+    return Params(**{
+        k: np.asarray(v, dtype=np.int32 if k in INT_PARAMS else np.float32)
+        for k, v in params._asdict().items()
+    })
+
+
+def stack_params(settings: list[Params]) -> Params:
+    """[Params, ...] -> Params with leaves of shape [B]."""
+    if not settings:
+        raise ValueError("stack_params: empty list")
+    return as_arrays(Params(*(np.stack([np.asarray(getattr(p, k)) for p in settings]) for k in Params._fields)))
+
+
+def batch_size(params: Params) -> int:
+    shapes = {np.shape(v) for v in params}
+    if len(shapes) != 1:
+        raise ValueError(f"Params leaves have different shapes: {sorted(shapes)}")
+    shape = shapes.pop()
+    if len(shape) > 1:
+        raise ValueError(f"Params leaves must be scalars or [B], got shape {shape}")
+    return shape[0] if shape else 1
+
+
+def unstack_params(params: Params) -> list[Params]:
+    b = batch_size(params)
+    arrs = {k: np.broadcast_to(np.asarray(v), (b,)) for k, v in params._asdict().items()}
+    return [Params(**{k: (int(a[i]) if k in INT_PARAMS else float(a[i])) for k, a in arrs.items()}) for i in range(b)]
+
+
+def options_dict(options: Options) -> dict[str, Any]:
+    return dict(options._asdict())
+

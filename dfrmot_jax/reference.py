@@ -1,0 +1,306 @@
+"""DFR-FastMOT for one configuration, in plain NumPy and Python loops: the test oracle.
+
+Written for clarity, following ``docs/dfr-fastmot-spec.md`` step by step. Numbers that the
+authors' code keeps in float32 (filter states, 3D boxes) are float32 here too, so that the JAX
+tracker can be compared id for id.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .data import SequenceDets, box3d_extent, truncate_2d_box, truncate_3d_box
+from .geometry import project_box3d_to_image
+from .params import Options, Params
+
+F32 = np.float32
+# White-noise-jerk process noise of a constant-acceleration model, dt = 1 frame (position, velocity, acceleration).
+Q_JERK = np.array([[1 / 20, 1 / 8, 1 / 6], [1 / 8, 1 / 3, 1 / 2], [1 / 6, 1 / 2, 1.0]], dtype=np.float64)
+
+
+@dataclass
+class Obj:
+    """One object of the current frame: a 2D box, and maybe a 3D box."""
+
+    box: np.ndarray               # [4] float32 x1, y1, x2, y2
+    lo3: np.ndarray | None        # [3] float32 internal 3D box min corner
+    hi3: np.ndarray | None        # [3] float32 max corner
+    kind: str                     # "2d" (row of the 2D file) or "3d" (unmatched 3D detection)
+    index: int                    # file row of the detection it came from
+
+
+@dataclass
+class CoordFilter:
+    """Per-coordinate constant-acceleration filter state: p, v, a [K] and, for the Kalman filter,
+    the covariance entries P00, P01, P02, P11, P12, P22 [6, K]."""
+
+    p: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    cov: np.ndarray | None = None
+
+
+@dataclass
+class Track:
+    id: int
+    f2: CoordFilter                   # 4 coords: top-left x, y; bottom-right x, y
+    f3: CoordFilter | None            # 6 coords: min corner, max corner (None until a 3D observation)
+    age: int = 0                      # frames since the last match
+    hits: int = 1
+    out_box: np.ndarray = field(default_factory=lambda: np.zeros(4, F32))
+
+
+def iou(a: np.ndarray, b: np.ndarray) -> F32:
+    """IoU of two x1, y1, x2, y2 boxes in float32 (0 when the union is empty)."""
+    iw = max(F32(0), F32(min(a[2], b[2]) - max(a[0], b[0])))
+    ih = max(F32(0), F32(min(a[3], b[3]) - max(a[1], b[1])))
+    inter = F32(iw * ih)
+    area_a = F32((a[2] - a[0]) * (a[3] - a[1]))
+    area_b = F32((b[2] - b[0]) * (b[3] - b[1]))
+    union = F32(area_a + area_b - inter)
+    return F32(inter / union) if union > 0 else F32(0)
+
+
+def predicted_box(p: np.ndarray, truncate: bool) -> np.ndarray:
+    """A track's 2D box from its filter (top-left, bottom-right); truncated as the code does."""
+    if truncate:
+        x = np.trunc(p[0]); y = np.trunc(p[1])
+        w = np.trunc(np.abs(x - p[2])); h = np.trunc(np.abs(y - p[3]))
+        return np.array([x, y, x + w, y + h], F32)
+    return np.array([p[0], p[1], p[0] + np.abs(p[2] - p[0]), p[1] + np.abs(p[3] - p[1])], F32)
+
+
+# ---------------------------------------------------------------------------------------------
+# Filters
+
+
+def filter_init(z: np.ndarray, params: Params, options: Options) -> CoordFilter:
+    k = z.shape[0]
+    cov = None
+    if options.filter == "kalman":
+        cov = np.zeros((6, k), F32)
+        cov[0] = F32(params.kf_r); cov[3] = F32(params.kf_p0); cov[5] = F32(params.kf_p0)
+    return CoordFilter(z.astype(F32).copy(), np.zeros(k, F32), np.zeros(k, F32), cov)
+
+
+def filter_update(f: CoordFilter, z: np.ndarray, params: Params, options: Options) -> None:
+    r = z.astype(F32) - f.p
+    if options.filter == "fixed_gain":
+        ka, kb, kc = F32(params.gain_alpha), F32(params.gain_beta), F32(2) * F32(params.gain_gamma)
+        f.p = f.p + ka * r
+        f.v = f.v + kb * r
+        f.a = f.a + kc * r
+        return
+    p00, p01, p02, p11, p12, p22 = f.cov
+    s = p00 + F32(params.kf_r)
+    k0, k1, k2 = p00 / s, p01 / s, p02 / s
+    f.p = f.p + k0 * r
+    f.v = f.v + k1 * r
+    f.a = f.a + k2 * r
+    f.cov = np.stack([p00 - k0 * p00, p01 - k0 * p01, p02 - k0 * p02,
+                      p11 - k1 * p01, p12 - k1 * p02, p22 - k2 * p02]).astype(F32)
+
+
+def filter_predict(f: CoordFilter, params: Params, options: Options) -> None:
+    half = F32(0.5)
+    f.p = f.p + f.v + half * f.a
+    f.v = f.v + f.a
+    if options.filter == "kalman":
+        a, b, c, d, e, g = f.cov
+        # F P F^T for F = [[1, 1, 1/2], [0, 1, 1], [0, 0, 1]], plus q * Q_JERK
+        r00 = a + b + half * c; r01 = b + d + half * e; r02 = c + e + half * g
+        r11 = d + e; r12 = e + g
+        q = F32(params.kf_q)
+        qj = Q_JERK.astype(F32)
+        f.cov = np.stack([
+            r00 + r01 + half * r02 + q * qj[0, 0],
+            r01 + r02 + q * qj[0, 1],
+            r02 + q * qj[0, 2],
+            r11 + r12 + q * qj[1, 1],
+            r12 + q * qj[1, 2],
+            g + q * qj[2, 2],
+        ]).astype(F32)
+
+
+# ---------------------------------------------------------------------------------------------
+# One frame
+
+
+def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, image_size) -> list[Obj]:
+    """Kept detections of frame t, de-duplicated: 2D objects (file order), then unmatched 3D ones."""
+    d2, d3 = seq.det2d, seq.det3d
+    rows2 = [i for i in np.flatnonzero(d2.frame == t) if F32(d2.score[i]) >= F32(params.score_2d)]
+    rows3 = [j for j in np.flatnonzero(d3.frame == t) if F32(d3.score[j]) >= F32(params.score_3d)]
+    if options.modality == "2d":
+        rows3 = []
+    if options.modality == "3d":
+        rows2 = []
+
+    def box2(i):
+        b = d2.box[i]
+        return (truncate_2d_box(b) if options.truncate else b).astype(F32)
+
+    def box3(j):
+        if options.merge == "calib_projection" or options.modality == "3d":
+            b = project_box3d_to_image(d3.dims[j], d3.loc[j], d3.rot_y[j], seq.calib.P2, image_size)
+        else:
+            b = d3.box[j]
+        return (truncate_3d_box(b) if options.truncate else b).astype(F32)
+
+    def extent3(j):
+        return box3d_extent(d3.dims[j], d3.loc[j], options.centroid)
+
+    b2 = [box2(i) for i in rows2]
+    b3 = [box3(j) for j in rows3]
+    finite = [bool(np.all(np.isfinite(b))) for b in b3]  # a projected box behind the camera is NaN
+    rows3 = [j for j, ok in zip(rows3, finite) if ok]
+    b3 = [b for b, ok in zip(b3, finite) if ok]
+
+    # Greedy de-duplication: first strict maximum in row-major order, while IoU > merge_iou.
+    pair_of_2 = [-1] * len(rows2)
+    taken3 = [False] * len(rows3)
+    m = np.array([[iou(a, b) for b in b3] for a in b2], dtype=F32).reshape(len(b2), len(b3))
+    thr = F32(params.merge_iou)
+    while m.size:
+        best, bi, bj = thr, -1, -1
+        for i in range(m.shape[0]):
+            for j in range(m.shape[1]):
+                if m[i, j] > best:
+                    best, bi, bj = m[i, j], i, j
+        if bi < 0:
+            break
+        pair_of_2[bi] = bj
+        taken3[bj] = True
+        m[bi, :] = thr
+        m[:, bj] = thr
+
+    objects = []
+    for i, r in enumerate(rows2):
+        j = pair_of_2[i]
+        lo = hi = None
+        if j >= 0:
+            lo, hi = extent3(rows3[j])
+        objects.append(Obj(b2[i], lo, hi, "2d", int(r)))
+    for j, r in enumerate(rows3):
+        if not taken3[j]:
+            lo, hi = extent3(r)
+            objects.append(Obj(b3[j], lo, hi, "3d", int(r)))
+    return objects
+
+
+def cost_matrix(objects: list[Obj], tracks: list[Track], params: Params, options: Options) -> np.ndarray:
+    """[O, N] cost 1 - M_f = alpha_c (1 - IoU') + alpha_l min(d, a_l) / a_l."""
+    ac, al = F32(params.alpha_c), F32(1) - F32(params.alpha_c)
+    a_l = F32(params.a_l)
+    c = np.zeros((len(objects), len(tracks)), F32)
+    for j, trk in enumerate(tracks):
+        pbox = predicted_box(trk.f2.p, options.truncate)
+        if trk.f3 is not None:
+            tc = (trk.f3.p[:3] + trk.f3.p[3:]) / F32(2)
+        for i, obj in enumerate(objects):
+            iou_c = F32(0)
+            if trk.age <= params.epsilon:
+                iou_c = iou(obj.box, pbox)
+                if iou_c < F32(params.a_c):
+                    iou_c = F32(0)
+            m_l = F32(1)
+            if obj.lo3 is not None and trk.f3 is not None:
+                oc = (obj.lo3 + obj.hi3) / F32(2)
+                d = F32(np.sqrt(np.sum((oc - tc) ** 2, dtype=F32), dtype=F32))
+                m_l = min(d, a_l) / a_l
+            c[i, j] = ac * (F32(1) - iou_c) + al * m_l
+    return c
+
+
+def greedy_match(cost: np.ndarray, track_ids: list[int], limit: F32) -> list[tuple[int, int]]:
+    """Repeatedly take the smallest entry (ties: smaller track id, then smaller row) while < limit."""
+    cost = cost.copy()
+    pairs = []
+    while cost.size:
+        best, bi, bj = None, -1, -1
+        for j in sorted(range(cost.shape[1]), key=lambda j: track_ids[j]):
+            for i in range(cost.shape[0]):
+                if best is None or cost[i, j] < best:
+                    best, bi, bj = cost[i, j], i, j
+        if best is None or not best < limit:
+            break
+        pairs.append((bi, bj))
+        cost[bi, :] = np.inf
+        cost[:, bj] = np.inf
+    return pairs
+
+
+def track_sequence(seq: SequenceDets, params: Params, options: Options,
+                   image_size=(1242, 375)) -> list[tuple]:
+    """Run one sequence; returns output rows ``(frame, id, x1, y1, x2, y2, kind, index)``.
+
+    kind/index name the detection written ("2d"/"3d", file row) with output="detections";
+    with output="filtered" kind is "track" and index -1.
+    """
+    options.validate()
+    tracks: list[Track] = []
+    next_id = 0
+    rows = []
+    limit = F32(1) - F32(params.a_f)
+    for t in range(seq.n_frames):
+        objects = frame_objects(seq, t, params, options, image_size)
+        pairs = []
+        if tracks and objects:
+            cost = cost_matrix(objects, tracks, params, options)
+            pairs = greedy_match(cost, [trk.id for trk in tracks], limit)
+
+        # Memory: matched objects take over their track; the others are born, in row order.
+        obj_track: dict[int, Track] = {}
+        matched_tracks = set()
+        for i, j in pairs:
+            trk, obj = tracks[j], objects[i]
+            trk.age = 0
+            trk.hits += 1
+            filter_update(trk.f2, obj.box, params, options)
+            trk.out_box = trk.f2.p.copy()
+            filter_predict(trk.f2, params, options)
+            if obj.lo3 is not None:
+                z3 = np.concatenate([obj.lo3, obj.hi3])
+                if trk.f3 is None:
+                    trk.f3 = filter_init(z3, params, options)
+                else:
+                    filter_update(trk.f3, z3, params, options)
+                    filter_predict(trk.f3, params, options)
+            elif trk.f3 is not None:
+                filter_predict(trk.f3, params, options)
+            obj_track[i] = trk
+            matched_tracks.add(id(trk))
+        for trk in tracks:
+            if id(trk) not in matched_tracks:
+                trk.out_box = trk.f2.p.copy()
+                filter_predict(trk.f2, params, options)
+                if trk.f3 is not None:
+                    filter_predict(trk.f3, params, options)
+        for i, obj in enumerate(objects):
+            if i in obj_track:
+                continue
+            f3 = filter_init(np.concatenate([obj.lo3, obj.hi3]), params, options) if obj.lo3 is not None else None
+            trk = Track(id=next_id, f2=filter_init(obj.box, params, options), f3=f3)
+            trk.out_box = trk.f2.p.copy()
+            next_id += 1
+            tracks.append(trk)
+            obj_track[i] = trk
+
+        if options.output == "detections":
+            for i, obj in enumerate(objects):
+                trk = obj_track[i]
+                if trk.hits >= params.min_hits:
+                    rows.append((t, trk.id, *[float(v) for v in obj.box], obj.kind, obj.index))
+        else:
+            for trk in sorted(tracks, key=lambda k: k.id):
+                if trk.hits >= params.min_hits and trk.age <= params.keep_lost:
+                    rows.append((t, trk.id, *[float(v) for v in trk.out_box], "track", -1))
+
+        # End of frame: forget tracks unmatched for more than epsilon frames, age the others.
+        tracks = [trk for trk in tracks if trk.age <= params.epsilon]
+        for trk in tracks:
+            trk.age += 1
+    return rows
+

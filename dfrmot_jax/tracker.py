@@ -1,0 +1,173 @@
+"""The DFR-FastMOT tracker as pure functions: ``init``, ``step``, ``run`` (lax.scan), batched ``run_batch``.
+
+``step(params, mem, frame) -> (mem, out)`` processes one frame for one parameter setting; ``run``
+scans it over all frames of a packed split; ``run_batch`` vmaps ``run`` over a ``Params`` batch
+``[B]`` and shards the batch over the host's devices. ``Options`` are static.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import associate, kalman, memory
+from .data import Frames
+from .memory import Memory
+from .params import Options, Params
+
+
+class StepOutput(NamedTuple):
+    """One frame's output of one lane.
+
+    ids [K] int32: track id written in each output slot, -1 = nothing written. With output
+    "detections" the slots are the frame's objects (2D detection slots, then 3D detection slots:
+    boxes come from the data, ``data.object_boxes``); with "filtered" they are the N track slots.
+    boxes [K, 4] float32 (output "filtered") or [0] (output "detections").
+    dropped [] int32 births lost for want of a track slot in this frame.
+    """
+
+    ids: jnp.ndarray
+    boxes: jnp.ndarray
+    dropped: jnp.ndarray
+
+
+def init(options: Options, capacity: int) -> Memory:
+    return memory.empty(capacity, options.filter == "kalman")
+
+
+def _objects(params: Params, frame: Frames, options: Options):
+    """This frame's objects: box [O, 4], z3 [O, 6] (3D min, max corners), has3d [O], valid [O]."""
+    keep2 = frame.valid2 & (frame.score2 >= params.score_2d)
+    keep3 = frame.valid3 & (frame.score3 >= params.score_3d)
+    z3 = jnp.concatenate([frame.lo3, frame.hi3], axis=-1)
+    if options.modality == "2d":
+        return frame.box2, jnp.zeros((keep2.shape[0], 6), jnp.float32), jnp.zeros_like(keep2), keep2
+    if options.modality == "3d":
+        return frame.box3, z3, keep3, keep3
+    pair = associate.greedy_max(associate.iou_matrix(frame.box2, frame.box3),
+                                keep2[:, None] & keep3[None, :], params.merge_iou)
+    paired2 = jnp.any(pair, axis=1)
+    lone3 = keep3 & ~jnp.any(pair, axis=0)
+    z3_of_2 = jnp.sum(jnp.where(pair[:, :, None], z3[None, :, :], 0.0), axis=1)
+    return (jnp.concatenate([frame.box2, frame.box3]), jnp.concatenate([z3_of_2, z3]),
+            jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]))
+
+
+def step(params: Params, mem: Memory, frame: Frames, options: Options):
+    """One frame: de-duplicate, associate, update memory and filters, write, age. Returns (mem, out)."""
+    kind = options.filter
+    mem = memory.reset(mem, frame.reset)
+    box, z3, has3, valid = _objects(params, frame, options)
+
+    # Association on the tracks' predictions.
+    f = mem.filt
+    iou = associate.iou_matrix(box, associate.predicted_boxes(f.p[:, :4], options.truncate))
+    dist = associate.centroid_distance(z3, f.p[:, 4:])
+    cost = associate.fused_cost(iou, mem.age <= params.epsilon, dist, has3[:, None] & mem.has3d[None, :],
+                                params.a_c, params.a_l, params.alpha_c)
+    match = associate.greedy_min(cost, valid[:, None] & mem.alive[None, :], mem.tid, 1.0 - params.a_f)
+    matched_obj = jnp.any(match, axis=0)
+    newborn = valid & ~jnp.any(match, axis=1)
+    birth, rank, dropped = memory.births(mem.alive, newborn)
+    assign = match | birth
+    born = jnp.any(birth, axis=0)
+    observed = matched_obj | born
+
+    # Measurements moved into the slots; filter modes per slot.
+    z = memory.gather_rows(assign, jnp.concatenate([box, z3], axis=1))        # [N, 10]
+    z_has3 = memory.gather_rows(assign, has3)                                    # [N]
+    had3 = mem.has3d & ~born
+    start3 = z_has3 & ~had3                                                      # first 3D observation
+    upd2 = matched_obj
+    upd3 = matched_obj & z_has3 & had3
+    pred3 = had3 & mem.alive
+    is2d = jnp.arange(memory.N_COORDS) < 4
+    do_update = jnp.where(is2d[None, :], upd2[:, None], upd3[:, None])
+    do_init = jnp.where(is2d[None, :], born[:, None], (born | matched_obj)[:, None] & start3[:, None])
+    do_predict = jnp.where(is2d[None, :], (mem.alive & ~born)[:, None], pred3[:, None])
+
+    gains = (params.gain_alpha, params.gain_beta, params.gain_gamma)
+    updated = kalman.select(do_update, kalman.update(f, z, kind, gains, params.kf_r), f)
+    predicted = kalman.select(do_predict, kalman.predict(updated, kind, params.kf_q), updated)
+    filt = kalman.select(do_init, kalman.init(z, kind, params.kf_r, params.kf_p0), predicted)
+
+    born_id = mem.next_id + rank                                                  # [O]
+    tid = jnp.where(born, memory.gather_rows(birth, born_id), mem.tid)
+    hits = jnp.where(born, 1, mem.hits + matched_obj.astype(jnp.int32))
+    age = jnp.where(observed, 0, mem.age)
+    alive = mem.alive | born
+    mem = Memory(alive=alive, tid=tid, age=age, hits=hits, has3d=had3 | z_has3, filt=filt,
+                 next_id=mem.next_id + jnp.sum(newborn, dtype=jnp.int32), overflow=mem.overflow + dropped,
+                 peak=jnp.maximum(mem.peak, jnp.sum(alive, dtype=jnp.int32)))
+
+    writable = hits >= params.min_hits
+    if options.output == "detections":
+        obj_id = jnp.sum(jnp.where(match, tid[None, :], 0), axis=1) + jnp.where(newborn, born_id, 0)
+        obj_hits = jnp.sum(jnp.where(assign, hits[None, :], 0), axis=1) + jnp.where(newborn & ~jnp.any(birth, 1), 1, 0)
+        ids = jnp.where(valid & (obj_hits >= params.min_hits), obj_id, -1)
+        out = StepOutput(ids, jnp.zeros((0,), jnp.float32), dropped)
+    else:
+        shown = jnp.where(born[:, None], z[:, :4], jnp.where(matched_obj[:, None], updated.p[:, :4], f.p[:, :4]))
+        ids = jnp.where(alive & writable & (age <= params.keep_lost), tid, -1)
+        out = StepOutput(ids, shown, dropped)
+    return memory.end_of_frame(mem, params.epsilon), out
+
+
+def run(params: Params, frames: Frames, options: Options, capacity: int):
+    """One lane over all frames: (final Memory, StepOutput stacked [T, ...])."""
+    body = functools.partial(step, options=options)
+    return jax.lax.scan(lambda m, fr: body(params, m, fr), init(options, capacity), frames)
+
+
+class BatchOutput(NamedTuple):
+    """ids [B, T, K] int32; boxes [B, T, K, 4] float32 or [B, T, 0]; dropped [B, T] int32;
+    overflow [B] int32 (births dropped in total); peak [B] int32 (most live tracks)."""
+
+    ids: np.ndarray
+    boxes: np.ndarray
+    dropped: np.ndarray
+    overflow: np.ndarray
+    peak: np.ndarray
+
+
+@functools.lru_cache(maxsize=None)
+def _compiled(options: Options, capacity: int, n_devices: int):
+    def lane(params, frames):
+        mem, out = run(params, frames, options, capacity)
+        return out, mem.overflow, mem.peak
+
+    batched = jax.vmap(lane, in_axes=(0, None))
+    if n_devices == 1:
+        return jax.jit(batched)
+    from jax.sharding import Mesh, PartitionSpec as P
+
+    mesh = Mesh(np.array(jax.devices()[:n_devices]), ("b",))
+    sharded = jax.shard_map(batched, mesh=mesh, in_specs=(P("b"), P()), out_specs=P("b"), check_vma=False)
+    return jax.jit(sharded)
+
+
+def device_count() -> int:
+    return jax.local_device_count()
+
+
+def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n_devices: int | None = None):
+    """All lanes of a ``Params`` batch [B] over the split; the batch is split over ``n_devices``.
+
+    Returns BatchOutput (numpy). Lanes are padded to a multiple of the device count and trimmed.
+    """
+    leaves = [np.atleast_1d(np.asarray(v)) for v in params]
+    b = max(leaf.shape[0] for leaf in leaves)
+    n_dev = device_count() if n_devices is None else n_devices
+    n_dev = max(1, min(n_dev, b))
+    pad = (-b) % n_dev
+    leaves = [np.concatenate([np.broadcast_to(v, (b,)), np.repeat(np.broadcast_to(v, (b,))[-1:], pad)])
+              for v in leaves]
+    p = Params(*(jnp.asarray(v, jnp.int32 if v.dtype.kind in "iu" else jnp.float32) for v in leaves))
+    fn = _compiled(options, capacity, n_dev)
+    out, overflow, peak = fn(p, Frames(*(jnp.asarray(x) for x in frames)))
+    out = jax.tree.map(lambda x: np.asarray(x)[:b], out)
+    return BatchOutput(out.ids, out.boxes, out.dropped, np.asarray(overflow)[:b], np.asarray(peak)[:b])

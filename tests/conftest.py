@@ -1,0 +1,14 @@
+from pathlib import Path
+
+import pytest
+
+from dfrmot_jax.paths import ENV_VAR, data_available, default_data_root
+
+
+@pytest.fixture(scope="session")
+def kitti_root() -> Path:
+    """The KITTI training root; tests that need it skip with a message when it is absent."""
+    root = default_data_root()
+    if not data_available(root):
+        pytest.skip(f"KITTI data not found at {root} (set {ENV_VAR} to the KITTI tracking training root)")
+    return root
