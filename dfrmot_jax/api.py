@@ -1,0 +1,126 @@
+"""High-level tracking: a ``Params`` batch over a split, with capacity chosen from the data.
+
+``track(split, params, options)`` runs the batch in chunks, picks the track capacity from the data
+when ``options.capacity`` is 0, and re-runs any lane whose memory overflowed with twice the
+capacity (``grow=True``), so that no track is dropped silently. Lanes that still overflow are
+reported in ``TrackResult.overflow`` and with a warning.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import NamedTuple
+
+import numpy as np
+
+from .data import Frames, Split, prepare_frames
+from .params import Options, Params, as_arrays, batch_size, validate_params
+from .results import output_boxes
+from .tracker import run_batch
+
+MAX_CAPACITY = 4096
+
+
+class TrackResult(NamedTuple):
+    """Outputs of a batch of B lanes over a split of T frames.
+
+    ids [B, T, K] int32 (-1 = nothing written); boxes [T, K, 4] (output "detections": the same for
+    every lane) or [B, T, K, 4] (output "filtered"); dropped [B, T] births lost per frame;
+    overflow [B] births lost in total (0 unless a lane overflowed at the largest capacity tried);
+    peak [B] most live tracks; capacity [B] the capacity each lane ran with.
+    """
+
+    ids: np.ndarray
+    boxes: np.ndarray
+    dropped: np.ndarray
+    overflow: np.ndarray
+    peak: np.ndarray
+    capacity: np.ndarray
+    frames: Frames
+    options: Options
+
+    def lane_boxes(self, b: int) -> np.ndarray:
+        return self.boxes if self.boxes.ndim == 3 else self.boxes[b]
+
+
+def default_capacity(frames: Frames, params: Params, options: Options) -> int:
+    """Track slots from the data: 2.5 x the most objects any frame keeps at the batch's loosest
+    score thresholds, rounded up to a multiple of 8 (at least 16). Overflow is still checked."""
+    s2 = np.min(np.asarray(params.score_2d, np.float32))
+    s3 = np.min(np.asarray(params.score_3d, np.float32))
+    n2 = np.sum(frames.valid2 & (frames.score2 >= s2), axis=1)
+    n3 = np.sum(frames.valid3 & (frames.score3 >= s3), axis=1)
+    if options.modality == "2d":
+        n = n2
+    elif options.modality == "3d":
+        n = n3
+    else:
+        n = n2 + n3
+    most = int(n.max(initial=0))
+    return max(16, int(np.ceil(2.5 * most / 8.0)) * 8)
+
+
+def _take(params: Params, idx: np.ndarray) -> Params:
+    return Params(*(np.broadcast_to(np.asarray(v), (batch_size(params),))[idx] for v in params))
+
+
+def track(split: Split | Frames, params: Params, options: Options = Options(), *, chunk: int = 64,
+          grow: bool = True, progress=None) -> TrackResult:
+    """Track every lane of ``params`` (leaves scalar or [B]) over the split.
+
+    chunk: lanes per compiled call (memory: chunk x T x K int32 ids); progress: a callable(n) told
+    how many lanes finished, e.g. a tqdm bar's ``update``.
+    """
+    options = options.validate()
+    validate_params(params)
+    params = as_arrays(params)
+    if options.output == "detections" and np.any(np.asarray(params.keep_lost) > 0):
+        raise ValueError("parameter keep_lost > 0 writes lost tracks' predicted boxes: it needs output='filtered'")
+    frames = prepare_frames(split, options) if isinstance(split, Split) else split
+    b = batch_size(params)
+    cap0 = options.capacity or default_capacity(frames, params, options)
+    ids = dropped = boxes = None
+    overflow = np.zeros(b, np.int64); peak = np.zeros(b, np.int64); capacity = np.full(b, cap0, np.int64)
+    todo = np.arange(b)
+    cap = cap0
+    while todo.size:
+        for start in range(0, todo.size, chunk):
+            lanes = todo[start:start + chunk]
+            out = run_batch(_take(params, lanes), frames, options, cap)
+            if ids is None:
+                ids = np.empty((b,) + out.ids.shape[1:], np.int32)
+                dropped = np.empty((b,) + out.dropped.shape[1:], np.int32)
+                if options.output == "filtered":
+                    boxes = np.empty((b,) + out.boxes.shape[1:], np.float32)
+            if options.output == "filtered" and out.boxes.shape[2] != boxes.shape[2]:
+                boxes = _widen(boxes, out.boxes.shape[2]); ids = _widen(ids, out.ids.shape[2], -1)
+            if options.output == "filtered":
+                boxes[lanes, :, :out.boxes.shape[2]] = out.boxes
+                ids[lanes] = -1
+                ids[lanes, :, :out.ids.shape[2]] = out.ids
+            else:
+                ids[lanes] = out.ids
+            dropped[lanes] = out.dropped; overflow[lanes] = out.overflow; peak[lanes] = out.peak
+            capacity[lanes] = cap
+            if progress is not None and cap == cap0:
+                progress(len(lanes))
+        todo = todo[overflow[todo] > 0]
+        if not todo.size or not grow or cap * 2 > MAX_CAPACITY:
+            break
+        cap *= 2
+    if np.any(overflow > 0):
+        bad = np.flatnonzero(overflow > 0)
+        warnings.warn(f"track memory overflow in {bad.size} lane(s) (e.g. lane {bad[0]}: {overflow[bad[0]]} births "
+                      f"dropped at capacity {capacity[bad[0]]}); raise Options.capacity", RuntimeWarning, stacklevel=2)
+    if options.output == "detections":
+        boxes = output_boxes(frames, options)
+    return TrackResult(ids, boxes, dropped, overflow, peak, capacity, frames, options)
+
+
+def _widen(a: np.ndarray, k: int, fill=0) -> np.ndarray:
+    """Grow axis 2 of a [B, T, K, ...] array to k slots (a lane re-run with a larger capacity)."""
+    if a.shape[2] >= k:
+        return a
+    pad = [(0, 0)] * a.ndim
+    pad[2] = (0, k - a.shape[2])
+    return np.pad(a, pad, constant_values=fill)

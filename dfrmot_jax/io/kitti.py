@@ -1,0 +1,600 @@
+"""Readers and writers for the KITTI tracking text formats used by DFR-FastMOT.
+
+Every reader returns numpy arrays with rows in file order and raises :class:`KittiFormatError`
+(naming file, 1-based line and field) for any malformed input. Blank lines are skipped, CRLF line
+endings are accepted and an empty file gives zero-length arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+__all__ = [
+    "KittiFormatError",
+    "Detections2D",
+    "Detections3D",
+    "TrackingLabels",
+    "Calib",
+    "read_detections_2d",
+    "read_detections_3d",
+    "read_tracking_labels",
+    "read_calib",
+    "write_tracking_results",
+    "sequence_lengths",
+]
+
+
+class KittiFormatError(ValueError):
+    """The one error type for bad KITTI input.
+
+    Attributes: ``path`` (str), ``line`` (1-based int, or None when the error concerns the whole
+    file), ``field`` (column or matrix name, or None) and ``message``.
+    ``str(e)`` is ``"{path}:{line}: field '{field}': {message}"`` with the None parts left out.
+    """
+
+    def __init__(self, path, line: int | None = None, field: str | None = None, message: str = ""):
+        self.path = str(path)
+        self.line = None if line is None else int(line)
+        self.field = field
+        self.message = message
+        super().__init__(self.path, self.line, self.field, self.message)
+
+    def __str__(self) -> str:
+        where = self.path if self.line is None else f"{self.path}:{self.line}"
+        what = self.message if self.field is None else f"field '{self.field}': {self.message}"
+        return f"{where}: {what}"
+
+    def __reduce__(self):
+        return (type(self), (self.path, self.line, self.field, self.message))
+
+
+class Detections2D(NamedTuple):
+    """2D detections, rows in file order (R rows).
+
+    frame: [R] int64; box: [R, 4] float64 ``x1, y1, x2, y2`` in pixels; score: [R] float64.
+    """
+
+    frame: np.ndarray
+    box: np.ndarray
+    score: np.ndarray
+
+
+class Detections3D(NamedTuple):
+    """3D detections, rows in file order (R rows).
+
+    frame: [R] int64; type: [R] object (str as written, e.g. ``"2"`` or ``"Car"``);
+    box: [R, 4] float64 the detector's image box ``x1, y1, x2, y2``; score: [R] float64;
+    dims: [R, 3] float64 ``h, w, l`` (metres); loc: [R, 3] float64 ``x, y, z`` (camera
+    coordinates, bottom centre); rot_y: [R] float64; alpha: [R] float64.
+    """
+
+    frame: np.ndarray
+    type: np.ndarray
+    box: np.ndarray
+    score: np.ndarray
+    dims: np.ndarray
+    loc: np.ndarray
+    rot_y: np.ndarray
+    alpha: np.ndarray
+
+
+class TrackingLabels(NamedTuple):
+    """KITTI tracking label or result rows, file order (R rows).
+
+    frame, track_id: [R] int64; type: [R] object str as written (``"Car"``, ``"DontCare"``, ...);
+    truncated, occluded, alpha: [R] float64; box: [R, 4] float64 ``x1, y1, x2, y2``;
+    dims: [R, 3] float64 ``h, w, l``; loc: [R, 3] float64 ``x, y, z``; rot_y: [R] float64;
+    score: [R] float64, NaN when the file has no score column (17 columns).
+    """
+
+    frame: np.ndarray
+    track_id: np.ndarray
+    type: np.ndarray
+    truncated: np.ndarray
+    occluded: np.ndarray
+    alpha: np.ndarray
+    box: np.ndarray
+    dims: np.ndarray
+    loc: np.ndarray
+    rot_y: np.ndarray
+    score: np.ndarray
+
+
+class Calib(NamedTuple):
+    """KITTI tracking calibration.
+
+    P2: [3, 4]; R0_rect: [3, 3]; Tr_velo_to_cam: [3, 4]; P: [4, 3, 4] ``P0..P3`` (a missing
+    ``P0``, ``P1`` or ``P3`` is zeros); Tr_imu_to_velo: [3, 4] (zeros if absent).
+    """
+
+    P2: np.ndarray
+    R0_rect: np.ndarray
+    Tr_velo_to_cam: np.ndarray
+    P: np.ndarray
+    Tr_imu_to_velo: np.ndarray
+
+
+_FIELDS_2D = ("frame", "x1", "y1", "x2", "y2", "score")
+_FIELDS_3D = ("frame", "type", "x1", "y1", "x2", "y2", "score", "h", "w", "l", "x", "y", "z", "rot_y", "alpha")
+_FIELDS_3D_LABEL = (
+    "frame", "type", "truncated", "occluded", "alpha", "x1", "y1", "x2", "y2",
+    "h", "w", "l", "x", "y", "z", "rot_y", "score",
+)
+_FIELDS_TRACK = (
+    "frame", "track_id", "type", "truncated", "occluded", "alpha", "x1", "y1", "x2", "y2",
+    "h", "w", "l", "x", "y", "z", "rot_y",
+)
+_FIELDS_TRACK_SCORE = _FIELDS_TRACK + ("score",)
+
+_STRING_FIELDS = frozenset({"type"})
+_INT_FIELDS = ("frame", "track_id")
+_DIM_FIELDS = ("h", "w", "l")
+
+
+class _Text(NamedTuple):
+    path: str
+    lines: list[str]
+    line_numbers: list[int]
+
+
+def _read_text(path) -> _Text:
+    p = str(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            raw = f.read().split("\n")
+    except FileNotFoundError:
+        raise KittiFormatError(p, None, None, "file not found") from None
+    except IsADirectoryError:
+        raise KittiFormatError(p, None, None, "is a directory, not a file") from None
+    except UnicodeDecodeError as e:
+        raise KittiFormatError(p, None, None, f"not UTF-8 text ({e.reason} at byte {e.start})") from None
+    numbers = [i for i, s in enumerate(raw, 1) if s and not s.isspace()]
+    lines = raw if len(numbers) == len(raw) else [raw[i - 1] for i in numbers]
+    return _Text(p, lines, numbers)
+
+
+def _quoted(token: str) -> str:
+    return repr(token.strip())
+
+
+def _fmt_value(v: float) -> str:
+    if math.isfinite(v) and v == int(v) and abs(v) < 1e15:
+        return str(int(v))
+    return f"{v:g}"
+
+
+def _columns_message(layouts: dict, sep: str | None, got: int) -> str:
+    counts = sorted(n for (s, n) in layouts if s == sep)
+    if not counts:
+        counts = sorted({n for (_, n) in layouts})
+    kind = "comma-separated" if sep == "," else "whitespace-separated"
+    want = " or ".join(str(n) for n in counts)
+    return f"expected {want} {kind} columns, got {got}"
+
+
+def _parse_table(path, layouts: dict, check_dims: bool) -> tuple[tuple[str, ...], dict[str, np.ndarray]]:
+    """Parse a one-record-a-line table.
+
+    ``layouts`` maps ``(separator, column count)`` (separator ``","`` or ``None`` for whitespace)
+    to the field names of that layout. Returns the field names of the layout found and a dict
+    field -> array ([R] float64, [R] int64 for frame/track_id, [R] object for string fields).
+    """
+    text = _read_text(path)
+    lines = text.lines
+    if not lines:
+        fields = next(iter(layouts.values()))
+        return fields, _empty_columns(fields)
+
+    first = lines[0]
+    sep = "," if ("," in first and any(s == "," for (s, _) in layouts)) else None
+    ncols = first.count(",") + 1 if sep == "," else len(first.split())
+    fields = layouts.get((sep, ncols))
+    if fields is None:
+        raise KittiFormatError(text.path, text.line_numbers[0], "columns", _columns_message(layouts, sep, ncols))
+
+    if sep == ",":
+        counts = [s.count(",") + 1 for s in lines]
+        bad = _first_mismatch(counts, ncols)
+        n_ok = len(lines) if bad is None else bad
+        tokens = ",".join(lines[:n_ok]).split(",") if n_ok else []
+    else:
+        tokens = []
+        counts = []
+        for s in lines:
+            parts = s.split()
+            counts.append(len(parts))
+            tokens += parts
+        bad = _first_mismatch(counts, ncols)
+        n_ok = len(lines) if bad is None else bad
+        if bad is not None:
+            del tokens[n_ok * ncols:]
+
+    columns = _convert(text, fields, tokens, n_ok, check_dims)
+    if bad is not None:
+        raise KittiFormatError(
+            text.path, text.line_numbers[bad], "columns", _columns_message({(sep, ncols): fields}, sep, counts[bad])
+        )
+    return fields, columns
+
+
+def _first_mismatch(counts: list[int], n: int) -> int | None:
+    c = np.asarray(counts)
+    bad = np.flatnonzero(c != n)
+    return int(bad[0]) if bad.size else None
+
+
+def _empty_columns(fields: Sequence[str]) -> dict[str, np.ndarray]:
+    out = {}
+    for name in fields:
+        if name in _STRING_FIELDS:
+            out[name] = np.empty(0, dtype=object)
+        elif name in _INT_FIELDS:
+            out[name] = np.empty(0, dtype=np.int64)
+        else:
+            out[name] = np.empty(0, dtype=np.float64)
+    return out
+
+
+def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, check_dims: bool) -> dict[str, np.ndarray]:
+    ncols = len(fields)
+    if nrows == 0:
+        return _empty_columns(fields)
+    numeric = [i for i, name in enumerate(fields) if name not in _STRING_FIELDS]
+    values = np.empty((nrows, len(numeric)), dtype=np.float64)
+    unparsable = None
+    for j, i in enumerate(numeric):
+        col = tokens[i::ncols]
+        try:
+            values[:, j] = np.array(col, dtype=np.float64)
+        except ValueError:
+            for r, tok in enumerate(col):
+                try:
+                    values[r, j] = float(tok)
+                except ValueError:
+                    values[r, j] = np.nan
+                    if unparsable is None:
+                        unparsable = np.zeros(values.shape, dtype=bool)
+                    unparsable[r, j] = True
+
+    problems: list[tuple[int, int, str, str]] = []
+
+    def token(r: int, name: str) -> str:
+        return tokens[r * ncols + fields.index(name)]
+
+    nonfinite = ~np.isfinite(values)
+    if nonfinite.any():
+        r, j = divmod(int(np.argmax(nonfinite)), values.shape[1])
+        name = fields[numeric[j]]
+        what = "not a number" if unparsable is not None and unparsable[r, j] else "not finite"
+        problems.append((r, 0, name, f"{what}: {_quoted(token(r, name))}"))
+
+    col = {name: values[:, j] for j, name in ((j, fields[i]) for j, i in enumerate(numeric))}
+
+    def first(mask: np.ndarray) -> int | None:
+        if mask.any():
+            return int(np.argmax(mask))
+        return None
+
+    for name in _INT_FIELDS:
+        if name in col:
+            v = col[name]
+            r = first(np.isfinite(v) & (v != np.floor(v)))
+            if r is not None:
+                problems.append((r, 1, name, f"not an integer: {_quoted(token(r, name))}"))
+
+    frame = col["frame"]
+    r = first(frame < 0)
+    if r is not None:
+        problems.append((r, 2, "frame", f"negative frame {_quoted(token(r, 'frame'))}"))
+    r = first(frame[1:] < frame[:-1])
+    if r is not None:
+        r += 1
+        problems.append(
+            (r, 3, "frame", f"frames not sorted: {_fmt_value(frame[r])} after {_fmt_value(frame[r - 1])}")
+        )
+
+    for prio, (lo, hi) in enumerate((("x1", "x2"), ("y1", "y2")), start=4):
+        r = first(col[hi] < col[lo])
+        if r is not None:
+            problems.append(
+                (r, prio, hi, f"{hi} < {lo} ({_fmt_value(col[hi][r])} < {_fmt_value(col[lo][r])})")
+            )
+
+    if check_dims:
+        dims = np.stack([col[d] for d in _DIM_FIELDS], axis=1)
+        neg = dims < 0
+        if neg.any():
+            r, j = divmod(int(np.argmax(neg)), 3)
+            name = _DIM_FIELDS[j]
+            problems.append((r, 6, name, f"negative 3D size {name} = {_quoted(token(r, name))}"))
+
+    strings = {}
+    for i, name in enumerate(fields):
+        if name in _STRING_FIELDS:
+            vals = [s.strip() for s in tokens[i::ncols]]
+            r = next((k for k, s in enumerate(vals) if not s), None)
+            if r is not None:
+                problems.append((r, 7, name, "empty"))
+            arr = np.empty(nrows, dtype=object)
+            arr[:] = vals
+            strings[name] = arr
+
+    if problems:
+        r, _, name, message = min(problems, key=lambda p: (p[0], p[1]))
+        raise KittiFormatError(text.path, text.line_numbers[r], name, message)
+
+    out: dict[str, np.ndarray] = {}
+    for name in fields:
+        if name in strings:
+            out[name] = strings[name]
+        elif name in _INT_FIELDS:
+            out[name] = col[name].astype(np.int64)
+        else:
+            out[name] = col[name]
+    return out
+
+
+def _stack(c: dict[str, np.ndarray], names: Sequence[str]) -> np.ndarray:
+    return np.stack([c[n] for n in names], axis=1)
+
+
+def read_detections_2d(path) -> Detections2D:
+    """Read 2D detections ``frame,x1,y1,x2,y2,score`` (comma- or whitespace-separated).
+
+    Returns frame [R] int64, box [R, 4] float64, score [R] float64.
+    """
+    layouts = {(",", 6): _FIELDS_2D, (None, 6): _FIELDS_2D}
+    _, c = _parse_table(path, layouts, check_dims=False)
+    return Detections2D(frame=c["frame"], box=_stack(c, ("x1", "y1", "x2", "y2")), score=c["score"])
+
+
+def read_detections_3d(path) -> Detections3D:
+    """Read 3D detections in one of three layouts, detected from the first non-empty line.
+
+    (a) 15 comma-separated columns ``frame,type,x1,y1,x2,y2,score,h,w,l,x,y,z,rot_y,alpha``;
+    (b) the same 15 columns whitespace-separated; (c) KITTI label layout, 17 whitespace-separated
+    columns ``frame type truncated occluded alpha x1 y1 x2 y2 h w l x y z rot_y score``.
+    Returns frame [R], type [R], box [R, 4], score [R], dims [R, 3], loc [R, 3], rot_y [R], alpha [R].
+    """
+    layouts = {(",", 15): _FIELDS_3D, (None, 15): _FIELDS_3D, (None, 17): _FIELDS_3D_LABEL}
+    _, c = _parse_table(path, layouts, check_dims=True)
+    return Detections3D(
+        frame=c["frame"],
+        type=c["type"],
+        box=_stack(c, ("x1", "y1", "x2", "y2")),
+        score=c["score"],
+        dims=_stack(c, ("h", "w", "l")),
+        loc=_stack(c, ("x", "y", "z")),
+        rot_y=c["rot_y"],
+        alpha=c["alpha"],
+    )
+
+
+def read_tracking_labels(path) -> TrackingLabels:
+    """Read KITTI tracking labels (17 columns) or results (18 columns, with score).
+
+    Columns ``frame track_id type truncated occluded alpha x1 y1 x2 y2 h w l x y z rot_y [score]``,
+    whitespace-separated. Negative 3D sizes are allowed (``DontCare`` rows have ``-1``).
+    Returns [R] / [R, 4] / [R, 3] arrays as described in :class:`TrackingLabels`.
+    """
+    layouts = {(None, 17): _FIELDS_TRACK, (None, 18): _FIELDS_TRACK_SCORE}
+    fields, c = _parse_table(path, layouts, check_dims=False)
+    score = c["score"] if "score" in fields else np.full(len(c["frame"]), np.nan)
+    return TrackingLabels(
+        frame=c["frame"],
+        track_id=c["track_id"],
+        type=c["type"],
+        truncated=c["truncated"],
+        occluded=c["occluded"],
+        alpha=c["alpha"],
+        box=_stack(c, ("x1", "y1", "x2", "y2")),
+        dims=_stack(c, ("h", "w", "l")),
+        loc=_stack(c, ("x", "y", "z")),
+        rot_y=c["rot_y"],
+        score=score,
+    )
+
+
+_CALIB_NAMES = {
+    "P0": "P0",
+    "P1": "P1",
+    "P2": "P2",
+    "P3": "P3",
+    "R0_rect": "R0_rect",
+    "R_rect": "R0_rect",
+    "Tr_velo_to_cam": "Tr_velo_to_cam",
+    "Tr_velo_cam": "Tr_velo_to_cam",
+    "Tr_imu_to_velo": "Tr_imu_to_velo",
+    "Tr_imu_velo": "Tr_imu_to_velo",
+}
+_CALIB_SHAPES = {
+    "P0": (3, 4),
+    "P1": (3, 4),
+    "P2": (3, 4),
+    "P3": (3, 4),
+    "R0_rect": (3, 3),
+    "Tr_velo_to_cam": (3, 4),
+    "Tr_imu_to_velo": (3, 4),
+}
+_CALIB_ALIASES = {"R0_rect": "R_rect", "Tr_velo_to_cam": "Tr_velo_cam", "Tr_imu_to_velo": "Tr_imu_velo"}
+
+
+def read_calib(path) -> Calib:
+    """Read a KITTI calibration file: one matrix a line, ``NAME: v v ...`` (the colon is optional).
+
+    ``P2``, ``R0_rect`` (or ``R_rect``) and ``Tr_velo_to_cam`` (or ``Tr_velo_cam``) are required;
+    ``P0``, ``P1``, ``P3`` and ``Tr_imu_to_velo`` (or ``Tr_imu_velo``) are zeros when absent.
+    Unknown names are ignored. Returns P2 [3, 4], R0_rect [3, 3], Tr_velo_to_cam [3, 4],
+    P [4, 3, 4], Tr_imu_to_velo [3, 4].
+    """
+    text = _read_text(path)
+    found: dict[str, tuple[int, np.ndarray]] = {}
+    for line_no, s in zip(text.line_numbers, text.lines):
+        if ":" in s:
+            name, rest = s.split(":", 1)
+        else:
+            name, _, rest = s.strip().partition(" ")
+        name = name.strip()
+        key = _CALIB_NAMES.get(name)
+        if key is None:
+            continue
+        if key in found:
+            raise KittiFormatError(text.path, line_no, name, f"defined twice (first on line {found[key][0]})")
+        tokens = rest.split()
+        shape = _CALIB_SHAPES[key]
+        size = shape[0] * shape[1]
+        if len(tokens) != size:
+            raise KittiFormatError(text.path, line_no, name, f"expected {size} values, got {len(tokens)}")
+        vals = np.empty(size, dtype=np.float64)
+        for k, tok in enumerate(tokens):
+            try:
+                vals[k] = float(tok)
+            except ValueError:
+                raise KittiFormatError(text.path, line_no, name, f"value {k + 1} is not a number: {tok!r}") from None
+            if not math.isfinite(vals[k]):
+                raise KittiFormatError(text.path, line_no, name, f"value {k + 1} is not finite: {tok!r}")
+        found[key] = (line_no, vals.reshape(shape))
+
+    for key in ("P2", "R0_rect", "Tr_velo_to_cam"):
+        if key not in found:
+            alias = _CALIB_ALIASES.get(key)
+            message = "missing" if alias is None else f"missing (also looked for '{alias}')"
+            raise KittiFormatError(text.path, None, key, message)
+
+    def get(key: str) -> np.ndarray:
+        return found[key][1] if key in found else np.zeros(_CALIB_SHAPES[key])
+
+    P = np.stack([get(f"P{k}") for k in range(4)])
+    return Calib(
+        P2=get("P2"),
+        R0_rect=get("R0_rect"),
+        Tr_velo_to_cam=get("Tr_velo_to_cam"),
+        P=P,
+        Tr_imu_to_velo=get("Tr_imu_to_velo"),
+    )
+
+
+def _format_column(v: np.ndarray) -> list[str]:
+    if v.size and np.all(v == np.round(v)) and np.all(np.abs(v) < 1e15):
+        return [str(x) for x in v.astype(np.int64).tolist()]
+    return [_fmt_value(x) for x in v.tolist()]
+
+
+def _as_float(name: str, value, shape: tuple[int, ...], default: float) -> np.ndarray:
+    if value is None:
+        return np.full(shape, default, dtype=np.float64)
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"write_tracking_results: {name} must be numeric") from None
+    if arr.shape != shape:
+        raise ValueError(f"write_tracking_results: {name} has shape {arr.shape}, expected {shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"write_tracking_results: {name} has non-finite values")
+    return arr
+
+
+def _as_int(name: str, value, n: int) -> np.ndarray:
+    arr = np.asarray(value)
+    if arr.shape != (n,):
+        raise ValueError(f"write_tracking_results: {name} has shape {arr.shape}, expected ({n},)")
+    if arr.dtype.kind not in "iu":
+        f = arr.astype(np.float64)
+        if not np.all(np.isfinite(f) & (f == np.round(f))):
+            raise ValueError(f"write_tracking_results: {name} must be integers")
+    return arr.astype(np.int64)
+
+
+def write_tracking_results(
+    path,
+    frame,
+    track_id,
+    box,
+    type_name="Car",
+    alpha=None,
+    dims=None,
+    loc=None,
+    rot_y=None,
+    score=None,
+) -> None:
+    """Write KITTI tracking result lines ``frame id type -1 -1 alpha x1 y1 x2 y2 h w l x y z ry score``.
+
+    frame, track_id: [R] integers (frames non-negative and ascending); box: [R, 4] ``x1, y1, x2, y2``;
+    type_name: a str or [R] strs; alpha [R], dims [R, 3] ``h, w, l``, loc [R, 3], rot_y [R],
+    score [R]; None gives alpha -10, dims -1 -1 -1, loc -1000 -1000 -1000, rot_y -10, score 1.
+    Rows are written in the given order; integer values print as integers, others like ``%g``.
+    Parent directories are created; no rows gives an empty file. Raises ValueError for inputs that
+    :func:`read_tracking_labels` would reject.
+    """
+    box_arr = np.asarray(box, dtype=np.float64)
+    if box_arr.ndim != 2 or box_arr.shape[1] != 4:
+        if not (box_arr.size == 0 and box_arr.ndim <= 2):
+            raise ValueError(f"write_tracking_results: box has shape {box_arr.shape}, expected (R, 4)")
+        box_arr = box_arr.reshape(0, 4)
+    n = box_arr.shape[0]
+    frame_arr = _as_int("frame", frame, n)
+    id_arr = _as_int("track_id", track_id, n)
+    box_arr = _as_float("box", box_arr, (n, 4), 0.0)
+    if np.any(frame_arr < 0):
+        raise ValueError("write_tracking_results: negative frame")
+    if np.any(frame_arr[1:] < frame_arr[:-1]):
+        raise ValueError("write_tracking_results: frames must be in ascending order (sort rows by frame)")
+    if np.any(box_arr[:, 2] < box_arr[:, 0]) or np.any(box_arr[:, 3] < box_arr[:, 1]):
+        raise ValueError("write_tracking_results: box with x2 < x1 or y2 < y1")
+
+    if isinstance(type_name, str):
+        types = [type_name] * n
+    else:
+        types = [str(t) for t in np.asarray(type_name, dtype=object).reshape(-1).tolist()]
+        if len(types) != n:
+            raise ValueError(f"write_tracking_results: type_name has {len(types)} entries, expected {n}")
+    for t in set(types):
+        if not t or any(ch.isspace() for ch in t):
+            raise ValueError(f"write_tracking_results: bad type name {t!r}")
+
+    alpha_arr = _as_float("alpha", alpha, (n,), -10.0)
+    dims_arr = _as_float("dims", dims, (n, 3), -1.0)
+    loc_arr = _as_float("loc", loc, (n, 3), -1000.0)
+    rot_arr = _as_float("rot_y", rot_y, (n,), -10.0)
+    score_arr = _as_float("score", score, (n,), 1.0)
+
+    cols = [
+        [str(x) for x in frame_arr.tolist()],
+        [str(x) for x in id_arr.tolist()],
+        types,
+        ["-1"] * n,
+        ["-1"] * n,
+        _format_column(alpha_arr),
+        *(_format_column(box_arr[:, k]) for k in range(4)),
+        *(_format_column(dims_arr[:, k]) for k in range(3)),
+        *(_format_column(loc_arr[:, k]) for k in range(3)),
+        _format_column(rot_arr),
+        _format_column(score_arr),
+    ]
+    body = "".join(" ".join(row) + "\n" for row in zip(*cols))
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with open(out, "w", encoding="utf-8", newline="\n") as f:
+        f.write(body)
+
+
+def sequence_lengths(root, sequences=None) -> dict[str, int]:
+    """Frames per sequence of a KITTI tracking root: ``max frame in label_02/SSSS.txt + 1``.
+
+    ``sequences`` are names (``"0000"``) or ints; default every ``label_02/*.txt``, sorted.
+    A label file with no rows gives 0. Returns {name: length}.
+    """
+    label_dir = Path(root) / "label_02"
+    if sequences is None:
+        names = sorted(p.stem for p in label_dir.glob("*.txt"))
+    else:
+        names = [f"{s:04d}" if isinstance(s, (int, np.integer)) else str(s) for s in sequences]
+    out = {}
+    for name in names:
+        frame = read_tracking_labels(label_dir / f"{name}.txt").frame
+        out[name] = int(frame.max()) + 1 if frame.size else 0
+    return out
