@@ -23,7 +23,7 @@ class Memory(NamedTuple):
 
     alive [N] bool; tid [N] int32 track id; age [N] int32 frames since the last match;
     hits [N] int32 matches including the birth; has3d [N] bool (3D filter started);
-    filt: FilterState with p, v, a [N, 10] (cov [6, N, 10] for the Kalman filter);
+    filt: FilterState with p, v, a [N, 10] float64 (cov [6, N, 10] for the Kalman filter);
     next_id [] int32; overflow [] int32 births dropped for want of a slot (cumulative);
     peak [] int32 largest number of live tracks seen (capacity headroom).
     """
@@ -41,8 +41,8 @@ class Memory(NamedTuple):
 
 def empty(capacity: int, kalman: bool) -> Memory:
     n = capacity
-    zeros = jnp.zeros((n, N_COORDS), jnp.float32)
-    cov = jnp.zeros((6, n, N_COORDS), jnp.float32) if kalman else jnp.zeros((0,), jnp.float32)
+    zeros = jnp.zeros((n, N_COORDS), jnp.float64)
+    cov = jnp.zeros((6, n, N_COORDS), jnp.float64) if kalman else jnp.zeros((0,), jnp.float64)
     return Memory(
         alive=jnp.zeros(n, bool), tid=jnp.zeros(n, jnp.int32), age=jnp.zeros(n, jnp.int32),
         hits=jnp.zeros(n, jnp.int32), has3d=jnp.zeros(n, bool), filt=FilterState(zeros, zeros, zeros, cov),
@@ -74,7 +74,7 @@ def gather_rows(assign, values):
     mask = assign.reshape(assign.shape + (1,) * (values.ndim - 1))
     if values.dtype == jnp.bool_:
         return jnp.any(mask & values[:, None], axis=0)
-    return jnp.sum(jnp.where(mask, values[:, None], 0), axis=0)
+    return jnp.sum(jnp.where(mask, values[:, None], 0), axis=0, dtype=values.dtype)
 
 
 def end_of_frame(mem: Memory, epsilon) -> Memory:

@@ -1,8 +1,8 @@
 """DFR-FastMOT for one configuration, in plain NumPy and Python loops: the test oracle.
 
-Written for clarity, following ``docs/dfr-fastmot-spec.md`` step by step. Numbers that the
-authors' code keeps in float32 (filter states, 3D boxes) are float32 here too, so that the JAX
-tracker can be compared id for id.
+Written for clarity, following ``docs/dfr-fastmot-spec.md`` step by step. Detections, scores
+and parameters are float32 as parsed; arithmetic (IoU, distances, costs, filters) is float64, as
+in the JAX tracker, so that the two can be compared id for id.
 """
 
 from __future__ import annotations
@@ -16,6 +16,14 @@ from .geometry import project_box3d_to_image
 from .params import Options, Params
 
 F32 = np.float32
+F64 = np.float64
+
+
+def p32(x) -> F64:
+    """A parameter as the JAX tracker sees it: float32, then promoted to float64."""
+    return F64(F32(x))
+
+
 # White-noise-jerk process noise of a constant-acceleration model, dt = 1 frame (position, velocity, acceleration).
 Q_JERK = np.array([[1 / 20, 1 / 8, 1 / 6], [1 / 8, 1 / 3, 1 / 2], [1 / 6, 1 / 2, 1.0]], dtype=np.float64)
 
@@ -24,9 +32,9 @@ Q_JERK = np.array([[1 / 20, 1 / 8, 1 / 6], [1 / 8, 1 / 3, 1 / 2], [1 / 6, 1 / 2,
 class Obj:
     """One object of the current frame: a 2D box, and maybe a 3D box."""
 
-    box: np.ndarray               # [4] float32 x1, y1, x2, y2
-    lo3: np.ndarray | None        # [3] float32 internal 3D box min corner
-    hi3: np.ndarray | None        # [3] float32 max corner
+    box: np.ndarray               # [4] float64 (float32 values) x1, y1, x2, y2
+    lo3: np.ndarray | None        # [3] float64 (float32 values) internal 3D box min corner
+    hi3: np.ndarray | None        # [3] max corner
     kind: str                     # "2d" (row of the 2D file) or "3d" (unmatched 3D detection)
     index: int                    # file row of the detection it came from
 
@@ -49,18 +57,17 @@ class Track:
     f3: CoordFilter | None            # 6 coords: min corner, max corner (None until a 3D observation)
     age: int = 0                      # frames since the last match
     hits: int = 1
-    out_box: np.ndarray = field(default_factory=lambda: np.zeros(4, F32))
+    out_box: np.ndarray = field(default_factory=lambda: np.zeros(4, F64))
 
 
-def iou(a: np.ndarray, b: np.ndarray) -> F32:
-    """IoU of two x1, y1, x2, y2 boxes in float32 (0 when the union is empty)."""
-    iw = max(F32(0), F32(min(a[2], b[2]) - max(a[0], b[0])))
-    ih = max(F32(0), F32(min(a[3], b[3]) - max(a[1], b[1])))
-    inter = F32(iw * ih)
-    area_a = F32((a[2] - a[0]) * (a[3] - a[1]))
-    area_b = F32((b[2] - b[0]) * (b[3] - b[1]))
-    union = F32(area_a + area_b - inter)
-    return F32(inter / union) if union > 0 else F32(0)
+def iou(a: np.ndarray, b: np.ndarray) -> F64:
+    """IoU of two x1, y1, x2, y2 boxes in float64 (0 when the union is empty)."""
+    a = a.astype(F64); b = b.astype(F64)
+    iw = max(F64(0), min(a[2], b[2]) - max(a[0], b[0]))
+    ih = max(F64(0), min(a[3], b[3]) - max(a[1], b[1]))
+    inter = iw * ih
+    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+    return inter / union if union > 0 else F64(0)
 
 
 def predicted_box(p: np.ndarray, truncate: bool) -> np.ndarray:
@@ -68,8 +75,8 @@ def predicted_box(p: np.ndarray, truncate: bool) -> np.ndarray:
     if truncate:
         x = np.trunc(p[0]); y = np.trunc(p[1])
         w = np.trunc(np.abs(x - p[2])); h = np.trunc(np.abs(y - p[3]))
-        return np.array([x, y, x + w, y + h], F32)
-    return np.array([p[0], p[1], p[0] + np.abs(p[2] - p[0]), p[1] + np.abs(p[3] - p[1])], F32)
+        return np.array([x, y, x + w, y + h], F64)
+    return np.array([p[0], p[1], p[0] + np.abs(p[2] - p[0]), p[1] + np.abs(p[3] - p[1])], F64)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -80,31 +87,31 @@ def filter_init(z: np.ndarray, params: Params, options: Options) -> CoordFilter:
     k = z.shape[0]
     cov = None
     if options.filter == "kalman":
-        cov = np.zeros((6, k), F32)
-        cov[0] = F32(params.kf_r); cov[3] = F32(params.kf_p0); cov[5] = F32(params.kf_p0)
-    return CoordFilter(z.astype(F32).copy(), np.zeros(k, F32), np.zeros(k, F32), cov)
+        cov = np.zeros((6, k), F64)
+        cov[0] = p32(params.kf_r); cov[3] = p32(params.kf_p0); cov[5] = p32(params.kf_p0)
+    return CoordFilter(z.astype(F64).copy(), np.zeros(k, F64), np.zeros(k, F64), cov)
 
 
 def filter_update(f: CoordFilter, z: np.ndarray, params: Params, options: Options) -> None:
-    r = z.astype(F32) - f.p
+    r = z.astype(F64) - f.p
     if options.filter == "fixed_gain":
-        ka, kb, kc = F32(params.gain_alpha), F32(params.gain_beta), F32(2) * F32(params.gain_gamma)
+        ka, kb, kc = p32(params.gain_alpha), p32(params.gain_beta), F64(2) * p32(params.gain_gamma)
         f.p = f.p + ka * r
         f.v = f.v + kb * r
         f.a = f.a + kc * r
         return
     p00, p01, p02, p11, p12, p22 = f.cov
-    s = p00 + F32(params.kf_r)
+    s = p00 + p32(params.kf_r)
     k0, k1, k2 = p00 / s, p01 / s, p02 / s
     f.p = f.p + k0 * r
     f.v = f.v + k1 * r
     f.a = f.a + k2 * r
     f.cov = np.stack([p00 - k0 * p00, p01 - k0 * p01, p02 - k0 * p02,
-                      p11 - k1 * p01, p12 - k1 * p02, p22 - k2 * p02]).astype(F32)
+                      p11 - k1 * p01, p12 - k1 * p02, p22 - k2 * p02])
 
 
 def filter_predict(f: CoordFilter, params: Params, options: Options) -> None:
-    half = F32(0.5)
+    half = F64(0.5)
     f.p = f.p + f.v + half * f.a
     f.v = f.v + f.a
     if options.filter == "kalman":
@@ -112,8 +119,8 @@ def filter_predict(f: CoordFilter, params: Params, options: Options) -> None:
         # F P F^T for F = [[1, 1, 1/2], [0, 1, 1], [0, 0, 1]], plus q * Q_JERK
         r00 = a + b + half * c; r01 = b + d + half * e; r02 = c + e + half * g
         r11 = d + e; r12 = e + g
-        q = F32(params.kf_q)
-        qj = Q_JERK.astype(F32)
+        q = p32(params.kf_q)
+        qj = Q_JERK
         f.cov = np.stack([
             r00 + r01 + half * r02 + q * qj[0, 0],
             r01 + r02 + q * qj[0, 1],
@@ -121,7 +128,7 @@ def filter_predict(f: CoordFilter, params: Params, options: Options) -> None:
             r11 + r12 + q * qj[1, 1],
             r12 + q * qj[1, 2],
             g + q * qj[2, 2],
-        ]).astype(F32)
+        ])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -140,17 +147,18 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
 
     def box2(i):
         b = d2.box[i]
-        return (truncate_2d_box(b) if options.truncate else b).astype(F32)
+        return (truncate_2d_box(b) if options.truncate else b).astype(F32).astype(F64)
 
     def box3(j):
         if options.merge == "calib_projection" or options.modality == "3d":
             b = project_box3d_to_image(d3.dims[j], d3.loc[j], d3.rot_y[j], seq.calib.P2, image_size)
         else:
             b = d3.box[j]
-        return (truncate_3d_box(b) if options.truncate else b).astype(F32)
+        return (truncate_3d_box(b) if options.truncate else b).astype(F32).astype(F64)
 
     def extent3(j):
-        return box3d_extent(d3.dims[j], d3.loc[j], options.centroid)
+        lo, hi = box3d_extent(d3.dims[j], d3.loc[j], options.centroid)
+        return lo.astype(F64), hi.astype(F64)
 
     b2 = [box2(i) for i in rows2]
     b3 = [box3(j) for j in rows3]
@@ -161,8 +169,8 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
     # Greedy de-duplication: first strict maximum in row-major order, while IoU > merge_iou.
     pair_of_2 = [-1] * len(rows2)
     taken3 = [False] * len(rows3)
-    m = np.array([[iou(a, b) for b in b3] for a in b2], dtype=F32).reshape(len(b2), len(b3))
-    thr = F32(params.merge_iou)
+    m = np.array([[iou(a, b) for b in b3] for a in b2], dtype=F64).reshape(len(b2), len(b3))
+    thr = p32(params.merge_iou)
     while m.size:
         best, bi, bj = thr, -1, -1
         for i in range(m.shape[0]):
@@ -192,29 +200,30 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
 
 def cost_matrix(objects: list[Obj], tracks: list[Track], params: Params, options: Options) -> np.ndarray:
     """[O, N] cost 1 - M_f = alpha_c (1 - IoU') + alpha_l min(d, a_l) / a_l."""
-    ac, al = F32(params.alpha_c), F32(1) - F32(params.alpha_c)
-    a_l = F32(params.a_l)
-    c = np.zeros((len(objects), len(tracks)), F32)
+    ac = p32(params.alpha_c)
+    al = F64(1) - ac
+    a_l = p32(params.a_l)
+    c = np.zeros((len(objects), len(tracks)), F64)
     for j, trk in enumerate(tracks):
         pbox = predicted_box(trk.f2.p, options.truncate)
         if trk.f3 is not None:
-            tc = (trk.f3.p[:3] + trk.f3.p[3:]) / F32(2)
+            tc = (trk.f3.p[:3] + trk.f3.p[3:]) / F64(2)
         for i, obj in enumerate(objects):
-            iou_c = F32(0)
+            iou_c = F64(0)
             if trk.age <= params.epsilon:
                 iou_c = iou(obj.box, pbox)
-                if iou_c < F32(params.a_c):
-                    iou_c = F32(0)
-            m_l = F32(1)
+                if iou_c < p32(params.a_c):
+                    iou_c = F64(0)
+            m_l = F64(1)
             if obj.lo3 is not None and trk.f3 is not None:
-                oc = (obj.lo3 + obj.hi3) / F32(2)
-                d = F32(np.sqrt(np.sum((oc - tc) ** 2, dtype=F32), dtype=F32))
+                dx, dy, dz = (obj.lo3 + obj.hi3) / F64(2) - tc
+                d = np.sqrt(dx * dx + dy * dy + dz * dz)
                 m_l = min(d, a_l) / a_l
-            c[i, j] = ac * (F32(1) - iou_c) + al * m_l
+            c[i, j] = ac * (F64(1) - iou_c) + al * m_l
     return c
 
 
-def greedy_match(cost: np.ndarray, track_ids: list[int], limit: F32) -> list[tuple[int, int]]:
+def greedy_match(cost: np.ndarray, track_ids: list[int], limit: F64) -> list[tuple[int, int]]:
     """Repeatedly take the smallest entry (ties: smaller track id, then smaller row) while < limit."""
     cost = cost.copy()
     pairs = []
@@ -243,7 +252,7 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
     tracks: list[Track] = []
     next_id = 0
     rows = []
-    limit = F32(1) - F32(params.a_f)
+    limit = F64(1) - p32(params.a_f)
     for t in range(seq.n_frames):
         objects = frame_objects(seq, t, params, options, image_size)
         pairs = []
@@ -296,7 +305,7 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
         else:
             for trk in sorted(tracks, key=lambda k: k.id):
                 if trk.hits >= params.min_hits and trk.age <= params.keep_lost:
-                    rows.append((t, trk.id, *[float(v) for v in trk.out_box], "track", -1))
+                    rows.append((t, trk.id, *[float(F32(v)) for v in trk.out_box], "track", -1))
 
         # End of frame: forget tracks unmatched for more than epsilon frames, age the others.
         tracks = [trk for trk in tracks if trk.age <= params.epsilon]

@@ -39,29 +39,42 @@ def init(options: Options, capacity: int) -> Memory:
     return memory.empty(capacity, options.filter == "kalman")
 
 
+def _f64(params: Params) -> Params:
+    return Params(*(v.astype(jnp.float64) if jnp.issubdtype(v.dtype, jnp.floating) else v for v in params))
+
+
 def _objects(params: Params, frame: Frames, options: Options):
-    """This frame's objects: box [O, 4], z3 [O, 6] (3D min, max corners), has3d [O], valid [O]."""
+    """This frame's objects: box [O, 4], z3 [O, 6] (3D min, max corners), has3d [O], valid [O].
+
+    Scores are compared in float32 (as parsed); boxes and corners come out in float64.
+    """
     keep2 = frame.valid2 & (frame.score2 >= params.score_2d)
     keep3 = frame.valid3 & (frame.score3 >= params.score_3d)
-    z3 = jnp.concatenate([frame.lo3, frame.hi3], axis=-1)
+    box2 = frame.box2.astype(jnp.float64)
+    box3 = frame.box3.astype(jnp.float64)
+    z3 = jnp.concatenate([frame.lo3, frame.hi3], axis=-1).astype(jnp.float64)
     if options.modality == "2d":
-        return frame.box2, jnp.zeros((keep2.shape[0], 6), jnp.float32), jnp.zeros_like(keep2), keep2
+        return box2, jnp.zeros((keep2.shape[0], 6), jnp.float64), jnp.zeros_like(keep2), keep2
     if options.modality == "3d":
-        return frame.box3, z3, keep3, keep3
-    pair = associate.greedy_max(associate.iou_matrix(frame.box2, frame.box3),
+        return box3, z3, keep3, keep3
+    pair = associate.greedy_max(associate.iou_matrix(box2, box3),
                                 keep2[:, None] & keep3[None, :], params.merge_iou)
     paired2 = jnp.any(pair, axis=1)
     lone3 = keep3 & ~jnp.any(pair, axis=0)
     z3_of_2 = jnp.sum(jnp.where(pair[:, :, None], z3[None, :, :], 0.0), axis=1)
-    return (jnp.concatenate([frame.box2, frame.box3]), jnp.concatenate([z3_of_2, z3]),
+    return (jnp.concatenate([box2, box3]), jnp.concatenate([z3_of_2, z3]),
             jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]))
 
 
 def step(params: Params, mem: Memory, frame: Frames, options: Options):
-    """One frame: de-duplicate, associate, update memory and filters, write, age. Returns (mem, out)."""
+    """One frame: de-duplicate, associate, update memory and filters, write, age. Returns (mem, out).
+
+    Runs under ``jax.enable_x64``: arithmetic in float64, scores and thresholds in float32.
+    """
     kind = options.filter
     mem = memory.reset(mem, frame.reset)
     box, z3, has3, valid = _objects(params, frame, options)
+    params = _f64(params)
 
     # Association on the tracks' predictions.
     f = mem.filt
@@ -106,14 +119,15 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options):
 
     writable = hits >= params.min_hits
     if options.output == "detections":
-        obj_id = jnp.sum(jnp.where(match, tid[None, :], 0), axis=1) + jnp.where(newborn, born_id, 0)
-        obj_hits = jnp.sum(jnp.where(assign, hits[None, :], 0), axis=1) + jnp.where(newborn & ~jnp.any(birth, 1), 1, 0)
+        obj_id = jnp.sum(jnp.where(match, tid[None, :], 0), axis=1, dtype=jnp.int32) + jnp.where(newborn, born_id, 0)
+        obj_hits = (jnp.sum(jnp.where(assign, hits[None, :], 0), axis=1, dtype=jnp.int32)
+                    + jnp.where(newborn & ~jnp.any(birth, 1), 1, 0))
         ids = jnp.where(valid & (obj_hits >= params.min_hits), obj_id, -1)
         out = StepOutput(ids, jnp.zeros((0,), jnp.float32), dropped)
     else:
         shown = jnp.where(born[:, None], z[:, :4], jnp.where(matched_obj[:, None], updated.p[:, :4], f.p[:, :4]))
         ids = jnp.where(alive & writable & (age <= params.keep_lost), tid, -1)
-        out = StepOutput(ids, shown, dropped)
+        out = StepOutput(ids, shown.astype(jnp.float32), dropped)
     return memory.end_of_frame(mem, params.epsilon), out
 
 
@@ -167,7 +181,8 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
     leaves = [np.concatenate([np.broadcast_to(v, (b,)), np.repeat(np.broadcast_to(v, (b,))[-1:], pad)])
               for v in leaves]
     p = Params(*(jnp.asarray(v, jnp.int32 if v.dtype.kind in "iu" else jnp.float32) for v in leaves))
-    fn = _compiled(options, capacity, n_dev)
-    out, overflow, peak = fn(p, Frames(*(jnp.asarray(x) for x in frames)))
+    with jax.enable_x64(True):
+        fn = _compiled(options, capacity, n_dev)
+        out, overflow, peak = fn(p, Frames(*(jnp.asarray(x) for x in frames)))
     out = jax.tree.map(lambda x: np.asarray(x)[:b], out)
     return BatchOutput(out.ids, out.boxes, out.dropped, np.asarray(overflow)[:b], np.asarray(peak)[:b])
