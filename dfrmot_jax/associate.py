@@ -49,15 +49,18 @@ def centroid_distance(obj_z3, trk_p3):
     return jnp.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-def fused_cost(iou, age_ok, dist, both3d, a_c, a_l, alpha_c):
-    """Cost 1 - M_f = alpha_c (1 - IoU') + alpha_l min(d, a_l) / a_l, [O, N].
+def fused_affinity(iou, age_ok, dist, both3d, a_c, a_l, alpha_c):
+    """M_f = alpha_c M_c + alpha_l (1 - M_l), [O, N], with M_c = IoU' and M_l = min(d, a_l) / a_l.
 
-    IoU' = IoU where IoU >= a_c and the track's age allows the camera term, else 0; the LiDAR term is
-    1 (no match) unless both have a 3D box.
+    IoU' = IoU where IoU >= a_c and the track's age allows the camera term, else 0; M_l = 1 (no
+    match) unless both have a 3D box. A pair with no evidence has M_f = 0 exactly, whatever the
+    weights, so the gate M_f > a_f never depends on rounding. (The authors' code minimises
+    C = 1 - M_f with alpha_c = 1/2, the same order.)
     """
     iou_c = jnp.where((iou >= a_c) & age_ok[None, :], iou, 0.0)
-    m_l = jnp.where(both3d, jnp.minimum(dist, a_l) / a_l, 1.0)
-    return alpha_c * (1.0 - iou_c) + (1.0 - alpha_c) * m_l
+    # XLA turns x / a_l into x * (1 / a_l), so a_l / a_l need not be 1: saturate explicitly.
+    m_l = jnp.where(both3d & (dist < a_l), dist / a_l, 1.0)
+    return alpha_c * iou_c + (1.0 - alpha_c) * (1.0 - m_l)
 
 
 def greedy_min(cost, valid, col_key, limit):
@@ -76,12 +79,12 @@ def greedy_min(cost, valid, col_key, limit):
     def body(carry):
         free_r, free_c, match, _ = carry
         c = jnp.where(free_r[:, None] & free_c[None, :], c0, jnp.inf)
-        rmin = jnp.min(c, axis=1, keepdims=True)
+        rmin = jnp.min(c, axis=1, keepdims=True, initial=jnp.inf)
         at_rmin = c == rmin
-        rkey = jnp.min(jnp.where(at_rmin, col_key[None, :], _BIG), axis=1, keepdims=True)
-        cmin = jnp.min(c, axis=0, keepdims=True)
+        rkey = jnp.min(jnp.where(at_rmin, col_key[None, :], _BIG), axis=1, keepdims=True, initial=_BIG)
+        cmin = jnp.min(c, axis=0, keepdims=True, initial=jnp.inf)
         at_cmin = c == cmin
-        crow = jnp.min(jnp.where(at_cmin, rows, _BIG), axis=0, keepdims=True)
+        crow = jnp.min(jnp.where(at_cmin, rows, _BIG), axis=0, keepdims=True, initial=_BIG)
         new = at_rmin & (col_key[None, :] == rkey) & at_cmin & (rows == crow) & (c < jnp.inf)
         return (free_r & ~jnp.any(new, axis=1), free_c & ~jnp.any(new, axis=0), match | new, jnp.any(new))
 

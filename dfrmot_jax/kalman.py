@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -33,15 +34,21 @@ class FilterState(NamedTuple):
     cov: jnp.ndarray
 
 
-def init(z, kind: str, kf_r=1.0, kf_p0=100.0) -> FilterState:
-    """First observation: p = z, v = a = 0 (no prediction follows)."""
+def init(z, kind: str, kf_r=1.0, kf_p0=100.0, cov0=None) -> FilterState:
+    """First observation: p = z, v = a = 0 (no prediction follows).
+
+    Kalman covariance: diag(kf_r, kf_p0, kf_p0) ("diffuse"), or ``cov0`` [6] when given ("steady").
+    """
     z = jnp.asarray(z)
     zero = jnp.zeros_like(z)
     cov = jnp.zeros((0,), z.dtype)
     if kind == "kalman":
-        r = jnp.broadcast_to(jnp.asarray(kf_r, z.dtype), z.shape)
-        p0 = jnp.broadcast_to(jnp.asarray(kf_p0, z.dtype), z.shape)
-        cov = jnp.stack([r, zero, zero, p0, zero, p0])
+        if cov0 is None:
+            r = jnp.broadcast_to(jnp.asarray(kf_r, z.dtype), z.shape)
+            p0 = jnp.broadcast_to(jnp.asarray(kf_p0, z.dtype), z.shape)
+            cov = jnp.stack([r, zero, zero, p0, zero, p0])
+        else:
+            cov = jnp.broadcast_to(jnp.reshape(cov0, (6,) + (1,) * z.ndim), (6,) + z.shape).astype(z.dtype)
     return FilterState(z, zero, zero, cov)
 
 
@@ -88,7 +95,25 @@ def select(mask, a: FilterState, b: FilterState) -> FilterState:
     return FilterState(jnp.where(mask, a.p, b.p), jnp.where(mask, a.v, b.v), jnp.where(mask, a.a, b.a), cov)
 
 
-def steady_state(kf_q: float, kf_r: float, iters: int = 2000) -> tuple[np.ndarray, np.ndarray]:
+STEADY_ITERS = 500
+
+
+def steady_cov(kf_q, kf_r, iters: int = STEADY_ITERS):
+    """Steady-state *predicted* covariance [6] of one coordinate (Riccati iteration, jittable).
+
+    A track born with this covariance updates with the steady-state gain at once, so the Kalman
+    filter then runs exactly as the fixed-gain filter with ``steady_state(kf_q, kf_r)`` gains.
+    """
+    one = jnp.ones((1,), jnp.result_type(kf_q, kf_r))
+    s0 = FilterState(one * 0, one * 0, one * 0, jnp.stack([one * 1e3, one * 0, one * 0, one * 1e3, one * 0, one * 1e3]))
+
+    def body(_, s):
+        return predict(update(s, s.p, "kalman", kf_r=kf_r), "kalman", kf_q=kf_q)
+
+    return jax.lax.fori_loop(0, iters, body, s0).cov[:, 0]
+
+
+def steady_state(kf_q: float, kf_r: float, iters: int = STEADY_ITERS) -> tuple[np.ndarray, np.ndarray]:
     """Steady-state gains (alpha, beta, gamma) and predicted covariance [3, 3] of the Kalman filter.
 
     Riccati iteration in float64; ``gamma`` is returned in the fixed-gain convention (a += 2 gamma r).

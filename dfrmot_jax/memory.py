@@ -25,7 +25,8 @@ class Memory(NamedTuple):
     hits [N] int32 matches including the birth; has3d [N] bool (3D filter started);
     filt: FilterState with p, v, a [N, 10] float64 (cov [6, N, 10] for the Kalman filter);
     next_id [] int32; overflow [] int32 births dropped for want of a slot (cumulative);
-    peak [] int32 largest number of live tracks seen (capacity headroom).
+    peak [] int32 largest number of live tracks seen (capacity headroom);
+    cov0 [6] float64 Kalman covariance of a new track with the "steady" start (else unused).
     """
 
     alive: jnp.ndarray
@@ -37,6 +38,7 @@ class Memory(NamedTuple):
     next_id: jnp.ndarray
     overflow: jnp.ndarray
     peak: jnp.ndarray
+    cov0: jnp.ndarray
 
 
 def empty(capacity: int, kalman: bool) -> Memory:
@@ -46,7 +48,7 @@ def empty(capacity: int, kalman: bool) -> Memory:
     return Memory(
         alive=jnp.zeros(n, bool), tid=jnp.zeros(n, jnp.int32), age=jnp.zeros(n, jnp.int32),
         hits=jnp.zeros(n, jnp.int32), has3d=jnp.zeros(n, bool), filt=FilterState(zeros, zeros, zeros, cov),
-        next_id=jnp.int32(0), overflow=jnp.int32(0), peak=jnp.int32(0),
+        next_id=jnp.int32(0), overflow=jnp.int32(0), peak=jnp.int32(0), cov0=jnp.zeros(6, jnp.float64),
     )
 
 

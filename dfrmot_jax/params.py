@@ -78,6 +78,7 @@ MERGES = ("detector_box", "calib_projection")
 CENTROIDS = ("legacy", "head", "kitti")
 MODALITIES = ("fused", "2d", "3d")
 OUTPUTS = ("detections", "filtered")
+KALMAN_INITS = ("diffuse", "steady")
 
 
 class Options(NamedTuple):
@@ -95,6 +96,9 @@ class Options(NamedTuple):
     output:    "detections" (this frame's detections with their raw boxes, code) | "filtered" (every
                written track with its filtered box, lost tracks for keep_lost frames predicted).
     capacity:  track slots N per lane; 0 = chosen from the data.
+    kalman_init: Kalman covariance of a new track: "diffuse" (diag(kf_r, kf_p0, kf_p0)) | "steady"
+               (the steady-state covariance of (kf_q, kf_r): the filter then equals the fixed-gain
+               filter with the matching gains, ``kalman.steady_state``).
     """
 
     filter: str = "fixed_gain"
@@ -104,10 +108,11 @@ class Options(NamedTuple):
     modality: str = "fused"
     output: str = "detections"
     capacity: int = 0
+    kalman_init: str = "diffuse"
 
     def validate(self) -> "Options":
         for name, allowed in (("filter", FILTERS), ("merge", MERGES), ("centroid", CENTROIDS),
-                              ("modality", MODALITIES), ("output", OUTPUTS)):
+                              ("modality", MODALITIES), ("output", OUTPUTS), ("kalman_init", KALMAN_INITS)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"option {name}={getattr(self, name)!r}: expected one of {allowed}")
         if not isinstance(self.truncate, (bool, np.bool_)):

@@ -83,12 +83,24 @@ def predicted_box(p: np.ndarray, truncate: bool) -> np.ndarray:
 # Filters
 
 
+def steady_cov(params: Params, options: Options, iters: int = 500) -> np.ndarray:
+    """Steady-state predicted covariance [6] by Riccati iteration (the "steady" Kalman start)."""
+    f = CoordFilter(np.zeros(1), np.zeros(1), np.zeros(1), np.array([[1e3], [0], [0], [1e3], [0], [1e3]], F64))
+    for _ in range(iters):
+        filter_update(f, f.p, params, options)
+        filter_predict(f, params, options)
+    return f.cov[:, 0]
+
+
 def filter_init(z: np.ndarray, params: Params, options: Options) -> CoordFilter:
     k = z.shape[0]
     cov = None
     if options.filter == "kalman":
         cov = np.zeros((6, k), F64)
-        cov[0] = p32(params.kf_r); cov[3] = p32(params.kf_p0); cov[5] = p32(params.kf_p0)
+        if options.kalman_init == "steady":
+            cov[:] = steady_cov(params, options)[:, None]
+        else:
+            cov[0] = p32(params.kf_r); cov[3] = p32(params.kf_p0); cov[5] = p32(params.kf_p0)
     return CoordFilter(z.astype(F64).copy(), np.zeros(k, F64), np.zeros(k, F64), cov)
 
 
@@ -198,8 +210,8 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
     return objects
 
 
-def cost_matrix(objects: list[Obj], tracks: list[Track], params: Params, options: Options) -> np.ndarray:
-    """[O, N] cost 1 - M_f = alpha_c (1 - IoU') + alpha_l min(d, a_l) / a_l."""
+def affinity_matrix(objects: list[Obj], tracks: list[Track], params: Params, options: Options) -> np.ndarray:
+    """[O, N] fused affinity M_f = alpha_c IoU' + alpha_l (1 - min(d, a_l) / a_l)."""
     ac = p32(params.alpha_c)
     al = F64(1) - ac
     a_l = p32(params.a_l)
@@ -218,13 +230,16 @@ def cost_matrix(objects: list[Obj], tracks: list[Track], params: Params, options
             if obj.lo3 is not None and trk.f3 is not None:
                 dx, dy, dz = (obj.lo3 + obj.hi3) / F64(2) - tc
                 d = np.sqrt(dx * dx + dy * dy + dz * dz)
-                m_l = min(d, a_l) / a_l
-            c[i, j] = ac * (F64(1) - iou_c) + al * m_l
+                m_l = d / a_l if d < a_l else F64(1)
+            c[i, j] = ac * iou_c + al * (F64(1) - m_l)
     return c
 
 
 def greedy_match(cost: np.ndarray, track_ids: list[int], limit: F64) -> list[tuple[int, int]]:
-    """Repeatedly take the smallest entry (ties: smaller track id, then smaller row) while < limit."""
+    """Repeatedly take the smallest entry (ties: smaller track id, then smaller row) while < limit.
+
+    The tracker calls it with cost = -M_f and limit = -a_f: the largest affinity first, while M_f > a_f.
+    """
     cost = cost.copy()
     pairs = []
     while cost.size:
@@ -252,13 +267,13 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
     tracks: list[Track] = []
     next_id = 0
     rows = []
-    limit = F64(1) - p32(params.a_f)
+    limit = -p32(params.a_f)
     for t in range(seq.n_frames):
         objects = frame_objects(seq, t, params, options, image_size)
         pairs = []
         if tracks and objects:
-            cost = cost_matrix(objects, tracks, params, options)
-            pairs = greedy_match(cost, [trk.id for trk in tracks], limit)
+            affinity = affinity_matrix(objects, tracks, params, options)
+            pairs = greedy_match(-affinity, [trk.id for trk in tracks], limit)
 
         # Memory: matched objects take over their track; the others are born, in row order.
         obj_track: dict[int, Track] = {}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .params import CENTROIDS, FILTERS, MERGES, MODALITIES, OUTPUTS, Options, Params
+from .params import CENTROIDS, FILTERS, KALMAN_INITS, MERGES, MODALITIES, OUTPUTS, Options, Params
 
 
 def random_params(rng: np.random.Generator, output: str = "detections") -> Params:
@@ -22,7 +22,8 @@ def random_params(rng: np.random.Generator, output: str = "detections") -> Param
 def random_options(rng: np.random.Generator) -> Options:
     pick = lambda xs: xs[int(rng.integers(len(xs)))]  # noqa: E731
     return Options(filter=pick(FILTERS), merge=pick(MERGES), centroid=pick(CENTROIDS),
-                   truncate=bool(rng.integers(2)), modality=pick(MODALITIES), output=pick(OUTPUTS))
+                   truncate=bool(rng.integers(2)), modality=pick(MODALITIES), output=pick(OUTPUTS),
+                   kalman_init=pick(KALMAN_INITS))
 
 
 def random_settings(rng: np.random.Generator, n: int) -> list[tuple[Params, Options]]:

@@ -35,8 +35,13 @@ class StepOutput(NamedTuple):
     dropped: jnp.ndarray
 
 
-def init(options: Options, capacity: int) -> Memory:
-    return memory.empty(capacity, options.filter == "kalman")
+def init(options: Options, capacity: int, params: Params | None = None) -> Memory:
+    """Empty memory; with the steady Kalman start, its covariance is solved here once per lane."""
+    mem = memory.empty(capacity, options.filter == "kalman")
+    if options.filter == "kalman" and options.kalman_init == "steady":
+        mem = mem._replace(cov0=kalman.steady_cov(jnp.asarray(params.kf_q, jnp.float64),
+                                                  jnp.asarray(params.kf_r, jnp.float64)))
+    return mem
 
 
 def _f64(params: Params) -> Params:
@@ -80,9 +85,9 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options):
     f = mem.filt
     iou = associate.iou_matrix(box, associate.predicted_boxes(f.p[:, :4], options.truncate))
     dist = associate.centroid_distance(z3, f.p[:, 4:])
-    cost = associate.fused_cost(iou, mem.age <= params.epsilon, dist, has3[:, None] & mem.has3d[None, :],
-                                params.a_c, params.a_l, params.alpha_c)
-    match = associate.greedy_min(cost, valid[:, None] & mem.alive[None, :], mem.tid, 1.0 - params.a_f)
+    m_f = associate.fused_affinity(iou, mem.age <= params.epsilon, dist, has3[:, None] & mem.has3d[None, :],
+                                   params.a_c, params.a_l, params.alpha_c)
+    match = associate.greedy_min(-m_f, valid[:, None] & mem.alive[None, :], mem.tid, -params.a_f)
     matched_obj = jnp.any(match, axis=0)
     newborn = valid & ~jnp.any(match, axis=1)
     birth, rank, dropped = memory.births(mem.alive, newborn)
@@ -106,7 +111,8 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options):
     gains = (params.gain_alpha, params.gain_beta, params.gain_gamma)
     updated = kalman.select(do_update, kalman.update(f, z, kind, gains, params.kf_r), f)
     predicted = kalman.select(do_predict, kalman.predict(updated, kind, params.kf_q), updated)
-    filt = kalman.select(do_init, kalman.init(z, kind, params.kf_r, params.kf_p0), predicted)
+    cov0 = mem.cov0 if kind == "kalman" and options.kalman_init == "steady" else None
+    filt = kalman.select(do_init, kalman.init(z, kind, params.kf_r, params.kf_p0, cov0), predicted)
 
     born_id = mem.next_id + rank                                                  # [O]
     tid = jnp.where(born, memory.gather_rows(birth, born_id), mem.tid)
@@ -115,7 +121,7 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options):
     alive = mem.alive | born
     mem = Memory(alive=alive, tid=tid, age=age, hits=hits, has3d=had3 | z_has3, filt=filt,
                  next_id=mem.next_id + jnp.sum(newborn, dtype=jnp.int32), overflow=mem.overflow + dropped,
-                 peak=jnp.maximum(mem.peak, jnp.sum(alive, dtype=jnp.int32)))
+                 peak=jnp.maximum(mem.peak, jnp.sum(alive, dtype=jnp.int32)), cov0=mem.cov0)
 
     writable = hits >= params.min_hits
     if options.output == "detections":
@@ -134,7 +140,7 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options):
 def run(params: Params, frames: Frames, options: Options, capacity: int):
     """One lane over all frames: (final Memory, StepOutput stacked [T, ...])."""
     body = functools.partial(step, options=options)
-    return jax.lax.scan(lambda m, fr: body(params, m, fr), init(options, capacity), frames)
+    return jax.lax.scan(lambda m, fr: body(params, m, fr), init(options, capacity, params), frames)
 
 
 class BatchOutput(NamedTuple):

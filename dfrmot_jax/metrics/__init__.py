@@ -1,0 +1,25 @@
+"""TrackEval-identical KITTI 2D-box tracking metrics (HOTA, CLEAR, Identity), fast and batched.
+
+Modules: :mod:`~dfrmot_jax.metrics.kitti` (ground truth and tracker preprocessing, as TrackEval's
+Kitti2DBox), :mod:`~dfrmot_jax.metrics.hota`, :mod:`~dfrmot_jax.metrics.clear`,
+:mod:`~dfrmot_jax.metrics.identity` (the metrics), :mod:`~dfrmot_jax.metrics.boxes` (IoU),
+:mod:`~dfrmot_jax.metrics.pairs` (per-frame pair bookkeeping and assignments),
+:mod:`~dfrmot_jax.metrics.evaluate` (entry points), :mod:`~dfrmot_jax.metrics.table`,
+:mod:`~dfrmot_jax.metrics.cli` (``dfrmot eval``), :mod:`~dfrmot_jax.metrics.trackeval_compat`
+(running the reference ``trackeval`` package) and :mod:`~dfrmot_jax.metrics.edits` (test outputs).
+
+Typical use::
+
+    gt = prepare_gt(root, "car", sequences)             # once per split
+    res = evaluate_files("out/run1", gt)                 # {seq | 'COMBINED': {field: value}}
+    many = evaluate_arrays(gt, ids, boxes, seq_offsets)  # B dicts from [B, T, K] tracker output
+    metrics_table(res)                                   # pandas, TrackEval summary (x100)
+"""
+
+from dfrmot_jax.metrics.evaluate import (ALL_FIELDS, cached_gt, evaluate_arrays, evaluate_batch,
+                                         evaluate_files)
+from dfrmot_jax.metrics.kitti import DuplicateIdError, PreparedGT, prepare_gt
+from dfrmot_jax.metrics.table import metrics_table
+
+__all__ = ["PreparedGT", "prepare_gt", "cached_gt", "evaluate_files", "evaluate_arrays", "evaluate_batch",
+           "metrics_table", "DuplicateIdError", "ALL_FIELDS"]

@@ -1,0 +1,173 @@
+"""HOTA (Luiten et al. 2020) exactly as TrackEval's ``metrics/hota.py``, batched over configs.
+
+Per sequence, TrackEval (1) accumulates a soft co-occurrence ``potential_matches_count[g, t]`` of
+``sim / (rowsum + colsum - sim)`` over all frames, turns it into a global alignment score
+``A[g, t] = pm / (n_g + n_t - pm)``, (2) solves ``linear_sum_assignment(-A[g, t] * sim)`` per
+frame, and (3) for each of the 19 alphas ``0.05, 0.10, ..., 0.95`` counts matches with
+``sim >= alpha - eps`` (TP), FN, FP, summed IoU (LocA) and per id-pair match counts (AssA, AssRe,
+AssPr). Here steps (1)-(3) run on the flat pair list of all frames of all configs; the frame sums
+reproduce numpy's summation order so that ``A`` and hence every assignment is bit-identical.
+
+Arrays: ``L`` configs, ``S`` sequences, ``NA = 19`` alphas.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dfrmot_jax.metrics.boxes import EPS
+from dfrmot_jax.metrics.kitti import EvalBatch
+from dfrmot_jax.metrics.pairs import assign_frames, nontrivial_segments, numpy_col_sums, numpy_row_sums, segment_starts
+
+ALPHAS = np.arange(0.05, 0.99, 0.05)  # TrackEval's array_labels, [19]
+NA = len(ALPHAS)
+FLOAT_ARRAY_FIELDS = ("HOTA", "DetA", "AssA", "DetRe", "DetPr", "AssRe", "AssPr", "LocA", "OWTA")
+INTEGER_ARRAY_FIELDS = ("HOTA_TP", "HOTA_FN", "HOTA_FP")
+FLOAT_FIELDS = ("HOTA(0)", "LocA(0)", "HOTALocA(0)")
+FIELDS = FLOAT_ARRAY_FIELDS + INTEGER_ARRAY_FIELDS + FLOAT_FIELDS
+
+
+def _final_fields(res: dict) -> dict:
+    """TrackEval's ``HOTA._compute_final_fields`` on arrays [..., NA]."""
+    tp, fn, fp = res["HOTA_TP"], res["HOTA_FN"], res["HOTA_FP"]
+    res["DetRe"] = tp / np.maximum(1, tp + fn)
+    res["DetPr"] = tp / np.maximum(1, tp + fp)
+    res["DetA"] = tp / np.maximum(1, tp + fn + fp)
+    res["HOTA"] = np.sqrt(res["DetA"] * res["AssA"])
+    res["OWTA"] = np.sqrt(res["DetRe"] * res["AssA"])
+    res["HOTA(0)"] = res["HOTA"][..., 0]
+    res["LocA(0)"] = res["LocA"][..., 0]
+    res["HOTALocA(0)"] = res["HOTA(0)"] * res["LocA(0)"]
+    return res
+
+
+def _rev_cum(hist: np.ndarray) -> np.ndarray:
+    """hist [..., NA+1] counts by number of alphas passed -> [..., NA] totals passing each alpha."""
+    rc = np.cumsum(hist[..., ::-1], axis=-1)[..., ::-1]
+    return rc[..., 1:]
+
+
+def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
+    """HOTA fields per (config, sequence): arrays [L, S, NA] and [L, S] (``FIELDS``)."""
+    gt = b.gt
+    L, F, S = b.n_lanes, gt.n_frames, len(gt.sequences)
+    NE = len(gt.eval_gid)
+    NG = len(gt.gid_count)
+    P = len(b.sim)
+    sim = b.sim
+    ng_e = b.lf_eval_count
+    nk = b.det_count
+
+    # (1) sim_iou = sim / (colsum + rowsum - sim), sums exactly as numpy
+    act = np.flatnonzero(ng_e * nk)
+    nr = ng_e[act]
+    row_lf = np.repeat(act, nr)
+    local = np.arange(row_lf.size, dtype=np.int64) - np.repeat(segment_starts(nr)[:-1], nr)
+    row_first = b.pair_start[row_lf] + local * nk[row_lf]
+    row_len = nk[row_lf]
+    rowsum = np.repeat(numpy_row_sums(sim, row_first, row_len), row_len)
+    colsum = numpy_col_sums(sim, b.p_k, len(b.det_lf), b.det_lf, ng_e, nk, b.pair_start)[b.p_k]
+    denom = (colsum + rowsum) - sim
+    sim_iou = np.zeros(P)
+    ok = denom > 0 + EPS
+    sim_iou[ok] = sim[ok] / denom[ok]
+
+    # potential matches per (tracker id, gt id) combo, accumulated in time order like TrackEval
+    pos = np.flatnonzero(sim > 0)
+    p_gid = gt.eval_gid[b.p_e[pos]]
+    p_tid = b.det_gid[b.p_k[pos]]
+    uniq, inv = np.unique(p_tid * max(NG, 1) + p_gid, return_inverse=True)
+    inv = inv.reshape(-1)
+    pm = np.bincount(inv, weights=sim_iou[pos], minlength=len(uniq))
+    c_gid = uniq % max(NG, 1)
+    c_tid = uniq // max(NG, 1)
+    gc = gt.gid_count[c_gid]
+    tc = b.tid_count[c_tid]
+    gas = pm / (gc + tc - pm)
+    score = np.zeros(P)
+    score[pos] = gas[inv] * sim[pos]
+
+    # (2) per-frame assignment
+    lane_p = b.p_lf // F
+    positive = score > 0
+    matched = positive.copy()
+    hard = nontrivial_segments(b.p_lf, lane_p * max(NE, 1) + b.p_e, b.p_k, positive)
+    assign_frames(hard, b.pair_start, ng_e, nk, score, matched, 0.0)
+
+    # (3) statistics per alpha
+    h = np.flatnonzero(matched)
+    sim_h = sim[h]
+    na = np.searchsorted(ALPHAS - EPS, sim_h, side="right")  # alphas passed: sim >= alpha - eps
+    ls_h = lane_p[h] * S + gt.seq_of_frame[b.p_lf[h] % F]
+    hist = np.bincount(ls_h * (NA + 1) + na, minlength=L * S * (NA + 1)).reshape(L, S, NA + 1)
+    tp = _rev_cum(hist).astype(np.float64)
+    loc_hist = np.bincount(ls_h * (NA + 1) + na, weights=sim_h, minlength=L * S * (NA + 1)).reshape(L, S, NA + 1)
+    loc_sum = _rev_cum(loc_hist)
+
+    combo_of_pair = np.full(P, -1, dtype=np.int64)
+    combo_of_pair[pos] = inv
+    ch = combo_of_pair[h]
+    C = len(uniq)
+    mc = _rev_cum(np.bincount(ch * (NA + 1) + na, minlength=C * (NA + 1)).reshape(C, NA + 1)).astype(np.float64)
+    ls_c = b.tid_lane[c_tid] * S + b.tid_seq[c_tid]
+    gc2, tc2 = gc[:, None], tc[:, None]
+    ass_a = mc / np.maximum(1, gc2 + tc2 - mc)
+    ass_re = mc / np.maximum(1, gc2)
+    ass_pr = mc / np.maximum(1, tc2)
+    idx = (ls_c[:, None] * NA + np.arange(NA)).reshape(-1)
+
+    def per_ls(v):
+        return np.bincount(idx, weights=(mc * v).reshape(-1), minlength=L * S * NA).reshape(L, S, NA)
+
+    n_gt = np.broadcast_to(gt.n_gt_dets[None, :, None], (L, S, 1)).astype(np.float64)
+    n_tr = b.n_tr_dets[:, :, None].astype(np.float64)
+    res = {
+        "HOTA_TP": tp,
+        "HOTA_FN": n_gt - tp,
+        "HOTA_FP": n_tr - tp,
+    }
+    den = np.maximum(1, tp)
+    res["AssA"] = per_ls(ass_a) / den
+    res["AssRe"] = per_ls(ass_re) / den
+    res["AssPr"] = per_ls(ass_pr) / den
+    res["LocA"] = np.maximum(1e-10, loc_sum) / np.maximum(1e-10, tp)
+    res = _final_fields(res)
+
+    # sequences TrackEval returns early for (no tracker dets, or no GT dets)
+    no_tr = b.n_tr_dets == 0
+    no_gt = (gt.n_gt_dets[None, :] == 0) & ~no_tr
+    early = no_tr | no_gt
+    if early.any():
+        for f in FLOAT_ARRAY_FIELDS + INTEGER_ARRAY_FIELDS:
+            res[f][early] = 0.0
+        res["HOTA_FN"][no_tr] = n_gt[no_tr]
+        res["HOTA_FP"][no_gt] = n_tr[no_gt]
+        res["LocA"][early] = 1.0
+        res["HOTA(0)"][early] = 0.0
+        res["LocA(0)"][early] = 1.0
+        res["HOTALocA(0)"][early] = 0.0
+    return res
+
+
+def hota_combine(res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """TrackEval's ``HOTA.combine_sequences`` over the sequence axis of :func:`hota_sequences` output.
+
+    res: fields [L, S, NA] / [L, S]; sequences are the second axis. Returns fields [L, NA] / [L].
+    """
+    out = {}
+    for f in INTEGER_ARRAY_FIELDS:
+        out[f] = _seq_sum(res[f])
+    tp = out["HOTA_TP"]
+    for f in ("AssRe", "AssPr", "AssA"):
+        out[f] = _seq_sum(res[f] * res["HOTA_TP"]) / np.maximum(1.0, tp)
+    loca_weighted_sum = _seq_sum(res["LocA"] * res["HOTA_TP"])
+    out["LocA"] = np.maximum(1e-10, loca_weighted_sum) / np.maximum(1e-10, tp)
+    return _final_fields(out)
+
+
+def _seq_sum(x: np.ndarray) -> np.ndarray:
+    """Sum over axis 1 (sequences) one after the other, like Python's ``sum`` in TrackEval."""
+    out = np.zeros(x.shape[:1] + x.shape[2:])
+    for s in range(x.shape[1]):
+        out = out + x[:, s]
+    return out

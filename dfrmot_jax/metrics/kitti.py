@@ -1,0 +1,510 @@
+"""KITTI 2D-box preprocessing, reproducing TrackEval's ``Kitti2DBox`` exactly, batched over configs.
+
+What TrackEval does (``trackeval/datasets/kitti_2d_box.py`` and ``_base_dataset.py``, v1.3.0):
+
+* **Reading.** Every row is read; rows typed ``DontCare`` (case-insensitive) in the ground truth
+  become crowd-ignore regions (whatever their id). Other rows with a negative track id are dropped
+  (GT and tracker) before their class or frame is looked at. The ``valid_filter`` in ``_load_simple_text_file`` is a no-op (its ``continue``
+  only continues the inner loop), so rows of every class are kept and mapped to class ids through
+  ``{car: 1, van: 2, truck: 3, pedestrian: 4, person: 5, cyclist: 6, tram: 7, misc: 8,
+  dontcare: 9, car_2: 1}``; any other type name (e.g. ``Person_sitting``) is an error. Truncation
+  and occlusion are cast with ``astype(int)``. A frame ``>=`` the sequence length is an error.
+* **Classes.** Evaluating ``car``: GT of class car (id 1) is evaluated, vans (2) are distractors.
+  Evaluating ``pedestrian``: GT pedestrian (4) evaluated, ``Person`` (5; KITTI's sitting persons)
+  distractors. GT with occlusion > 2 or truncation > 0 are distractors too. Other GT classes are
+  ignored entirely. Only tracker rows of the evaluated class id are used (``Car`` and ``car_2``
+  both count as car).
+* **Preprocessing, per frame.** IoU between the class+distractor GT and the tracker boxes;
+  ``linear_sum_assignment`` maximising IoU where IoU >= 0.5 - eps (else 0); tracker boxes matched
+  (score > eps) to a distractor GT are removed. Of the unmatched tracker boxes, those with height
+  ``y2 - y1 <= 25 + eps`` px or with intersection-over-own-area ``> 0.5 + eps`` with any DontCare
+  region are removed. Distractor GT are then dropped.
+* **Ids.** GT and tracker ids are relabelled per sequence to ``0..n-1`` in sorted order (this
+  does not change any metric value here; we use one global index per (config, sequence, id)).
+  Duplicate ids within a frame after preprocessing are an error.
+
+Arrays here: ``F`` = total frames of the evaluated sequences (concatenated in order), ``L`` =
+configs ("lanes"), a *lane-frame* ``lf = lane * F + frame``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from dfrmot_jax.metrics.boxes import EPS, columns, gather_iou, pair_ioa
+from dfrmot_jax.metrics.pairs import assign_frames, enumerate_pairs, nontrivial_segments, segment_starts
+
+__all__ = [
+    "CLASS_NAME_TO_ID",
+    "PreparedGT",
+    "TrackerDets",
+    "EvalBatch",
+    "prepare_gt",
+    "read_tracker_files",
+    "tracker_dets_from_arrays",
+    "preprocess",
+    "DuplicateIdError",
+]
+
+CLASS_NAME_TO_ID = {"car": 1, "van": 2, "truck": 3, "pedestrian": 4, "person": 5, "cyclist": 6, "tram": 7,
+                    "misc": 8, "dontcare": 9, "car_2": 1}
+_DISTRACTORS = {"car": (2,), "pedestrian": (5,)}
+MAX_OCCLUSION = 2
+MAX_TRUNCATION = 0
+MIN_HEIGHT = 25
+
+
+class DuplicateIdError(ValueError):
+    """A tracker id occurs twice in one frame after preprocessing (TrackEval refuses this too)."""
+
+
+def _kitti_io():
+    from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
+    return kio
+
+
+def _seq_name(s) -> str:
+    return f"{s:04d}" if isinstance(s, (int, np.integer)) else str(s)
+
+
+def _class_ids(types: np.ndarray, path, kio, rows: np.ndarray | None = None) -> np.ndarray:
+    """[R] object type names -> [R] int64 class ids (lower-cased lookup, as TrackEval).
+
+    ``rows`` [R]: file row of each entry (for the error's line number); default 0..R-1.
+    """
+    out = np.zeros(len(types), dtype=np.int64)
+    if len(types) == 0:
+        return out
+    uniq, inv = np.unique(types.astype(str), return_inverse=True)
+    ids = np.empty(len(uniq), dtype=np.int64)
+    for k, name in enumerate(uniq):
+        cid = CLASS_NAME_TO_ID.get(name.lower())
+        if cid is None:
+            r = int(np.flatnonzero(inv.reshape(-1) == k)[0])
+            r = r if rows is None else int(rows[r])
+            raise kio.KittiFormatError(path, _line_of_row(path, r), "type",
+                                       f"unknown class {name!r} (TrackEval accepts "
+                                       f"{', '.join(sorted(CLASS_NAME_TO_ID))}; case-insensitive)")
+        ids[k] = cid
+    return ids[inv.reshape(-1)]
+
+
+def _line_of_row(path, row: int) -> int:
+    """1-based line number of data row ``row`` (blank lines are not rows)."""
+    with open(path, encoding="utf-8", errors="replace") as f:
+        k = -1
+        for n, line in enumerate(f.read().split("\n"), 1):
+            if line and not line.isspace():
+                k += 1
+                if k == row:
+                    return n
+    return row + 1
+
+
+@dataclass(eq=False)
+class PreparedGT:
+    """Ground truth of one split (class + sequences), prepared once and reused for every tracker.
+
+    Frames are global: sequence ``s`` owns frames ``offsets[s]:offsets[s+1]`` (F in total).
+
+    * ``cls`` 'car' | 'pedestrian'; ``sequences`` tuple of S names; ``lengths`` [S] and
+      ``offsets`` [S+1] int64; ``seq_of_frame`` [F].
+    * Class rows (evaluated class + distractors, in file order within a frame), N rows:
+      ``row_box`` [N, 4] float64, ``row_eval`` [N] bool (kept for evaluation),
+      ``row_eval_index`` [N] int64 (index among eval rows, -1 for distractors), ``row_start`` [F+1].
+    * Eval rows, NE rows: ``eval_gid`` [NE] (global GT id; sequence s owns ids
+      ``gid_start[s]:gid_start[s+1]``), ``eval_start`` [F+1], ``eval_count`` [F].
+    * ``gid_count`` [NG] float64 detections per GT id; ``gid_seq`` [NG]; ``n_gt_ids`` [S];
+      ``n_gt_dets`` [S].
+    * DontCare regions: ``dc_box`` [D, 4], ``dc_start`` [F+1].
+    """
+
+    cls: str
+    cls_id: int
+    sequences: tuple
+    lengths: np.ndarray
+    offsets: np.ndarray
+    seq_of_frame: np.ndarray
+    row_box: np.ndarray
+    row_eval: np.ndarray
+    row_eval_index: np.ndarray
+    row_start: np.ndarray
+    eval_gid: np.ndarray
+    eval_start: np.ndarray
+    eval_count: np.ndarray
+    gid_count: np.ndarray
+    gid_seq: np.ndarray
+    gid_start: np.ndarray
+    n_gt_ids: np.ndarray
+    n_gt_dets: np.ndarray
+    dc_box: np.ndarray
+    dc_start: np.ndarray
+    root: str = ""
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def row_cols(self) -> tuple:
+        """``row_box`` as four contiguous [N] columns (cached)."""
+        c = self._cache.get("row_cols")
+        if c is None:
+            c = self._cache["row_cols"] = columns(self.row_box)
+        return c
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.offsets[-1])
+
+    @property
+    def lengths_dict(self) -> dict:
+        return {s: int(n) for s, n in zip(self.sequences, self.lengths)}
+
+    def __repr__(self) -> str:
+        return (f"PreparedGT(cls={self.cls!r}, sequences={len(self.sequences)}, frames={self.n_frames}, "
+                f"gt_dets={int(self.n_gt_dets.sum())}, gt_ids={int(self.n_gt_ids.sum())})")
+
+
+def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> PreparedGT:
+    """Read and prepare the KITTI ground truth of ``root/label_02`` for class ``cls``.
+
+    ``sequences``: names (``'0000'``) or ints; default every ``label_02/*.txt``. Sequence lengths
+    are ``max GT frame + 1`` (what :func:`dfrmot_jax.io.kitti.sequence_lengths` gives and what
+    TrackEval's seqmap must say). Returns a :class:`PreparedGT`.
+    """
+    kio = _kitti_io()
+    cls = cls.lower()
+    if cls not in _DISTRACTORS:
+        raise ValueError(f"class {cls!r} is not evaluatable (TrackEval's KITTI 2D box: 'car' or 'pedestrian')")
+    cls_id = CLASS_NAME_TO_ID[cls]
+    classes = (cls_id,) + _DISTRACTORS[cls]
+    label_dir = Path(root) / "label_02"
+    if sequences is None:
+        names = sorted(p.stem for p in label_dir.glob("*.txt"))
+        if not names:
+            raise FileNotFoundError(f"no ground truth files in {label_dir}")
+    else:
+        names = [_seq_name(s) for s in sequences]
+
+    lengths, boxes, evals, ids, frames, dcb, dcf = [], [], [], [], [], [], []
+    offset = 0
+    gid_off = 0
+    n_ids, n_dets, gid_counts = [], [], []
+    for name in names:
+        path = label_dir / f"{name}.txt"
+        lab = kio.read_tracking_labels(path)
+        length = int(lab.frame.max()) + 1 if lab.frame.size else 0
+        lengths.append(length)
+        types = np.char.lower(lab.type.astype(str)) if lab.type.size else np.zeros(0, dtype=str)
+        is_dc = types == "dontcare"
+        cid = np.zeros(len(types), dtype=np.int64)
+        nd = ~is_dc & (lab.track_id >= 0)  # TrackEval skips negative ids before mapping class names
+        cid[nd] = _class_ids(lab.type[nd], path, kio, np.flatnonzero(nd))
+        use = nd & np.isin(cid, classes)
+        occ = lab.occluded.astype(np.int64)
+        trunc = lab.truncated.astype(np.int64)
+        is_eval = (occ <= MAX_OCCLUSION) & (trunc <= MAX_TRUNCATION) & (cid == cls_id)
+        sel = np.flatnonzero(use)
+        order = sel[np.argsort(lab.frame[sel], kind="stable")]
+        boxes.append(lab.box[order])
+        evals.append(is_eval[order])
+        frames.append(lab.frame[order] + offset)
+        # relabel eval ids contiguously per sequence (sorted unique, as TrackEval)
+        ev = order[is_eval[order]]
+        uniq, inv, cnt = np.unique(lab.track_id[ev], return_inverse=True, return_counts=True)
+        gid = np.full(len(order), -1, dtype=np.int64)
+        gid[is_eval[order]] = inv.reshape(-1) + gid_off
+        ids.append(gid)
+        # duplicate GT ids within a frame (TrackEval raises)
+        key = lab.frame[ev] * (len(uniq) + 1) + inv.reshape(-1)
+        if len(np.unique(key)) != len(key):
+            raise ValueError(f"{path}: ground truth has the same id twice in one frame")
+        n_ids.append(len(uniq))
+        n_dets.append(len(ev))
+        gid_counts.append(cnt.astype(np.float64))
+        gid_off += len(uniq)
+        dsel = np.flatnonzero(is_dc)
+        dsel = dsel[np.argsort(lab.frame[dsel], kind="stable")]
+        dcb.append(lab.box[dsel])
+        dcf.append(lab.frame[dsel] + offset)
+        offset += length
+
+    lengths_a = np.asarray(lengths, dtype=np.int64)
+    offsets = segment_starts(lengths_a)
+    F = int(offsets[-1])
+    row_frame = np.concatenate(frames) if frames else np.zeros(0, np.int64)
+    row_box = np.concatenate(boxes).reshape(-1, 4).astype(np.float64) if boxes else np.zeros((0, 4))
+    row_eval = np.concatenate(evals) if evals else np.zeros(0, bool)
+    row_gid = np.concatenate(ids) if ids else np.zeros(0, np.int64)
+    row_start = segment_starts(np.bincount(row_frame, minlength=F))
+    eval_idx = np.full(len(row_eval), -1, dtype=np.int64)
+    eval_idx[row_eval] = np.arange(int(row_eval.sum()))
+    eval_frame = row_frame[row_eval]
+    eval_count = np.bincount(eval_frame, minlength=F).astype(np.int64)
+    dc_frame = np.concatenate(dcf) if dcf else np.zeros(0, np.int64)
+    gid_count = np.concatenate(gid_counts) if gid_counts else np.zeros(0)
+    n_gt_ids = np.asarray(n_ids, dtype=np.int64)
+    return PreparedGT(
+        cls=cls, cls_id=cls_id, sequences=tuple(names), lengths=lengths_a, offsets=offsets,
+        seq_of_frame=np.repeat(np.arange(len(names)), lengths_a),
+        row_box=np.ascontiguousarray(row_box), row_eval=row_eval, row_eval_index=eval_idx, row_start=row_start,
+        eval_gid=row_gid[row_eval], eval_start=segment_starts(eval_count), eval_count=eval_count,
+        gid_count=gid_count, gid_seq=np.repeat(np.arange(len(names)), n_gt_ids), gid_start=segment_starts(n_gt_ids),
+        n_gt_ids=n_gt_ids, n_gt_dets=np.asarray(n_dets, dtype=np.int64),
+        dc_box=np.concatenate(dcb).reshape(-1, 4).astype(np.float64) if dcb else np.zeros((0, 4)),
+        dc_start=segment_starts(np.bincount(dc_frame, minlength=F)),
+        root=str(root),
+    )
+
+
+class TrackerDets(NamedTuple):
+    """Tracker boxes of ``n_lanes`` configs, sorted by (lane, frame), slot/file order within a frame.
+
+    lane, frame (global GT frame), track_id: [M] int64; box: [M, 4] float64 ``x1, y1, x2, y2``;
+    source: [M] int64 row in the source file (files) or slot index (arrays), for error messages;
+    paths: per lane, per sequence the source file (or None).
+    """
+
+    n_lanes: int
+    lane: np.ndarray
+    frame: np.ndarray
+    track_id: np.ndarray
+    box: np.ndarray
+    source: np.ndarray
+    paths: tuple = ()
+
+
+def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty") -> TrackerDets:
+    """Read ``results_dir/SSSS.txt`` for every sequence of ``gt`` (KITTI tracking result format).
+
+    Rows of the evaluated class (``Car``/``car_2`` for car, ``Pedestrian`` for pedestrian; any
+    case) with a non-negative id are kept; rows of other known classes are dropped. Rows with a
+    negative id are ignored entirely (as TrackEval does, before looking at class or frame). Unknown
+    class names raise :class:`KittiFormatError` (field ``type``), as do frames beyond the sequence
+    (field ``frame``) and anything :func:`read_tracking_labels` rejects (which is stricter than
+    TrackEval: e.g. frames must be sorted and ``x2 >= x1``, ``y2 >= y1``). A missing file is an empty
+    output with ``missing='empty'`` (TrackEval itself refuses to run without every file; an empty
+    file there gives the same numbers) or raises with ``missing='error'``. Returns one lane.
+    """
+    kio = _kitti_io()
+    results_dir = Path(results_dir)
+    if not results_dir.is_dir():
+        raise FileNotFoundError(f"results folder not found: {results_dir}")
+    fr, ids, bx, src, paths = [], [], [], [], []
+    for s, name in enumerate(gt.sequences):
+        path = results_dir / f"{name}.txt"
+        if not path.is_file():
+            if missing == "error":
+                raise kio.KittiFormatError(path, None, None, "result file not found")
+            paths.append(None)
+            continue
+        paths.append(str(path))
+        lab = kio.read_tracking_labels(path)
+        if lab.frame.size == 0:
+            continue
+        # TrackEval drops negative ids first: their class and frame are never looked at
+        valid = np.flatnonzero(lab.track_id >= 0)
+        cid = np.full(len(lab.frame), -1, dtype=np.int64)
+        cid[valid] = _class_ids(lab.type[valid], path, kio, valid)
+        bad = valid[lab.frame[valid] >= gt.lengths[s]]
+        if bad.size:
+            r = int(bad[0])
+            raise kio.KittiFormatError(path, _line_of_row(path, r), "frame",
+                                       f"frame {int(lab.frame[r])} is beyond sequence {name} "
+                                       f"({int(gt.lengths[s])} frames: 0..{int(gt.lengths[s]) - 1})")
+        keep = np.flatnonzero((cid == gt.cls_id) & (lab.track_id >= 0))
+        keep = keep[np.argsort(lab.frame[keep], kind="stable")]
+        fr.append(lab.frame[keep] + gt.offsets[s])
+        ids.append(lab.track_id[keep])
+        bx.append(lab.box[keep])
+        src.append(keep)
+    if fr:
+        frame = np.concatenate(fr)
+        return TrackerDets(1, np.zeros(len(frame), np.int64), frame, np.concatenate(ids),
+                           np.ascontiguousarray(np.concatenate(bx), dtype=np.float64), np.concatenate(src),
+                           (tuple(paths),))
+    e = np.zeros(0, np.int64)
+    return TrackerDets(1, e, e, e, np.zeros((0, 4)), e, (tuple(paths),))
+
+
+def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets) -> TrackerDets:
+    """Flatten padded tracker output into :class:`TrackerDets`.
+
+    ids: [B, T, K] int (negative = empty slot); boxes: [B, T, K, 4] float ``x1, y1, x2, y2``;
+    seq_offsets: [S] first frame (along T) of each of ``gt.sequences``; sequence s uses frames
+    ``seq_offsets[s] : seq_offsets[s] + gt.lengths[s]``; other frames of T are ignored.
+    """
+    ids = np.asarray(ids)
+    if ids.ndim != 3:
+        raise ValueError(f"ids must be [B, T, K], got shape {ids.shape}")
+    B, T, K = ids.shape
+    boxes = np.asarray(boxes)
+    if boxes.shape != (B, T, K, 4):
+        raise ValueError(f"boxes must be [B, T, K, 4] = {(B, T, K, 4)}, got {boxes.shape}")
+    seq_offsets = np.asarray(seq_offsets, dtype=np.int64).reshape(-1)
+    S = len(gt.sequences)
+    if seq_offsets.shape != (S,):
+        raise ValueError(f"seq_offsets must have one entry per sequence ({S}), got {seq_offsets.shape}")
+    if np.any(seq_offsets < 0) or np.any(seq_offsets + gt.lengths > T):
+        raise ValueError(f"seq_offsets + sequence lengths exceed T = {T}")
+    if np.array_equal(seq_offsets, gt.offsets[:-1]) and T == gt.n_frames:
+        b, t, k = np.nonzero(ids >= 0)
+        g = t
+    else:
+        # map array frames to global GT frames; frames outside every sequence are ignored
+        gmap = np.full(T, -1, dtype=np.int64)
+        for s in range(S):
+            gmap[seq_offsets[s]:seq_offsets[s] + gt.lengths[s]] = np.arange(gt.offsets[s], gt.offsets[s + 1])
+        b, t, k = np.nonzero((ids >= 0) & (gmap >= 0)[None, :, None])
+        g = gmap[t]
+        order = np.lexsort((k, g, b))
+        b, t, k, g = b[order], t[order], k[order], g[order]
+    box = boxes[b, t, k].astype(np.float64)
+    if box.size and not np.all(np.isfinite(box)):
+        bad = int(np.flatnonzero(~np.all(np.isfinite(box), axis=1))[0])
+        raise ValueError(f"non-finite box in config {b[bad]}, frame {t[bad]}, slot {k[bad]}")
+    return TrackerDets(B, b.astype(np.int64), g.astype(np.int64), ids[b, t, k].astype(np.int64), box,
+                       k.astype(np.int64))
+
+
+@dataclass(eq=False)
+class EvalBatch:
+    """Preprocessed data of ``n_lanes`` configs, ready for the metrics (TrackEval's ``data`` dict).
+
+    Kept tracker dets (KD rows, sorted by lane-frame): ``det_lf`` [KD], ``det_gid`` [KD] global
+    tracker-id index; ``det_start`` [L*F+1]; ``det_count`` [L*F].
+    Tracker ids (NT): ``tid_lane``, ``tid_seq`` [NT], ``tid_count`` [NT] float64.
+    Metric pairs (eval GT x kept dets of each lane-frame, row-major, sorted by lane-frame), P:
+    ``p_lf``, ``p_e`` (eval GT row), ``p_k`` (kept det) [P] int64, ``sim`` [P] float64 (IoU);
+    ``pair_start`` [L*F+1]. Per (lane, seq): ``n_tr_dets``, ``n_tr_ids`` [L, S].
+    """
+
+    gt: PreparedGT
+    n_lanes: int
+    det_lf: np.ndarray
+    det_gid: np.ndarray
+    det_start: np.ndarray
+    det_count: np.ndarray
+    tid_lane: np.ndarray
+    tid_seq: np.ndarray
+    tid_count: np.ndarray
+    p_lf: np.ndarray
+    p_e: np.ndarray
+    p_k: np.ndarray
+    sim: np.ndarray
+    pair_start: np.ndarray
+    n_tr_dets: np.ndarray
+    n_tr_ids: np.ndarray
+
+    @cached_property
+    def lf_eval_count(self) -> np.ndarray:
+        """[L*F] eval GT rows per lane-frame."""
+        return np.tile(self.gt.eval_count, self.n_lanes)
+
+
+def _duplicate_error(gt: PreparedGT, dets: TrackerDets, idx: int) -> Exception:
+    lane = int(dets.lane[idx])
+    g = int(dets.frame[idx])
+    s = int(gt.seq_of_frame[g])
+    t = g - int(gt.offsets[s])
+    tid = int(dets.track_id[idx])
+    msg = (f"tracker predicts id {tid} more than once in frame {t} of sequence {gt.sequences[s]} "
+           f"(after preprocessing; TrackEval refuses this)")
+    if dets.paths and dets.paths[lane] and dets.paths[lane][s]:
+        kio = _kitti_io()
+        path = dets.paths[lane][s]
+        return kio.KittiFormatError(path, _line_of_row(path, int(dets.source[idx])), "track_id", msg)
+    return DuplicateIdError(f"config {lane}: {msg}")
+
+
+def preprocess(gt: PreparedGT, dets: TrackerDets) -> EvalBatch:
+    """TrackEval's ``get_preprocessed_seq_data`` for every lane and frame at once.
+
+    Returns an :class:`EvalBatch`. Raises :class:`DuplicateIdError` (or ``KittiFormatError`` for
+    file input) when an id repeats within a frame after preprocessing.
+    """
+    L = int(dets.n_lanes)
+    F = gt.n_frames
+    S = len(gt.sequences)
+    M = len(dets.lane)
+    lf = dets.lane * F + dets.frame
+    nd = np.bincount(lf, minlength=L * F).astype(np.int64)
+    d_start = segment_starts(nd)
+    g_of_lf = np.tile(np.arange(F, dtype=np.int64), L)
+    ng_all = np.diff(gt.row_start)[g_of_lf]
+    seg, row, col, pstart = enumerate_pairs(ng_all, gt.row_start[g_of_lf], nd, d_start)
+
+    # --- step 2: match to class + distractor GT, drop boxes matched to distractors
+    iou = gather_iou(gt.row_cols, row, columns(dets.box), col)
+    pos = iou >= 0.5 - EPS
+    lane_of_pair = seg // F
+    rowkey = lane_of_pair * max(len(gt.row_eval), 1) + row
+    matched = pos.copy()
+    hard = nontrivial_segments(seg, rowkey, col, pos)
+    assign_frames(hard, pstart, ng_all, nd, np.where(pos, iou, 0.0), matched, 0 + EPS)
+    det_matched = np.zeros(M, dtype=bool)
+    det_matched[col[matched]] = True
+    to_remove = np.zeros(M, dtype=bool)
+    mm = matched & ~gt.row_eval[row]
+    to_remove[col[mm]] = True
+
+    # --- step 3: unmatched boxes too small or mostly inside DontCare
+    unmatched = ~det_matched
+    height = dets.box[:, 3] - dets.box[:, 1]
+    to_remove |= unmatched & (height <= MIN_HEIGHT + EPS)
+    ndc = np.diff(gt.dc_start)[dets.frame]
+    cand = np.flatnonzero(unmatched & ~to_remove & (ndc > 0))
+    if cand.size:
+        c_n = ndc[cand]
+        c_det = np.repeat(cand, c_n)
+        c_dc = np.repeat(gt.dc_start[dets.frame[cand]], c_n) + (
+            np.arange(c_det.size) - np.repeat(segment_starts(c_n)[:-1], c_n))
+        inside = pair_ioa(dets.box[c_det], gt.dc_box[c_dc]) > 0.5 + EPS
+        to_remove[c_det[inside]] = True
+    keep = ~to_remove
+
+    # --- kept dets, ids
+    kidx = np.flatnonzero(keep)
+    k_lane = dets.lane[kidx]
+    k_frame = dets.frame[kidx]
+    k_tid = dets.track_id[kidx]
+    k_lf = lf[kidx]
+    k_seq = gt.seq_of_frame[k_frame]
+    grp = k_lane * S + k_seq
+    order = np.lexsort((k_tid, grp))
+    gs, ts = grp[order], k_tid[order]
+    new = np.ones(len(order), dtype=bool)
+    new[1:] = (gs[1:] != gs[:-1]) | (ts[1:] != ts[:-1])
+    gid_sorted = np.cumsum(new) - 1
+    det_gid = np.empty(len(order), dtype=np.int64)
+    det_gid[order] = gid_sorted
+    NT = int(new.sum())
+    tid_grp = gs[new]
+    tid_count = np.bincount(det_gid, minlength=NT).astype(np.float64)
+    # duplicates within a frame
+    if len(kidx):
+        o2 = np.lexsort((det_gid, k_lf))
+        dup = (k_lf[o2][1:] == k_lf[o2][:-1]) & (det_gid[o2][1:] == det_gid[o2][:-1])
+        if dup.any():
+            raise _duplicate_error(gt, dets, int(kidx[o2[1:][dup][0]]))
+    nk = np.bincount(k_lf, minlength=L * F).astype(np.int64)
+
+    # --- metric pairs: eval GT x kept dets (a sub-grid of each lane-frame's pair grid)
+    ev_row = gt.row_eval_index[row]
+    kpos = np.cumsum(keep) - 1
+    sel = (ev_row >= 0) & keep[col]
+    p_lf = seg[sel]
+    p_e = ev_row[sel]
+    p_k = kpos[col[sel]]
+    sim = iou[sel]
+    ng_e = gt.eval_count[g_of_lf]
+    pair_start = segment_starts(ng_e * nk)
+    n_tr_dets = np.bincount(grp, minlength=L * S).reshape(L, S).astype(np.int64)
+    n_tr_ids = np.bincount(tid_grp, minlength=L * S).reshape(L, S).astype(np.int64)
+    return EvalBatch(gt=gt, n_lanes=L, det_lf=k_lf, det_gid=det_gid, det_start=segment_starts(nk), det_count=nk,
+                     tid_lane=tid_grp // S, tid_seq=tid_grp % S, tid_count=tid_count,
+                     p_lf=p_lf, p_e=p_e, p_k=p_k, sim=sim, pair_start=pair_start,
+                     n_tr_dets=n_tr_dets, n_tr_ids=n_tr_ids)

@@ -1,0 +1,152 @@
+"""Vectorised per-frame pair bookkeeping shared by preprocessing and the metrics.
+
+TrackEval works frame by frame on small dense matrices ``[n_rows, n_cols]`` (ground truth x
+tracker). Here all frames of all configs ("lane-frames") are handled at once as a flat list of
+*pairs* in row-major order per lane-frame, so a lane-frame's pairs are contiguous and reshape to
+exactly TrackEval's matrix. Helpers:
+
+* :func:`enumerate_pairs` builds the flat pair list;
+* :func:`numpy_row_sums` / :func:`numpy_col_sums` reproduce ``M.sum(1)`` / ``M.sum(0)`` bit for bit
+  (numpy's pairwise summation along contiguous rows, sequential accumulation down columns);
+* :func:`assign_frames` reproduces ``scipy.optimize.linear_sum_assignment(-score)`` per lane-frame,
+  skipping the solver where the positive entries of a frame already form a matching (then the
+  optimum is provably those entries; see the function's docstring).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+
+def segment_starts(counts: np.ndarray) -> np.ndarray:
+    """Exclusive prefix sums: [n] counts -> [n + 1] starts (int64)."""
+    out = np.zeros(len(counts) + 1, dtype=np.int64)
+    np.cumsum(counts, out=out[1:])
+    return out
+
+
+def enumerate_pairs(n_rows: np.ndarray, row_start: np.ndarray, n_cols: np.ndarray, col_start: np.ndarray):
+    """All (row, col) pairs of every segment (lane-frame), row-major within a segment.
+
+    n_rows, row_start, n_cols, col_start: [G] int64 per segment (rows ``row_start[s] + 0..n_rows[s]-1``,
+    likewise cols). Returns ``(seg, row, col, pair_start)``: seg/row/col [P] int64 with
+    P = sum(n_rows * n_cols), and pair_start [G + 1] (segment ``s`` owns pairs
+    ``pair_start[s]:pair_start[s+1]``, which reshape to ``[n_rows[s], n_cols[s]]``).
+    """
+    n_rows = np.asarray(n_rows, dtype=np.int64)
+    n_cols = np.asarray(n_cols, dtype=np.int64)
+    cnt = n_rows * n_cols
+    pair_start = segment_starts(cnt)
+    seg_active = np.flatnonzero(cnt)
+    if seg_active.size == 0:
+        e = np.zeros(0, dtype=np.int64)
+        return e, e, e, pair_start
+    nr = n_rows[seg_active]
+    nc = n_cols[seg_active]
+    # one entry per row of an active segment
+    row_seg = np.repeat(seg_active, nr)
+    row_local = np.arange(row_seg.size, dtype=np.int64) - np.repeat(segment_starts(nr)[:-1], nr)
+    row_idx = row_start[row_seg] + row_local
+    row_nc = n_cols[row_seg]
+    # expand each row over its columns
+    seg = np.repeat(row_seg, row_nc)
+    row = np.repeat(row_idx, row_nc)
+    first = segment_starts(row_nc)[:-1]
+    col = np.arange(seg.size, dtype=np.int64) - np.repeat(first, row_nc) + np.repeat(col_start[row_seg], row_nc)
+    return seg, row, col, pair_start
+
+
+def numpy_row_sums(values: np.ndarray, row_first: np.ndarray, row_len: np.ndarray) -> np.ndarray:
+    """``M.sum(1)`` of each row as numpy computes it (pairwise summation), bit for bit.
+
+    values: [P] float64 pair values; row_first: [R] index of each row's first pair; row_len: [R]
+    row lengths (a row's pairs are contiguous). Returns [R] float64. Rows are grouped by length and
+    reduced as 2-D ``[rows, length]`` arrays, which numpy sums row by row with the same pairwise
+    scheme as a frame's own ``[n_gt, n_trk]`` matrix.
+    """
+    out = np.zeros(len(row_first), dtype=np.float64)
+    if len(row_first) == 0:
+        return out
+    for n in np.unique(row_len):
+        if n == 0:
+            continue
+        sel = np.flatnonzero(row_len == n)
+        idx = row_first[sel][:, None] + np.arange(n)
+        out[sel] = values[idx].sum(axis=1)
+    return out
+
+
+def numpy_col_sums(values: np.ndarray, pair_col: np.ndarray, n_cols_total: int, seg_of_col: np.ndarray,
+                   seg_n_rows: np.ndarray, seg_n_cols: np.ndarray, seg_pair_start: np.ndarray) -> np.ndarray:
+    """``M.sum(0)`` of every segment's matrix, as numpy computes it, bit for bit.
+
+    For a C-contiguous ``[g, n]`` matrix with ``n > 1`` numpy adds the rows one after the other
+    (sequential per column, as :func:`numpy.bincount` does in pair order); with ``n == 1`` the
+    column is contiguous and numpy uses pairwise summation (differs from sequential only for
+    ``g >= 8``). values/pair_col: [P]; seg_of_col: [C] segment of each column; seg_n_rows,
+    seg_n_cols, seg_pair_start: per segment. Returns [n_cols_total] float64.
+    """
+    out = np.bincount(pair_col, weights=values, minlength=n_cols_total).astype(np.float64, copy=False)
+    if n_cols_total == 0:
+        return out
+    single = (seg_n_cols[seg_of_col] == 1) & (seg_n_rows[seg_of_col] >= 8)
+    cols = np.flatnonzero(single)
+    if cols.size:
+        seg = seg_of_col[cols]
+        out[cols] = numpy_row_sums(values, seg_pair_start[seg], seg_n_rows[seg])
+    return out
+
+
+def nontrivial_segments(pair_seg: np.ndarray, pair_rowkey: np.ndarray, pair_colkey: np.ndarray,
+                        positive: np.ndarray) -> np.ndarray:
+    """Segments whose positive pairs do NOT form a matching (some row or column has 2+ positives).
+
+    pair_seg/pair_rowkey/pair_colkey: [P] int64 (row and column keys globally unique, >= 0);
+    positive: [P] bool. Returns the sorted unique segment ids that need a real assignment solve.
+    """
+    pr = pair_rowkey[positive]
+    pc = pair_colkey[positive]
+    if pr.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    cr = np.bincount(pr)
+    cc = np.bincount(pc)
+    multi = (cr[pr] > 1) | (cc[pc] > 1)
+    if not multi.any():
+        return np.zeros(0, dtype=np.int64)
+    return np.unique(pair_seg[positive][multi])
+
+
+def assign_frames(segs: np.ndarray, seg_pair_start: np.ndarray, seg_n_rows: np.ndarray, seg_n_cols: np.ndarray,
+                  score: np.ndarray, matched: np.ndarray, accept_above: float = 0.0) -> None:
+    """Solve ``linear_sum_assignment(-S)`` for the listed segments and mark the accepted pairs.
+
+    For each segment ``s`` in ``segs``, ``S = score[start:stop].reshape(n_rows, n_cols)`` is the
+    dense score matrix exactly as TrackEval builds it (zeros where TrackEval has zeros). Pairs
+    of the solver's answer with ``S > accept_above`` are set in ``matched`` ([P] bool, in place);
+    all other pairs of these segments are cleared.
+
+    Why the other segments need no solver: when a frame's positive scores are pairwise disjoint (no
+    row or column holds two), any assignment missing one of them can be improved by exactly that
+    score, so every optimal assignment contains all of them and differs only in zero-score pairs,
+    which TrackEval discards (its acceptance tests need a positive score / similarity).
+    """
+    if len(segs) == 0:
+        return
+    starts = seg_pair_start[segs]
+    lens = seg_pair_start[segs + 1] - starts
+    # clear every pair of these segments
+    owner = np.repeat(np.arange(len(segs)), lens)
+    matched[np.arange(owner.size) - np.repeat(segment_starts(lens)[:-1], lens) + np.repeat(starts, lens)] = False
+    neg = -score  # TrackEval passes -score to the solver
+    ncs = seg_n_cols[segs]
+    rows_l, cols_l = [], []
+    for a, b, nr, nc in zip(starts.tolist(), (starts + lens).tolist(), seg_n_rows[segs].tolist(), ncs.tolist()):
+        r, c = linear_sum_assignment(neg[a:b].reshape(nr, nc))
+        rows_l.append(r)
+        cols_l.append(c)
+    n_per = np.minimum(seg_n_rows[segs], ncs)  # the solver returns min(n_rows, n_cols) pairs
+    rows = np.concatenate(rows_l)
+    cols = np.concatenate(cols_l)
+    flat = rows * np.repeat(ncs, n_per) + cols + np.repeat(starts, n_per)
+    matched[flat[score[flat] > accept_above]] = True

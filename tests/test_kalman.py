@@ -1,0 +1,94 @@
+"""Closed-form filters against an independent dense-matrix implementation."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from dfrmot_jax import kalman
+
+F = np.array([[1, 1, 0.5], [0, 1, 1], [0, 0, 1]], dtype=np.float64)
+H = np.array([[1.0, 0.0, 0.0]])
+
+
+def _dense(cov6):
+    a, b, c, d, e, g = cov6
+    return np.array([[a, b, c], [b, d, e], [c, e, g]])
+
+
+def _random_state(rng, k=7):
+    p, v, a = (rng.normal(0, s, k) for s in (100, 5, 1))
+    covs = []
+    for _ in range(k):
+        m = rng.normal(size=(3, 3))
+        P = m @ m.T + 0.1 * np.eye(3)
+        covs.append([P[0, 0], P[0, 1], P[0, 2], P[1, 1], P[1, 2], P[2, 2]])
+    return kalman.FilterState(jnp.asarray(p), jnp.asarray(v), jnp.asarray(a), jnp.asarray(np.array(covs).T))
+
+
+@pytest.fixture(autouse=True)
+def _x64():
+    with jax.enable_x64(True):
+        yield
+
+
+def test_kalman_predict_matches_dense():
+    rng = np.random.default_rng(0)
+    s = _random_state(rng)
+    q = 0.7
+    out = kalman.predict(s, "kalman", kf_q=q)
+    for i in range(s.p.shape[0]):
+        x = np.array([s.p[i], s.v[i], s.a[i]])
+        P = _dense(np.asarray(s.cov)[:, i])
+        xn = F @ x
+        Pn = F @ P @ F.T + q * kalman.Q_JERK
+        np.testing.assert_allclose([out.p[i], out.v[i], out.a[i]], xn, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(_dense(np.asarray(out.cov)[:, i]), Pn, rtol=1e-12, atol=1e-9)
+
+
+def test_kalman_update_matches_dense():
+    rng = np.random.default_rng(1)
+    s = _random_state(rng)
+    z = np.asarray(s.p) + rng.normal(0, 3, s.p.shape[0])
+    r = 2.5
+    out = kalman.update(s, jnp.asarray(z), "kalman", kf_r=r)
+    for i in range(s.p.shape[0]):
+        x = np.array([s.p[i], s.v[i], s.a[i]])
+        P = _dense(np.asarray(s.cov)[:, i])
+        S = H @ P @ H.T + r
+        K = P @ H.T / S
+        xn = x + (K * (z[i] - H @ x)).ravel()
+        Pn = (np.eye(3) - K @ H) @ P
+        np.testing.assert_allclose([out.p[i], out.v[i], out.a[i]], xn, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(_dense(np.asarray(out.cov)[:, i]), Pn, rtol=1e-10, atol=1e-9)
+
+
+def test_fixed_gain_is_the_authors_dt_free_form():
+    s = kalman.FilterState(jnp.array([10.0]), jnp.array([1.0]), jnp.array([0.5]), jnp.zeros((0,)))
+    u = kalman.update(s, jnp.array([12.0]), "fixed_gain", gains=(0.9, 0.9, 0.1))
+    np.testing.assert_allclose([u.p[0], u.v[0], u.a[0]], [10 + 0.9 * 2, 1 + 0.9 * 2, 0.5 + 0.2 * 2])
+    pr = kalman.predict(u, "fixed_gain")
+    np.testing.assert_allclose([pr.p[0], pr.v[0], pr.a[0]], [u.p[0] + u.v[0] + u.a[0] / 2, u.v[0] + u.a[0], u.a[0]])
+
+
+@pytest.mark.parametrize("q,r", [(1.0, 1.0), (0.1, 1.0), (10.0, 0.5)])
+def test_steady_start_kalman_equals_fixed_gain_on_a_stream(q, r):
+    """Born at the steady-state covariance, the Kalman filter is the fixed-gain filter with its gains."""
+    gains, P = kalman.steady_state(q, r)
+    np.testing.assert_allclose(np.asarray(kalman.steady_cov(q, r)), [P[0, 0], P[0, 1], P[0, 2], P[1, 1], P[1, 2], P[2, 2]],
+                               rtol=1e-9)
+    rng = np.random.default_rng(2)
+    zs = np.cumsum(rng.normal(3, 1, 200)) + rng.normal(0, 0.5, 200)
+    k = kalman.init(jnp.array([zs[0]]), "kalman", cov0=kalman.steady_cov(q, r))
+    f = kalman.init(jnp.array([zs[0]]), "fixed_gain")
+    for z in zs[1:]:
+        k = kalman.predict(kalman.update(k, jnp.array([z]), "kalman", kf_r=r), "kalman", kf_q=q)
+        f = kalman.predict(kalman.update(f, jnp.array([z]), "fixed_gain", gains=tuple(gains)), "fixed_gain")
+        np.testing.assert_allclose([k.p[0], k.v[0], k.a[0]], [f.p[0], f.v[0], f.a[0]], rtol=1e-9, atol=1e-9)
+
+
+def test_steady_state_gains_are_a_known_alpha_beta_gamma_family():
+    (a, b, g), _ = kalman.steady_state(1.0, 1.0)
+    assert 0 < a < 1 and 0 < b < 2 and 0 < g < 1
+    (a2, _, _), _ = kalman.steady_state(100.0, 1.0)
+    assert a2 > a  # more process noise -> trust measurements more

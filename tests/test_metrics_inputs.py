@@ -1,0 +1,139 @@
+"""Bad inputs to the metrics entry points: KittiFormatError naming file, line and field; array checks."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dfrmot_jax.io.kitti import KittiFormatError
+from dfrmot_jax.metrics import DuplicateIdError, evaluate_arrays, evaluate_files, prepare_gt
+
+ROW = "{f} {i} {t} -1 -1 -10 {x1} {y1} {x2} {y2} -1 -1 -1 -1000 -1000 -1000 -10 1\n"
+
+
+def _row(f=0, i=1, t="Car", box=(100, 100, 200, 180)):
+    return ROW.format(f=f, i=i, t=t, x1=box[0], y1=box[1], x2=box[2], y2=box[3])
+
+
+@pytest.fixture(scope="module")
+def gt0(kitti_root):
+    return prepare_gt(kitti_root, "car", ["0000"])  # 154 frames
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    d = tmp_path / "res"
+    d.mkdir(exist_ok=True)
+    (d / "0000.txt").write_text(text)
+    return d
+
+
+def _raises(d, gt, field, line):
+    with pytest.raises(KittiFormatError) as ei:
+        evaluate_files(d, gt)
+    e = ei.value
+    assert e.field == field and e.line == line and e.path.endswith("0000.txt"), (e.field, e.line, e.path)
+    return e
+
+
+def test_wrong_column_count(tmp_path, gt0):
+    text = _row(0) + _row(1) + "2 1 Car -1 -1 -10 1 2 3 4 -1 -1 -1 -1000 -1000 -1000\n"
+    _raises(_write(tmp_path, text), gt0, "columns", 3)
+
+
+def test_frame_beyond_sequence(tmp_path, gt0):
+    text = _row(0) + "\n" + _row(153) + _row(154)  # the blank line counts in line numbers
+    e = _raises(_write(tmp_path, text), gt0, "frame", 4)
+    assert "154" in str(e)
+
+
+def test_non_numeric_id(tmp_path, gt0):
+    text = _row(0) + _row(1, i="abc")
+    _raises(_write(tmp_path, text), gt0, "track_id", 2)
+
+
+def test_unknown_class(tmp_path, gt0):
+    text = _row(0) + _row(1, t="Person_sitting")
+    _raises(_write(tmp_path, text), gt0, "type", 2)
+
+
+def test_duplicate_id_in_frame(tmp_path, gt0):
+    text = _row(0) + _row(5, i=3) + _row(5, i=3, box=(400, 120, 500, 200))
+    _raises(_write(tmp_path, text), gt0, "track_id", 3)
+
+
+def test_duplicate_removed_by_preprocessing_is_fine(tmp_path, gt0):
+    # the second box is 20 px tall and matches nothing: TrackEval drops it before checking ids
+    text = _row(5, i=3) + _row(5, i=3, box=(1000, 10, 1010, 30))
+    res = evaluate_files(_write(tmp_path, text), gt0)
+    assert res["COMBINED"]["Dets"] == 1
+
+
+def test_other_classes_and_negative_ids_ignored(tmp_path, gt0):
+    text = _row(0, i=1) + _row(0, i=2, t="Pedestrian") + _row(0, i=-1) + _row(0, i=4, t="car_2", box=(600, 150, 700, 250))
+    res = evaluate_files(_write(tmp_path, text), gt0)
+    assert res["COMBINED"]["Dets"] == 2 and res["COMBINED"]["IDs"] == 2
+
+
+def test_missing_file(tmp_path, gt0):
+    d = tmp_path / "empty"
+    d.mkdir()
+    res = evaluate_files(d, gt0)
+    assert res["COMBINED"]["CLR_TP"] == 0 and res["COMBINED"]["CLR_FN"] == int(gt0.n_gt_dets.sum())
+    with pytest.raises(KittiFormatError) as ei:
+        evaluate_files(d, gt0, missing="error")
+    assert ei.value.path.endswith("0000.txt")
+
+
+def test_bad_class_name(kitti_root):
+    with pytest.raises(ValueError):
+        prepare_gt(kitti_root, "cyclist", ["0000"])
+
+
+def test_array_checks(gt0):
+    T = gt0.n_frames
+    ids = np.full((2, T, 3), -1, np.int32)
+    boxes = np.zeros((2, T, 3, 4), np.float32)
+    with pytest.raises(ValueError):
+        evaluate_arrays(gt0, ids[0], boxes[0], [0])
+    with pytest.raises(ValueError):
+        evaluate_arrays(gt0, ids, boxes[:, :, :2], [0])
+    with pytest.raises(ValueError):
+        evaluate_arrays(gt0, ids, boxes, [1])  # sequence would run past T
+    ids[1, 4, 0] = 7
+    boxes[1, 4, 0] = [np.nan, 0, 10, 10]
+    with pytest.raises(ValueError, match="non-finite"):
+        evaluate_arrays(gt0, ids, boxes, [0])
+    boxes[1, 4, 0] = [100, 100, 200, 180]
+    ids[1, 4, 1] = 7
+    boxes[1, 4, 1] = [300, 100, 400, 180]
+    with pytest.raises(DuplicateIdError, match="config 1"):
+        evaluate_arrays(gt0, ids, boxes, [0])
+    ids[1, 4, 1] = 8
+    res = evaluate_arrays(gt0, ids, boxes, [0])
+    assert [r["COMBINED"]["Dets"] for r in res] == [0, 2]
+
+
+def test_missing_results_folder(tmp_path, gt0):
+    with pytest.raises(FileNotFoundError):
+        evaluate_files(tmp_path / "does_not_exist", gt0)
+
+
+def test_lenient_rows_like_trackeval(tmp_path, gt0, kitti_root):
+    """Rows TrackEval skips before any check (negative ids: any class, any frame) and a duplicate id
+    removed by preprocessing must not raise, and must give TrackEval's numbers."""
+    pytest.importorskip("trackeval")
+    from dfrmot_jax.metrics.trackeval_compat import make_gt_folder, make_tracker_folder, run_trackeval
+
+    text = (_row(0, i=1, box=(296, 160, 452, 288)) + _row(0, i=-1, t="Whatever") + _row(3, i=2)
+            + _row(5, i=3) + _row(5, i=3, box=(1000, 10, 1010, 30))
+            + _row(7, i=8, t="DontCare", box=(10, 10, 20, 20)) + _row(999, i=-5))
+    d = _write(tmp_path, text)
+    make_gt_folder(tmp_path / "gt", kitti_root, gt0.lengths_dict)
+    make_tracker_folder(tmp_path / "trk", "t", {"0000": text}, ["0000"])
+    te = run_trackeval(tmp_path / "gt", tmp_path / "trk", "car")["t"]
+    ours = evaluate_files(d, gt0)
+    for seq in te:
+        for f, v in te[seq].items():
+            assert np.allclose(np.asarray(ours[seq][f], float), np.asarray(v, float), atol=1e-9, rtol=0), (seq, f)

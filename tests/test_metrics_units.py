@@ -1,0 +1,273 @@
+"""Building blocks of dfrmot_jax.metrics against TrackEval / numpy / scipy, plus random synthetic scenes."""
+
+from __future__ import annotations
+
+import csv
+import numpy as np
+import pytest
+from scipy.optimize import linear_sum_assignment
+
+from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, metrics_table, prepare_gt
+from dfrmot_jax.metrics.boxes import columns, gather_iou, pair_ioa, pair_iou
+from dfrmot_jax.metrics.edits import SeqResults, f32, pack_arrays, write_results
+from dfrmot_jax.metrics.pairs import (assign_frames, enumerate_pairs, nontrivial_segments, numpy_col_sums,
+                                      numpy_row_sums, segment_starts)
+
+
+def _random_boxes(rng, n):
+    x1 = rng.choice([0.0, 10.0, 50.5, 100.0], n) + rng.integers(0, 5, n)
+    y1 = rng.choice([0.0, 20.0, 33.25], n) + rng.integers(0, 5, n)
+    w = rng.choice([0.0, 1e-9, 5.0, 40.0, 40.5, 80.0], n)  # includes degenerate boxes
+    h = rng.choice([0.0, 25.0, 30.0, 60.0], n)
+    return np.stack([x1, y1, x1 + w, y1 + h], 1)
+
+
+def test_iou_bitwise_like_trackeval():
+    base = pytest.importorskip("trackeval.datasets._base_dataset")
+    calc = base._BaseDataset._calculate_box_ious
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        a = _random_boxes(rng, int(rng.integers(1, 9)))
+        b = _random_boxes(rng, int(rng.integers(1, 9)))
+        ref = calc(a, b, box_format="x0y0x1y1")
+        ia, ib = np.repeat(np.arange(len(a)), len(b)), np.tile(np.arange(len(b)), len(a))
+        assert np.array_equal(pair_iou(a[ia], b[ib]).reshape(ref.shape), ref)
+        assert np.array_equal(gather_iou(columns(a), ia, columns(b), ib).reshape(ref.shape), ref)
+        ref_ioa = calc(a, b, box_format="x0y0x1y1", do_ioa=True)
+        assert np.array_equal(pair_ioa(a[ia], b[ib]).reshape(ref.shape), ref_ioa)
+
+
+def test_frame_sums_bitwise_like_numpy():
+    rng = np.random.default_rng(1)
+    mats = []
+    for _ in range(400):
+        g, n = int(rng.integers(1, 25)), int(rng.integers(1, 40))
+        if rng.random() < 0.2:
+            n = 1
+        m = rng.random((g, n)) * (rng.random((g, n)) < 0.6)
+        mats.append(m)
+    nr = np.array([m.shape[0] for m in mats])
+    nc = np.array([m.shape[1] for m in mats])
+    values = np.concatenate([m.reshape(-1) for m in mats])
+    pstart = segment_starts(nr * nc)
+    seg, row, col, ps2 = enumerate_pairs(nr, segment_starts(nr)[:-1], nc, segment_starts(nc)[:-1])
+    assert np.array_equal(ps2, pstart) and len(seg) == len(values)
+    row_first = np.concatenate([pstart[s] + np.arange(nr[s]) * nc[s] for s in range(len(mats))])
+    rs = numpy_row_sums(values, row_first, np.repeat(nc, nr))
+    cs = numpy_col_sums(values, col, int(nc.sum()), np.repeat(np.arange(len(mats)), nc), nr, nc, pstart)
+    assert np.array_equal(rs, np.concatenate([m.sum(1) for m in mats]))
+    assert np.array_equal(cs, np.concatenate([m.sum(0) for m in mats]))
+
+
+def test_assign_frames_matches_scipy_with_ties():
+    rng = np.random.default_rng(2)
+    mats = []
+    for _ in range(300):
+        g, n = int(rng.integers(1, 7)), int(rng.integers(1, 7))
+        m = rng.choice([0.0, 0.0, 0.3, 0.5, 0.5, 0.7], (g, n))  # many exact ties
+        mats.append(m)
+    nr = np.array([m.shape[0] for m in mats])
+    nc = np.array([m.shape[1] for m in mats])
+    score = np.concatenate([m.reshape(-1) for m in mats])
+    seg, row, col, pstart = enumerate_pairs(nr, segment_starts(nr)[:-1], nc, segment_starts(nc)[:-1])
+    pos = score > 0
+    matched = pos.copy()
+    hard = nontrivial_segments(seg, row, col, pos)
+    assign_frames(hard, pstart, nr, nc, score, matched, 0.0)
+    for s, m in enumerate(mats):
+        r, c = linear_sum_assignment(-m)
+        want = np.zeros(m.shape, bool)
+        ok = m[r, c] > 0
+        want[r[ok], c[ok]] = True
+        assert np.array_equal(matched[pstart[s]:pstart[s + 1]].reshape(m.shape), want), s
+
+
+# ------------------------------------------------------------------ random synthetic scenes vs TrackEval
+
+LABEL = "{f} {i} {t} {tr} {oc} -10 {b[0]!r} {b[1]!r} {b[2]!r} {b[3]!r} 1.5 1.6 3.9 1 1 10 0\n"
+
+
+def _synthetic_gt(rng, n_frames=40, n_obj=9):
+    """GT label text: moving objects of several classes with occlusion/truncation, plus DontCare."""
+    lines = []
+    objs = []
+    for i in range(n_obj):
+        t = rng.choice(["Car", "Car", "Car", "Van", "Pedestrian", "Pedestrian", "Person", "Truck"])
+        x, y = rng.uniform(0, 600), rng.uniform(50, 250)
+        w, h = (rng.uniform(30, 150), rng.uniform(20, 90)) if t != "Pedestrian" else (rng.uniform(10, 40), rng.uniform(20, 90))
+        objs.append([i, t, x, y, w, h, rng.uniform(-6, 6), int(rng.integers(0, n_frames // 2)),
+                     int(rng.integers(n_frames // 2, n_frames))])
+    for f in range(n_frames):
+        for i, t, x, y, w, h, v, f0, f1 in objs:
+            if f0 <= f <= f1:
+                x_ = x + v * (f - f0)
+                b = f32([x_, y, x_ + w, y + h])
+                lines.append(LABEL.format(f=f, i=i, t=t, tr=int(rng.choice([0, 0, 0, 1, 2])),
+                                          oc=int(rng.choice([0, 1, 2, 3])), b=b.tolist()))
+        if rng.random() < 0.5:
+            x = rng.uniform(0, 800)
+            b = f32([x, 150, x + rng.uniform(20, 120), 150 + rng.uniform(10, 60)])
+            lines.append(LABEL.format(f=f, i=-1, t="DontCare", tr=-1, oc=-1, b=b.tolist()))
+    if not any(line.startswith(f"{n_frames - 1} ") for line in lines):
+        lines.append(LABEL.format(f=n_frames - 1, i=-1, t="DontCare", tr=-1, oc=-1, b=[0.0, 0.0, 10.0, 10.0]))
+    return "".join(lines)
+
+
+def _synthetic_tracker(rng, gt_text, cls_name):
+    rows = [line.split() for line in gt_text.splitlines()]
+    fr, ids, ty, bx = [], [], [], []
+    for r in rows:
+        f, i, t = int(r[0]), int(r[1]), r[2]
+        b = np.array([float(v) for v in r[6:10]])
+        u = rng.random()
+        if u < 0.15:
+            continue
+        if u < 0.35:
+            b = f32(b + rng.normal(0, 4, 4))
+            b = np.array([min(b[0], b[2]), min(b[1], b[3]), max(b[0], b[2]), max(b[1], b[3])])
+        tid = (i + 100 if i >= 0 else 999) + (50 if (rng.random() < 0.1) else 0)  # some id switches
+        fr.append(f), ids.append(tid), ty.append(cls_name), bx.append(b)
+        if rng.random() < 0.15:  # exact duplicate under another id: assignment ties
+            fr.append(f), ids.append(tid + 1000), ty.append(cls_name), bx.append(b.copy())
+    n_frames = max(int(r[0]) for r in rows) + 1
+    for k in range(25):  # clutter: random, tiny
+        f = int(rng.integers(0, n_frames))
+        x, y = rng.uniform(0, 800), rng.uniform(0, 300)
+        h = rng.choice([10.0, 25.0, 26.0, 70.0])
+        fr.append(f), ids.append(5000 + k), ty.append(cls_name), bx.append(f32([x, y, x + rng.uniform(5, 100), y + h]))
+    order = np.argsort(np.array(fr), kind="stable")
+    return SeqResults(np.array(fr)[order], np.array(ids)[order], np.array(ty, dtype="<U16")[order],
+                      np.array(bx, dtype=np.float64)[order])
+
+
+def _assert_close(te, ours, tag=""):
+    assert set(te) == set(ours)
+    for seq in te:
+        assert set(te[seq]) == set(ours[seq])
+        for f, v in te[seq].items():
+            a, b = np.asarray(v, float), np.asarray(ours[seq][f], float)
+            assert a.shape == b.shape and np.allclose(a, b, atol=1e-9, rtol=0), (tag, seq, f, v, ours[seq][f])
+
+
+@pytest.mark.parametrize("cls", ["car", "pedestrian"])
+def test_random_scenes_vs_trackeval(tmp_path, cls):
+    """Dense random scenes (distractors, occlusion, truncation, DontCare, tiny boxes, exact duplicates)."""
+    pytest.importorskip("trackeval")
+    from dfrmot_jax.metrics.trackeval_compat import make_gt_folder, run_trackeval
+
+    rng = np.random.default_rng(10 if cls == "car" else 11)
+    root = tmp_path / "root"
+    (root / "label_02").mkdir(parents=True)
+    seqs = ["0000", "0001", "0002"]
+    for s in seqs:
+        (root / "label_02" / f"{s}.txt").write_text(_synthetic_gt(rng, n_frames=int(rng.integers(20, 50))))
+    gt = prepare_gt(root, cls, seqs)
+    make_gt_folder(tmp_path / "gt", root, gt.lengths_dict)
+    name = "Car" if cls == "car" else "Pedestrian"
+    lanes = []
+    for k in range(4):
+        lane = {s: _synthetic_tracker(rng, (root / "label_02" / f"{s}.txt").read_text(), name) for s in seqs}
+        lanes.append(lane)
+        write_results(tmp_path / "trackers" / f"t{k}" / "data", lane, seqs)
+    te = run_trackeval(tmp_path / "gt", tmp_path / "trackers", cls)
+    ids, boxes, offsets = pack_arrays(lanes, seqs, gt.lengths, cls=cls)
+    arr = evaluate_arrays(gt, ids, boxes, offsets)
+    for k in range(4):
+        ours = evaluate_files(tmp_path / "trackers" / f"t{k}" / "data", gt)
+        _assert_close(te[f"t{k}"], ours, f"t{k}")
+        _assert_close(ours, arr[k], f"arrays t{k}")
+
+
+# ------------------------------------------------------------------ table and CLI
+
+def test_metrics_table(kitti_root):
+    from dfrmot_jax.metrics.table import COUNT_FIELDS
+
+    res = evaluate_files(kitti_root / "reference" / "dfr_fastmot_rrc_pointrcnn", kitti_root, "car", ["0000", "0001"])
+    df = metrics_table(res, tracker="dfr")
+    assert list(df.index) == ["0000", "0001", "COMBINED"]
+    assert df.columns[0] == "tracker"
+    for f in ("HOTA", "DetA", "AssA", "DetRe", "DetPr", "AssRe", "AssPr", "LocA", "MOTA", "MOTP", "MODA", "IDSW",
+              "IDF1", "IDR", "IDP", "MT", "PT", "ML", "Frag", "CLR_TP", "CLR_FN", "CLR_FP", "IDTP", "IDFN", "IDFP"):
+        assert f in df.columns, f
+    c = res["COMBINED"]
+    assert df.loc["COMBINED", "HOTA"] == pytest.approx(100 * np.mean(c["HOTA"]))
+    assert df.loc["COMBINED", "MOTA"] == pytest.approx(100 * c["MOTA"])
+    for f in COUNT_FIELDS:
+        assert df[f].dtype == np.int64
+    assert df.loc["COMBINED", "IDSW"] == c["IDSW"]
+
+
+def test_cli_eval(kitti_root, tmp_path, capsys):
+    import argparse
+
+    from dfrmot_jax.metrics.cli import add_eval_parser
+
+    parser = argparse.ArgumentParser(prog="dfrmot")
+    sub = parser.add_subparsers(dest="command")
+    add_eval_parser(sub)
+    ref = kitti_root / "reference" / "dfr_fastmot_rrc_pointrcnn"
+    empty = tmp_path / "nothing"
+    empty.mkdir()
+    out_csv = tmp_path / "m.csv"
+    args = parser.parse_args(["eval", str(ref), str(empty), "--data", str(kitti_root), "--seqs", "0000,0002",
+                              "--per-seq", "--csv", str(out_csv)])
+    assert args.func(args) == 0
+    text = capsys.readouterr().out
+    assert "COMBINED" in text and "dfr_fastmot_rrc_pointrcnn" in text and "HOTA" in text
+    rows = list(csv.DictReader(out_csv.open()))
+    assert [(r["tracker"], r["seq"]) for r in rows] == [
+        ("dfr_fastmot_rrc_pointrcnn", "0000"), ("dfr_fastmot_rrc_pointrcnn", "0002"),
+        ("dfr_fastmot_rrc_pointrcnn", "COMBINED"), ("nothing", "0000"), ("nothing", "0002"), ("nothing", "COMBINED")]
+    res = evaluate_files(ref, kitti_root, "car", ["0000", "0002"])
+    assert float(rows[2]["HOTA"]) == pytest.approx(100 * np.mean(res["COMBINED"]["HOTA"]))
+    assert int(rows[2]["IDSW"]) == res["COMBINED"]["IDSW"]
+    assert int(rows[5]["CLR_TP"]) == 0
+    bad = parser.parse_args(["eval", str(tmp_path / "missing"), "--data", str(kitti_root)])
+    assert bad.func(bad) == 2
+
+
+def test_identity_matching_value_equals_trackeval_formulation():
+    from dfrmot_jax.metrics.identity import max_matching_value
+
+    rng = np.random.default_rng(5)
+    for _ in range(30):
+        G, T = int(rng.integers(1, 12)), int(rng.integers(1, 12))
+        pm = rng.integers(1, 9, (G, T)) * (rng.random((G, T)) < 0.25)
+        gc = pm.sum(1) + rng.integers(0, 5, G)
+        tc = pm.sum(0) + rng.integers(0, 5, T)
+        # TrackEval's (G+T) x (G+T) cost matrix
+        fp = np.zeros((G + T, G + T))
+        fn = np.zeros((G + T, G + T))
+        fp[G:, :T] = 1e10
+        fn[:G, T:] = 1e10
+        for g in range(G):
+            fn[g, :T] = gc[g]
+            fn[g, T + g] = gc[g]
+        for t in range(T):
+            fp[:G, t] = tc[t]
+            fp[t + G, t] = tc[t]
+        fn[:G, :T] -= pm
+        fp[:G, :T] -= pm
+        r, c = linear_sum_assignment(fn + fp)
+        idtp_te = gc.sum() - fn[r, c].sum()
+        g, t = np.nonzero(pm)
+        assert max_matching_value(g * 7 + 3, t, pm[g, t].astype(float)).sum() == idtp_te
+
+
+def test_evaluate_arrays_in_worker_processes(kitti_root):
+    from dfrmot_jax.metrics.edits import load_results
+
+    seqs = ["0000", "0003"]
+    gt = prepare_gt(kitti_root, "car", seqs)
+    ref = load_results(kitti_root / "reference" / "dfr_fastmot_rrc_pointrcnn", seqs)
+    ids, boxes, offsets = pack_arrays([ref] * 3, seqs, gt.lengths)
+    ids[1, ::3] = -1
+    ids[2, :, 1:] = -1
+    one = evaluate_arrays(gt, ids, boxes, offsets, chunk=2)
+    two = evaluate_arrays(gt, ids, boxes, offsets, chunk=1, workers=2)
+    for a, b in zip(one, two):
+        for seq in a:
+            for f in a[seq]:
+                assert np.array_equal(np.asarray(a[seq][f]), np.asarray(b[seq][f])), (seq, f)
+    assert one[0]["COMBINED"]["CLR_TP"] > one[1]["COMBINED"]["CLR_TP"]

@@ -1,0 +1,138 @@
+"""The JAX tracker on the built-in synthetic scene: oracle parity, batching, recompiles, capacity."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from dfrmot_jax import tracker
+from dfrmot_jax.api import default_capacity, track
+from dfrmot_jax.data import load_sequences, pack, prepare_frames
+from dfrmot_jax.params import Options, Params, stack_params
+from dfrmot_jax.parity import lane_mismatches, reference_rows
+from dfrmot_jax.synthetic import make_scene
+from dfrmot_jax.tests_support import random_params, random_settings
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    root = make_scene(tmp_path_factory.mktemp("scene"), n_sequences=2, n_frames=150, n_cars=7, seed=3)
+    seqs = load_sequences(root, "synth2d", "synth3d", "car")
+    return root, seqs, pack(seqs)
+
+
+def _assert_parity(split, seqs, params, options):
+    res = track(split, stack_params([params]), options)
+    mm = lane_mismatches(split, res, 0, reference_rows(seqs, params, options))
+    assert mm["lines"] > 0
+    assert (mm["missing"], mm["extra"], mm["id"], mm["box"]) == (0, 0, 0, 0), (options, params, mm)
+
+
+@pytest.mark.parametrize("name", ["dfr2023", "dfr_head"])
+def test_presets_match_reference(scene, name):
+    from dfrmot_jax.params import preset
+
+    _, seqs, split = scene
+    _assert_parity(split, seqs, *preset(name))
+
+
+def test_random_settings_match_reference(scene):
+    _, seqs, split = scene
+    rng = np.random.default_rng(11)
+    for params, options in random_settings(rng, 8):
+        _assert_parity(split, seqs, params, options)
+
+
+def test_vmap_batch_equals_loop_of_single_runs(scene):
+    _, _, split = scene
+    rng = np.random.default_rng(5)
+    options = Options(filter="kalman", output="filtered", capacity=48)
+    settings = [random_params(rng, "filtered") for _ in range(32)]
+    batch = track(split, stack_params(settings), options, chunk=32)
+    for b, p in enumerate(settings):
+        single = track(split, stack_params([p]), options)
+        k = single.ids.shape[2]
+        np.testing.assert_array_equal(batch.ids[b][:, :k], single.ids[0])
+        assert np.all(batch.ids[b][:, k:] == -1)
+        live = single.ids[0] >= 0
+        np.testing.assert_array_equal(batch.boxes[b][:, :k][live], single.boxes[0][live])
+
+
+def test_second_call_with_new_values_does_not_recompile(scene):
+    _, _, split = scene
+    frames = prepare_frames(split, Options())
+    cap = default_capacity(frames, Params(), Options())
+    tracker.run_batch(stack_params([Params(), Params(a_l=5.0)]), frames, Options(), cap)
+    fn = tracker._compiled(Options(), cap, min(2, tracker.device_count()))
+    before = fn._cache_size()
+    out = tracker.run_batch(stack_params([Params(a_l=3.0, epsilon=5), Params(score_2d=0.7)]), frames, Options(), cap)
+    assert fn._cache_size() == before == 1
+    assert out.ids.shape[0] == 2
+
+
+CHANGES = {
+    "score_2d": (Options(), 0.8), "score_3d": (Options(), 9.0), "merge_iou": (Options(), 0.9),
+    "a_c": (Options(modality="2d"), 0.6), "a_l": (Options(modality="3d"), 1.0), "alpha_c": (Options(), 0.95),
+    "a_f": (Options(), 0.4), "epsilon": (Options(), 0), "gain_alpha": (Options(modality="2d"), 0.1),
+    "gain_beta": (Options(modality="2d"), 0.0), "gain_gamma": (Options(modality="2d"), 0.9),
+    "kf_q": (Options(filter="kalman", output="filtered"), 1e4), "kf_r": (Options(filter="kalman", output="filtered"), 1e4),
+    "kf_p0": (Options(filter="kalman", output="filtered"), 1e-3),
+    "keep_lost": (Options(output="filtered"), 5), "min_hits": (Options(), 4),
+}
+
+
+def test_every_parameter_changes_the_output(scene):
+    """A guard against settings that are silently ignored."""
+    _, _, split = scene
+    assert set(CHANGES) == set(Params._fields)
+    by_options = {}
+    for name, (options, value) in CHANGES.items():
+        by_options.setdefault(options, []).append((name, value))
+    for options, changes in by_options.items():
+        lanes = [Params()] + [Params()._replace(**{n: v}) for n, v in changes]
+        res = track(split, stack_params(lanes), options)
+        for b, (name, value) in enumerate(changes, start=1):
+            same = np.array_equal(res.ids[b], res.ids[0]) and (
+                options.output == "detections" or np.array_equal(res.boxes[b], res.boxes[0]))
+            assert not same, f"changing {name} to {value} under {options} changed nothing"
+
+
+def test_overflow_is_detected_counted_per_lane_and_reported(scene):
+    _, _, split = scene
+    params = stack_params([Params(), Params(epsilon=0), Params(epsilon=60)])
+    with pytest.warns(RuntimeWarning, match="overflow"):
+        small = track(split, params, Options(capacity=4), grow=False)
+    assert np.all(small.overflow >= 0) and small.overflow[2] > 0
+    assert small.overflow[2] >= small.overflow[1]
+    np.testing.assert_array_equal(small.dropped.sum(axis=1), small.overflow)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        grown = track(split, params, Options(capacity=4), grow=True)
+    assert np.all(grown.overflow == 0) and np.all(grown.capacity > 4)
+    big = track(split, params, Options(capacity=256))
+    assert np.all(big.overflow == 0)
+    np.testing.assert_array_equal(grown.ids, big.ids)
+
+
+def test_default_capacity_comes_from_the_data(scene):
+    _, _, split = scene
+    frames = prepare_frames(split, Options())
+    most = int((frames.valid2 & (frames.score2 >= 0.45)).sum(1).max() + (frames.valid3 & (frames.score3 >= 4.0)).sum(1).max())
+    cap = default_capacity(frames, Params(), Options())
+    assert cap % 8 == 0 and most <= cap <= 3 * most + 16
+    loose = default_capacity(frames, Params(score_2d=0.0, score_3d=-10.0), Options())
+    assert loose >= cap
+
+
+def test_ids_restart_at_each_sequence(scene):
+    _, _, split = scene
+    res = track(split, stack_params([Params()]), Options())
+    for s in range(len(split.names)):
+        ids = res.ids[0][split.sequence_slice(s)]
+        assert ids[ids >= 0].min() == 0
+
+
+def test_keep_lost_needs_filtered_output(scene):
+    _, _, split = scene
+    with pytest.raises(ValueError, match="keep_lost"):
+        track(split, stack_params([Params(keep_lost=2)]), Options())
