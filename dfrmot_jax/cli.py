@@ -66,8 +66,8 @@ def cmd_demo(args) -> int:
     except ImportError:  # metrics not installed in this build
         return 0
     table = metrics_table(evaluate_files(work / "results", root, "car"))
-    cols = [c for c in ("sequence", "HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW") if c in table.columns]
-    print(table[cols].to_string(index=False, float_format=lambda v: f"{v:.2f}"))
+    cols = ["HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW"]
+    print(table[cols].to_string(float_format=lambda v: f"{v:.2f}"))
     return 0
 
 

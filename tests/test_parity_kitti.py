@@ -12,7 +12,7 @@ from dfrmot_jax.io.kitti import read_tracking_labels
 from dfrmot_jax.kalman import steady_state
 from dfrmot_jax.params import Options, Params, preset, stack_params
 from dfrmot_jax.parity import lane_mismatches, reference_rows
-from dfrmot_jax.tests_support import random_options, random_params
+from dfrmot_jax.testing import random_options, random_params
 
 REFERENCE = "reference/dfr_fastmot_rrc_pointrcnn"
 

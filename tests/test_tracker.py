@@ -11,7 +11,7 @@ from dfrmot_jax.data import load_sequences, pack, prepare_frames
 from dfrmot_jax.params import Options, Params, stack_params
 from dfrmot_jax.parity import lane_mismatches, reference_rows
 from dfrmot_jax.synthetic import make_scene
-from dfrmot_jax.tests_support import random_params, random_settings
+from dfrmot_jax.testing import random_params, random_settings
 
 
 @pytest.fixture(scope="module")
