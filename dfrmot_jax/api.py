@@ -44,8 +44,10 @@ class TrackResult(NamedTuple):
 
 
 def default_capacity(frames: Frames, params: Params, options: Options) -> int:
-    """Track slots from the data: 2.5 x the most objects any frame keeps at the batch's loosest
-    score thresholds, rounded up to a multiple of 8 (at least 16). Overflow is still checked."""
+    """Track slots from the data: 1.5 x the most objects any frame keeps at the batch's loosest
+    score thresholds, rounded up to a multiple of 8 (at least 16). Every [objects, tracks] operation
+    of a step scales with it, so it is tight on purpose: a lane that overflows is re-run by ``track``
+    with twice the slots."""
     s2 = np.min(np.asarray(params.score_2d, np.float32))
     s3 = np.min(np.asarray(params.score_3d, np.float32))
     n2 = np.sum(frames.valid2 & (frames.score2 >= s2), axis=1)
@@ -57,7 +59,7 @@ def default_capacity(frames: Frames, params: Params, options: Options) -> int:
     else:
         n = n2 + n3
     most = int(n.max(initial=0))
-    return max(16, int(np.ceil(2.5 * most / 8.0)) * 8)
+    return max(16, int(np.ceil(1.5 * most / 8.0)) * 8)
 
 
 def _take(params: Params, idx: np.ndarray) -> Params:

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-_BIG = jnp.iinfo(jnp.int32).max
 
 
 def iou_matrix(a, b):
@@ -63,33 +63,50 @@ def fused_affinity(iou, age_ok, dist, both3d, a_c, a_l, alpha_c):
     return alpha_c * iou_c + (1.0 - alpha_c) * (1.0 - m_l)
 
 
-def greedy_min(cost, valid, col_key, limit):
+#: low bits of a cost's ordered float64 pattern that carry the tie-break instead (track id, row)
+TIE_BITS = 28
+ROW_BITS = 6
+_MAX64 = np.iinfo(np.int64).max
+
+
+def order_key(cost, valid, col_key, limit):
+    """A unique int64 per entry [O, N] ordering entries as (cost, col_key, row); MAX where excluded.
+
+    The cost's float64 bit pattern is made order-preserving; its lowest ``TIE_BITS`` bits (costs
+    within 2^-24 relative) are replaced by the tie-break: the column key (track id, < 2^22), then
+    the row (< 2^6). ``reference.order_key`` is the same in NumPy.
+    """
+    c = jnp.where(valid & (cost < limit), cost, jnp.inf) + 0.0  # + 0.0 turns -0.0 into +0.0
+    bits = jax.lax.bitcast_convert_type(c.astype(jnp.float64), jnp.int64)
+    ordered = jnp.where(bits >= 0, bits, bits ^ jnp.int64(0x7FFFFFFFFFFFFFFF))
+    rows = jnp.arange(cost.shape[0], dtype=jnp.int64)[:, None]
+    key = ((ordered >> TIE_BITS) << TIE_BITS) | (col_key.astype(jnp.int64)[None, :] << ROW_BITS) | rows
+    return jnp.where(c < jnp.inf, key, _MAX64)
+
+
+def _round(key, match):
+    """One round: every entry that is the minimum of its row and of its column is matched."""
+    rmin = jnp.min(key, axis=1, keepdims=True, initial=_MAX64)
+    cmin = jnp.min(key, axis=0, keepdims=True, initial=_MAX64)
+    new = (key == rmin) & (key == cmin) & (key < _MAX64)
+    gone = jnp.any(new, axis=1, keepdims=True) | jnp.any(new, axis=0, keepdims=True)
+    return jnp.where(gone, _MAX64, key), match | new
+
+
+def greedy_min(cost, valid, col_key, limit, unroll: int = 2):
     """Greedy matching on the smallest cost while cost < limit -> match [O, N] bool.
 
     Ties go to the smaller ``col_key`` (track id), then the smaller row: the order of the authors'
-    column-major ``minCoeff`` over tracks kept in id order.
+    column-major ``minCoeff`` over tracks kept in id order. ``unroll`` rounds run inline (a CPU
+    while-loop iteration costs more than a round); a loop finishes the rare frames that need more.
     """
-    n_rows, n_cols = cost.shape
-    rows = jnp.arange(n_rows, dtype=jnp.int32)[:, None]
-    c0 = jnp.where(valid & (cost < limit), cost, jnp.inf)
-
-    def cond(carry):
-        return carry[3]
-
-    def body(carry):
-        free_r, free_c, match, _ = carry
-        c = jnp.where(free_r[:, None] & free_c[None, :], c0, jnp.inf)
-        rmin = jnp.min(c, axis=1, keepdims=True, initial=jnp.inf)
-        at_rmin = c == rmin
-        rkey = jnp.min(jnp.where(at_rmin, col_key[None, :], _BIG), axis=1, keepdims=True, initial=_BIG)
-        cmin = jnp.min(c, axis=0, keepdims=True, initial=jnp.inf)
-        at_cmin = c == cmin
-        crow = jnp.min(jnp.where(at_cmin, rows, _BIG), axis=0, keepdims=True, initial=_BIG)
-        new = at_rmin & (col_key[None, :] == rkey) & at_cmin & (rows == crow) & (c < jnp.inf)
-        return (free_r & ~jnp.any(new, axis=1), free_c & ~jnp.any(new, axis=0), match | new, jnp.any(new))
-
-    init = (jnp.ones(n_rows, bool), jnp.ones(n_cols, bool), jnp.zeros((n_rows, n_cols), bool), jnp.any(c0 < jnp.inf))
-    return jax.lax.while_loop(cond, body, init)[2]
+    if cost.shape[0] > 1 << ROW_BITS:
+        raise ValueError(f"greedy_min: at most {1 << ROW_BITS} rows, got {cost.shape[0]}")
+    key = order_key(cost, valid, col_key, limit)
+    match = jnp.zeros(cost.shape, bool)
+    for _ in range(unroll):
+        key, match = _round(key, match)
+    return jax.lax.while_loop(lambda s: jnp.any(s[0] < _MAX64), lambda s: _round(*s), (key, match))[1]
 
 
 def greedy_max(score, valid, threshold):

@@ -72,11 +72,13 @@ def births(alive, newborn):
 
 
 def gather_rows(assign, values):
-    """values [O, ...] taken into the slots that ``assign`` [O, N] (one-hot columns) names -> [N, ...]."""
-    mask = assign.reshape(assign.shape + (1,) * (values.ndim - 1))
-    if values.dtype == jnp.bool_:
-        return jnp.any(mask & values[:, None], axis=0)
-    return jnp.sum(jnp.where(mask, values[:, None], 0), axis=0, dtype=values.dtype)
+    """values [O, ...] taken into the slots that ``assign`` [O, N] (one-hot columns) names -> [N, ...];
+    slots with no row get zeros (False)."""
+    rows = jnp.arange(assign.shape[0], dtype=jnp.int32)[:, None]
+    idx = jnp.sum(jnp.where(assign, rows, 0), axis=0, dtype=jnp.int32)
+    taken = jnp.take(values, idx, axis=0, mode="clip")
+    has = jnp.any(assign, axis=0).reshape((-1,) + (1,) * (values.ndim - 1))
+    return taken & has if values.dtype == jnp.bool_ else jnp.where(has, taken, 0)
 
 
 def end_of_frame(mem: Memory, epsilon) -> Memory:

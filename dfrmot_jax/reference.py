@@ -7,6 +7,8 @@ in the JAX tracker, so that the two can be compared id for id.
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -60,14 +62,15 @@ class Track:
     out_box: np.ndarray = field(default_factory=lambda: np.zeros(4, F64))
 
 
-def iou(a: np.ndarray, b: np.ndarray) -> F64:
-    """IoU of two x1, y1, x2, y2 boxes in float64 (0 when the union is empty)."""
-    a = a.astype(F64); b = b.astype(F64)
-    iw = max(F64(0), min(a[2], b[2]) - max(a[0], b[0]))
-    ih = max(F64(0), min(a[3], b[3]) - max(a[1], b[1]))
+def iou(a, b) -> float:
+    """IoU of two x1, y1, x2, y2 boxes (tuples of floats) in float64 (0 when the union is empty)."""
+    ax1, ay1, ax2, ay2 = a
+    bx1, by1, bx2, by2 = b
+    iw = max(0.0, min(ax2, bx2) - max(ax1, bx1))
+    ih = max(0.0, min(ay2, by2) - max(ay1, by1))
     inter = iw * ih
-    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
-    return inter / union if union > 0 else F64(0)
+    union = (ax2 - ax1) * (ay2 - ay1) + (bx2 - bx1) * (by2 - by1) - inter
+    return inter / union if union > 0 else 0.0
 
 
 def predicted_box(p: np.ndarray, truncate: bool) -> np.ndarray:
@@ -181,20 +184,12 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
     # Greedy de-duplication: first strict maximum in row-major order, while IoU > merge_iou.
     pair_of_2 = [-1] * len(rows2)
     taken3 = [False] * len(rows3)
-    m = np.array([[iou(a, b) for b in b3] for a in b2], dtype=F64).reshape(len(b2), len(b3))
-    thr = p32(params.merge_iou)
-    while m.size:
-        best, bi, bj = thr, -1, -1
-        for i in range(m.shape[0]):
-            for j in range(m.shape[1]):
-                if m[i, j] > best:
-                    best, bi, bj = m[i, j], i, j
-        if bi < 0:
-            break
+    t2 = [tuple(float(v) for v in b) for b in b2]
+    t3 = [tuple(float(v) for v in b) for b in b3]
+    m = np.array([[iou(a, b) for b in t3] for a in t2], dtype=F64).reshape(len(b2), len(b3))
+    for bi, bj in greedy_match(-m, list(range(len(b3))), -p32(params.merge_iou)):
         pair_of_2[bi] = bj
         taken3[bj] = True
-        m[bi, :] = thr
-        m[:, bj] = thr
 
     objects = []
     for i, r in enumerate(rows2):
@@ -212,47 +207,58 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
 
 def affinity_matrix(objects: list[Obj], tracks: list[Track], params: Params, options: Options) -> np.ndarray:
     """[O, N] fused affinity M_f = alpha_c IoU' + alpha_l (1 - min(d, a_l) / a_l)."""
-    ac = p32(params.alpha_c)
-    al = F64(1) - ac
-    a_l = p32(params.a_l)
+    ac, a_c, a_l = float(p32(params.alpha_c)), float(p32(params.a_c)), float(p32(params.a_l))
+    al = 1.0 - ac
+    centres = [None if o.lo3 is None else [float(v) for v in (o.lo3 + o.hi3) / F64(2)] for o in objects]
+    boxes = [tuple(float(v) for v in o.box) for o in objects]
     c = np.zeros((len(objects), len(tracks)), F64)
     for j, trk in enumerate(tracks):
-        pbox = predicted_box(trk.f2.p, options.truncate)
-        if trk.f3 is not None:
-            tc = (trk.f3.p[:3] + trk.f3.p[3:]) / F64(2)
-        for i, obj in enumerate(objects):
-            iou_c = F64(0)
+        pbox = tuple(float(v) for v in predicted_box(trk.f2.p, options.truncate))
+        tc = None if trk.f3 is None else [float(v) for v in (trk.f3.p[:3] + trk.f3.p[3:]) / F64(2)]
+        for i in range(len(objects)):
+            iou_c = 0.0
             if trk.age <= params.epsilon:
-                iou_c = iou(obj.box, pbox)
-                if iou_c < p32(params.a_c):
-                    iou_c = F64(0)
-            m_l = F64(1)
-            if obj.lo3 is not None and trk.f3 is not None:
-                dx, dy, dz = (obj.lo3 + obj.hi3) / F64(2) - tc
-                d = np.sqrt(dx * dx + dy * dy + dz * dz)
-                m_l = d / a_l if d < a_l else F64(1)
-            c[i, j] = ac * iou_c + al * (F64(1) - m_l)
+                iou_c = iou(boxes[i], pbox)
+                if iou_c < a_c:
+                    iou_c = 0.0
+            m_l = 1.0
+            if centres[i] is not None and tc is not None:
+                dx, dy, dz = (centres[i][k] - tc[k] for k in range(3))
+                d = math.sqrt(dx * dx + dy * dy + dz * dz)
+                m_l = d / a_l if d < a_l else 1.0
+            c[i, j] = ac * iou_c + al * (1.0 - m_l)
     return c
 
 
+TIE_BITS, ROW_BITS = 28, 6
+
+
+def order_key(cost: F64, col_key: int, row: int) -> int:
+    """The entry's place in the greedy order: (cost to 2^-24 relative, column key, row).
+
+    The cost's float64 bits, made order-preserving, with the lowest TIE_BITS replaced by the
+    tie-break, exactly as ``associate.order_key``.
+    """
+    bits = int(np.array(F64(cost) + F64(0.0), F64).view(np.int64))
+    if bits < 0:
+        bits ^= 0x7FFFFFFFFFFFFFFF
+    return ((bits >> TIE_BITS) << TIE_BITS) | (col_key << ROW_BITS) | row
+
+
 def greedy_match(cost: np.ndarray, track_ids: list[int], limit: F64) -> list[tuple[int, int]]:
-    """Repeatedly take the smallest entry (ties: smaller track id, then smaller row) while < limit.
+    """Repeatedly take the first entry in greedy order (smallest cost; ties: smaller track id,
+    then smaller row) while its cost < limit.
 
     The tracker calls it with cost = -M_f and limit = -a_f: the largest affinity first, while M_f > a_f.
     """
-    cost = cost.copy()
-    pairs = []
-    while cost.size:
-        best, bi, bj = None, -1, -1
-        for j in sorted(range(cost.shape[1]), key=lambda j: track_ids[j]):
-            for i in range(cost.shape[0]):
-                if best is None or cost[i, j] < best:
-                    best, bi, bj = cost[i, j], i, j
-        if best is None or not best < limit:
-            break
-        pairs.append((bi, bj))
-        cost[bi, :] = np.inf
-        cost[:, bj] = np.inf
+    entries = sorted((order_key(cost[i, j], track_ids[j], i), i, j)
+                     for i in range(cost.shape[0]) for j in range(cost.shape[1]) if cost[i, j] < limit)
+    used_rows, used_cols, pairs = set(), set(), []
+    for _, i, j in entries:
+        if i not in used_rows and j not in used_cols:
+            pairs.append((i, j))
+            used_rows.add(i)
+            used_cols.add(j)
     return pairs
 
 

@@ -3,10 +3,18 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dfrmot_jax import associate, reference
+
+
+@pytest.fixture(autouse=True)
+def _x64():
+    """The tracker runs under x64 (float64 arithmetic, int64 order keys); so do these tests."""
+    with jax.enable_x64(True):
+        yield
 
 
 greedy_min = jax.jit(associate.greedy_min)
@@ -92,8 +100,7 @@ def test_iou_matrix_matches_reference(a, b):
         return np.array([x1, y1, x1 + w, y1 + h], np.float64)
 
     A = np.stack([box(t) for t in a]); B = np.stack([box(t) for t in b])
-    with jax.enable_x64(True):
-        got = np.asarray(associate.iou_matrix(jnp.asarray(A), jnp.asarray(B)))
+    got = np.asarray(associate.iou_matrix(jnp.asarray(A), jnp.asarray(B)))
     want = np.array([[reference.iou(x, y) for y in B] for x in A])
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
 

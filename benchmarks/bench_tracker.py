@@ -1,0 +1,117 @@
+"""Tracker speed on the whole KITTI training split (21 sequences, 8,008 frames; car; RRC + PointRCNN).
+
+In one run: the NumPy reference (frames/s), then the JAX tracker at B = 1, 8, 64, 256, 1024
+settings around the dfr2023 preset (config-frames/s after compile, compile time, peak RSS).
+Batches larger than ``--chunk`` run chunk by chunk (each chunk split over the host's devices).
+The last line is one JSON object.
+
+    python benchmarks/bench_tracker.py [--sizes 1,8,64,256,1024] [--chunk 16]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import sys
+import time
+
+import numpy as np
+
+import dfrmot_jax  # noqa: F401  (sets up one XLA device per core before JAX loads)
+import jax
+
+from dfrmot_jax import tracker
+from dfrmot_jax.api import default_capacity
+from dfrmot_jax.data import load_sequences, pack, prepare_frames
+from dfrmot_jax.params import Params, preset, stack_params
+from dfrmot_jax.paths import default_data_root
+from dfrmot_jax.reference import track_sequence
+
+
+def settings(b: int, seed: int = 0) -> Params:
+    """B settings around dfr2023 (a_l, alpha_c, score_2d, epsilon varied)."""
+    rng = np.random.default_rng(seed)
+    base, _ = preset("dfr2023")
+    return stack_params([base._replace(a_l=float(rng.uniform(4, 12)), alpha_c=float(rng.uniform(0.3, 0.7)),
+                                       score_2d=float(rng.uniform(0.3, 0.6)), epsilon=int(rng.integers(10, 40)))
+                         for _ in range(b)])
+
+
+def rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--sizes", default="1,8,64,256,1024")
+    ap.add_argument("--chunk", type=int, default=16, help="lanes per compiled call for large batches")
+    ap.add_argument("--reference-seqs", type=int, default=21, help="sequences the reference runs (frames/s)")
+    args = ap.parse_args()
+    root = default_data_root()
+    if not (root / "label_02").is_dir():
+        print(f"KITTI data not found at {root}; set DFRMOT_DATA", file=sys.stderr)
+        return 1
+    names = [f"{i:04d}" for i in range(21)]
+    seqs = load_sequences(root, "rrc", "pointrcnn", "car", names)
+    split = pack(seqs)
+    params0, options = preset("dfr2023")
+    frames = prepare_frames(split, options)
+    T = split.n_frames
+    sizes = [int(s) for s in args.sizes.split(",")]
+    big = settings(max(sizes))
+    cap = default_capacity(frames, big, options)
+    machine = {"machine": platform.machine(), "processor": platform.processor() or "unknown",
+               "cpu_count": os.cpu_count(), "devices": jax.local_device_count(), "jax": jax.__version__,
+               "load_avg_1min": round(os.getloadavg()[0], 2)}
+    print(f"# {T} frames, capacity {cap}, {machine}")
+
+    t0 = time.perf_counter()
+    n_ref = 0
+    for s in seqs[: args.reference_seqs]:
+        track_sequence(s, params0, options)
+        n_ref += s.n_frames
+    ref_fps = n_ref / (time.perf_counter() - t0)
+    print(f"reference (NumPy, 1 core): {ref_fps:,.0f} frames/s over {n_ref} frames")
+
+    out = {"frames": T, "capacity": cap, "chunk": args.chunk, "reference_frames_per_s": round(ref_fps, 1)}
+    compile_s = {}
+    for b in sizes:
+        p = Params(*(np.asarray(v)[:b] for v in big))
+        width = min(b, args.chunk)
+        lanes = [Params(*(np.asarray(v)[i:i + width] for v in p)) for i in range(0, b, width)]
+        t0 = time.perf_counter()
+        first = tracker.run_batch(lanes[0], frames, options, cap)
+        compile_s[b] = time.perf_counter() - t0
+        if len(lanes) == 1:
+            t0 = time.perf_counter()
+            res = [tracker.run_batch(lanes[0], frames, options, cap)]
+        else:
+            t0 = time.perf_counter()
+            res = [tracker.run_batch(lane, frames, options, cap) for lane in lanes]
+        dt = time.perf_counter() - t0
+        overflow = int(sum(int(r.overflow.sum()) for r in res))
+        rate = b * T / dt
+        print(f"B={b:5d}: {rate:12,.0f} config-frames/s  ({dt:7.2f} s; first call incl. compile "
+              f"{compile_s[b]:5.2f} s; overflow {overflow}; peak RSS {rss_mb():,.0f} MB)", flush=True)
+        key = "b1_frames_per_s" if b == 1 else f"b{b}_config_frames_per_s"
+        out[key] = round(rate, 1)
+        del first, res
+    if 1 in sizes:
+        out["b1_vs_reference"] = round(out["b1_frames_per_s"] / ref_fps, 2)
+        for b in sizes:
+            if b >= 256:
+                out[f"b{b}_vs_b1"] = round(out[f"b{b}_config_frames_per_s"] / out["b1_frames_per_s"], 2)
+    # compile time of one program: B = 1's first call minus its steady run time
+    out["compile_s"] = round(compile_s[sizes[0]] - (sizes[0] * T / out.get("b1_frames_per_s", 1e18)), 2)
+    out["compile_s_by_b"] = {str(k): round(v, 2) for k, v in compile_s.items()}
+    out["peak_rss_mb"] = round(rss_mb(), 1)
+    out.update(machine)
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
