@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import distort
 from .data import Frames, Split, prepare_frames
 from .params import Options, Params, as_arrays, batch_size, validate_params
 from .results import output_boxes
@@ -25,7 +26,8 @@ class TrackResult(NamedTuple):
     """Outputs of a batch of B lanes over a split of T frames.
 
     ids [B, T, K] int32 (-1 = nothing written); boxes [T, K, 4] (output "detections": the same for
-    every lane) or [B, T, K, 4] (output "filtered"); dropped [B, T] births lost per frame;
+    every lane) or [B, T, K, 4] (output "filtered", or any output with a distortion: each lane's
+    own boxes); dropped [B, T] births lost per frame;
     overflow [B] births lost in total (0 unless a lane overflowed at the largest capacity tried);
     peak [B] most live tracks; capacity [B] the capacity each lane ran with.
     """
@@ -62,16 +64,38 @@ def default_capacity(frames: Frames, params: Params, options: Options) -> int:
     return max(16, int(np.ceil(1.5 * most / 8.0)) * 8)
 
 
-def _take(params: Params, idx: np.ndarray) -> Params:
-    return Params(*(np.broadcast_to(np.asarray(v), (batch_size(params),))[idx] for v in params))
+def _take(tree, idx: np.ndarray):
+    """Lanes idx of a Params / DistortParams batch."""
+    b = batch_size(tree)
+    return type(tree)(*(np.broadcast_to(np.asarray(v), (b,))[idx] for v in tree))
+
+
+def prepare_distortion(split: Split, frames: Frames, options: Options, dps: distort.DistortParams,
+                       spec: distort.DistortSpec | None = None, clutter_slots: int = 0):
+    """Host side of a distortion study: (padded frames, (spec, gid2, gid3)).
+
+    The spec defaults to ``distort.make_spec`` with exactly the groups ``dps`` uses; ground-truth
+    identities come from ``split.root``'s labels.
+    """
+    if spec is None:
+        spec = distort.make_spec(options, clutter_slots=clutter_slots, frames=frames, dps=dps)
+    distort.check_params(dps, spec)
+    if not split.root:
+        raise ValueError("a distortion study needs the split's KITTI root (load it with load_split)")
+    gid2, gid3 = distort.pad_identity(*distort.gt_identity(split, split.root, options), spec)
+    return distort.pad_for_clutter(frames, spec), (spec, gid2, gid3)
 
 
 def track(split: Split | Frames, params: Params, options: Options = Options(), *, chunk: int = 64,
-          grow: bool = True, progress=None) -> TrackResult:
+          grow: bool = True, progress=None, distortion: distort.DistortParams | None = None,
+          spec: distort.DistortSpec | None = None, clutter_slots: int = 0) -> TrackResult:
     """Track every lane of ``params`` (leaves scalar or [B]) over the split.
 
     chunk: lanes per compiled call (memory: chunk x T x K int32 ids); progress: a callable(n) told
     how many lanes finished, e.g. a tqdm bar's ``update``.
+    distortion: ``DistortParams`` with leaves [B] (or scalars): lane b's detections are distorted by
+    its own levels and seed inside the scan (``distort.py``); needs a ``Split`` (ground truth).
+    spec / clutter_slots: the static ``DistortSpec`` (default from the data and the levels used).
     """
     options = options.validate()
     validate_params(params)
@@ -80,6 +104,16 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
         raise ValueError("parameter keep_lost > 0 writes lost tracks' predicted boxes: it needs output='filtered'")
     frames = prepare_frames(split, options) if isinstance(split, Split) else split
     b = batch_size(params)
+    extra = None
+    if distortion is not None:
+        if not isinstance(split, Split):
+            raise ValueError("track(distortion=...) needs the Split, not prepared Frames")
+        nd = batch_size(distortion)
+        if nd not in (1, b):
+            raise ValueError(f"distortion has {nd} lanes, params {b}")
+        distortion = distort.DistortParams(*(np.broadcast_to(np.asarray(v), (b,)) for v in distortion))
+        frames, extra = prepare_distortion(split, frames, options, distortion, spec, clutter_slots)
+    per_lane_boxes = options.output == "filtered" or extra is not None
     cap0 = options.capacity or default_capacity(frames, params, options)
     ids = dropped = boxes = None
     overflow = np.zeros(b, np.int64); peak = np.zeros(b, np.int64); capacity = np.full(b, cap0, np.int64)
@@ -88,14 +122,17 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     while todo.size:
         for start in range(0, todo.size, chunk):
             lanes = todo[start:start + chunk]
-            out = run_batch(_take(params, lanes), frames, options, cap)
+            lane_distortion = None if extra is None else (_take(distortion, lanes),) + extra
+            out = run_batch(_take(params, lanes), frames, options, cap, distortion=lane_distortion)
             if ids is None:
                 ids = np.empty((b,) + out.ids.shape[1:], np.int32)
                 dropped = np.empty((b,) + out.dropped.shape[1:], np.int32)
-                if options.output == "filtered":
+                if per_lane_boxes:
                     boxes = np.empty((b,) + out.boxes.shape[1:], np.float32)
             if options.output == "filtered" and out.boxes.shape[2] != boxes.shape[2]:
                 boxes = _widen(boxes, out.boxes.shape[2]); ids = _widen(ids, out.ids.shape[2], -1)
+            if options.output == "detections" and per_lane_boxes:
+                boxes[lanes] = out.boxes
             if options.output == "filtered":
                 boxes[lanes, :, :out.boxes.shape[2]] = out.boxes
                 ids[lanes] = -1
@@ -114,7 +151,7 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
         bad = np.flatnonzero(overflow > 0)
         warnings.warn(f"track memory overflow in {bad.size} lane(s) (e.g. lane {bad[0]}: {overflow[bad[0]]} births "
                       f"dropped at capacity {capacity[bad[0]]}); raise Options.capacity", RuntimeWarning, stacklevel=2)
-    if options.output == "detections":
+    if not per_lane_boxes:
         boxes = output_boxes(frames, options)
     return TrackResult(ids, boxes, dropped, overflow, peak, capacity, frames, options)
 

@@ -50,6 +50,8 @@ class Split(NamedTuple):
     box3d [T, M3, 4] f64 (the 3D detector's image box), proj3d [T, M3, 4] f64 (its 8 corners projected
     with P2, clipped), score3d [T, M3], dims3d [T, M3, 3] (h, w, l), loc3d [T, M3, 3] (x, y, z),
     rot_y3d [T, M3], alpha3d [T, M3], valid3d [T, M3] bool, row3d [T, M3] int32.
+    cls: the class tracked; root: the KITTI root it was read from (its ground truth seeds
+    distortion studies).
     """
 
     names: tuple[str, ...]
@@ -72,6 +74,7 @@ class Split(NamedTuple):
     valid3d: np.ndarray
     row3d: np.ndarray
     cls: str = "car"
+    root: str = ""
 
     @property
     def n_frames(self) -> int:
@@ -188,7 +191,8 @@ def pack(seqs: list[SequenceDets], cls: str = "car", image_size=DEFAULT_IMAGE_SI
 def load_split(root, det2d="rrc", det3d="pointrcnn", cls: str = "car", sequences=None,
                image_size=DEFAULT_IMAGE_SIZE) -> Split:
     """Read and pack a split: ``load_split(root, "rrc", "pointrcnn", "car")``."""
-    return pack(load_sequences(root, det2d, det3d, cls, sequences, image_size), cls, image_size)
+    return pack(load_sequences(root, det2d, det3d, cls, sequences, image_size), cls, image_size)._replace(
+        root=str(root))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import associate, kalman, memory
+from . import associate, distort, kalman, memory
 from .data import Frames
 from .memory import Memory
 from .params import Options, Params
@@ -25,8 +25,9 @@ class StepOutput(NamedTuple):
 
     ids [K] int32: track id written in each output slot, -1 = nothing written. With output
     "detections" the slots are the frame's objects (2D detection slots, then 3D detection slots:
-    boxes come from the data, ``data.object_boxes``); with "filtered" they are the N track slots.
-    boxes [K, 4] float32 (output "filtered") or [0] (output "detections").
+    boxes come from the data, ``data.object_boxes``, unless the lane distorts them); with
+    "filtered" they are the N track slots.
+    boxes [K, 4] float32 (output "filtered", or "detections" with a distortion) or [0].
     dropped [] int32 births lost for want of a track slot in this frame.
     """
 
@@ -71,7 +72,7 @@ def _objects(params: Params, frame: Frames, options: Options):
             jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]))
 
 
-def step(params: Params, mem: Memory, frame: Frames, options: Options):
+def step(params: Params, mem: Memory, frame: Frames, options: Options, emit_boxes: bool = False):
     """One frame: de-duplicate, associate, update memory and filters, write, age. Returns (mem, out).
 
     Runs under ``jax.enable_x64``: arithmetic in float64, scores and thresholds in float32.
@@ -129,7 +130,7 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options):
         obj_hits = (jnp.sum(jnp.where(assign, hits[None, :], 0), axis=1, dtype=jnp.int32)
                     + jnp.where(newborn & ~jnp.any(birth, 1), 1, 0))
         ids = jnp.where(valid & (obj_hits >= params.min_hits), obj_id, -1)
-        out = StepOutput(ids, jnp.zeros((0,), jnp.float32), dropped)
+        out = StepOutput(ids, box.astype(jnp.float32) if emit_boxes else jnp.zeros((0,), jnp.float32), dropped)
     else:
         shown = jnp.where(born[:, None], z[:, :4], jnp.where(matched_obj[:, None], updated.p[:, :4], f.p[:, :4]))
         ids = jnp.where(alive & writable & (age <= params.keep_lost), tid, -1)
@@ -137,10 +138,23 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options):
     return memory.end_of_frame(mem, params.epsilon), out
 
 
-def run(params: Params, frames: Frames, options: Options, capacity: int):
-    """One lane over all frames: (final Memory, StepOutput stacked [T, ...])."""
-    body = functools.partial(step, options=options)
-    return jax.lax.scan(lambda m, fr: body(params, m, fr), init(options, capacity, params), frames)
+def run(params: Params, frames: Frames, options: Options, capacity: int, distortion=None):
+    """One lane over all frames: (final Memory, StepOutput stacked [T, ...]).
+
+    distortion: None, or (dp, spec, gid2 [T, M2], gid3 [T, M3]): each frame is first distorted by
+    ``distort.distort_frame`` with this lane's ``DistortParams`` dp (static ``DistortSpec`` spec).
+    """
+    t = jnp.arange(frames.reset.shape[0], dtype=jnp.int32)
+    mem0 = init(options, capacity, params)
+    if distortion is None:
+        return jax.lax.scan(lambda m, fr: step(params, m, fr, options), mem0, frames)
+    dp, spec, gid2, gid3 = distortion
+
+    def body(m, xs):
+        fr, g2, g3, ti = xs
+        return step(params, m, distort.distort_frame(fr, g2, g3, ti, dp, spec), options, emit_boxes=True)
+
+    return jax.lax.scan(body, mem0, (frames, gid2, gid3, t))
 
 
 class BatchOutput(NamedTuple):
@@ -155,18 +169,19 @@ class BatchOutput(NamedTuple):
 
 
 @functools.lru_cache(maxsize=None)
-def _compiled(options: Options, capacity: int, n_devices: int):
-    def lane(params, frames):
-        mem, out = run(params, frames, options, capacity)
+def _compiled(options: Options, capacity: int, n_devices: int, spec=None):
+    def lane(params, frames, dp, gid2, gid3):
+        mem, out = run(params, frames, options, capacity, None if spec is None else (dp, spec, gid2, gid3))
         return out, mem.overflow, mem.peak
 
-    batched = jax.vmap(lane, in_axes=(0, None))
+    batched = jax.vmap(lane, in_axes=(0, None, 0, None, None))
     if n_devices == 1:
         return jax.jit(batched)
     from jax.sharding import Mesh, PartitionSpec as P
 
     mesh = Mesh(np.array(jax.devices()[:n_devices]), ("b",))
-    sharded = jax.shard_map(batched, mesh=mesh, in_specs=(P("b"), P()), out_specs=P("b"), check_vma=False)
+    sharded = jax.shard_map(batched, mesh=mesh, in_specs=(P("b"), P(), P("b"), P(), P()), out_specs=P("b"),
+                            check_vma=False)
     return jax.jit(sharded)
 
 
@@ -174,21 +189,36 @@ def device_count() -> int:
     return jax.local_device_count()
 
 
-def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n_devices: int | None = None):
+def _lanes(tree, b: int, pad: int):
+    """Leaves broadcast to [b] and padded with copies of the last lane to b + pad (int32 / float32)."""
+    out = []
+    for v in tree:
+        v = np.broadcast_to(np.atleast_1d(np.asarray(v)), (b,))
+        v = np.concatenate([v, np.repeat(v[-1:], pad)])
+        out.append(jnp.asarray(v, jnp.int32 if v.dtype.kind in "iu" else jnp.float32))
+    return type(tree)(*out)
+
+
+def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n_devices: int | None = None,
+              distortion=None):
     """All lanes of a ``Params`` batch [B] over the split; the batch is split over ``n_devices``.
 
+    distortion: None, or (dp, spec, gid2, gid3) with ``DistortParams`` dp [B] (one per lane), a
+    static ``DistortSpec``, and ground-truth ids [T, M2], [T, M3] of the (clutter-padded) frames.
     Returns BatchOutput (numpy). Lanes are padded to a multiple of the device count and trimmed.
     """
-    leaves = [np.atleast_1d(np.asarray(v)) for v in params]
-    b = max(leaf.shape[0] for leaf in leaves)
+    b = max(np.atleast_1d(np.asarray(v)).shape[0] for v in params)
     n_dev = device_count() if n_devices is None else n_devices
     n_dev = max(1, min(n_dev, b))
     pad = (-b) % n_dev
-    leaves = [np.concatenate([np.broadcast_to(v, (b,)), np.repeat(np.broadcast_to(v, (b,))[-1:], pad)])
-              for v in leaves]
-    p = Params(*(jnp.asarray(v, jnp.int32 if v.dtype.kind in "iu" else jnp.float32) for v in leaves))
+    p = _lanes(params, b, pad)
+    if distortion is None:
+        spec, dp, gid2, gid3 = None, jnp.zeros(b + pad, jnp.int32), jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32)
+    else:
+        dpb, spec, gid2, gid3 = distortion
+        dp = _lanes(dpb, b, pad)
     with jax.enable_x64(True):
-        fn = _compiled(options, capacity, n_dev)
-        out, overflow, peak = fn(p, Frames(*(jnp.asarray(x) for x in frames)))
+        fn = _compiled(options, capacity, n_dev, spec)
+        out, overflow, peak = fn(p, Frames(*(jnp.asarray(x) for x in frames)), dp, jnp.asarray(gid2), jnp.asarray(gid3))
     out = jax.tree.map(lambda x: np.asarray(x)[:b], out)
     return BatchOutput(out.ids, out.boxes, out.dropped, np.asarray(overflow)[:b], np.asarray(peak)[:b])
