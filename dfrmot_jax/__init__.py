@@ -24,6 +24,7 @@ __version__ = "0.1.0"
 from .api import TrackResult, default_capacity, track  # noqa: E402
 from .data import Split, load_split, prepare_frames  # noqa: E402
 from .params import Options, Params, preset, stack_params  # noqa: E402
+from .sweep import sweep, sweep_report  # noqa: E402
 
 __all__ = ["Options", "Params", "Split", "TrackResult", "default_capacity", "load_split", "prepare_frames",
-           "preset", "stack_params", "track", "__version__"]
+           "preset", "stack_params", "track", "__version__", "sweep", "sweep_report"]

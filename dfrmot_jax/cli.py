@@ -99,6 +99,9 @@ def build_parser() -> argparse.ArgumentParser:
         pass
     else:
         add_eval_parser(sub)
+    from .sweep_cli import add_report_parser, add_sweep_parser
+    add_sweep_parser(sub)
+    add_report_parser(sub)
     return p
 
 

@@ -1,0 +1,1318 @@
+"""Declarative parameter sweeps: a TOML file -> a config table -> chunked, resumable, batched runs
+(track + metrics in-process) -> one tidy ``pandas.DataFrame``; reports with honest cross-validation.
+
+The pipeline::
+
+    load_spec(FILE) ─▶ SweepSpec ─▶ expand() ─▶ config table (one row per config: every parameter,
+        every static option, config_hash; later more per-lane axes such as distortion.* columns)
+    plan() ─▶ groups of rows with equal static Options (one compilation each) ─▶ chunks of
+        ``chunk`` configs; chunk id = hash(data settings + the chunk's config hashes)
+    run ─▶ per chunk: dfrmot_jax.track (one [B] batch) ─▶ metrics on the padded arrays (prepared
+        ground truth reused, identical tracker outputs scored once) ─▶ DIR/chunks/<id>.parquet
+        written atomically (tmp file + os.replace); a rerun skips chunks whose file exists
+    table ─▶ one row per (config, sequence) + one ``COMBINED`` row per config
+    report() ─▶ best configs by an objective, the baseline beside them, sensitivity per axis,
+        k-fold cross-validation over sequences (best chosen on training folds, scored held out)
+
+See ``sweeps/README.md`` for the file format. Python use::
+
+    import dfrmot_jax as dm
+    df = dm.sweep("sweeps/kitti_dfr_grid.toml", out="results/grid")     # or a dict spec
+    rep = dm.sweep_report(df, objective="HOTA", folds=5); print(rep.text)
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import multiprocessing as mp
+import os
+import sys
+import time
+import tomllib
+import warnings
+from collections import deque
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from .params import INT_PARAMS, PARAM_RANGES, PRESETS, Options, Params
+
+__all__ = [
+    "SweepConfigError", "SweepSpec", "DataSettings", "Axis", "load_spec", "parse_spec", "expand", "config_hash",
+    "resolve_data", "plan", "sweep", "load_results", "sweep_report", "SweepReport", "cross_validate",
+    "make_folds", "sensitivity", "combine_sequences", "PARAM_NAMES", "OPTION_NAMES", "EXTRA_AXES",
+    "OBJECTIVES", "MINIMISE",
+]
+
+PARAM_NAMES: tuple[str, ...] = Params._fields
+OPTION_NAMES: tuple[str, ...] = Options._fields
+#: Further per-lane axes (columns of the config table, part of the config hash), e.g. the later
+#: ``distortion.kind``, ``distortion.level``, ``distortion.seed``: name -> default value. A column
+#: equal to its default is left out of the hash, so adding an axis keeps existing hashes.
+EXTRA_AXES: dict[str, Any] = {}
+
+GRID_KINDS = ("grid", "linspace", "logspace")
+RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
+#: Objectives the report knows by name (any metric column works); these are minimised.
+MINIMISE = frozenset({"IDSW", "Frag", "ML", "CLR_FN", "CLR_FP", "IDFN", "IDFP", "PT", "MLR", "FP_per_frame"})
+OBJECTIVES = ("HOTA", "MOTA", "IDF1", "AssA", "DetA", "IDSW")
+
+COMBINED = "COMBINED"
+RAW_COLUMN = "_hota_alpha"
+#: per-alpha HOTA fields kept (flattened, 7 x 19) in ``RAW_COLUMN`` so that any subset of sequences
+#: can be re-combined exactly as TrackEval combines sequences (cross-validation).
+RAW_FIELDS = ("HOTA_TP", "HOTA_FN", "HOTA_FP", "AssA", "AssRe", "AssPr", "LocA")
+TOP_KEYS = ("name", "description", "chunk", "seed", "samples", "data", "baseline", "params", "options", "variants",
+            "report")
+DATA_KEYS = ("root", "det2d", "det3d", "class", "sequences")
+REPORT_KEYS = ("objective", "folds", "top")
+VARIANT_KEYS = ("name", "params", "options")
+
+
+class SweepConfigError(ValueError):
+    """A bad sweep file: ``key`` is the offending key path (``params.a_c``, ``data.det2d``, ...)."""
+
+    def __init__(self, key: str, message: str, source: str | None = None):
+        self.key = key
+        self.message = message
+        self.source = source
+        super().__init__(f"{source + ': ' if source else ''}{key}: {message}")
+
+
+# ---------------------------------------------------------------------------------------------
+# The sweep file
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One swept name: ``kind`` 'grid' (``values`` crossed with the other grid axes) or a random
+    distribution 'uniform' | 'loguniform' | 'randint' (``values`` = (low, high)) | 'choice'."""
+
+    name: str
+    kind: str
+    values: tuple
+    key: str
+
+    @property
+    def is_grid(self) -> bool:
+        return self.kind == "grid"
+
+
+@dataclass(frozen=True)
+class Variant:
+    name: str
+    params: tuple[Axis, ...]
+    options: tuple[Axis, ...]
+
+
+@dataclass(frozen=True)
+class DataSettings:
+    """Resolved data settings of a sweep (part of every chunk's identity)."""
+
+    root: str
+    det2d: str
+    det3d: str
+    cls: str
+    sequences: tuple[str, ...]
+    lengths: tuple[int, ...] = ()
+
+    def identity(self) -> dict:
+        return {"root": self.root, "det2d": self.det2d, "det3d": self.det3d, "class": self.cls,
+                "sequences": list(self.sequences)}
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A parsed sweep file. ``data_root`` None = ``$DFRMOT_DATA`` / the default root."""
+
+    name: str
+    description: str = ""
+    chunk: int = 64
+    seed: int = 0
+    samples: int = 1
+    data_root: str | None = None
+    det2d: str = "rrc"
+    det3d: str = "pointrcnn"
+    cls: str = "car"
+    sequences: tuple[str, ...] | None = None
+    baseline: str = "dfr2023"
+    variants: tuple[Variant, ...] = ()
+    objective: str = "HOTA"
+    folds: int | None = None
+    top: int = 10
+    source: str | None = None
+    raw: Mapping | None = field(default=None, compare=False, repr=False)
+
+
+def load_spec(path) -> SweepSpec:
+    """Read and validate a sweep TOML file (see ``sweeps/README.md``)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"sweep file {path} not found")
+    try:
+        with open(path, "rb") as f:
+            doc = tomllib.load(f)
+    except tomllib.TOMLDecodeError as e:
+        raise SweepConfigError("(file)", f"not valid TOML: {e}", str(path)) from None
+    return parse_spec(doc, source=str(path))
+
+
+def _err(key, msg, source):
+    return SweepConfigError(key, msg, source)
+
+
+def _check_keys(d: Mapping, allowed: Sequence[str], prefix: str, source) -> None:
+    if not isinstance(d, Mapping):
+        raise _err(prefix.rstrip("."), f"expected a table, got {type(d).__name__}", source)
+    for k in d:
+        if k not in allowed:
+            raise _err(f"{prefix}{k}", f"unknown key; expected one of {list(allowed)}", source)
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+def _clean_float(v: float) -> float:
+    """Round a computed grid value to 12 significant digits (0.6000000000000001 -> 0.6)."""
+    return float(f"{float(v):.12g}")
+
+
+def _check_param_value(name: str, v, key: str, source) -> int | float:
+    if not _is_number(v):
+        raise _err(key, f"{v!r} is not a number", source)
+    if not math.isfinite(float(v)):
+        raise _err(key, f"{v!r} is not finite", source)
+    lo, hi = PARAM_RANGES[name]
+    if not lo <= float(v) <= hi:
+        raise _err(key, f"value {v!r} outside the valid range [{lo:g}, {hi:g}] of parameter {name}", source)
+    if name in INT_PARAMS:
+        if float(v) != round(float(v)):
+            raise _err(key, f"value {v!r}: parameter {name} takes integers", source)
+        return int(round(float(v)))
+    return float(v)
+
+
+def _param_axis(name: str, spec, key: str, source) -> Axis:
+    if name not in PARAM_NAMES:
+        hint = " (a static option: put it under [options])" if name in OPTION_NAMES else ""
+        raise _err(key, f"unknown parameter{hint}; parameters are {list(PARAM_NAMES)}", source)
+    if isinstance(spec, Mapping):
+        if len(spec) != 1:
+            raise _err(key, f"a distribution table has exactly one key among {list(GRID_KINDS + RANDOM_KINDS)}, "
+                            f"got {sorted(spec)}", source)
+        kind, arg = next(iter(spec.items()))
+        k2 = f"{key}.{kind}"
+        if kind not in GRID_KINDS + RANDOM_KINDS:
+            raise _err(k2, f"unknown distribution; expected one of {list(GRID_KINDS + RANDOM_KINDS)}", source)
+        if not isinstance(arg, list):
+            raise _err(k2, f"expected a list, got {arg!r}", source)
+        if kind in ("grid", "choice"):
+            if not arg:
+                raise _err(k2, "empty list: nothing to sweep", source)
+            vals = tuple(_check_param_value(name, v, f"{k2}[{i}]", source) for i, v in enumerate(arg))
+            return Axis(name, "grid" if kind == "grid" else "choice", vals, key)
+        if kind in ("linspace", "logspace"):
+            if len(arg) != 3 or not all(_is_number(a) for a in arg) or isinstance(arg[2], float) and \
+                    not float(arg[2]).is_integer():
+                raise _err(k2, f"expected [low, high, count], got {arg!r}", source)
+            lo, hi, n = float(arg[0]), float(arg[1]), int(arg[2])
+            if n < 1:
+                raise _err(k2, f"count {n} < 1: empty grid", source)
+            _check_param_value(name, lo, k2, source)
+            _check_param_value(name, hi, k2, source) if name not in INT_PARAMS else None
+            if kind == "logspace":
+                if lo <= 0 or hi <= 0:
+                    raise _err(k2, f"logspace needs positive ends, got {arg!r}", source)
+                raw = np.geomspace(lo, hi, n)
+            else:
+                raw = np.linspace(lo, hi, n)
+            if name in INT_PARAMS:
+                rounded = np.round(raw)
+                if np.any(np.abs(raw - rounded) > 1e-9):
+                    raise _err(k2, f"gives non-integer values {raw.tolist()} for integer parameter {name}", source)
+                raw = rounded
+            vals = tuple(dict.fromkeys(_check_param_value(name, _clean_float(v), k2, source) for v in raw))
+            return Axis(name, "grid", vals, key)
+        # uniform / loguniform / randint: [low, high]
+        if len(arg) != 2 or not all(_is_number(a) for a in arg):
+            raise _err(k2, f"expected [low, high], got {arg!r}", source)
+        lo, hi = arg
+        if not float(lo) < float(hi):
+            raise _err(k2, f"low {lo!r} must be below high {hi!r}", source)
+        if kind == "randint":
+            if not all(float(a).is_integer() for a in arg):
+                raise _err(k2, f"randint takes integers, got {arg!r}", source)
+            lo, hi = int(lo), int(hi)
+            _check_param_value(name, lo, k2, source)
+            _check_param_value(name, hi - 1, k2, source)
+            return Axis(name, kind, (lo, hi), key)
+        if name in INT_PARAMS:
+            raise _err(k2, f"parameter {name} takes integers: use randint", source)
+        if kind == "loguniform" and float(lo) <= 0:
+            raise _err(k2, f"loguniform needs low > 0, got {lo!r}", source)
+        _check_param_value(name, lo, k2, source)
+        _check_param_value(name, hi, k2, source)
+        return Axis(name, kind, (float(lo), float(hi)), key)
+    if isinstance(spec, list):
+        if not spec:
+            raise _err(key, "empty list: nothing to sweep", source)
+        vals = tuple(_check_param_value(name, v, f"{key}[{i}]", source) for i, v in enumerate(spec))
+        return Axis(name, "grid", vals, key)
+    return Axis(name, "grid", (_check_param_value(name, spec, key, source),), key)
+
+
+def _check_option_value(name: str, v, key: str, source):
+    default = Options._field_defaults[name]
+    if isinstance(default, bool):
+        if not isinstance(v, bool):
+            raise _err(key, f"{v!r}: expected true or false", source)
+        return v
+    if isinstance(default, int):
+        if not isinstance(v, int) or isinstance(v, bool) or v < 0:
+            raise _err(key, f"{v!r}: expected an integer >= 0" + (" (0 = from the data)" if name == "capacity" else ""),
+                       source)
+    elif isinstance(default, str) and not isinstance(v, str):
+        raise _err(key, f"{v!r}: expected a string", source)
+    try:
+        Options(**{name: v}).validate()
+    except ValueError as e:
+        msg = str(e)
+        tail = msg.split(": ", 1)[1] if msg.startswith("option ") and ": " in msg else msg
+        raise _err(key, f"{v!r}: {tail}", source) from None
+    return v
+
+
+def _option_axis(name: str, spec, key: str, source) -> Axis:
+    if name not in OPTION_NAMES:
+        hint = " (a dynamic parameter: put it under [params])" if name in PARAM_NAMES else ""
+        raise _err(key, f"unknown option{hint}; options are {list(OPTION_NAMES)}", source)
+    if isinstance(spec, Mapping):
+        if list(spec) != ["grid"]:
+            raise _err(key, "static options take a value, a list or {grid = [...]} (each value is its own "
+                            "compilation; random distributions are for parameters)", source)
+        spec = spec["grid"]
+        key = f"{key}.grid"
+    vals = spec if isinstance(spec, list) else [spec]
+    if not vals:
+        raise _err(key, "empty list: nothing to sweep", source)
+    vals = tuple(dict.fromkeys(_check_option_value(name, v, f"{key}[{i}]" if isinstance(spec, list) else key, source)
+                               for i, v in enumerate(vals)))
+    return Axis(name, "grid", vals, key)
+
+
+def _axes(table, kind: str, prefix: str, source) -> tuple[Axis, ...]:
+    if table is None:
+        return ()
+    if not isinstance(table, Mapping):
+        raise _err(prefix, f"expected a table, got {type(table).__name__}", source)
+    make = _param_axis if kind == "params" else _option_axis
+    return tuple(make(k, v, f"{prefix}.{k}", source) for k, v in table.items())
+
+
+def _positive_int(doc, key, default, source, minimum=1):
+    v = doc.get(key, default)
+    if v is None:
+        return None
+    if not isinstance(v, int) or isinstance(v, bool) or v < minimum:
+        raise _err(key, f"{v!r}: expected an integer >= {minimum}", source)
+    return v
+
+
+def _parse_sequences(v, key, source) -> tuple[str, ...] | None:
+    if v is None or v == "all":
+        return None
+    if isinstance(v, str):
+        v = [s for s in v.split(",") if s.strip()]
+    if not isinstance(v, list) or not v:
+        raise _err(key, f"expected \"all\", a list of sequence names or a comma-separated string, got {v!r}", source)
+    out = []
+    for s in v:
+        if isinstance(s, bool) or not isinstance(s, (int, str)):
+            raise _err(key, f"{s!r} is not a sequence name", source)
+        out.append(f"{s:04d}" if isinstance(s, int) else s.strip().zfill(4))
+    if len(set(out)) != len(out):
+        raise _err(key, "a sequence is listed twice", source)
+    return tuple(out)
+
+
+def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
+    """Validate a sweep given as a dict (the parsed TOML); raises :class:`SweepConfigError`."""
+    _check_keys(doc, TOP_KEYS, "", source)
+    name = doc.get("name", Path(source).stem if source else "sweep")
+    if not isinstance(name, str) or not name:
+        raise _err("name", f"{name!r}: expected a non-empty string", source)
+    desc = doc.get("description", "")
+    chunk = _positive_int(doc, "chunk", 64, source)
+    samples = _positive_int(doc, "samples", 1, source)
+    seed = _positive_int(doc, "seed", 0, source, minimum=0)
+
+    data = doc.get("data", {})
+    _check_keys(data, DATA_KEYS, "data.", source)
+    for k in ("root", "det2d", "det3d", "class"):
+        if k in data and (not isinstance(data[k], str) or not data[k]):
+            raise _err(f"data.{k}", f"{data[k]!r}: expected a non-empty string", source)
+    cls = data.get("class", "car")
+    if cls not in ("car", "pedestrian"):
+        raise _err("data.class", f"{cls!r} is not one of ['car', 'pedestrian']", source)
+    root = data.get("root")
+    if root is not None and source is not None and not Path(root).expanduser().is_absolute():
+        root = str((Path(source).parent / Path(root).expanduser()).resolve())
+    sequences = _parse_sequences(data.get("sequences"), "data.sequences", source)
+
+    base = doc.get("baseline", "dfr2023")
+    if isinstance(base, Mapping):
+        _check_keys(base, ("preset",), "baseline.", source)
+        base = base.get("preset", "dfr2023")
+        bkey = "baseline.preset"
+    else:
+        bkey = "baseline"
+    if base not in PRESETS:
+        raise _err(bkey, f"unknown preset {base!r}; expected one of {sorted(PRESETS)}", source)
+
+    params = _axes(doc.get("params"), "params", "params", source)
+    options = _axes(doc.get("options"), "options", "options", source)
+    variants_doc = doc.get("variants")
+    variants = []
+    if variants_doc is None:
+        variants.append(Variant("grid", params, options))
+    else:
+        if not isinstance(variants_doc, list) or not variants_doc:
+            raise _err("variants", "expected a non-empty array of tables ([[variants]])", source)
+        for i, v in enumerate(variants_doc):
+            _check_keys(v, VARIANT_KEYS, f"variants[{i}].", source)
+            vp = _axes(v.get("params"), "params", f"variants[{i}].params", source)
+            vo = _axes(v.get("options"), "options", f"variants[{i}].options", source)
+            over_p = {a.name for a in vp}
+            over_o = {a.name for a in vo}
+            variants.append(Variant(str(v.get("name", f"variant{i}")),
+                                    tuple(a for a in params if a.name not in over_p) + vp,
+                                    tuple(a for a in options if a.name not in over_o) + vo))
+
+    rep = doc.get("report", {})
+    _check_keys(rep, REPORT_KEYS, "report.", source)
+    objective = rep.get("objective", "HOTA")
+    if not isinstance(objective, str):
+        raise _err("report.objective", f"{objective!r}: expected a metric name", source)
+    folds = _positive_int(rep, "folds", None, source, minimum=2)
+    top = _positive_int(rep, "top", 10, source)
+
+    spec = SweepSpec(name=name, description=str(desc), chunk=chunk, seed=seed, samples=samples, data_root=root,
+                     det2d=data.get("det2d", "rrc"), det3d=data.get("det3d", "pointrcnn"), cls=cls,
+                     sequences=sequences, baseline=base, variants=tuple(variants), objective=objective,
+                     folds=folds, top=top, source=source, raw=dict(doc))
+    for v in spec.variants:
+        if samples > 1 and all(a.is_grid for a in v.params):
+            raise _err("samples", f"samples = {samples} repeats the grid with random parameters redrawn, but "
+                                  f"variant {v.name!r} has no random parameter (uniform, loguniform, randint, "
+                                  f"choice): every config would repeat", source)
+    return spec
+
+
+def _as_spec(spec) -> SweepSpec:
+    if isinstance(spec, SweepSpec):
+        return spec
+    if isinstance(spec, Mapping):
+        return parse_spec(spec)
+    return load_spec(spec)
+
+
+# ---------------------------------------------------------------------------------------------
+# The config table
+
+
+def _canon(name: str, v):
+    """Canonical value for hashing: parameters as the tracker sees them (float32 / int32)."""
+    if name in PARAM_NAMES:
+        return int(v) if name in INT_PARAMS else repr(float(np.float32(v)))
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    return str(v)
+
+
+def config_hash(row: Mapping[str, Any]) -> str:
+    """Stable 16-hex-digit hash of a config: every parameter and option (+ extra axes off their default)."""
+    key = {"params": {n: _canon(n, row[n]) for n in PARAM_NAMES},
+           "options": {n: _canon(n, row[n]) for n in OPTION_NAMES}}
+    extra = {n: _canon(n, row[n]) for n, d in EXTRA_AXES.items() if n in row and row[n] != d}
+    if extra:
+        key["extra"] = extra
+    text = json.dumps(key, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha1(text.encode()).hexdigest()[:16]
+
+
+def _draw(axis: Axis, rng: np.random.Generator, n: int) -> list:
+    lo_hi = axis.values
+    if axis.kind == "uniform":
+        return [float(v) for v in rng.uniform(lo_hi[0], lo_hi[1], n)]
+    if axis.kind == "loguniform":
+        return [float(v) for v in np.exp(rng.uniform(np.log(lo_hi[0]), np.log(lo_hi[1]), n))]
+    if axis.kind == "randint":
+        return [int(v) for v in rng.integers(lo_hi[0], lo_hi[1], n)]
+    if axis.kind == "choice":
+        return [axis.values[i] for i in rng.integers(0, len(axis.values), n)]
+    raise AssertionError(axis.kind)
+
+
+def expand(spec) -> pd.DataFrame:
+    """The config table of a sweep: one row per config, the baseline first.
+
+    Columns: ``config`` (row number), ``config_hash``, ``variant``, ``baseline`` (bool), every
+    parameter (``PARAM_NAMES``) and option (``OPTION_NAMES``). Grid axes are crossed (the first axis
+    slowest; parameters, then options); random axes (uniform, loguniform, randint, choice) are drawn
+    per config from ``numpy.random.default_rng(seed)``; ``samples`` repeats each variant's grid with
+    the random axes redrawn (Ray Tune's ``num_samples``). Configs that hash alike are kept once.
+    """
+    spec = _as_spec(spec)
+    src = spec.source
+    bparams, boptions = PRESETS[spec.baseline]
+    base_row = {**bparams._asdict(), **boptions._asdict()}
+    rng = np.random.default_rng(spec.seed)
+    rows: list[dict] = [{"variant": "baseline", "baseline": True, **base_row}]
+    for v in spec.variants:
+        grid_axes = [a for a in v.params if a.is_grid] + list(v.options)
+        rand_axes = [a for a in v.params if not a.is_grid]
+        combos = list(itertools.product(*(a.values for a in grid_axes)))
+        n = len(combos) * spec.samples
+        draws = {a.name: _draw(a, rng, n) for a in rand_axes}
+        i = 0
+        for _ in range(spec.samples):
+            for combo in combos:
+                row = {"variant": v.name, "baseline": False, **base_row}
+                row.update({a.name: val for a, val in zip(grid_axes, combo)})
+                row.update({name: d[i] for name, d in draws.items()})
+                rows.append(row)
+                i += 1
+    table = pd.DataFrame(rows, columns=["variant", "baseline"] + list(PARAM_NAMES) + list(OPTION_NAMES))
+    for n in PARAM_NAMES:
+        table[n] = table[n].astype("int64" if n in INT_PARAMS else "float64")
+    for n in OPTION_NAMES:
+        d = Options._field_defaults[n]
+        table[n] = table[n].astype(bool if isinstance(d, bool) else "int64" if isinstance(d, int) else object)
+    hashes = [config_hash(r) for r in table.to_dict("records")]
+    table.insert(0, "config_hash", hashes)
+    table = table.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
+    table.insert(0, "config", np.arange(len(table), dtype=np.int64))
+    if len(table) < 2:
+        raise _err("params", "the sweep has no config besides the baseline: add parameters or options to sweep",
+                   src)
+    bad = table[(table["keep_lost"] > 0) & (table["output"] == "detections")]
+    if len(bad):
+        r = bad.iloc[0]
+        raise _err("params.keep_lost", f"keep_lost = {r['keep_lost']} writes lost tracks' predicted boxes and needs "
+                                       f"output = \"filtered\" (variant {r['variant']!r} pairs it with output = "
+                                       f"\"detections\"); use [[variants]] to give keep_lost its own output", src)
+    return table
+
+
+def resolve_data(spec, data_root=None) -> DataSettings:
+    """Resolve and check the data settings (root, detectors, class, sequences) before any work."""
+    from .data import detection_dir, sequences_with_class
+    from .io.kitti import KittiFormatError, sequence_lengths
+    from .paths import default_data_root
+
+    spec = _as_spec(spec)
+    src = spec.source
+    root = Path(data_root if data_root is not None else (spec.data_root or default_data_root())).expanduser()
+    if not (root / "label_02").is_dir():
+        raise _err("data.root", f"{root} has no label_02/ (the KITTI tracking training root; set it in the "
+                                f"sweep file, with --data, or with $DFRMOT_DATA)", src)
+    root = root.resolve()
+    for key, det in (("data.det2d", spec.det2d), ("data.det3d", spec.det3d)):
+        try:
+            detection_dir(root, det, spec.cls)
+        except KittiFormatError as e:
+            raise _err(key, e.message, src) from None
+    if spec.sequences is None:
+        seqs = tuple(sequences_with_class(root, spec.cls))
+        if not seqs:
+            raise _err("data.sequences", f"no sequence under {root / 'label_02'} has class {spec.cls}", src)
+    else:
+        missing = [s for s in spec.sequences if not (root / "label_02" / f"{s}.txt").is_file()]
+        if missing:
+            raise _err("data.sequences", f"no ground truth for {missing} under {root / 'label_02'}", src)
+        seqs = spec.sequences
+    lengths = sequence_lengths(root, list(seqs))
+    return DataSettings(str(root), str(spec.det2d), str(spec.det3d), spec.cls, tuple(seqs),
+                        tuple(int(lengths[s]) for s in seqs))
+
+
+@dataclass(frozen=True)
+class Chunk:
+    id: str
+    group: int
+    options: Options
+    configs: tuple[int, ...]
+
+
+def _row_options(row: Mapping) -> Options:
+    return Options(**{n: type(Options._field_defaults[n])(row[n]) for n in OPTION_NAMES})
+
+
+def plan(table: pd.DataFrame, data: DataSettings, chunk: int) -> list[Chunk]:
+    """Group the configs by static options (first appearance order), cut each group into chunks."""
+    groups: dict[Options, list[int]] = {}
+    for row in table[["config"] + list(OPTION_NAMES)].to_dict("records"):
+        groups.setdefault(_row_options(row), []).append(int(row["config"]))
+    hashes = table["config_hash"].to_numpy()
+    ident = data.identity()
+    out = []
+    for g, (opts, idx) in enumerate(groups.items()):
+        for a in range(0, len(idx), chunk):
+            part = tuple(idx[a:a + chunk])
+            text = json.dumps({"data": ident, "configs": [hashes[i] for i in part]}, sort_keys=True)
+            out.append(Chunk(hashlib.sha1(text.encode()).hexdigest()[:20], g, opts, part))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Metrics of a chunk
+
+
+def _metric_fields():
+    from .metrics import clear, hota, identity
+    from .metrics.table import COUNT_FIELDS, TABLE_FIELDS
+
+    return hota, clear, identity, TABLE_FIELDS, COUNT_FIELDS
+
+
+def summary_columns(seq: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """TrackEval fields (arrays [..., 19] or [...]) -> the summary columns of ``metrics_table``
+    (HOTA family: mean over alphas x100; other ratios x100; counts int64), vectorised."""
+    hota, _, _, table_fields, count_fields = _metric_fields()
+    out = {}
+    for f in table_fields:
+        if f not in seq:
+            continue
+        v = np.asarray(seq[f])
+        if f in count_fields:
+            out[f] = np.rint(v.astype(np.float64)).astype(np.int64)
+        elif f in hota.FLOAT_ARRAY_FIELDS:
+            out[f] = 100.0 * np.mean(v.astype(np.float64), axis=-1)
+        else:
+            out[f] = 100.0 * v.astype(np.float64)
+    for f in ("CLR_Frames",):
+        if f in seq:
+            out[f] = np.rint(np.asarray(seq[f], np.float64)).astype(np.int64)
+    if "MOTP_sum" in seq:
+        out["MOTP_sum"] = np.asarray(seq["MOTP_sum"], np.float64)
+    return out
+
+
+def _raw_stack(seq: Mapping[str, np.ndarray]) -> np.ndarray:
+    """[..., 7 * 19] the per-alpha fields needed to re-combine sequences."""
+    return np.concatenate([np.asarray(seq[f], np.float64) for f in RAW_FIELDS], axis=-1)
+
+
+def combine_sequences(seq_rows: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """TrackEval's ``combine_sequences`` over axis 1 of per-sequence fields [C, S(, 19)] -> fields [C(, 19)].
+
+    ``seq_rows`` holds ``RAW_FIELDS`` (per alpha), CLEAR's summed fields, Identity's and the counts.
+    """
+    hota, clear, identity, _, _ = _metric_fields()
+    h = hota.hota_combine({f: seq_rows[f] for f in RAW_FIELDS})
+    c = clear.clear_combine({f: seq_rows[f] for f in clear.SUMMED_FIELDS})
+    i = identity.identity_combine({f: seq_rows[f] for f in identity.INTEGER_FIELDS})
+    out = {**h, **c, **i}
+    for f in ("Dets", "GT_Dets", "IDs", "GT_IDs"):
+        if f in seq_rows:
+            out[f] = seq_rows[f].sum(axis=1)
+    return out
+
+
+class _Evaluator:
+    """Scores chunks of tracker output: ground truth prepared once; identical outputs scored once."""
+
+    def __init__(self, gt, offsets, lanes_per_batch: int = 16):
+        self.gt = gt
+        self.offsets = np.asarray(offsets, np.int64)
+        self.lanes_per_batch = lanes_per_batch
+        self.memo: dict[bytes, tuple[dict, dict]] = {}
+
+    @staticmethod
+    def digests(ids: np.ndarray, boxes: np.ndarray) -> list[bytes]:
+        out = []
+        for b in range(ids.shape[0]):
+            h = hashlib.sha1(np.ascontiguousarray(ids[b]).tobytes())
+            if boxes.ndim == 4:
+                h.update(np.ascontiguousarray(boxes[b][ids[b] >= 0]).tobytes())
+            out.append(h.digest())
+        return out
+
+    def dets(self, ids, boxes, lanes):
+        from .metrics.kitti import tracker_dets_from_arrays
+
+        lanes = np.asarray(lanes, np.int64)
+        bx = boxes[lanes] if boxes.ndim == 4 else np.broadcast_to(boxes, (len(lanes),) + boxes.shape)
+        return tracker_dets_from_arrays(self.gt, ids[lanes], bx, self.offsets)
+
+
+def _evaluate_dets(gt, dets, lanes_per_batch: int) -> dict:
+    """evaluate_batch over sub-batches of lanes; returns {'seq': {f: [L, S(, 19)]}, 'comb': {f: [L(, 19)]}}."""
+    from .metrics import evaluate_batch
+
+    outs = []
+    for a in range(0, dets.n_lanes, lanes_per_batch):
+        outs.append(evaluate_batch(gt, _lanes(dets, a, min(a + lanes_per_batch, dets.n_lanes))))
+    return {p: {f: np.concatenate([o[p][f] for o in outs], axis=0) for f in outs[0][p]} for p in ("seq", "comb")}
+
+
+def _lanes(dets, a: int, b: int):
+    """Lanes a..b-1 of flattened tracker output (rows are sorted by lane)."""
+    i, j = np.searchsorted(dets.lane, [a, b], side="left")
+    return dets._replace(n_lanes=b - a, lane=dets.lane[i:j] - a, frame=dets.frame[i:j],
+                         track_id=dets.track_id[i:j], box=dets.box[i:j], source=dets.source[i:j],
+                         paths=dets.paths[a:b] if dets.paths else dets.paths)
+
+
+_WORKER_GT = None
+
+
+def _worker_init(gt) -> None:
+    global _WORKER_GT
+    _WORKER_GT = gt
+
+
+def _worker_eval(dets, lanes_per_batch: int) -> dict:
+    return _evaluate_dets(_WORKER_GT, dets, lanes_per_batch)
+
+
+# ---------------------------------------------------------------------------------------------
+# Running a sweep
+
+
+def _versions() -> tuple[str, str]:
+    import jax
+
+    from . import __version__
+
+    return __version__, jax.__version__
+
+
+def _params_of(table: pd.DataFrame, rows: Sequence[int]) -> Params:
+    from .params import as_arrays
+
+    sub = table.iloc[list(rows)]
+    return as_arrays(Params(**{n: sub[n].to_numpy() for n in PARAM_NAMES}))
+
+
+def _chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, metrics: dict, res, versions,
+                 spec_name: str) -> pd.DataFrame:
+    """The tidy rows of one chunk: per config, one row per sequence then COMBINED."""
+    L = len(chunk.configs)
+    S = len(seq_names)
+    R = S + 1
+    sub = table.iloc[list(chunk.configs)].reset_index(drop=True)
+    cols: dict[str, Any] = {}
+    cols["config"] = np.repeat(sub["config"].to_numpy(), R)
+    cols["config_hash"] = np.repeat(sub["config_hash"].to_numpy(), R)
+    cols["sequence"] = np.tile(np.array(list(seq_names) + [COMBINED], dtype=object), L)
+    for c in ["variant", "baseline"] + list(PARAM_NAMES) + list(OPTION_NAMES) + \
+            [n for n in EXTRA_AXES if n in sub.columns]:
+        cols[c] = np.repeat(sub[c].to_numpy(), R)
+    seq_sum = summary_columns(metrics["seq"])
+    comb_sum = summary_columns(metrics["comb"])
+    for f, sv in seq_sum.items():
+        cols[f] = np.concatenate([sv, comb_sum[f][:, None]], axis=1).reshape(-1)
+    # robustness: counts
+    frames = np.array(list(lengths) + [int(np.sum(lengths))], np.int64)
+    cols["frames"] = np.tile(frames, L)
+    offs = np.concatenate([[0], np.cumsum(lengths)])
+    cs = np.concatenate([np.zeros((L, 1), np.int64), np.cumsum(res.dropped.astype(np.int64), axis=1)], axis=1)
+    per_seq = cs[:, offs[1:]] - cs[:, offs[:-1]]
+    cols["overflow"] = np.concatenate([per_seq, res.overflow.astype(np.int64)[:, None]], axis=1).reshape(-1)
+    cols["peak_tracks"] = np.repeat(res.peak.astype(np.int64), R)
+    cols["det2d"] = np.repeat(np.array([data.det2d], dtype=object), L * R)
+    cols["det3d"] = np.repeat(np.array([data.det3d], dtype=object), L * R)
+    cols["class"] = np.repeat(np.array([data.cls], dtype=object), L * R)
+    cols["sweep"] = np.repeat(np.array([spec_name], dtype=object), L * R)
+    cols["chunk"] = np.repeat(np.array([chunk.id], dtype=object), L * R)
+    cols["dfrmot_jax_version"] = np.repeat(np.array([versions[0]], dtype=object), L * R)
+    cols["jax_version"] = np.repeat(np.array([versions[1]], dtype=object), L * R)
+    raw = np.concatenate([_raw_stack(metrics["seq"]), _raw_stack(metrics["comb"])[:, None, :]], axis=1)
+    cols[RAW_COLUMN] = list(raw.reshape(L * R, -1))
+    return pd.DataFrame(cols)
+
+
+def _atomic_parquet(df: pd.DataFrame, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    df.to_parquet(tmp, index=False)
+    os.replace(tmp, path)
+
+
+def _atomic_text(text: str, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _chunk_path(out: Path, chunk: Chunk) -> Path:
+    return out / "chunks" / f"{chunk.id}.parquet"
+
+
+def _finish(df: pd.DataFrame) -> pd.DataFrame:
+    df = df.sort_values("config", kind="mergesort").reset_index(drop=True)
+    return df
+
+
+@dataclass
+class _Pending:
+    chunk: Chunk
+    res: Any
+    digests: list
+    todo: list          # unique lanes to score (index into the chunk)
+    future: Any = None
+    result: Any = None
+
+
+def sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: int | None = None,
+          progress: bool = True, workers: int | None = None, log=None, raw: bool = True) -> pd.DataFrame:
+    """Run a sweep (TOML path, dict or :class:`SweepSpec`) and return its tidy table.
+
+    One row per (config, sequence) and one ``COMBINED`` row per config, with every parameter and
+    option, the metrics (TrackEval summary names, as ``dfrmot eval``), overflow counts, versions and
+    ``config_hash``. ``out``: a directory; each finished chunk is written there as Parquet and a
+    rerun skips finished chunks (resume); ``results.parquet`` holds the final table. Without
+    ``out`` nothing is written. ``data_root`` / ``chunk`` override the file; ``folds`` is stored for
+    the report (``sweep_report``); ``workers``: metric processes running beside the tracker
+    (default: 2 for large sweeps, 0 = in-process); ``raw=False`` drops the per-alpha column
+    ``_hota_alpha`` (needed for cross-validation).
+    Bad files fail before any work with a :class:`SweepConfigError` naming the key.
+    """
+    spec = _as_spec(spec)
+    if chunk is not None:
+        if chunk < 1:
+            raise SweepConfigError("chunk", f"{chunk}: expected an integer >= 1", spec.source)
+        spec = replace(spec, chunk=int(chunk))
+    if folds is not None:
+        spec = replace(spec, folds=int(folds))
+    log = log if log is not None else (lambda msg: print(msg, file=sys.stderr, flush=True))
+    table = expand(spec)
+    data = resolve_data(spec, data_root)
+    if spec.folds is not None and not 2 <= spec.folds <= len(data.sequences):
+        raise SweepConfigError("folds", f"{spec.folds}: expected 2 .. {len(data.sequences)} (the sequences)",
+                               spec.source)
+    chunks = plan(table, data, spec.chunk)
+    outdir = Path(out) if out is not None else None
+    if outdir is not None:
+        (outdir / "chunks").mkdir(parents=True, exist_ok=True)
+        manifest = {"name": spec.name, "description": spec.description, "source": spec.source,
+                    "data": data.identity(), "lengths": list(data.lengths), "baseline": spec.baseline,
+                    "chunk": spec.chunk, "objective": spec.objective, "folds": spec.folds, "top": spec.top,
+                    "configs": len(table), "chunks": [c.id for c in chunks], "spec": _jsonable(spec.raw)}
+        _atomic_text(json.dumps(manifest, indent=1), outdir / "manifest.json")
+        _atomic_parquet(table, outdir / "configs.parquet")
+    done = {c.id for c in chunks if outdir is not None and _chunk_path(outdir, c).is_file()}
+    todo = [c for c in chunks if c.id not in done]
+    n_done = sum(len(c.configs) for c in chunks if c.id in done)
+    total_cf = len(table) * sum(data.lengths)
+    n_groups = len({c.group for c in chunks})
+    log(f"sweep {spec.name}: {len(table):,} configs ({n_groups} option group(s), {len(chunks)} chunks of <= "
+        f"{spec.chunk}; {len(done)} done) x {len(data.sequences)} sequences / {sum(data.lengths):,} frames = "
+        f"{total_cf / 1e6:.1f} M config-frames" + (f" -> {outdir}" if outdir else ""))
+    frames_out: dict[str, pd.DataFrame] = {}
+    if todo:
+        _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, len(table), progress, workers, log)
+    if outdir is None:
+        df = pd.concat([frames_out[c.id] for c in chunks], ignore_index=True)
+    else:
+        df = pd.concat([pd.read_parquet(_chunk_path(outdir, c)) for c in chunks], ignore_index=True)
+    df = _finish(df)
+    if outdir is not None:
+        _atomic_parquet(df, outdir / "results.parquet")
+    if not raw:
+        df = df.drop(columns=[RAW_COLUMN])
+    return df
+
+
+def _jsonable(obj):
+    try:
+        return json.loads(json.dumps(obj, default=str))
+    except (TypeError, ValueError):
+        return None
+
+
+def _capacity_hint(peak: int) -> int:
+    """Track slots for a chunk whose group peaked at ``peak`` live tracks so far: 25 % + 4 headroom,
+    a multiple of 8."""
+    return max(16, int(math.ceil((1.25 * peak + 4) / 8.0)) * 8)
+
+
+#: lanes per compiled tracker call (the batch is split over the host devices)
+TRACK_CHUNK = 32
+
+
+def _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, n_total, progress, workers, log):
+    from .api import default_capacity, track
+    from .data import load_split, prepare_frames
+    from .metrics import cached_gt
+
+    t0 = time.perf_counter()
+    split = load_split(data.root, data.det2d, data.det3d, data.cls, list(data.sequences))
+    gt = cached_gt(data.root, data.cls, list(data.sequences))
+    if tuple(gt.sequences) != tuple(split.names) or not np.array_equal(gt.lengths, split.lengths):
+        raise RuntimeError("ground truth and detections disagree on the sequences or their lengths")
+    versions = _versions()
+    ev = _Evaluator(gt, split.offsets)
+    setup_seconds = time.perf_counter() - t0
+    track_chunk = max(1, min(spec.chunk, TRACK_CHUNK))
+    pending_cf = sum(len(c.configs) for c in todo) * split.n_frames
+    if workers is None:
+        workers = min(2, os.cpu_count() or 1) if pending_cf >= 2_000_000 else 0
+    pool = None
+    if workers > 0:
+        ctx = mp.get_context("forkserver") if "forkserver" in mp.get_all_start_methods() else mp.get_context("spawn")
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(gt,))
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n_total, initial=n_done, unit="cfg", desc=spec.name, dynamic_ncols=True, smoothing=0.05,
+                   file=sys.stderr)
+    inflight: deque[_Pending] = deque()
+
+    timing = {"setup": setup_seconds, "track": 0.0, "metrics": 0.0, "wait": 0.0, "write": 0.0}
+
+    def complete(p: _Pending) -> None:
+        tw = time.perf_counter()
+        if p.future is not None:
+            p.result = p.future.result()
+        timing["wait"] += time.perf_counter() - tw
+        tw = time.perf_counter()
+        _store(p)
+        metrics = _gather(p)
+        df = _chunk_frame(table, p.chunk, data, split.names, split.lengths, metrics, p.res, versions, spec.name)
+        if outdir is not None:
+            _atomic_parquet(df, _chunk_path(outdir, p.chunk))
+        else:
+            frames_out[p.chunk.id] = df
+        timing["write"] += time.perf_counter() - tw
+        if bar is not None:
+            bar.update(len(p.chunk.configs))
+
+    def _store(p: _Pending) -> None:
+        if not p.todo:
+            return
+        r = p.result
+        for j, lane in enumerate(p.todo):
+            d = p.digests[lane]
+            if d not in ev.memo:
+                ev.memo[d] = ({f: v[j] for f, v in r["seq"].items()}, {f: v[j] for f, v in r["comb"].items()})
+
+    def _gather(p: _Pending) -> dict:
+        per = [ev.memo[d] for d in p.digests]
+        return {"seq": {f: np.stack([s[f] for s, _ in per]) for f in per[0][0]},
+                "comb": {f: np.stack([c[f] for _, c in per]) for f in per[0][1]}}
+
+    try:
+        frames_cache: tuple | None = None
+        caps: dict[Options, int] = {}
+        for c in todo:
+            if frames_cache is None or frames_cache[0] != c.options:
+                frames_cache = (c.options, prepare_frames(split, c.options))
+            frames = frames_cache[1]
+            params = _params_of(table, c.configs)
+            opts = c.options
+            if opts.capacity == 0:
+                # Track slots: the tracker's data-sized default for the whole option group (one
+                # compilation), raised from the peaks once a chunk overflowed (``track`` re-runs an
+                # overflowing lane with twice the slots, so results never depend on this choice).
+                if c.options not in caps:
+                    group = _params_of(table, [i for d in todo if d.options == c.options for i in d.configs])
+                    caps[c.options] = default_capacity(frames, group, opts)
+                opts = opts._replace(capacity=caps[c.options])
+            tt = time.perf_counter()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)   # overflow is a column of the table
+                res = track(frames, params, opts, chunk=track_chunk, grow=True)
+            if c.options.capacity == 0 and int(res.capacity.max(initial=0)) > caps[c.options]:
+                caps[c.options] = max(int(res.capacity.max()), _capacity_hint(int(res.peak.max(initial=0))))
+            timing["track"] += time.perf_counter() - tt
+            boxes = res.boxes
+            digests = ev.digests(res.ids, boxes)
+            seen: dict[bytes, int] = {}
+            lanes = []
+            for i, d in enumerate(digests):
+                if d not in ev.memo and d not in seen:
+                    seen[d] = i
+                    lanes.append(i)
+            p = _Pending(c, _Slim(res.dropped, res.overflow, res.peak, res.capacity), digests, [])
+            # lanes identical to one still being scored (an earlier chunk in flight) wait for it
+            busy = {q.digests[i] for q in inflight for i in q.todo}
+            p.todo = [i for i in lanes if digests[i] not in busy]
+            if p.todo:
+                dets = ev.dets(res.ids, boxes, p.todo)
+                if pool is not None:
+                    p.future = pool.submit(_worker_eval, dets, ev.lanes_per_batch)
+                else:
+                    tm = time.perf_counter()
+                    p.result = _evaluate_dets(gt, dets, ev.lanes_per_batch)
+                    timing["metrics"] += time.perf_counter() - tm
+            del res, boxes
+            inflight.append(p)
+            # complete in submission order (a chunk may rely on an earlier one's scores)
+            while inflight and (inflight[0].future is None or inflight[0].future.done()):
+                complete(inflight.popleft())
+            while len(inflight) > max(1, workers):
+                complete(inflight.popleft())
+        while inflight:
+            complete(inflight.popleft())
+    finally:
+        if bar is not None:
+            bar.close()
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+    dt = time.perf_counter() - t0
+    n = sum(len(c.configs) for c in todo)
+    log(f"sweep {spec.name}: {n:,} configs tracked and scored in {dt:.1f} s ({n / dt:.1f} configs/s, "
+        f"{n * split.n_frames / dt / 1e3:.0f} k config-frames/s; setup {timing['setup']:.1f} s, tracking "
+        f"{timing['track']:.1f} s, metrics {timing['metrics']:.1f} s in-process + {timing['wait']:.1f} s waiting "
+        f"for workers, tables {timing['write']:.1f} s; {len(ev.memo):,} distinct outputs scored)")
+
+
+@dataclass
+class _Slim:
+    dropped: np.ndarray
+    overflow: np.ndarray
+    peak: np.ndarray
+    capacity: np.ndarray
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading results
+
+
+def load_results(out, *, allow_partial: bool = False) -> pd.DataFrame:
+    """The tidy table of a sweep directory (``results.parquet``, else its finished chunks)."""
+    out = Path(out)
+    manifest = _manifest(out)
+    paths = [out / "chunks" / f"{cid}.parquet" for cid in manifest["chunks"]]
+    final = out / "results.parquet"
+    if final.is_file() and all(p.is_file() for p in paths):
+        df = pd.read_parquet(final)
+        if set(df["chunk"].unique()) == set(manifest["chunks"]):
+            return df
+    have = [p for p in paths if p.is_file()]
+    if len(have) < len(paths) and not allow_partial:
+        raise FileNotFoundError(f"{out}: {len(paths) - len(have)} of {len(paths)} chunks not finished "
+                                f"(rerun the sweep to resume)")
+    if not have:
+        raise FileNotFoundError(f"{out}: no finished chunk yet")
+    return _finish(pd.concat([pd.read_parquet(p) for p in have], ignore_index=True))
+
+
+def _manifest(out: Path) -> dict:
+    path = Path(out) / "manifest.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{out} is not a sweep directory (no manifest.json)")
+    return json.loads(path.read_text())
+
+
+# ---------------------------------------------------------------------------------------------
+# Reports: best configs, sensitivity, cross-validation
+
+
+def _direction(objective: str) -> int:
+    return -1 if objective in MINIMISE else 1
+
+
+def _check_objective(df: pd.DataFrame, objective: str) -> None:
+    if objective not in df.columns or objective in PARAM_NAMES or objective in OPTION_NAMES:
+        known = [c for c in df.columns if c in _metric_fields()[3]]
+        raise ValueError(f"objective {objective!r}: not a metric column; expected one of {known}")
+
+
+def _rank(values: np.ndarray, objective: str) -> np.ndarray:
+    """Order of configs best first; ties by position (config order)."""
+    key = -_direction(objective) * np.asarray(values, np.float64)
+    return np.lexsort((np.arange(len(key)), key))
+
+
+def varied_axes(df: pd.DataFrame) -> list[str]:
+    comb = df[df["sequence"] == COMBINED]
+    return [c for c in list(PARAM_NAMES) + list(OPTION_NAMES) + list(EXTRA_AXES)
+            if c in comb.columns and comb[c].nunique() > 1]
+
+
+def _axis_groups(comb: pd.DataFrame, axes: list[str]) -> list[tuple[str, ...]]:
+    """Axes that always move together (e.g. gains swept as one set) form one group."""
+    codes = {a: tuple(pd.factorize(comb[a])[0]) for a in axes}
+    groups: dict[tuple, list[str]] = {}
+    for a in axes:
+        groups.setdefault(codes[a], []).append(a)
+    return [tuple(g) for g in groups.values()]
+
+
+def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.DataFrame:
+    """How much the objective moves with each varied axis (COMBINED rows).
+
+    Per axis: ``values`` (distinct values; a numeric axis with more than 8, e.g. a random one, is
+    cut into ``bins`` quantile bins), ``spread_best`` = the range over values (bins) of the best
+    config having that value, ``spread_mean`` = the range over values of the mean objective (a main
+    effect), ``corr`` = Spearman rank correlation of a numeric axis with the objective,
+    ``best_value`` (the overall best config's value) and ``oat_range`` = the range when only this
+    axis moves away from the best config (NaN when the sweep has no such configs). Axes that always
+    move together (e.g. gains swept as one set through [[variants]]) are one row, ``a+b+c``.
+    Sorted by ``spread_best``, largest first.
+    """
+    comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
+    y = comb[objective].to_numpy(np.float64)
+    d = _direction(objective)
+    best = int(_rank(y, objective)[0])
+    rows = []
+    for group in _axis_groups(comb, varied_axes(df)):
+        a = group[0]
+        col = comb[a]
+        numeric = len(group) == 1 and pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col)
+        key = col
+        if numeric and col.nunique() > 8:
+            key = pd.qcut(col.rank(method="first"), bins, labels=False)
+        g = comb[objective].groupby(key.to_numpy(), sort=True)
+        by_best = g.max() if d > 0 else g.min()
+        by_mean = g.mean()
+        mask = np.ones(len(comb), bool)
+        for other in _axis_groups(comb, varied_axes(df)):
+            if other != group:
+                for o in other:
+                    mask &= (comb[o] == comb.at[best, o]).to_numpy()
+        oat = y[mask]
+        corr = float(col.rank().corr(comb[objective].rank())) if numeric else float("nan")
+        rows.append({"axis": "+".join(group), "values": int(g.ngroups),
+                     "spread_best": float(by_best.max() - by_best.min()),
+                     "spread_mean": float(by_mean.max() - by_mean.min()), "corr": corr,
+                     "best_value": "/".join(_fmt(comb.at[best, o]) for o in group) if len(group) > 1
+                     else comb.at[best, a],
+                     "oat_range": float(oat.max() - oat.min()) if oat.size > 1 else float("nan")})
+    cols = ["axis", "values", "spread_best", "spread_mean", "corr", "best_value", "oat_range"]
+    out = pd.DataFrame(rows, columns=cols)
+    return out.sort_values("spread_best", ascending=False, kind="mergesort").reset_index(drop=True)
+
+
+def make_folds(names: Sequence[str], lengths: Sequence[int], k: int) -> list[list[str]]:
+    """k folds of sequences stratified by frame count (deterministic).
+
+    Sequences sorted by length (longest first, then name) are taken k at a time (a stratum of
+    similar lengths) and each stratum gives one sequence to every fold (the longest to the fold
+    with the fewest frames so far); then sequences of the same stratum are swapped between folds
+    while that evens the folds' frame totals. Folds get alike mixes of long and short sequences
+    and alike totals.
+    """
+    if not 2 <= k <= len(names):
+        raise ValueError(f"folds={k}: expected 2 .. {len(names)} (the number of sequences)")
+    L = [int(v) for v in lengths]
+    order = sorted(range(len(names)), key=lambda i: (-L[i], str(names[i])))
+    strata = [order[a:a + k] for a in range(0, len(order), k)]
+    fold_of: dict[int, int] = {}
+    total = [0] * k
+    for stratum in strata:
+        for i, f in zip(stratum, sorted(range(k), key=lambda f: (total[f], f))):
+            fold_of[i] = f
+            total[f] += L[i]
+    improved = True
+    while improved:
+        improved = False
+        for stratum in strata:
+            for x in range(len(stratum)):
+                for y in range(x + 1, len(stratum)):
+                    i, j = stratum[x], stratum[y]
+                    fi, fj = fold_of[i], fold_of[j]
+                    d = L[i] - L[j]
+                    # swapping i and j changes the two totals by -d and +d: keep it if the spread shrinks
+                    if d and abs((total[fi] - d) - (total[fj] + d)) < abs(total[fi] - total[fj]) and \
+                            max(total[fi] - d, total[fj] + d) < max(total[fi], total[fj]):
+                        fold_of[i], fold_of[j] = fj, fi
+                        total[fi] -= d
+                        total[fj] += d
+                        improved = True
+    folds: list[list[str]] = [[] for _ in range(k)]
+    for i, f in fold_of.items():
+        folds[f].append(str(names[i]))
+    return [sorted(f) for f in folds]
+
+
+def _per_sequence_arrays(df: pd.DataFrame):
+    """Per-sequence fields as arrays [C, S(, 19)] in config order; returns (comb rows, names, lengths, arrays)."""
+    _, clear, identity, _, _ = _metric_fields()
+    if RAW_COLUMN not in df.columns:
+        raise ValueError(f"cross-validation needs the {RAW_COLUMN!r} column (sweep(..., raw=True))")
+    seq = df[df["sequence"] != COMBINED]
+    comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
+    first = seq[seq["config"] == comb.at[0, "config"]]
+    names = list(first["sequence"])
+    lengths = list(first["frames"])
+    C, S = len(comb), len(names)
+    seq = seq.sort_values("config", kind="mergesort")
+    if len(seq) != C * S or list(seq["sequence"].iloc[:S]) != names:
+        raise ValueError("the table does not hold the same sequences for every config")
+    raw = np.stack(seq[RAW_COLUMN].to_numpy()).reshape(C, S, len(RAW_FIELDS), -1)
+    arrays = {f: raw[:, :, i] for i, f in enumerate(RAW_FIELDS)}
+    for f in tuple(clear.SUMMED_FIELDS) + tuple(identity.INTEGER_FIELDS) + ("Dets", "GT_Dets", "IDs", "GT_IDs"):
+        if f in seq.columns:
+            v = seq[f].to_numpy().reshape(C, S)
+            arrays[f] = v
+    return comb, names, lengths, arrays
+
+
+def _objective_on(arrays: dict, cols: Sequence[int], objective: str, rows=None) -> np.ndarray:
+    sub = {f: (v[:, cols] if rows is None else v[rows][:, cols]) for f, v in arrays.items()}
+    return summary_columns(combine_sequences(sub))[objective]
+
+
+def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA") -> dict:
+    """k-fold cross-validation over sequences (:func:`make_folds`, stratified by frame count).
+
+    For each fold the best config by ``objective`` on the other folds (COMBINED over them, exactly
+    as TrackEval combines sequences) is scored on the held-out fold. ``cross_validated`` is the
+    objective over all sequences when each sequence is tracked with the config chosen without it
+    (directly comparable to a config's COMBINED figure); ``mean_held_out`` the mean of the folds'
+    held-out figures. Returns a dict with per-fold details and the baseline's figures.
+    """
+    _check_objective(df, objective)
+    comb, names, lengths, arrays = _per_sequence_arrays(df)
+    fold_names = make_folds(names, lengths, folds)
+    base = np.flatnonzero(comb["baseline"].to_numpy())
+    b = int(base[0]) if base.size else None
+    chosen = np.zeros(len(names), np.int64)
+    per_fold = []
+    for f, test in enumerate(fold_names):
+        te = [names.index(s) for s in test]
+        tr = [i for i in range(len(names)) if i not in te]
+        train_score = _objective_on(arrays, tr, objective)
+        best = int(_rank(train_score, objective)[0])
+        test_score = _objective_on(arrays, te, objective)
+        chosen[te] = best
+        per_fold.append({"fold": f, "test_sequences": test, "config": int(comb.at[best, "config"]),
+                         "config_hash": comb.at[best, "config_hash"], "train": float(train_score[best]),
+                         "held_out": float(test_score[best]),
+                         "baseline_held_out": None if b is None else float(test_score[b])})
+    pooled = {fname: np.stack([v[chosen[s], s] for s in range(len(names))])[None] for fname, v in arrays.items()}
+    cv = float(summary_columns(combine_sequences(pooled))[objective][0])
+    return {"objective": objective, "folds": folds, "cross_validated": cv,
+            "mean_held_out": float(np.mean([p["held_out"] for p in per_fold])),
+            "baseline": None if b is None else float(comb.at[b, objective]), "per_fold": per_fold,
+            "fold_sequences": fold_names}
+
+
+@dataclass
+class SweepReport:
+    """``text`` (the printed report) and ``summary`` (the JSON-able dict of its last line)."""
+
+    text: str
+    summary: dict
+    top: pd.DataFrame
+    sensitivity: pd.DataFrame
+    cv: dict | None = None
+
+    def __str__(self) -> str:
+        return self.text
+
+
+def _fmt(v) -> str:
+    if isinstance(v, (float, np.floating)):
+        return f"{v:.4g}" if abs(v) < 1e4 else f"{v:.6g}"
+    return str(v)
+
+
+def _json_value(v):
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, (np.floating,)):
+        return float(v)
+    if isinstance(v, (np.bool_,)):
+        return bool(v)
+    return v
+
+
+def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top: int = 10) -> SweepReport:
+    """Best configs by ``objective`` (HOTA, MOTA, IDF1, AssA, ... maximised; IDSW, Frag, ...
+    minimised), the baseline beside them, the sensitivity per axis and, with ``folds``, the
+    cross-validated best. ``results``: a table from :func:`sweep` or a sweep directory."""
+    if not isinstance(results, pd.DataFrame):
+        d = Path(results)
+        manifest = _manifest(d)
+        df = load_results(d, allow_partial=True)
+        if folds is None:
+            folds = manifest.get("folds")
+        n_expected = manifest.get("configs")
+    else:
+        df, n_expected = results, None
+    _check_objective(df, objective)
+    comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
+    axes = varied_axes(df)
+    order = _rank(comb[objective].to_numpy(), objective)
+    best = comb.iloc[int(order[0])]
+    base_rows = comb[comb["baseline"]]
+    baseline = base_rows.iloc[0] if len(base_rows) else None
+    show = list(dict.fromkeys([objective, "HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW"]))
+    show = [c for c in show if c in comb.columns]
+    topdf = comb.iloc[order[:top]][["config", "config_hash"] + show + axes + ["overflow"]].copy()
+    topdf.insert(0, "rank", np.arange(1, len(topdf) + 1))
+    lines = []
+    name = df["sweep"].iloc[0] if "sweep" in df.columns else "sweep"
+    seqs = df.loc[df["sequence"] != COMBINED, "sequence"].nunique()
+    partial = f" (partial: {len(comb)} of {n_expected} configs)" if n_expected and n_expected != len(comb) else ""
+    lines.append(f"sweep {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
+                 f"({'lower' if _direction(objective) < 0 else 'higher'} is better)")
+    lines.append("")
+    lines.append(f"top {len(topdf)} configs (in-sample, COMBINED over all sequences):")
+    view = topdf.copy()
+    if baseline is not None:
+        brow = {"rank": "base", "config": baseline["config"], "config_hash": baseline["config_hash"],
+                **{c: baseline[c] for c in show + axes + ["overflow"]}}
+        view = pd.concat([view, pd.DataFrame([brow])], ignore_index=True)
+    lines.append(view.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    if baseline is not None:
+        diff = [f"{a}={_fmt(best[a])} (baseline {_fmt(baseline[a])})" for a in axes if best[a] != baseline[a]]
+        lines.append(f"best vs baseline: {objective} {best[objective]:.3f} vs {baseline[objective]:.3f} "
+                     f"({best[objective] - baseline[objective]:+.3f}); changed: {', '.join(diff) or 'nothing'}")
+    sens = sensitivity(df, objective) if axes else pd.DataFrame()
+    if len(sens):
+        lines.append("")
+        lines.append(f"sensitivity of {objective} per axis (spread_best: range over an axis' values of the best "
+                     f"config with that value; spread_mean: range of the means; corr: rank correlation; oat_range: "
+                     f"moving only this axis away from the best config):")
+        lines.append(sens.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    cv = None
+    if folds:
+        cv = cross_validate(df, folds, objective)
+        lines.append("")
+        lines.append(f"{folds}-fold cross-validation over sequences (stratified by frame count): best config chosen "
+                     f"on the training folds, scored on the held-out fold")
+        fold_rows = []
+        for p in cv["per_fold"]:
+            row = comb[comb["config"] == p["config"]].iloc[0]
+            changed = ", ".join(f"{a}={_fmt(row[a])}" for a in axes if baseline is None or row[a] != baseline[a])
+            fold_rows.append({"fold": p["fold"], "held_out_sequences": ",".join(p["test_sequences"]),
+                              "config": p["config"], "train": p["train"], "held_out": p["held_out"],
+                              "baseline_held_out": p["baseline_held_out"], "changed": changed or "(baseline)"})
+        lines.append(pd.DataFrame(fold_rows).to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+        lines.append(f"{objective}: cross-validated {cv['cross_validated']:.3f} (each sequence scored with the config "
+                     f"chosen without it) | in-sample best {best[objective]:.3f}"
+                     + (f" | baseline {baseline[objective]:.3f}" if baseline is not None else ""))
+    summary = {"objective": objective, "direction": "min" if _direction(objective) < 0 else "max",
+               "configs": int(len(comb)), "sequences": int(seqs),
+               "baseline": None if baseline is None else float(baseline[objective]),
+               "best_in_sample": float(best[objective]),
+               "best_config": {"config": int(best["config"]), "config_hash": best["config_hash"],
+                               **{a: _json_value(best[a]) for a in axes}}}
+    if baseline is not None:
+        summary["baseline_config_hash"] = baseline["config_hash"]
+    if cv is not None:
+        summary["best_cross_validated"] = cv["cross_validated"]
+        summary["folds"] = folds
+        summary["mean_held_out"] = cv["mean_held_out"]
+        summary["fold_configs"] = [p["config_hash"] for p in cv["per_fold"]]
+    lines.append("")
+    lines.append(json.dumps(summary))
+    return SweepReport("\n".join(lines), summary, topdf, sens, cv)

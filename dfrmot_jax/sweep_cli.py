@@ -1,0 +1,143 @@
+"""``dfrmot sweep`` and ``dfrmot report``: run a declarative sweep file, report its results.
+
+Wire into an argparse CLI with::
+
+    sub = parser.add_subparsers(dest="command")
+    add_sweep_parser(sub)         # "sweep", set_defaults(func=run_sweep_command)
+    add_report_parser(sub)        # "report", set_defaults(func=run_report_command)
+
+Usage::
+
+    dfrmot sweep sweeps/kitti_dfr_grid.toml --out results/grid [--folds 5] [--summary]
+    dfrmot report results/grid [--objective HOTA|MOTA|IDF1|AssA|IDSW] [--folds 5] [--top 10]
+
+Exit status: 0 ok, 2 bad sweep file / data / arguments (nothing was run), 3 some config overflowed
+its track memory (the ``overflow`` column says which). The report's last line is one JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["add_sweep_parser", "add_report_parser", "run_sweep_command", "run_report_command", "main"]
+
+
+def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
+    """Register the ``sweep`` subcommand on an argparse ``subparsers`` object; returns its parser."""
+    p = subparsers.add_parser(
+        "sweep", help="run a sweep file (tracking + metrics for every config), resumable",
+        description="Expand a sweep file (sweeps/*.toml) into configs, track and score them in chunks "
+                    "(one compilation per static option value), append each finished chunk to Parquet under "
+                    "--out; a rerun skips finished chunks. The result is one tidy table: one row per "
+                    "(config, sequence) plus a COMBINED row per config (OUT/results.parquet).")
+    p.add_argument("file", metavar="FILE", help="sweep file (TOML; see sweeps/README.md)")
+    p.add_argument("--out", metavar="DIR", help="result directory (default: results/sweeps/<name>)")
+    p.add_argument("--data", metavar="ROOT", help="KITTI tracking training root (overrides the file and $DFRMOT_DATA)")
+    p.add_argument("--chunk", type=int, help="configs per chunk (overrides the file)")
+    p.add_argument("--folds", type=int, help="k-fold cross-validation over sequences in the report (k >= 2)")
+    p.add_argument("--summary", action="store_true", help="print the report when the sweep is done")
+    p.add_argument("--objective", help="report objective (default: the file's, else HOTA); IDSW etc. are minimised")
+    p.add_argument("--top", type=int, help="configs listed in the report (default 10)")
+    p.add_argument("--workers", type=int, help="metric processes beside the tracker (default: 2 for large sweeps)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--dry-run", action="store_true", help="check the file and data, print the plan, run nothing")
+    p.set_defaults(func=run_sweep_command)
+    return p
+
+
+def add_report_parser(subparsers) -> argparse.ArgumentParser:
+    """Register the ``report`` subcommand; returns its parser."""
+    p = subparsers.add_parser(
+        "report", help="best configs, baseline, sensitivity and cross-validation of a sweep directory",
+        description="Print the best configs of a sweep (by --objective), the baseline row beside them, how "
+                    "sensitive the score is to each swept axis and, with --folds, the cross-validated best. "
+                    "The last line is one JSON object.")
+    p.add_argument("dir", metavar="DIR", help="a sweep result directory (dfrmot sweep --out DIR)")
+    p.add_argument("--objective", help="HOTA (default), MOTA, IDF1, AssA, DetA, IDSW (minimised), ...")
+    p.add_argument("--folds", type=int, help="k-fold cross-validation over sequences (default: the sweep's --folds)")
+    p.add_argument("--top", type=int, help="configs listed (default 10)")
+    p.add_argument("--csv", metavar="F", help="also write the tidy table (without the per-alpha column) as CSV")
+    p.set_defaults(func=run_report_command)
+    return p
+
+
+def _error(cmd: str, e: Exception) -> int:
+    print(f"dfrmot {cmd}: error: {e}", file=sys.stderr)
+    return 2
+
+
+def run_sweep_command(args) -> int:
+    from .io.kitti import KittiFormatError
+    from .sweep import OPTION_NAMES, expand, load_spec, plan, resolve_data, sweep, sweep_report
+
+    try:
+        spec = load_spec(args.file)
+        out = Path(args.out) if args.out else Path("results") / "sweeps" / spec.name
+        if args.dry_run:
+            table = expand(spec)
+            data = resolve_data(spec, args.data)
+            chunks = plan(table, data, args.chunk or spec.chunk)
+            groups = table.groupby(list(OPTION_NAMES), sort=False).size().rename("configs")
+            print(f"sweep {spec.name}: {len(table):,} configs, {len(groups)} option group(s), {len(chunks)} chunks, "
+                  f"{len(data.sequences)} sequences / {sum(data.lengths):,} frames "
+                  f"({len(table) * sum(data.lengths) / 1e6:.1f} M config-frames) -> {out}")
+            print(groups.to_string())
+            return 0
+        df = sweep(spec, out, data_root=args.data, chunk=args.chunk, folds=args.folds,
+                   progress=not args.no_progress, workers=args.workers)
+        print(f"{df['config'].nunique():,} configs x {df['sequence'].nunique() - 1} sequences -> "
+              f"{out / 'results.parquet'}")
+        if args.summary:
+            rep = sweep_report(df, objective=args.objective or spec.objective,
+                               folds=args.folds if args.folds is not None else spec.folds, top=args.top or spec.top)
+            print(rep.text)
+    except (KittiFormatError, ValueError, FileNotFoundError) as e:
+        return _error("sweep", e)
+    over = df[(df["sequence"] == "COMBINED") & (df["overflow"] > 0)]
+    if len(over):
+        print(f"warning: {len(over)} config(s) overflowed their track memory (column 'overflow'); "
+              f"set options.capacity", file=sys.stderr)
+        return 3
+    return 0
+
+
+def run_report_command(args) -> int:
+    from .sweep import RAW_COLUMN, load_results, sweep_report
+
+    try:
+        rep = sweep_report(Path(args.dir), objective=args.objective or _manifest_objective(args.dir),
+                           folds=args.folds, top=args.top or 10)
+        print(rep.text)
+        if args.csv:
+            df = load_results(args.dir, allow_partial=True)
+            df.drop(columns=[RAW_COLUMN], errors="ignore").to_csv(args.csv, index=False)
+    except (ValueError, FileNotFoundError) as e:
+        return _error("report", e)
+    return 0
+
+
+def _manifest_objective(d) -> str:
+    import json
+
+    path = Path(d) / "manifest.json"
+    try:
+        return json.loads(path.read_text()).get("objective") or "HOTA"
+    except (OSError, ValueError):
+        return "HOTA"
+
+
+def main(argv=None) -> int:
+    """Standalone entry: ``python -m dfrmot_jax.sweep_cli sweep FILE ...`` / ``... report DIR``."""
+    p = argparse.ArgumentParser(prog="dfrmot", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True)
+    add_sweep_parser(sub)
+    add_report_parser(sub)
+    args = p.parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
