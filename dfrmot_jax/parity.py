@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
+import multiprocessing
+from concurrent.futures import Executor, ProcessPoolExecutor
 
 import numpy as np
 
@@ -13,12 +14,21 @@ from .reference import track_sequence
 from .results import lane_rows
 
 
-def reference_rows(seqs: list[SequenceDets], params: Params, options: Options, workers: int = 1) -> list[list[tuple]]:
-    """Reference output rows per sequence (frame, id, x1, y1, x2, y2, ...) for one setting."""
-    if workers <= 1:
+def reference_pool(workers: int = 2) -> ProcessPoolExecutor:
+    """Worker processes for the reference, started with "spawn" (forking a process that runs JAX
+    threads can deadlock)."""
+    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+
+
+def reference_rows(seqs: list[SequenceDets], params: Params, options: Options,
+                   pool: Executor | None = None) -> list[list[tuple]]:
+    """Reference output rows per sequence (frame, id, x1, y1, x2, y2, ...) for one setting;
+    sequences run on ``pool`` when given (see ``reference_pool``)."""
+    if pool is None:
         return [track_sequence(s, params, options) for s in seqs]
-    with ProcessPoolExecutor(workers) as ex:
-        return list(ex.map(track_sequence, seqs, [params] * len(seqs), [options] * len(seqs)))
+    longest_first = sorted(range(len(seqs)), key=lambda i: -seqs[i].n_frames)
+    futures = {i: pool.submit(track_sequence, seqs[i], params, options) for i in longest_first}
+    return [futures[i].result() for i in range(len(seqs))]
 
 
 def lane_mismatches(split: Split, res: TrackResult, b: int, ref: list[list[tuple]], tol: float = 1e-4) -> dict:

@@ -7,7 +7,7 @@ in the JAX tracker, so that the two can be compared id for id.
 
 from __future__ import annotations
 
-import math
+import functools
 
 from dataclasses import dataclass, field
 
@@ -88,6 +88,12 @@ def predicted_box(p: np.ndarray, truncate: bool) -> np.ndarray:
 
 def steady_cov(params: Params, options: Options, iters: int = 500) -> np.ndarray:
     """Steady-state predicted covariance [6] by Riccati iteration (the "steady" Kalman start)."""
+    return _steady_cov(float(params.kf_q), float(params.kf_r), options, iters).copy()
+
+
+@functools.lru_cache(maxsize=64)
+def _steady_cov(kf_q: float, kf_r: float, options: Options, iters: int) -> np.ndarray:
+    params = Params(kf_q=kf_q, kf_r=kf_r)
     f = CoordFilter(np.zeros(1), np.zeros(1), np.zeros(1), np.array([[1e3], [0], [0], [1e3], [0], [1e3]], F64))
     for _ in range(iters):
         filter_update(f, f.p, params, options)
@@ -206,28 +212,33 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
 
 
 def affinity_matrix(objects: list[Obj], tracks: list[Track], params: Params, options: Options) -> np.ndarray:
-    """[O, N] fused affinity M_f = alpha_c IoU' + alpha_l (1 - min(d, a_l) / a_l)."""
-    ac, a_c, a_l = float(p32(params.alpha_c)), float(p32(params.a_c)), float(p32(params.a_l))
-    al = 1.0 - ac
-    centres = [None if o.lo3 is None else [float(v) for v in (o.lo3 + o.hi3) / F64(2)] for o in objects]
-    boxes = [tuple(float(v) for v in o.box) for o in objects]
-    c = np.zeros((len(objects), len(tracks)), F64)
-    for j, trk in enumerate(tracks):
-        pbox = tuple(float(v) for v in predicted_box(trk.f2.p, options.truncate))
-        tc = None if trk.f3 is None else [float(v) for v in (trk.f3.p[:3] + trk.f3.p[3:]) / F64(2)]
-        for i in range(len(objects)):
-            iou_c = 0.0
-            if trk.age <= params.epsilon:
-                iou_c = iou(boxes[i], pbox)
-                if iou_c < a_c:
-                    iou_c = 0.0
-            m_l = 1.0
-            if centres[i] is not None and tc is not None:
-                dx, dy, dz = (centres[i][k] - tc[k] for k in range(3))
-                d = math.sqrt(dx * dx + dy * dy + dz * dz)
-                m_l = d / a_l if d < a_l else 1.0
-            c[i, j] = ac * iou_c + al * (1.0 - m_l)
-    return c
+    """[O, N] fused affinity M_f = alpha_c IoU' + alpha_l (1 - min(d, a_l) / a_l), float64.
+
+    IoU' = IoU (against the track's predicted box) when >= a_c and the track is at most epsilon
+    frames old, else 0; the LiDAR term counts only when both have a 3D box (d = centroid distance).
+    """
+    ac, a_c, a_l = p32(params.alpha_c), p32(params.a_c), p32(params.a_l)
+    ob = np.array([o.box for o in objects], F64).reshape(-1, 4)[:, None, :]                          # [O, 1, 4]
+    pb = np.array([predicted_box(t.f2.p, options.truncate) for t in tracks], F64).reshape(-1, 4)[None]  # [1, N, 4]
+    iw = np.maximum(0.0, np.minimum(ob[..., 2], pb[..., 2]) - np.maximum(ob[..., 0], pb[..., 0]))
+    ih = np.maximum(0.0, np.minimum(ob[..., 3], pb[..., 3]) - np.maximum(ob[..., 1], pb[..., 1]))
+    inter = iw * ih
+    union = (ob[..., 2] - ob[..., 0]) * (ob[..., 3] - ob[..., 1]) + (pb[..., 2] - pb[..., 0]) * (pb[..., 3] - pb[..., 1]) - inter
+    iou_ = np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+    young = np.array([t.age <= params.epsilon for t in tracks])
+    iou_c = np.where((iou_ >= a_c) & young[None, :], iou_, 0.0)
+
+    def centres(items, lo_hi):
+        has = np.array([lh is not None for lh in map(lo_hi, items)])
+        c = np.array([(lh[0] + lh[1]) / F64(2) if lh is not None else np.zeros(3) for lh in map(lo_hi, items)], F64)
+        return has, c.reshape(-1, 3)
+
+    has_o, oc = centres(objects, lambda o: None if o.lo3 is None else (o.lo3, o.hi3))
+    has_t, tc = centres(tracks, lambda t: None if t.f3 is None else (t.f3.p[:3], t.f3.p[3:]))
+    dx, dy, dz = (oc[:, None, k] - tc[None, :, k] for k in range(3))
+    d = np.sqrt(dx * dx + dy * dy + dz * dz)
+    m_l = np.where(has_o[:, None] & has_t[None, :] & (d < a_l), d / a_l, 1.0)
+    return ac * iou_c + (F64(1) - ac) * (1.0 - m_l)
 
 
 TIE_BITS, ROW_BITS = 28, 6
@@ -251,8 +262,7 @@ def greedy_match(cost: np.ndarray, track_ids: list[int], limit: F64) -> list[tup
 
     The tracker calls it with cost = -M_f and limit = -a_f: the largest affinity first, while M_f > a_f.
     """
-    entries = sorted((order_key(cost[i, j], track_ids[j], i), i, j)
-                     for i in range(cost.shape[0]) for j in range(cost.shape[1]) if cost[i, j] < limit)
+    entries = sorted((order_key(cost[i, j], track_ids[j], i), i, j) for i, j in zip(*np.nonzero(cost < limit)))
     used_rows, used_cols, pairs = set(), set(), []
     for _, i, j in entries:
         if i not in used_rows and j not in used_cols:

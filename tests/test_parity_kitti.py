@@ -11,7 +11,7 @@ from dfrmot_jax.data import load_sequences, pack, sequences_with_class
 from dfrmot_jax.io.kitti import read_tracking_labels
 from dfrmot_jax.kalman import steady_state
 from dfrmot_jax.params import Options, Params, preset, stack_params
-from dfrmot_jax.parity import lane_mismatches, reference_rows
+from dfrmot_jax.parity import lane_mismatches, reference_pool, reference_rows
 from dfrmot_jax.testing import random_options, random_params
 
 REFERENCE = "reference/dfr_fastmot_rrc_pointrcnn"
@@ -51,6 +51,12 @@ def test_dfr2023_output_scores_the_published_figures_with_trackeval(kitti_root, 
 
 
 @pytest.fixture(scope="module")
+def pool():
+    with reference_pool(2) as p:
+        yield p
+
+
+@pytest.fixture(scope="module")
 def all21(kitti_root):
     names = [f"{i:04d}" for i in range(21)]
     seqs = load_sequences(kitti_root, "rrc", "pointrcnn", "car", names)
@@ -58,26 +64,26 @@ def all21(kitti_root):
 
 
 @pytest.mark.parametrize("name", ["dfr2023", "dfr_head"])
-def test_presets_match_the_reference_on_all_21_sequences(all21, name):
+def test_presets_match_the_reference_on_all_21_sequences(all21, pool, name):
     seqs, split = all21
     params, options = preset(name)
     res = track(split, stack_params([params]), options)
-    mm = lane_mismatches(split, res, 0, reference_rows(seqs, params, options, workers=2))
+    mm = lane_mismatches(split, res, 0, reference_rows(seqs, params, options, pool))
     assert mm["lines"] > 28812  # 0017 has detections too
     assert (mm["missing"], mm["extra"], mm["id"], mm["box"]) == (0, 0, 0, 0), mm
 
 
-def test_random_settings_match_the_reference_on_all_21_sequences(all21):
-    """24 random settings: 6 random static option sets x 4 random parameter draws (one batch each)."""
+def test_random_settings_match_the_reference_on_all_21_sequences(all21, pool):
+    """20 random settings: 5 random static option sets x 4 random parameter draws (one batch each)."""
     seqs, split = all21
     rng = np.random.default_rng(2023)
     checked = 0
-    for _ in range(6):
+    for _ in range(5):
         options = random_options(rng)
         settings = [random_params(rng, options.output) for _ in range(4)]
         res = track(split, stack_params(settings), options)
         for b, params in enumerate(settings):
-            mm = lane_mismatches(split, res, b, reference_rows(seqs, params, options, workers=2))
+            mm = lane_mismatches(split, res, b, reference_rows(seqs, params, options, pool))
             assert (mm["missing"], mm["extra"], mm["id"], mm["box"]) == (0, 0, 0, 0), (options, params, mm)
             checked += 1
     assert checked >= 20
