@@ -4,21 +4,29 @@
 The pipeline::
 
     load_spec(FILE) ─▶ SweepSpec ─▶ expand() ─▶ config table (one row per config: every parameter,
-        every static option, config_hash; later more per-lane axes such as distortion.* columns)
+        every static option, config_hash; with a [distortion] table also the per-lane columns
+        distortion.kind, distortion.level, distortion.seed: configs x levels x seeds)
     plan() ─▶ groups of rows with equal static Options (one compilation each) ─▶ chunks of
-        ``chunk`` configs; chunk id = hash(data settings + the chunk's config hashes)
-    run ─▶ per chunk: dfrmot_jax.track (one [B] batch) ─▶ metrics on the padded arrays (prepared
+        ``chunk`` configs; chunk id = hash(data settings + the chunk's config hashes
+        [+ the distortion settings])
+    run ─▶ per chunk: dfrmot_jax.track (one [B] batch; distortion lanes vmapped with the parameter
+        lanes, one DistortSpec per option group) ─▶ metrics on the padded arrays (prepared
         ground truth reused, identical tracker outputs scored once) ─▶ DIR/chunks/<id>.parquet
         written atomically (tmp file + os.replace); a rerun skips chunks whose file exists
     table ─▶ one row per (config, sequence) + one ``COMBINED`` row per config
     report() ─▶ best configs by an objective, the baseline beside them, sensitivity per axis,
-        k-fold cross-validation over sequences (best chosen on training folds, scored held out)
+        k-fold cross-validation over sequences (best chosen on training folds, scored held out);
+        with distortion: the objective per level and kind (mean ± SE over seeds) per setting, and
+        an optional contrast of two groups of an axis (e.g. long vs short memory) paired by seed
 
 See ``sweeps/README.md`` for the file format. Python use::
 
     import dfrmot_jax as dm
     df = dm.sweep("sweeps/kitti_dfr_grid.toml", out="results/grid")     # or a dict spec
     rep = dm.sweep_report(df, objective="HOTA", folds=5); print(rep.text)
+    from dfrmot_jax.sweep import robustness_contrast, robustness_curves     # distortion sweeps
+    curves = robustness_curves(df, ("HOTA", "AssA", "IDSW"))                # per setting, kind, level
+    gaps = robustness_contrast(df, "epsilon", high=[30, 60], low=[1, 2, 3], by=["filter"])
 """
 
 from __future__ import annotations
@@ -42,21 +50,36 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from . import distort
 from .params import INT_PARAMS, PARAM_RANGES, PRESETS, Options, Params
 
 __all__ = [
     "SweepConfigError", "SweepSpec", "DataSettings", "Axis", "load_spec", "parse_spec", "expand", "config_hash",
     "resolve_data", "plan", "sweep", "load_results", "sweep_report", "SweepReport", "cross_validate",
     "make_folds", "sensitivity", "combine_sequences", "PARAM_NAMES", "OPTION_NAMES", "EXTRA_AXES",
-    "OBJECTIVES", "MINIMISE",
+    "OBJECTIVES", "MINIMISE", "DISTORTION_AXES", "DistortionAxes", "robustness_curves", "robustness_contrast",
+    "robustness_summary", "Contrast", "n_settings", "setting_axes",
 ]
 
 PARAM_NAMES: tuple[str, ...] = Params._fields
 OPTION_NAMES: tuple[str, ...] = Options._fields
-#: Further per-lane axes (columns of the config table, part of the config hash), e.g. the later
-#: ``distortion.kind``, ``distortion.level``, ``distortion.seed``: name -> default value. A column
-#: equal to its default is left out of the hash, so adding an axis keeps existing hashes.
+#: Further per-lane axes (columns of the config table, part of the config hash): name -> default
+#: value. A column equal to its default is left out of the hash, so adding an axis keeps existing
+#: hashes. The distortion axes are registered separately (``DISTORTION_AXES``).
 EXTRA_AXES: dict[str, Any] = {}
+#: The per-lane distortion axes of a sweep with a [distortion] table (columns of its config table
+#: and of every result row; part of the config hash when off their default): the kind (one of
+#: ``distort.KINDS``; "none" = undistorted, level 0 of every kind), the level, the seed.
+DISTORTION_AXES: dict[str, Any] = {"distortion.kind": "none", "distortion.level": 0.0, "distortion.seed": 0}
+DISTORTION_KEYS = ("kind", "level", "levels", "seeds", "clutter_slots", "burst_dist", "burst_max", "burst_rate",
+                   "burst_len")
+#: Kinds whose level is a probability (<= 1).
+PROBABILITY_KINDS = ("drop", "drop_2d", "drop_3d", "burst_rate")
+CONTRAST_KEYS = ("axis", "high", "low", "by")
+
+
+def _extra_axes() -> dict[str, Any]:
+    return {**DISTORTION_AXES, **EXTRA_AXES}
 
 GRID_KINDS = ("grid", "linspace", "logspace")
 RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
@@ -70,9 +93,9 @@ RAW_COLUMN = "_hota_alpha"
 #: can be re-combined exactly as TrackEval combines sequences (cross-validation).
 RAW_FIELDS = ("HOTA_TP", "HOTA_FN", "HOTA_FP", "AssA", "AssRe", "AssPr", "LocA")
 TOP_KEYS = ("name", "description", "chunk", "seed", "samples", "data", "baseline", "params", "options", "variants",
-            "report")
+            "distortion", "report")
 DATA_KEYS = ("root", "det2d", "det3d", "class", "sequences")
-REPORT_KEYS = ("objective", "folds", "top")
+REPORT_KEYS = ("objective", "folds", "top", "contrast")
 VARIANT_KEYS = ("name", "params", "options")
 
 
@@ -129,6 +152,84 @@ class DataSettings:
 
 
 @dataclass(frozen=True)
+class DistortionAxes:
+    """The resolved [distortion] table: per-lane axes crossed with every config of the sweep.
+
+    ``kinds``: ((kind, levels), ...) in file order (levels ascending, distinct, 0 included when
+    listed); ``seeds``: the seeds of every nonzero level. Level 0 is the identity for every kind
+    and seed: its lane is the undistorted config (kind "none", seed 0: the same ``config_hash`` as
+    without distortion) and starts every kind's curve. ``clutter_slots``, ``burst_dist`` and
+    ``burst_max`` are the static ``DistortSpec`` fields; ``burst_rate`` is the start rate of kind
+    "burst" (whose level is the mean length) and ``burst_len`` the mean length of kind
+    "burst_rate" (whose level is the start rate).
+    """
+
+    kinds: tuple[tuple[str, tuple[float, ...]], ...]
+    seeds: tuple[int, ...]
+    clutter_slots: int = 0
+    burst_dist: str = "fixed"
+    burst_max: int = 30
+    burst_rate: float = distort.BURST_RATE
+    burst_len: float = distort.BURST_LEN
+
+    def lane(self, kind: str, level: float, seed: int) -> distort.DistortParams:
+        """The ``DistortParams`` of one lane (kind "none" / level 0: all zero)."""
+        if kind == "none" or float(level) == 0.0:
+            return distort.level_params("none", 0.0, seed=0)
+        kw = {}
+        if kind == "burst":
+            kw["burst_rate"] = self.burst_rate
+        elif kind == "burst_rate":
+            kw["burst_len"] = self.burst_len
+        return distort.level_params(kind, float(level), seed=int(seed), **kw)
+
+    def hash_extra(self, kind: str) -> dict:
+        """Settings off the module's defaults that change a lane of ``kind`` (part of its hash)."""
+        if kind == "none":
+            return {}
+        out = {}
+        if kind == "burst" and self.burst_rate != distort.BURST_RATE:
+            out["burst_rate"] = repr(float(self.burst_rate))
+        if kind == "burst_rate" and self.burst_len != distort.BURST_LEN:
+            out["burst_len"] = repr(float(self.burst_len))
+        if kind in ("burst", "burst_rate"):
+            if self.burst_dist != "fixed":
+                out["burst_dist"] = self.burst_dist
+            if self.burst_max != 30:
+                out["burst_max"] = int(self.burst_max)
+        if kind.startswith("clutter"):
+            out["clutter_slots"] = int(self.clutter_slots)
+        return out
+
+    def identity(self) -> dict:
+        """The settings that can change any result (part of every chunk's identity)."""
+        return {"clutter_slots": int(self.clutter_slots), "burst_dist": self.burst_dist,
+                "burst_max": int(self.burst_max), "burst_rate": float(self.burst_rate),
+                "burst_len": float(self.burst_len)}
+
+    def make_spec(self, options: Options, frames=None, dps=None) -> distort.DistortSpec:
+        return distort.make_spec(options, clutter_slots=self.clutter_slots, burst_max=self.burst_max,
+                                 burst_dist=self.burst_dist, frames=frames, dps=dps)
+
+    @property
+    def n_lanes(self) -> int:
+        """Lanes per config (level 0 counted once)."""
+        zero = any(0.0 in lv for _, lv in self.kinds)
+        return int(zero) + sum(sum(1 for v in lv if v != 0.0) for _, lv in self.kinds) * len(self.seeds)
+
+
+@dataclass(frozen=True)
+class Contrast:
+    """Two groups of values of one axis compared level by level (``robustness_contrast``), e.g.
+    long memory (epsilon 30, 60) against short memory (epsilon 1, 2, 3), per value of ``by``."""
+
+    axis: str
+    high: tuple
+    low: tuple
+    by: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class SweepSpec:
     """A parsed sweep file. ``data_root`` None = ``$DFRMOT_DATA`` / the default root."""
 
@@ -147,6 +248,8 @@ class SweepSpec:
     objective: str = "HOTA"
     folds: int | None = None
     top: int = 10
+    distortion: DistortionAxes | None = None
+    contrast: Contrast | None = None
     source: str | None = None
     raw: Mapping | None = field(default=None, compare=False, repr=False)
 
@@ -317,12 +420,12 @@ def _axes(table, kind: str, prefix: str, source) -> tuple[Axis, ...]:
     return tuple(make(k, v, f"{prefix}.{k}", source) for k, v in table.items())
 
 
-def _positive_int(doc, key, default, source, minimum=1):
+def _positive_int(doc, key, default, source, minimum=1, prefix=""):
     v = doc.get(key, default)
     if v is None:
         return None
     if not isinstance(v, int) or isinstance(v, bool) or v < minimum:
-        raise _err(key, f"{v!r}: expected an integer >= {minimum}", source)
+        raise _err(prefix + key, f"{v!r}: expected an integer >= {minimum}", source)
     return v
 
 
@@ -341,6 +444,162 @@ def _parse_sequences(v, key, source) -> tuple[str, ...] | None:
     if len(set(out)) != len(out):
         raise _err(key, "a sequence is listed twice", source)
     return tuple(out)
+
+
+def _level_values(spec, key: str, source) -> list:
+    """Levels given as a number, a list, or {grid | linspace | logspace = [...]} (unchecked numbers)."""
+    if isinstance(spec, Mapping):
+        if len(spec) != 1 or next(iter(spec)) not in GRID_KINDS:
+            raise _err(key, f"levels are a number, a list or one of {{{', '.join(GRID_KINDS)} = [...]}}, got "
+                            f"{dict(spec)!r}", source)
+        kind, arg = next(iter(spec.items()))
+        key = f"{key}.{kind}"
+        if not isinstance(arg, list):
+            raise _err(key, f"expected a list, got {arg!r}", source)
+        if kind == "grid":
+            spec = arg
+        else:
+            if len(arg) != 3 or not all(_is_number(a) for a in arg) or not float(arg[2]).is_integer() or arg[2] < 1:
+                raise _err(key, f"expected [low, high, count >= 1], got {arg!r}", source)
+            lo, hi, n = float(arg[0]), float(arg[1]), int(arg[2])
+            if kind == "logspace" and (lo <= 0 or hi <= 0):
+                raise _err(key, f"logspace needs positive ends, got {arg!r}", source)
+            raw = np.geomspace(lo, hi, n) if kind == "logspace" else np.linspace(lo, hi, n)
+            return [(key, _clean_float(v)) for v in raw]
+    if isinstance(spec, list):
+        if not spec:
+            raise _err(key, "empty list: nothing to sweep", source)
+        return [(f"{key}[{i}]", v) for i, v in enumerate(spec)]
+    return [(key, spec)]
+
+
+def _check_level(kind: str, v, key: str, source, clutter_slots: int, burst_max: int) -> float:
+    if not _is_number(v):
+        raise _err(key, f"{v!r} is not a number", source)
+    v = float(v)
+    if not math.isfinite(v):
+        raise _err(key, f"{v!r} is not finite", source)
+    if v < 0:
+        raise _err(key, f"level {v:g} < 0: levels are >= 0 (0 = undistorted)", source)
+    if kind in PROBABILITY_KINDS and v > 1:
+        raise _err(key, f"level {v:g} of kind {kind!r} is a probability: expected <= 1", source)
+    if kind == "burst" and v > burst_max:
+        raise _err(key, f"mean burst length {v:g} > burst_max = {burst_max} (lengths are capped at burst_max; "
+                        f"raise distortion.burst_max)", source)
+    if kind.startswith("clutter") and v > 0 and v > clutter_slots:
+        raise _err(key, f"{v:g} false positives per frame need distortion.clutter_slots >= {math.ceil(v)} "
+                        f"(clutter_slots = {clutter_slots})", source)
+    return v
+
+
+def _parse_distortion(d, source) -> DistortionAxes | None:
+    if d is None:
+        return None
+    _check_keys(d, DISTORTION_KEYS, "distortion.", source)
+    kinds_doc = d.get("kind")
+    levels_doc = d.get("levels")
+    if levels_doc is not None and not isinstance(levels_doc, Mapping):
+        raise _err("distortion.levels", f"expected a table kind = [levels], got {levels_doc!r}", source)
+    if kinds_doc is None:
+        if not levels_doc:
+            raise _err("distortion.kind", "missing: the distortion kind(s) to sweep, e.g. kind = [\"drop\", "
+                                          "\"burst\"]", source)
+        kinds = [(f"distortion.levels.{k}", k) for k in levels_doc]
+    else:
+        if isinstance(kinds_doc, str):
+            kinds = [("distortion.kind", kinds_doc)]
+        elif isinstance(kinds_doc, list) and kinds_doc:
+            kinds = [(f"distortion.kind[{i}]", k) for i, k in enumerate(kinds_doc)]
+        else:
+            raise _err("distortion.kind", f"{kinds_doc!r}: expected a kind or a non-empty list of kinds", source)
+    known = tuple(k for k in distort.KINDS if k != "none")
+    for key, k in kinds:
+        if not isinstance(k, str) or k not in known:
+            hint = " (level 0 of every kind is the undistorted run: add 0 to the levels)" if k == "none" else ""
+            raise _err(key, f"unknown distortion kind {k!r}{hint}; expected one of {list(known)}", source)
+    if len({k for _, k in kinds}) != len(kinds):
+        raise _err("distortion.kind", "a kind is listed twice", source)
+    if levels_doc:
+        for k in levels_doc:
+            if k not in {kk for _, kk in kinds}:
+                raise _err(f"distortion.levels.{k}", f"kind {k!r} is not in distortion.kind "
+                                                     f"{[kk for _, kk in kinds]}", source)
+    clutter_slots = _positive_int(d, "clutter_slots", 0, source, minimum=0, prefix="distortion.")
+    burst_max = _positive_int(d, "burst_max", 30, source, prefix="distortion.")
+    burst_dist = d.get("burst_dist", "fixed")
+    if burst_dist not in distort.BURST_DISTS:
+        raise _err("distortion.burst_dist", f"{burst_dist!r}: expected one of {list(distort.BURST_DISTS)}", source)
+    burst_rate = d.get("burst_rate", distort.BURST_RATE)
+    if not _is_number(burst_rate) or not 0 < float(burst_rate) <= 1:
+        raise _err("distortion.burst_rate", f"{burst_rate!r}: the burst start rate of kind \"burst\" is a "
+                                            f"probability in (0, 1]", source)
+    burst_len = d.get("burst_len", distort.BURST_LEN)
+    if not _is_number(burst_len) or not 0 < float(burst_len) <= (burst_max if any(k == "burst_rate" for _, k in kinds)
+                                                                 else math.inf):
+        raise _err("distortion.burst_len", f"{burst_len!r}: the mean burst length of kind \"burst_rate\" is in "
+                                           f"(0, burst_max = {burst_max}]", source)
+    out = []
+    for _, k in kinds:
+        if levels_doc and k in levels_doc:
+            raw = _level_values(levels_doc[k], f"distortion.levels.{k}", source)
+        elif "level" in d:
+            raw = _level_values(d["level"], "distortion.level", source)
+        else:
+            raise _err("distortion.levels", f"no levels for kind {k!r}: give distortion.level = [...] or "
+                                            f"distortion.levels.{k} = [...]", source)
+        vals = [_check_level(k, v, key, source, clutter_slots, burst_max) for key, v in raw]
+        out.append((k, tuple(sorted(dict.fromkeys(vals)))))
+    seeds_doc = d.get("seeds", 1)
+    if isinstance(seeds_doc, list):
+        if not seeds_doc:
+            raise _err("distortion.seeds", "empty list: give a count (seeds = 10) or a list of seeds", source)
+        for i, v in enumerate(seeds_doc):
+            if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < 2 ** 31:
+                raise _err(f"distortion.seeds[{i}]", f"{v!r}: a seed is an integer in [0, 2**31)", source)
+        if len(set(seeds_doc)) != len(seeds_doc):
+            raise _err("distortion.seeds", "a seed is listed twice", source)
+        seeds = tuple(int(v) for v in seeds_doc)
+    elif isinstance(seeds_doc, int) and not isinstance(seeds_doc, bool):
+        if seeds_doc < 1:
+            raise _err("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 (seeds 0 .. n-1) or a list of seeds",
+                       source)
+        seeds = tuple(range(seeds_doc))
+    else:
+        raise _err("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 or a list of seeds", source)
+    axes = DistortionAxes(tuple(out), seeds, clutter_slots=int(clutter_slots), burst_dist=burst_dist,
+                          burst_max=int(burst_max), burst_rate=float(burst_rate), burst_len=float(burst_len))
+    try:        # the distortion module's own checks on every lane (belt and braces)
+        dps = distort.stack_distort([axes.lane(k, v, s) for k, lv in axes.kinds for v in lv for s in seeds[:1]])
+        distort.check_params(dps, axes.make_spec(Options(), dps=dps))
+    except ValueError as e:
+        raise _err("distortion", str(e), source) from None
+    return axes
+
+
+def _parse_contrast(c, source) -> Contrast | None:
+    if c is None:
+        return None
+    _check_keys(c, CONTRAST_KEYS, "report.contrast.", source)
+    axis = c.get("axis")
+    if axis not in PARAM_NAMES + OPTION_NAMES:
+        raise _err("report.contrast.axis", f"{axis!r}: expected a parameter or option name", source)
+    groups = []
+    for k in ("high", "low"):
+        v = c.get(k)
+        if v is None:
+            raise _err(f"report.contrast.{k}", "missing: the axis values of this group", source)
+        v = v if isinstance(v, list) else [v]
+        if not v:
+            raise _err(f"report.contrast.{k}", "empty list", source)
+        groups.append(tuple(v))
+    if set(groups[0]) & set(groups[1]):
+        raise _err("report.contrast", f"a value is in both groups: {sorted(set(groups[0]) & set(groups[1]), key=str)}",
+                   source)
+    by = c.get("by", [])
+    by = [by] if isinstance(by, str) else by
+    if not isinstance(by, list) or any(b not in PARAM_NAMES + OPTION_NAMES or b == axis for b in by):
+        raise _err("report.contrast.by", f"{by!r}: expected a list of other parameter / option names", source)
+    return Contrast(axis, groups[0], groups[1], tuple(by))
 
 
 def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
@@ -403,11 +662,14 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
         raise _err("report.objective", f"{objective!r}: expected a metric name", source)
     folds = _positive_int(rep, "folds", None, source, minimum=2)
     top = _positive_int(rep, "top", 10, source)
+    contrast = _parse_contrast(rep.get("contrast"), source)
+    distortion = _parse_distortion(doc.get("distortion"), source)
 
     spec = SweepSpec(name=name, description=str(desc), chunk=chunk, seed=seed, samples=samples, data_root=root,
                      det2d=data.get("det2d", "rrc"), det3d=data.get("det3d", "pointrcnn"), cls=cls,
                      sequences=sequences, baseline=base, variants=tuple(variants), objective=objective,
-                     folds=folds, top=top, source=source, raw=dict(doc))
+                     folds=folds, top=top, distortion=distortion, contrast=contrast, source=source,
+                     raw=dict(doc))
     for v in spec.variants:
         if samples > 1 and all(a.is_grid for a in v.params):
             raise _err("samples", f"samples = {samples} repeats the grid with random parameters redrawn, but "
@@ -441,11 +703,15 @@ def _canon(name: str, v):
     return str(v)
 
 
-def config_hash(row: Mapping[str, Any]) -> str:
-    """Stable 16-hex-digit hash of a config: every parameter and option (+ extra axes off their default)."""
+def config_hash(row: Mapping[str, Any], settings: Mapping[str, Any] | None = None) -> str:
+    """Stable 16-hex-digit hash of a config: every parameter and option (+ extra axes off their
+    default, such as the distortion axes; + ``settings``, sweep-wide values off their defaults that
+    change this row, e.g. a distortion lane's burst start rate)."""
     key = {"params": {n: _canon(n, row[n]) for n in PARAM_NAMES},
            "options": {n: _canon(n, row[n]) for n in OPTION_NAMES}}
-    extra = {n: _canon(n, row[n]) for n, d in EXTRA_AXES.items() if n in row and row[n] != d}
+    extra = {n: _canon(n, row[n]) for n, d in _extra_axes().items() if n in row and row[n] != d}
+    if settings:
+        extra["settings"] = dict(settings)
     if extra:
         key["extra"] = extra
     text = json.dumps(key, sort_keys=True, separators=(",", ":"))
@@ -473,6 +739,13 @@ def expand(spec) -> pd.DataFrame:
     slowest; parameters, then options); random axes (uniform, loguniform, randint, choice) are drawn
     per config from ``numpy.random.default_rng(seed)``; ``samples`` repeats each variant's grid with
     the random axes redrawn (Ray Tune's ``num_samples``). Configs that hash alike are kept once.
+
+    With a [distortion] table every config (the baseline too) is crossed with the distortion lanes,
+    innermost (kind, then level, then seed), adding the columns ``DISTORTION_AXES``
+    (``distortion.kind``, ``distortion.level``, ``distortion.seed``). Level 0 is the identity for
+    every kind and seed: it is one lane per config, the undistorted one (kind "none", level 0, seed
+    0: the same hash as the config without distortion). Without [distortion] the table is as before
+    (no distortion columns).
     """
     spec = _as_spec(spec)
     src = spec.source
@@ -503,6 +776,8 @@ def expand(spec) -> pd.DataFrame:
     hashes = [config_hash(r) for r in table.to_dict("records")]
     table.insert(0, "config_hash", hashes)
     table = table.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
+    if spec.distortion is not None:
+        table = _cross_distortion(table, spec.distortion)
     table.insert(0, "config", np.arange(len(table), dtype=np.int64))
     if len(table) < 2:
         raise _err("params", "the sweep has no config besides the baseline: add parameters or options to sweep",
@@ -514,6 +789,31 @@ def expand(spec) -> pd.DataFrame:
                                        f"output = \"filtered\" (variant {r['variant']!r} pairs it with output = "
                                        f"\"detections\"); use [[variants]] to give keep_lost its own output", src)
     return table
+
+
+def _cross_distortion(table: pd.DataFrame, dist: DistortionAxes) -> pd.DataFrame:
+    """Every config x the distortion lanes (level 0 once, undistorted), hashes recomputed."""
+    lanes: list[tuple[str, float, int]] = []
+    if any(0.0 in lv for _, lv in dist.kinds):
+        lanes.append(("none", 0.0, 0))
+    for kind, levels in dist.kinds:
+        lanes.extend((kind, float(v), int(s)) for v in levels if v != 0.0 for s in dist.seeds)
+    base = table.drop(columns=["config_hash"]).to_dict("records")
+    rows = []
+    for i, r in enumerate(base):
+        own = lanes if i > 0 or ("none", 0.0, 0) in lanes else [("none", 0.0, 0)] + lanes   # the baseline row stays
+        for kind, level, seed in own:
+            rows.append({**r, "baseline": bool(r["baseline"]) and kind == "none",
+                         "distortion.kind": kind, "distortion.level": level, "distortion.seed": seed})
+    out = pd.DataFrame(rows, columns=list(table.columns.drop("config_hash")) + list(DISTORTION_AXES))
+    for c in table.columns.drop("config_hash"):
+        out[c] = out[c].astype(table[c].dtype)
+    out["distortion.kind"] = out["distortion.kind"].astype(object)
+    out["distortion.level"] = out["distortion.level"].astype("float64")
+    out["distortion.seed"] = out["distortion.seed"].astype("int64")
+    hashes = [config_hash(r, dist.hash_extra(r["distortion.kind"])) for r in out.to_dict("records")]
+    out.insert(0, "config_hash", hashes)
+    return out.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
 
 
 def resolve_data(spec, data_root=None) -> DataSettings:
@@ -560,18 +860,31 @@ def _row_options(row: Mapping) -> Options:
     return Options(**{n: type(Options._field_defaults[n])(row[n]) for n in OPTION_NAMES})
 
 
-def plan(table: pd.DataFrame, data: DataSettings, chunk: int) -> list[Chunk]:
-    """Group the configs by static options (first appearance order), cut each group into chunks."""
+def _groups(table: pd.DataFrame) -> dict[Options, list[int]]:
+    """Config rows by static options, in first-appearance order."""
     groups: dict[Options, list[int]] = {}
     for row in table[["config"] + list(OPTION_NAMES)].to_dict("records"):
         groups.setdefault(_row_options(row), []).append(int(row["config"]))
+    return groups
+
+
+def plan(table: pd.DataFrame, data: DataSettings, chunk: int,
+         distortion: DistortionAxes | None = None) -> list[Chunk]:
+    """Group the configs by static options (first appearance order), cut each group into chunks.
+
+    A chunk's id hashes the data settings, its config hashes and (distortion sweeps) the
+    distortion settings (``DistortionAxes.identity``)."""
+    groups = _groups(table)
     hashes = table["config_hash"].to_numpy()
     ident = data.identity()
     out = []
     for g, (opts, idx) in enumerate(groups.items()):
         for a in range(0, len(idx), chunk):
             part = tuple(idx[a:a + chunk])
-            text = json.dumps({"data": ident, "configs": [hashes[i] for i in part]}, sort_keys=True)
+            doc = {"data": ident, "configs": [hashes[i] for i in part]}
+            if distortion is not None:
+                doc["distortion"] = distortion.identity()
+            text = json.dumps(doc, sort_keys=True)
             out.append(Chunk(hashlib.sha1(text.encode()).hexdigest()[:20], g, opts, part))
     return out
 
@@ -719,7 +1032,7 @@ def _chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, me
     cols["config_hash"] = np.repeat(sub["config_hash"].to_numpy(), R)
     cols["sequence"] = np.tile(np.array(list(seq_names) + [COMBINED], dtype=object), L)
     for c in ["variant", "baseline"] + list(PARAM_NAMES) + list(OPTION_NAMES) + \
-            [n for n in EXTRA_AXES if n in sub.columns]:
+            [n for n in _extra_axes() if n in sub.columns]:
         cols[c] = np.repeat(sub[c].to_numpy(), R)
     seq_sum = summary_columns(metrics["seq"])
     comb_sum = summary_columns(metrics["comb"])
@@ -803,7 +1116,7 @@ def sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: in
     if spec.folds is not None and not 2 <= spec.folds <= len(data.sequences):
         raise SweepConfigError("folds", f"{spec.folds}: expected 2 .. {len(data.sequences)} (the sequences)",
                                spec.source)
-    chunks = plan(table, data, spec.chunk)
+    chunks = plan(table, data, spec.chunk, spec.distortion)
     outdir = Path(out) if out is not None else None
     if outdir is not None:
         (outdir / "chunks").mkdir(parents=True, exist_ok=True)
@@ -811,6 +1124,11 @@ def sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: in
                     "data": data.identity(), "lengths": list(data.lengths), "baseline": spec.baseline,
                     "chunk": spec.chunk, "objective": spec.objective, "folds": spec.folds, "top": spec.top,
                     "configs": len(table), "chunks": [c.id for c in chunks], "spec": _jsonable(spec.raw)}
+        if spec.distortion is not None:
+            manifest["distortion"] = {"kinds": {k: list(v) for k, v in spec.distortion.kinds},
+                                      "seeds": list(spec.distortion.seeds), **spec.distortion.identity()}
+        if spec.contrast is not None:
+            manifest["contrast"] = _contrast_doc(spec.contrast)
         _atomic_text(json.dumps(manifest, indent=1), outdir / "manifest.json")
         _atomic_parquet(table, outdir / "configs.parquet")
     done = {c.id for c in chunks if outdir is not None and _chunk_path(outdir, c).is_file()}
@@ -818,7 +1136,12 @@ def sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: in
     n_done = sum(len(c.configs) for c in chunks if c.id in done)
     total_cf = len(table) * sum(data.lengths)
     n_groups = len({c.group for c in chunks})
-    log(f"sweep {spec.name}: {len(table):,} configs ({n_groups} option group(s), {len(chunks)} chunks of <= "
+    lanes = ""
+    if spec.distortion is not None:
+        n_set = n_settings(table)
+        lanes = (f" = {n_set:,} settings x {spec.distortion.n_lanes} distortion lanes (kinds "
+                 f"{', '.join(k for k, _ in spec.distortion.kinds)}; {len(spec.distortion.seeds)} seeds)")
+    log(f"sweep {spec.name}: {len(table):,} configs{lanes} ({n_groups} option group(s), {len(chunks)} chunks of <= "
         f"{spec.chunk}; {len(done)} done) x {len(data.sequences)} sequences / {sum(data.lengths):,} frames = "
         f"{total_cf / 1e6:.1f} M config-frames" + (f" -> {outdir}" if outdir else ""))
     frames_out: dict[str, pd.DataFrame] = {}
@@ -915,15 +1238,26 @@ def _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, n_total, pr
         return {"seq": {f: np.stack([s[f] for s, _ in per]) for f in per[0][0]},
                 "comb": {f: np.stack([c[f] for _, c in per]) for f in per[0][1]}}
 
+    dist = spec.distortion
+    groups = _groups(table) if dist is not None else {}
     try:
         frames_cache: tuple | None = None
         caps: dict[Options, int] = {}
+        dspecs: dict[Options, Any] = {}
         for c in todo:
             if frames_cache is None or frames_cache[0] != c.options:
                 frames_cache = (c.options, prepare_frames(split, c.options))
             frames = frames_cache[1]
             params = _params_of(table, c.configs)
             opts = c.options
+            dps = None
+            if dist is not None:
+                # one DistortSpec per option group, covering every lane of the group (all of the
+                # table, not only the chunks left to run): one compilation, whatever is resumed
+                dps = _distort_of(table, c.configs, dist)
+                if c.options not in dspecs:
+                    dspecs[c.options] = dist.make_spec(c.options, frames=frames,
+                                                       dps=_distort_of(table, groups[c.options], dist))
             if opts.capacity == 0:
                 # Track slots: the tracker's data-sized default for the whole option group (one
                 # compilation), raised from the peaks once a chunk overflowed (``track`` re-runs an
@@ -931,11 +1265,17 @@ def _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, n_total, pr
                 if c.options not in caps:
                     group = _params_of(table, [i for d in todo if d.options == c.options for i in d.configs])
                     caps[c.options] = default_capacity(frames, group, opts)
+                    if dist is not None and dist.clutter_slots:      # room for the clutter's births
+                        caps[c.options] += 8 * math.ceil(3 * dist.clutter_slots / 8)
                 opts = opts._replace(capacity=caps[c.options])
             tt = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)   # overflow is a column of the table
-                res = track(frames, params, opts, chunk=track_chunk, grow=True)
+                if dps is None:
+                    res = track(frames, params, opts, chunk=track_chunk, grow=True)
+                else:       # distortion lanes vmapped with the parameter lanes; per-lane output boxes
+                    res = track(split, params, opts, chunk=track_chunk, grow=True, distortion=dps,
+                                spec=dspecs[c.options])
             if c.options.capacity == 0 and int(res.capacity.max(initial=0)) > caps[c.options]:
                 caps[c.options] = max(int(res.capacity.max()), _capacity_hint(int(res.peak.max(initial=0))))
             timing["track"] += time.perf_counter() - tt
@@ -979,6 +1319,13 @@ def _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, n_total, pr
         f"{n * split.n_frames / dt / 1e3:.0f} k config-frames/s; setup {timing['setup']:.1f} s, tracking "
         f"{timing['track']:.1f} s, metrics {timing['metrics']:.1f} s in-process + {timing['wait']:.1f} s waiting "
         f"for workers, tables {timing['write']:.1f} s; {len(ev.memo):,} distinct outputs scored)")
+
+
+def _distort_of(table: pd.DataFrame, rows: Sequence[int], dist: DistortionAxes):
+    """``DistortParams [B]`` of the table rows (their distortion.kind / level / seed)."""
+    sub = table.iloc[list(rows)]
+    return distort.stack_distort([dist.lane(k, v, s) for k, v, s in zip(
+        sub["distortion.kind"], sub["distortion.level"], sub["distortion.seed"])])
 
 
 @dataclass
@@ -1041,7 +1388,7 @@ def _rank(values: np.ndarray, objective: str) -> np.ndarray:
 
 def varied_axes(df: pd.DataFrame) -> list[str]:
     comb = df[df["sequence"] == COMBINED]
-    return [c for c in list(PARAM_NAMES) + list(OPTION_NAMES) + list(EXTRA_AXES)
+    return [c for c in list(PARAM_NAMES) + list(OPTION_NAMES) + list(_extra_axes())
             if c in comb.columns and comb[c].nunique() > 1]
 
 
@@ -1097,6 +1444,243 @@ def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.
     cols = ["axis", "values", "spread_best", "spread_mean", "corr", "best_value", "oat_range"]
     out = pd.DataFrame(rows, columns=cols)
     return out.sort_values("spread_best", ascending=False, kind="mergesort").reset_index(drop=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# Robustness: metrics against distortion levels (sweeps with a [distortion] table)
+
+
+def _check_distorted(df: pd.DataFrame) -> None:
+    if "distortion.kind" not in df.columns:
+        raise ValueError("the table has no distortion columns (a sweep without a [distortion] table)")
+
+
+def n_settings(table: pd.DataFrame) -> int:
+    """Distinct parameter / option settings of a table (a distortion sweep's configs without lanes)."""
+    return int(len(table.drop_duplicates(list(PARAM_NAMES) + list(OPTION_NAMES))))
+
+
+def setting_axes(df: pd.DataFrame) -> list[str]:
+    """The varied parameter / option axes (a *setting* is one value of each: every distortion lane
+    of one config)."""
+    return [a for a in varied_axes(df) if a not in DISTORTION_AXES]
+
+
+def _level0_per_kind(rows: pd.DataFrame) -> pd.DataFrame:
+    """Rows with the undistorted (level 0, kind "none") rows repeated under every kind: the start
+    of each kind's curve."""
+    kinds = [k for k in pd.unique(rows["distortion.kind"]) if k != "none"]
+    zero = rows[rows["distortion.kind"] == "none"]
+    if not kinds:
+        return zero
+    parts = []
+    for k in kinds:
+        parts.append(zero.assign(**{"distortion.kind": k}))
+        parts.append(rows[rows["distortion.kind"] == k])
+    return pd.concat(parts, ignore_index=True)
+
+
+def _setting_labels(rows: pd.DataFrame, axes: Sequence[str]) -> pd.Series:
+    if not axes:
+        return pd.Series("all", index=rows.index, dtype=object)
+    return rows[list(axes)].apply(lambda r: " ".join(f"{a}={_fmt(r[a])}" for a in axes), axis=1).astype(object)
+
+
+def _se(x: pd.Series) -> float:
+    n = x.count()
+    return float(x.std(ddof=1) / math.sqrt(n)) if n > 1 else 0.0
+
+
+def robustness_curves(df: pd.DataFrame, metrics: Sequence[str] = ("HOTA", "AssA", "IDSW"),
+                      sequence: str = COMBINED) -> pd.DataFrame:
+    """Metrics against the distortion level: one row per (setting, kind, level).
+
+    A setting is one value of every varied parameter / option (``setting_axes``; its columns are
+    kept, plus ``setting``, a label such as ``"epsilon=30 filter=kalman"``). Per metric: ``M`` the
+    mean over seeds, ``M_se`` its standard error (std / sqrt(n); 0 for level 0, which has no
+    randomness and one row), ``M_min``, ``M_max``; ``n`` the seeds. The undistorted level-0 row
+    starts every kind's curve. ``sequence``: "COMBINED" (default) or one sequence's rows.
+    """
+    _check_distorted(df)
+    metrics = [metrics] if isinstance(metrics, str) else list(metrics)
+    for m in metrics:
+        _check_objective(df, m)
+    axes = setting_axes(df)
+    rows = _level0_per_kind(df[df["sequence"] == sequence].reset_index(drop=True))
+    rows = rows.assign(setting=_setting_labels(rows, axes))
+    keys = ["setting"] + axes + ["distortion.kind", "distortion.level"]
+    g = rows.groupby(keys, sort=False)
+    out = g.size().rename("n").to_frame()
+    for m in metrics:
+        x = g[m]
+        out[m] = x.mean()
+        out[f"{m}_se"] = x.agg(_se)
+        out[f"{m}_min"] = x.min()
+        out[f"{m}_max"] = x.max()
+    out = out.reset_index().rename(columns={"distortion.kind": "kind", "distortion.level": "level"})
+    order_s = {s: i for i, s in enumerate(pd.unique(rows["setting"]))}
+    order_k = {k: i for i, k in enumerate(pd.unique(rows["distortion.kind"]))}
+    out = out.assign(_s=out["setting"].map(order_s), _k=out["kind"].map(order_k))
+    return out.sort_values(["_s", "_k", "level"], kind="mergesort").drop(columns=["_s", "_k"]).reset_index(drop=True)
+
+
+def robustness_contrast(df: pd.DataFrame, axis: str, high: Sequence, low: Sequence,
+                        metrics: Sequence[str] = ("HOTA", "AssA", "IDSW"), by: Sequence[str] = (),
+                        sequence: str = COMBINED, alpha: float = 0.05) -> pd.DataFrame:
+    """How much the ``high`` values of ``axis`` beat the ``low`` ones at each distortion level.
+
+    E.g. long memory (``epsilon`` in 30, 60) against short memory (``epsilon`` in 1, 2, 3). For
+    every (``by`` values, kind, level, seed): the mean metric over the configs in ``high`` minus
+    the mean over those in ``low`` (paired by seed: the same seed distorts every config's detections
+    identically, so the difference is free of the detection noise that the configs share); then
+    over seeds: ``gap`` (mean), ``se`` (standard error), ``n``. ``high_mean`` / ``low_mean`` are
+    the two groups' means. ``helps``: the gap is in the metric's better direction (higher, or lower
+    for IDSW etc.) and significantly so (one-sided paired t-test at ``alpha``; ``p``); at level 0
+    (deterministic, one row) it is the sign. One row per (by..., kind, level, metric).
+    """
+    from scipy import stats
+
+    _check_distorted(df)
+    metrics = [metrics] if isinstance(metrics, str) else list(metrics)
+    by = [by] if isinstance(by, str) else list(by)
+    for m in metrics:
+        _check_objective(df, m)
+    for a in [axis] + by:
+        if a not in df.columns:
+            raise ValueError(f"contrast: {a!r} is not a column of the table")
+    rows = _level0_per_kind(df[df["sequence"] == sequence].reset_index(drop=True))
+    hi, lo = rows[rows[axis].isin(list(high))], rows[rows[axis].isin(list(low))]
+    if not len(hi) or not len(lo):
+        raise ValueError(f"contrast: no rows with {axis} in {list(high) if not len(hi) else list(low)}")
+    keys = by + ["distortion.kind", "distortion.level", "distortion.seed"]
+    mh = hi.groupby(keys, sort=False)[metrics].mean()
+    ml = lo.groupby(keys, sort=False)[metrics].mean()
+    mh, ml = mh.align(ml, join="inner")
+    diff = mh - ml
+    out = []
+    for key, d in diff.groupby(level=list(range(len(by) + 2)), sort=False):
+        key = key if isinstance(key, tuple) else (key,)
+        for m in metrics:
+            x = d[m].to_numpy(np.float64)
+            n = x.size
+            gap = float(x.mean())
+            se = float(x.std(ddof=1) / math.sqrt(n)) if n > 1 else 0.0
+            sign = _direction(m)
+            if n > 1 and se > 0:
+                t = sign * gap / se
+                pval = float(stats.t.sf(t, n - 1))
+                helps = bool(pval < alpha)
+            else:
+                pval = float("nan")
+                helps = bool(sign * gap > 0)
+            out.append({**dict(zip(by, key[:len(by)])), "kind": key[len(by)], "level": float(key[len(by) + 1]),
+                        "metric": m, "high_mean": float(mh.loc[d.index, m].mean()),
+                        "low_mean": float(ml.loc[d.index, m].mean()),
+                        "gap": gap, "se": se, "n": int(n), "p": pval, "helps": helps})
+    res = pd.DataFrame(out)
+    order_k = {k: i for i, k in enumerate(pd.unique(rows["distortion.kind"]))}
+    order_m = {m: i for i, m in enumerate(metrics)}
+    res = res.assign(_k=res["kind"].map(order_k), _m=res["metric"].map(order_m))
+    res = res.sort_values(by + ["_k", "_m", "level"], kind="mergesort").drop(columns=["_k", "_m"])
+    res.attrs.update(axis=axis, high=list(high), low=list(low), by=by, alpha=alpha)
+    return res.reset_index(drop=True)
+
+
+def robustness_summary(contrast: pd.DataFrame) -> pd.DataFrame:
+    """The answer of a contrast (:func:`robustness_contrast`), one row per (by..., kind, metric).
+
+    ``helps_up_to``: the highest level up to which the ``high`` group is significantly better at
+    every level from the first distorted one (NaN: not even there); ``stops_at``: the first level
+    where it is not (NaN: it helps at every level studied); ``crossing``: the first level where the
+    mean gap is no longer in the better direction (NaN: never); ``gap_before``: the mean gap over the
+    distorted levels up to ``helps_up_to``; ``max_gap`` / ``max_gap_level``: the largest gap (in
+    the better direction) and its level; ``gap_at_0``: the gap without distortion.
+    """
+    by = list(contrast.attrs.get("by", []))
+    out = []
+    for key, d in contrast.groupby(by + ["kind", "metric"], sort=False):
+        key = key if isinstance(key, tuple) else (key,)
+        d = d.sort_values("level")
+        sign = _direction(str(key[-1]))
+        dist = d[d["level"] > 0]
+        bad = dist[~dist["helps"]]
+        stops = float(bad["level"].iloc[0]) if len(bad) else float("nan")
+        ok = dist[dist["level"] < stops] if len(bad) else dist
+        cross = d[(d["level"] > 0) & (sign * d["gap"] <= 0)]
+        best = int(np.argmax(sign * d["gap"].to_numpy()))
+        zero = d[d["level"] == 0]
+        out.append({**dict(zip(by + ["kind", "metric"], key)),
+                    "gap_at_0": float(zero["gap"].iloc[0]) if len(zero) else float("nan"),
+                    "helps_up_to": float(ok["level"].iloc[-1]) if len(ok) else float("nan"),
+                    "stops_at": stops,
+                    "crossing": float(cross["level"].iloc[0]) if len(cross) else float("nan"),
+                    "gap_before": float(ok["gap"].mean()) if len(ok) else float("nan"),
+                    "max_gap": float(d["gap"].iloc[best]), "max_gap_level": float(d["level"].iloc[best])})
+    return pd.DataFrame(out)
+
+
+def _contrast_doc(c: Contrast) -> dict:
+    return {"axis": c.axis, "high": list(c.high), "low": list(c.low), "by": list(c.by)}
+
+
+def _robustness_text(df: pd.DataFrame, objective: str, top: int) -> tuple[list[str], dict]:
+    """Report lines: the objective per level (mean ± SE over seeds) per kind, for the best settings."""
+    curves = robustness_curves(df, [objective])
+    d = _direction(objective)
+    lines, summary = [], {}
+    n_seeds = int(curves.loc[curves["level"] > 0, "n"].max()) if (curves["level"] > 0).any() else 1
+    lines.append(f"robustness: {objective} (COMBINED) per distortion level, mean ± SE over {n_seeds} seed(s) "
+                 f"(level 0 = undistorted); settings ranked by their mean {objective} over the kind's levels")
+    for kind, ck in curves.groupby("kind", sort=False):
+        rank = ck.groupby("setting", sort=False)[objective].mean()
+        order = rank.sort_values(ascending=d < 0, kind="mergesort").index[:top]
+        levels = sorted(ck["level"].unique())
+        table = {}
+        for st in order:
+            cs = ck[ck["setting"] == st].set_index("level")
+            table[st] = [f"{cs.at[v, objective]:.2f}" + (f"±{cs.at[v, f'{objective}_se']:.2f}"
+                                                          if cs.at[v, "n"] > 1 else "")
+                         if v in cs.index else "" for v in levels]
+        view = pd.DataFrame.from_dict(table, orient="index", columns=[_fmt(v) for v in levels])
+        view.index.name = f"{kind} \\ level"
+        lines.append("")
+        lines.append(view.to_string())
+        summary[kind] = {"levels": [float(v) for v in levels],
+                         "settings": {st: [float(x) for x in ck[ck["setting"] == st].set_index("level")
+                                           .reindex(levels)[objective]] for st in order}}
+    return lines, summary
+
+
+def _contrast_text(df: pd.DataFrame, c: Contrast, objective: str) -> tuple[list[str], list[dict]]:
+    metrics = list(dict.fromkeys([objective, "HOTA", "AssA", "IDSW"]))
+    metrics = [m for m in metrics if m in df.columns]
+    lines = []
+    answers: list[dict] = []
+    for by in [[]] + ([list(c.by)] if c.by else []):
+        try:
+            con = robustness_contrast(df, c.axis, c.high, c.low, metrics, by=by)
+        except ValueError as e:          # e.g. an axis value the sweep does not have: report, do not fail
+            lines.extend(["", f"contrast {c.axis} {list(c.high)} vs {list(c.low)}: {e}"])
+            break
+        head = f"per {', '.join(by)}" if by else "over all other settings"
+        lines.append("")
+        lines.append(f"contrast {c.axis} in {list(c.high)} minus {c.axis} in {list(c.low)} ({head}): mean gap ± SE "
+                     f"over seeds, paired by seed; * = significantly better (one-sided t-test, 5 %; level 0: sign)")
+        con = con.assign(cell=[f"{g:+.2f}" + (f"±{s:.2f}" if n > 1 else "") + ("*" if h else "")
+                               for g, s, n, h in zip(con["gap"], con["se"], con["n"], con["helps"])])
+        for kind, ck in con.groupby("kind", sort=False):
+            view = ck.pivot_table(index=by + ["metric"], columns="level", values="cell", aggfunc="first", sort=False)
+            view.columns = [_fmt(v) for v in view.columns]
+            view.columns.name = f"{kind} level"
+            lines.append(view.fillna("").to_string())
+        summ = robustness_summary(con)
+        lines.append("answer: helps_up_to = highest level up to which the gap is significantly better at every "
+                     "distorted level; stops_at = first level where it is not; crossing = first level where the "
+                     "mean gap changes sign")
+        lines.append(summ.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+        answers.extend({k: _json_value(v) if not (isinstance(v, float) and math.isnan(v)) else None
+                        for k, v in r.items()} for r in summ.to_dict("records"))
+    return lines, answers
 
 
 def make_folds(names: Sequence[str], lengths: Sequence[int], k: int) -> list[list[str]]:
@@ -1213,6 +1797,8 @@ class SweepReport:
     top: pd.DataFrame
     sensitivity: pd.DataFrame
     cv: dict | None = None
+    curves: pd.DataFrame | None = None          # distortion sweeps: robustness_curves(df, objective)
+    contrast: list | None = None                # with a contrast: robustness_summary rows (dicts)
 
     def __str__(self) -> str:
         return self.text
@@ -1234,19 +1820,30 @@ def _json_value(v):
     return v
 
 
-def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top: int = 10) -> SweepReport:
+def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top: int = 10,
+                 contrast: Contrast | Mapping | None = None) -> SweepReport:
     """Best configs by ``objective`` (HOTA, MOTA, IDF1, AssA, ... maximised; IDSW, Frag, ...
     minimised), the baseline beside them, the sensitivity per axis and, with ``folds``, the
-    cross-validated best. ``results``: a table from :func:`sweep` or a sweep directory."""
+    cross-validated best. ``results``: a table from :func:`sweep` or a sweep directory.
+
+    Distortion sweeps add the objective per distortion level and kind (mean ± SE over seeds) for
+    the ``top`` settings and, with ``contrast`` (a :class:`Contrast`, a dict ``{axis, high, low,
+    by}`` or, for a directory, the sweep file's ``report.contrast``), the gap between two groups of
+    an axis per level (:func:`robustness_contrast`) and where it stops helping
+    (:func:`robustness_summary`)."""
     if not isinstance(results, pd.DataFrame):
         d = Path(results)
         manifest = _manifest(d)
         df = load_results(d, allow_partial=True)
         if folds is None:
             folds = manifest.get("folds")
+        if contrast is None and manifest.get("contrast"):
+            contrast = manifest["contrast"]
         n_expected = manifest.get("configs")
     else:
         df, n_expected = results, None
+    if isinstance(contrast, Mapping):
+        contrast = _parse_contrast(dict(contrast), None)
     _check_objective(df, objective)
     comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
     axes = varied_axes(df)
@@ -1283,6 +1880,15 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
                      f"config with that value; spread_mean: range of the means; corr: rank correlation; oat_range: "
                      f"moving only this axis away from the best config):")
         lines.append(sens.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    curves = answers = None
+    if "distortion.kind" in df.columns and (df["distortion.kind"] != "none").any():
+        rob_lines, rob_summary = _robustness_text(df, objective, top)
+        lines.append("")
+        lines.extend(rob_lines)
+        curves = robustness_curves(df, [objective])
+        if contrast is not None:
+            con_lines, answers = _contrast_text(df, contrast, objective)
+            lines.extend(con_lines)
     cv = None
     if folds:
         cv = cross_validate(df, folds, objective)
@@ -1313,6 +1919,10 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         summary["folds"] = folds
         summary["mean_held_out"] = cv["mean_held_out"]
         summary["fold_configs"] = [p["config_hash"] for p in cv["per_fold"]]
+    if curves is not None:
+        summary["robustness"] = rob_summary
+    if answers is not None:
+        summary["contrast"] = {**_contrast_doc(contrast), "answer": answers}
     lines.append("")
     lines.append(json.dumps(summary))
-    return SweepReport("\n".join(lines), summary, topdf, sens, cv)
+    return SweepReport("\n".join(lines), summary, topdf, sens, cv, curves, answers)

@@ -10,6 +10,7 @@ Usage::
 
     dfrmot sweep sweeps/kitti_dfr_grid.toml --out results/grid [--folds 5] [--summary]
     dfrmot report results/grid [--objective HOTA|MOTA|IDF1|AssA|IDSW] [--folds 5] [--top 10]
+    dfrmot report results/robustness --contrast epsilon:30,60/1,2,3:filter    # distortion sweeps
 
 Exit status: 0 ok, 2 bad sweep file / data / arguments (nothing was run), 3 some config overflowed
 its track memory (the ``overflow`` column says which). The report's last line is one JSON object.
@@ -59,6 +60,10 @@ def add_report_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--folds", type=int, help="k-fold cross-validation over sequences (default: the sweep's --folds)")
     p.add_argument("--top", type=int, help="configs listed (default 10)")
     p.add_argument("--csv", metavar="F", help="also write the tidy table (without the per-alpha column) as CSV")
+    p.add_argument("--contrast", metavar="AXIS:HIGH/LOW[:BY]",
+                   help="distortion sweeps: the gap between two groups of an axis per level, paired by seed, e.g. "
+                        "epsilon:30,60/1,2,3:filter (long minus short memory, per filter); default: the sweep "
+                        "file's report.contrast")
     p.set_defaults(func=run_report_command)
     return p
 
@@ -70,7 +75,7 @@ def _error(cmd: str, e: Exception) -> int:
 
 def run_sweep_command(args) -> int:
     from .io.kitti import KittiFormatError
-    from .sweep import OPTION_NAMES, expand, load_spec, plan, resolve_data, sweep, sweep_report
+    from .sweep import OPTION_NAMES, expand, load_spec, n_settings, plan, resolve_data, sweep, sweep_report
 
     try:
         spec = load_spec(args.file)
@@ -78,12 +83,17 @@ def run_sweep_command(args) -> int:
         if args.dry_run:
             table = expand(spec)
             data = resolve_data(spec, args.data)
-            chunks = plan(table, data, args.chunk or spec.chunk)
+            chunks = plan(table, data, args.chunk or spec.chunk, spec.distortion)
             groups = table.groupby(list(OPTION_NAMES), sort=False).size().rename("configs")
             print(f"sweep {spec.name}: {len(table):,} configs, {len(groups)} option group(s), {len(chunks)} chunks, "
                   f"{len(data.sequences)} sequences / {sum(data.lengths):,} frames "
                   f"({len(table) * sum(data.lengths) / 1e6:.1f} M config-frames) -> {out}")
             print(groups.to_string())
+            if spec.distortion is not None:
+                d = spec.distortion
+                print(f"distortion: {n_settings(table)} settings x {d.n_lanes} lanes (level 0 once, undistorted; "
+                      f"{len(d.seeds)} seeds per nonzero level): "
+                      + "; ".join(f"{k} {', '.join(f'{v:g}' for v in lv)}" for k, lv in d.kinds))
             return 0
         df = sweep(spec, out, data_root=args.data, chunk=args.chunk, folds=args.folds,
                    progress=not args.no_progress, workers=args.workers)
@@ -91,7 +101,8 @@ def run_sweep_command(args) -> int:
               f"{out / 'results.parquet'}")
         if args.summary:
             rep = sweep_report(df, objective=args.objective or spec.objective,
-                               folds=args.folds if args.folds is not None else spec.folds, top=args.top or spec.top)
+                               folds=args.folds if args.folds is not None else spec.folds, top=args.top or spec.top,
+                               contrast=spec.contrast)
             print(rep.text)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         return _error("sweep", e)
@@ -103,12 +114,35 @@ def run_sweep_command(args) -> int:
     return 0
 
 
+def parse_contrast(text: str) -> dict:
+    """``AXIS:HIGH/LOW[:BY]`` -> {axis, high, low, by}: values comma-separated (numbers or names),
+    e.g. ``epsilon:30,60/1,2,3:filter``."""
+    parts = text.split(":")
+    if len(parts) not in (2, 3) or "/" not in parts[1]:
+        raise ValueError(f"--contrast {text!r}: expected AXIS:HIGH/LOW[:BY], e.g. epsilon:30,60/1,2,3:filter")
+
+    def values(s):
+        out = []
+        for v in (x.strip() for x in s.split(",") if x.strip()):
+            try:
+                f = float(v)
+                out.append(int(f) if f.is_integer() and "." not in v else f)
+            except ValueError:
+                out.append(v)
+        return out
+
+    high, low = parts[1].split("/", 1)
+    by = [b.strip() for b in parts[2].split(",") if b.strip()] if len(parts) == 3 else []
+    return {"axis": parts[0].strip(), "high": values(high), "low": values(low), "by": by}
+
+
 def run_report_command(args) -> int:
     from .sweep import RAW_COLUMN, load_results, sweep_report
 
     try:
+        contrast = parse_contrast(args.contrast) if getattr(args, "contrast", None) else None
         rep = sweep_report(Path(args.dir), objective=args.objective or _manifest_objective(args.dir),
-                           folds=args.folds, top=args.top or 10)
+                           folds=args.folds, top=args.top or 10, contrast=contrast)
         print(rep.text)
         if args.csv:
             df = load_results(args.dir, allow_partial=True)

@@ -8,6 +8,12 @@ from pathlib import Path
 import pytest
 
 NOTEBOOKS = sorted((Path(__file__).resolve().parent.parent / "notebooks").glob("*.ipynb"))
+#: every notebook is executed (quick mode: about 10 s each); these must be there
+EXPECTED = ("01_sweep_quickstart.ipynb", "02_distortion_robustness.ipynb")
+
+
+def test_expected_notebooks_present():
+    assert set(EXPECTED) <= {p.name for p in NOTEBOOKS}
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
