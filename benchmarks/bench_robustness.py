@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import resource
 import shutil
 import sys
@@ -28,18 +27,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from machine import machine_info
+
 HERE = Path(__file__).resolve().parent
 DEFAULT_SWEEP = HERE.parent / "sweeps" / "robustness.toml"
-
-
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def _wait_quiet(threshold: float, max_wait: float) -> float:
@@ -62,14 +53,11 @@ def main(argv=None) -> int:
     ap.add_argument("--progress", action="store_true", help="show the progress bar")
     args = ap.parse_args(argv)
 
-    import dfrmot_jax
-    import jax
     from dfrmot_jax.paths import data_available, default_data_root
     from dfrmot_jax.sweep import (expand, load_spec, n_settings, robustness_contrast, robustness_summary, sweep,
                                   sweep_report)
 
-    machine = {"machine": platform.processor() or platform.machine(), "cpu_model": _cpu_model(), "cpus": os.cpu_count(),
-               "jax": jax.__version__, "dfrmot_jax": dfrmot_jax.__version__, "devices": jax.local_device_count()}
+    machine = machine_info()
     spec = load_spec(args.sweep)
     table = expand(spec)
     d = spec.distortion

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import resource
 import sys
 import time
@@ -21,7 +20,6 @@ import time
 import numpy as np
 
 import dfrmot_jax  # noqa: F401  (sets up one XLA device per core before JAX loads)
-import jax
 
 from dfrmot_jax import tracker
 from dfrmot_jax.api import default_capacity
@@ -29,6 +27,7 @@ from dfrmot_jax.data import load_sequences, pack, prepare_frames
 from dfrmot_jax.params import Params, preset, stack_params
 from dfrmot_jax.paths import default_data_root
 from dfrmot_jax.reference import track_sequence
+from machine import machine_info
 
 
 def settings(b: int, seed: int = 0) -> Params:
@@ -63,9 +62,7 @@ def main() -> int:
     sizes = [int(s) for s in args.sizes.split(",")]
     big = settings(max(sizes))
     cap = default_capacity(frames, big, options)
-    machine = {"machine": platform.machine(), "processor": platform.processor() or "unknown",
-               "cpu_count": os.cpu_count(), "devices": jax.local_device_count(), "jax": jax.__version__,
-               "load_avg_1min": round(os.getloadavg()[0], 2)}
+    machine = {**machine_info(), "load_avg_1min": round(os.getloadavg()[0], 2)}
     print(f"# {T} frames, capacity {cap}, {machine}")
 
     t0 = time.perf_counter()

@@ -117,7 +117,7 @@ def _synthetic_tracker(rng, gt_text, cls_name):
     rows = [line.split() for line in gt_text.splitlines()]
     fr, ids, ty, bx = [], [], [], []
     for r in rows:
-        f, i, t = int(r[0]), int(r[1]), r[2]
+        f, i = int(r[0]), int(r[1])
         b = np.array([float(v) for v in r[6:10]])
         u = rng.random()
         if u < 0.15:

@@ -1,6 +1,5 @@
 """On the KITTI training split: the published output line for line, and JAX == the NumPy oracle."""
 
-import collections
 
 import numpy as np
 import pytest

@@ -84,7 +84,7 @@ def max_matching_value(g: np.ndarray, t: np.ndarray, w: np.ndarray) -> np.ndarra
 def identity_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     """Identity fields per (config, sequence): arrays [L, S] (``FIELDS``; counts as int64)."""
     gt = b.gt
-    L, F, S = b.n_lanes, gt.n_frames, len(gt.sequences)
+    L, S = b.n_lanes, len(gt.sequences)
     NG = max(len(gt.gid_count), 1)
     hit = np.flatnonzero(np.greater_equal(b.sim, THRESHOLD))
     gid = gt.eval_gid[b.p_e[hit]]

@@ -43,7 +43,6 @@ def enumerate_pairs(n_rows: np.ndarray, row_start: np.ndarray, n_cols: np.ndarra
         e = np.zeros(0, dtype=np.int64)
         return e, e, e, pair_start
     nr = n_rows[seg_active]
-    nc = n_cols[seg_active]
     # one entry per row of an active segment
     row_seg = np.repeat(seg_active, nr)
     row_local = np.arange(row_seg.size, dtype=np.int64) - np.repeat(segment_starts(nr)[:-1], nr)
