@@ -1,4 +1,4 @@
-"""``dfrmot`` command line: track | demo | eval."""
+"""``dfrmot`` command line: track | demo | eval | sweep | report."""
 
 from __future__ import annotations
 
