@@ -336,7 +336,8 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
         else:
             for trk in sorted(tracks, key=lambda k: k.id):
                 if trk.hits >= params.min_hits and trk.age <= params.keep_lost:
-                    rows.append((t, trk.id, *[float(F32(v)) for v in trk.out_box], "track", -1))
+                    box = predicted_box(trk.out_box, truncate=False)  # corners may cross
+                    rows.append((t, trk.id, *[float(F32(v)) for v in box], "track", -1))
 
         # End of frame: forget tracks unmatched for more than epsilon frames, age the others.
         tracks = [trk for trk in tracks if trk.age <= params.epsilon]

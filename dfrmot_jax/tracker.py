@@ -133,6 +133,7 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, emit_boxe
         out = StepOutput(ids, box.astype(jnp.float32) if emit_boxes else jnp.zeros((0,), jnp.float32), dropped)
     else:
         shown = jnp.where(born[:, None], z[:, :4], jnp.where(matched_obj[:, None], updated.p[:, :4], f.p[:, :4]))
+        shown = associate.predicted_boxes(shown, False)  # filter corners may cross: x2 = x1 + |x2 - x1|
         ids = jnp.where(alive & writable & (age <= params.keep_lost), tid, -1)
         out = StepOutput(ids, shown.astype(jnp.float32), dropped)
     return memory.end_of_frame(mem, params.epsilon), out
