@@ -20,14 +20,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-from machine import machine_info
+from machine import cold_output_dir, cpu_time, machine_info
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_SWEEP = HERE.parent / "sweeps" / "robustness.toml"
@@ -74,20 +72,15 @@ def main(argv=None) -> int:
 
     if args.quiet_load is not None:
         _wait_quiet(args.quiet_load, args.max_wait)
-    out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="dfrmot_bench_robustness_"))
-    if args.out and out.exists():
-        shutil.rmtree(out)              # a cold run: no chunk to resume
+    out = cold_output_dir(args.out, "dfrmot_bench_robustness_")
 
-    def cpu() -> float:
-        r = [resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
-        return sum(x.ru_utime + x.ru_stime for x in r)
 
     load0 = os.getloadavg()
     try:
-        t0, c0 = time.perf_counter(), cpu()
+        t0, c0 = time.perf_counter(), cpu_time()
         df = sweep(spec, out, progress=args.progress, workers=args.workers, chunk=args.chunk)
         seconds = time.perf_counter() - t0
-        cpu_seconds = cpu() - c0      # this process and its metric workers
+        cpu_seconds = cpu_time() - c0      # this process and its metric workers
         load1 = os.getloadavg()
         t1 = time.perf_counter()
         rep = sweep_report(df, objective=spec.objective, top=spec.top, contrast=spec.contrast)

@@ -15,14 +15,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-from machine import machine_info
+from machine import cold_output_dir, cpu_time, machine_info
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_SWEEP = HERE.parent / "sweeps" / "kitti_dfr_grid.toml"
@@ -48,19 +46,14 @@ def main(argv=None) -> int:
         print(json.dumps({"configs": len(expand(spec)), "seconds": None, "skipped": "no KITTI data", **machine}))
         return 0
 
-    out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="dfrmot_bench_sweep_"))
-    if args.out and out.exists():
-        shutil.rmtree(out)              # a cold run: no chunk to resume
-    def cpu() -> float:
-        r = [resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
-        return sum(x.ru_utime + x.ru_stime for x in r)
+    out = cold_output_dir(args.out, "dfrmot_bench_sweep_")
 
     load0 = os.getloadavg()[0]
     try:
-        t0, c0 = time.perf_counter(), cpu()
+        t0, c0 = time.perf_counter(), cpu_time()
         df = sweep(spec, out, progress=args.progress, workers=args.workers)
         seconds = time.perf_counter() - t0
-        cpu_seconds = cpu() - c0      # this process and its metric workers
+        cpu_seconds = cpu_time() - c0      # this process and its metric workers
         load1 = os.getloadavg()[0]
         t1 = time.perf_counter()
         rep = sweep_report(df, objective=args.objective, folds=args.folds)

@@ -26,3 +26,24 @@ def machine_info() -> dict:
 
     return {"machine": platform.processor() or platform.machine(), "cpu_model": cpu_model(), "cpus": os.cpu_count(),
             "jax": jax.__version__, "dfrmot_jax": dfrmot_jax.__version__, "devices": jax.local_device_count()}
+
+
+def cpu_time() -> float:
+    """CPU time of this process and its finished children (metric workers), user + system."""
+    import resource
+
+    r = [resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
+    return sum(x.ru_utime + x.ru_stime for x in r)
+
+
+def cold_output_dir(out: str | None, prefix: str) -> Path:
+    """The results folder of a cold run: ``out`` emptied (no chunk to resume), or a new temporary one."""
+    import shutil
+    import tempfile
+
+    if not out:
+        return Path(tempfile.mkdtemp(prefix=prefix))
+    path = Path(out)
+    if path.exists():
+        shutil.rmtree(path)
+    return path
