@@ -67,7 +67,7 @@ def _objects(params: Params, frame: Frames, options: Options):
                                 keep2[:, None] & keep3[None, :], params.merge_iou)
     paired2 = jnp.any(pair, axis=1)
     lone3 = keep3 & ~jnp.any(pair, axis=0)
-    z3_of_2 = jnp.sum(jnp.where(pair[:, :, None], z3[None, :, :], 0.0), axis=1)
+    z3_of_2 = memory.gather_rows(pair.T, z3)                       # [M2, 6], zeros where unpaired
     return (jnp.concatenate([box2, box3]), jnp.concatenate([z3_of_2, z3]),
             jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]))
 
