@@ -62,15 +62,20 @@ class Track:
     out_box: np.ndarray = field(default_factory=lambda: np.zeros(4, F64))
 
 
-def iou(a, b) -> float:
-    """IoU of two x1, y1, x2, y2 boxes (tuples of floats) in float64 (0 when the union is empty)."""
-    ax1, ay1, ax2, ay2 = a
-    bx1, by1, bx2, by2 = b
-    iw = max(0.0, min(ax2, bx2) - max(ax1, bx1))
-    ih = max(0.0, min(ay2, by2) - max(ay1, by1))
+def iou_matrix(a, b) -> np.ndarray:
+    """IoU [n, m] of x1, y1, x2, y2 boxes a [n, 4] and b [m, 4] in float64 (0 when the union is empty)."""
+    a = np.asarray(a, F64).reshape(-1, 4)[:, None, :]
+    b = np.asarray(b, F64).reshape(-1, 4)[None, :, :]
+    iw = np.maximum(0.0, np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0]))
+    ih = np.maximum(0.0, np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1]))
     inter = iw * ih
-    union = (ax2 - ax1) * (ay2 - ay1) + (bx2 - bx1) * (by2 - by1) - inter
-    return inter / union if union > 0 else 0.0
+    union = (a[..., 2] - a[..., 0]) * (a[..., 3] - a[..., 1]) + (b[..., 2] - b[..., 0]) * (b[..., 3] - b[..., 1]) - inter
+    return np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+
+
+def iou(a, b) -> float:
+    """IoU of two x1, y1, x2, y2 boxes."""
+    return float(iou_matrix(a, b)[0, 0])
 
 
 def predicted_box(p: np.ndarray, truncate: bool) -> np.ndarray:
@@ -190,9 +195,7 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
     # Greedy de-duplication: first strict maximum in row-major order, while IoU > merge_iou.
     pair_of_2 = [-1] * len(rows2)
     taken3 = [False] * len(rows3)
-    t2 = [tuple(float(v) for v in b) for b in b2]
-    t3 = [tuple(float(v) for v in b) for b in b3]
-    m = np.array([[iou(a, b) for b in t3] for a in t2], dtype=F64).reshape(len(b2), len(b3))
+    m = iou_matrix(b2, b3)
     for bi, bj in greedy_match(-m, list(range(len(b3))), -p32(params.merge_iou)):
         pair_of_2[bi] = bj
         taken3[bj] = True
@@ -218,13 +221,7 @@ def affinity_matrix(objects: list[Obj], tracks: list[Track], params: Params, opt
     frames old, else 0; the LiDAR term counts only when both have a 3D box (d = centroid distance).
     """
     ac, a_c, a_l = p32(params.alpha_c), p32(params.a_c), p32(params.a_l)
-    ob = np.array([o.box for o in objects], F64).reshape(-1, 4)[:, None, :]                          # [O, 1, 4]
-    pb = np.array([predicted_box(t.f2.p, options.truncate) for t in tracks], F64).reshape(-1, 4)[None]  # [1, N, 4]
-    iw = np.maximum(0.0, np.minimum(ob[..., 2], pb[..., 2]) - np.maximum(ob[..., 0], pb[..., 0]))
-    ih = np.maximum(0.0, np.minimum(ob[..., 3], pb[..., 3]) - np.maximum(ob[..., 1], pb[..., 1]))
-    inter = iw * ih
-    union = (ob[..., 2] - ob[..., 0]) * (ob[..., 3] - ob[..., 1]) + (pb[..., 2] - pb[..., 0]) * (pb[..., 3] - pb[..., 1]) - inter
-    iou_ = np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+    iou_ = iou_matrix([o.box for o in objects], [predicted_box(t.f2.p, options.truncate) for t in tracks])
     young = np.array([t.age <= params.epsilon for t in tracks])
     iou_c = np.where((iou_ >= a_c) & young[None, :], iou_, 0.0)
 
