@@ -150,13 +150,6 @@ def validate_params(params: Params) -> Params:
     return params
 
 
-def replace(params: Params, **changes) -> Params:
-    unknown = set(changes) - set(Params._fields)
-    if unknown:
-        raise ValueError(f"unknown parameter(s) {sorted(unknown)}: expected among {list(Params._fields)}")
-    return params._replace(**changes)
-
-
 def parse_assignment(text: str, params: Params, options: Options) -> tuple[Params, Options]:
     """Apply one ``name=value`` (CLI ``--set``) to params or options."""
     if "=" not in text:
@@ -210,8 +203,3 @@ def unstack_params(params: Params) -> list[Params]:
     b = batch_size(params)
     arrs = {k: np.broadcast_to(np.asarray(v), (b,)) for k, v in params._asdict().items()}
     return [Params(**{k: (int(a[i]) if k in INT_PARAMS else float(a[i])) for k, a in arrs.items()}) for i in range(b)]
-
-
-def options_dict(options: Options) -> dict[str, Any]:
-    return dict(options._asdict())
-
