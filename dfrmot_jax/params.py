@@ -11,9 +11,22 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+# The authors' C++ keeps ALPHA, BETA, GAMMA and DELTA_T = 1./FPS (FPS = 1000) as C++ ``float`` and
+# fills double matrices with them, gains diag(ALPHA, BETA / DELTA_T, GAMMA / (DELTA_T^2 / 2)) in
+# per-second units. In per-frame units its effective gains are these doubles (spec section 4,
+# "Exact arithmetic"); the presets use them so that every decision matches the C++ bit for bit.
+_DELTA_T = np.float32(1.0 / 1000)
+CXX_GAIN_ALPHA = float(np.float32(0.9))                                       # 0.89999997615814208984
+CXX_GAIN_BETA = float(_DELTA_T) * float(np.float32(0.9) / _DELTA_T)           # 0.899999981712547...
+CXX_GAIN_GAMMA = float(np.float32(0.1))                                       # 2 gamma = double(0.2f)
+
 
 class Params(NamedTuple):
     """Dynamic tracker settings. Defaults are the ``dfr2023`` preset (published RRC+PointRCNN run).
+
+    Float leaves are float64 (``as_arrays``): the step computes in float64, so a value such as the
+    gate a_c = 0.05 or the C++'s effective gain beta is compared and applied as the double it is.
+    Only the score thresholds are compared in float32, with the float32 scores as parsed.
 
     score_2d:   keep a 2D detection when score >= score_2d.
     score_3d:   keep a 3D detection when score >= score_3d.
@@ -24,7 +37,8 @@ class Params(NamedTuple):
     a_f:        fused gate: a pair is matched while M_f > a_f (cost 1 - M_f < 1 - a_f).
     epsilon:    memory age (frames): a track unmatched for more than epsilon frames is deleted;
                 its camera term is used only while age <= epsilon.
-    gain_alpha, gain_beta, gain_gamma:  fixed gains of the alpha-beta-gamma filter (filter="fixed_gain").
+    gain_alpha, gain_beta, gain_gamma:  fixed gains of the alpha-beta-gamma filter (filter="fixed_gain"),
+                p += alpha r, v += beta r, a += 2 gamma r; defaults: the C++'s effective 0.9, 0.9, 0.1.
     kf_q:       process noise (white-noise jerk spectral density, dt = 1 frame) of the Kalman filter.
     kf_r:       measurement noise variance (pixels^2 or m^2) of the Kalman filter.
     kf_p0:      initial variance of velocity and acceleration at a track's first observation.
@@ -40,9 +54,9 @@ class Params(NamedTuple):
     alpha_c: Any = 0.5
     a_f: Any = 0.0
     epsilon: Any = 30
-    gain_alpha: Any = 0.9
-    gain_beta: Any = 0.9
-    gain_gamma: Any = 0.1
+    gain_alpha: Any = CXX_GAIN_ALPHA
+    gain_beta: Any = CXX_GAIN_BETA
+    gain_gamma: Any = CXX_GAIN_GAMMA
     kf_q: Any = 1.0
     kf_r: Any = 1.0
     kf_p0: Any = 100.0
@@ -175,9 +189,9 @@ def parse_assignment(text: str, params: Params, options: Options) -> tuple[Param
 
 
 def as_arrays(params: Params) -> Params:
-    """Params with float32 / int32 numpy leaves (keeps any leading batch axis)."""
+    """Params with float64 / int32 numpy leaves (keeps any leading batch axis)."""
     return Params(**{
-        k: np.asarray(v, dtype=np.int32 if k in INT_PARAMS else np.float32)
+        k: np.asarray(v, dtype=np.int32 if k in INT_PARAMS else np.float64)
         for k, v in params._asdict().items()
     })
 

@@ -1,8 +1,9 @@
 """DFR-FastMOT for one configuration, in plain NumPy and Python loops: the test oracle.
 
-Written for clarity, following ``docs/dfr-fastmot-spec.md`` step by step. Detections, scores
-and parameters are float32 as parsed; arithmetic (IoU, distances, costs, filters) is float64, as
-in the JAX tracker, so that the two can be compared id for id.
+Written for clarity, following ``docs/dfr-fastmot-spec.md`` step by step. Detections and scores
+are float32 as parsed; parameters are float64 (score thresholds compared in float32 with the
+scores); arithmetic (IoU, distances, costs, filters) is float64, as in the JAX tracker and the
+authors' C++, so that the two can be compared id for id.
 """
 
 from __future__ import annotations
@@ -21,9 +22,9 @@ F32 = np.float32
 F64 = np.float64
 
 
-def p32(x) -> F64:
-    """A parameter as the JAX tracker sees it: float32, then promoted to float64."""
-    return F64(F32(x))
+def p64(x) -> F64:
+    """A parameter as the JAX tracker sees it: float64."""
+    return F64(x)
 
 
 # White-noise-jerk process noise of a constant-acceleration model, dt = 1 frame (position, velocity, acceleration).
@@ -114,20 +115,20 @@ def filter_init(z: np.ndarray, params: Params, options: Options) -> CoordFilter:
         if options.kalman_init == "steady":
             cov[:] = steady_cov(params, options)[:, None]
         else:
-            cov[0] = p32(params.kf_r); cov[3] = p32(params.kf_p0); cov[5] = p32(params.kf_p0)
+            cov[0] = p64(params.kf_r); cov[3] = p64(params.kf_p0); cov[5] = p64(params.kf_p0)
     return CoordFilter(z.astype(F64).copy(), np.zeros(k, F64), np.zeros(k, F64), cov)
 
 
 def filter_update(f: CoordFilter, z: np.ndarray, params: Params, options: Options) -> None:
     r = z.astype(F64) - f.p
     if options.filter == "fixed_gain":
-        ka, kb, kc = p32(params.gain_alpha), p32(params.gain_beta), F64(2) * p32(params.gain_gamma)
+        ka, kb, kc = p64(params.gain_alpha), p64(params.gain_beta), F64(2) * p64(params.gain_gamma)
         f.p = f.p + ka * r
         f.v = f.v + kb * r
         f.a = f.a + kc * r
         return
     p00, p01, p02, p11, p12, p22 = f.cov
-    s = p00 + p32(params.kf_r)
+    s = p00 + p64(params.kf_r)
     k0, k1, k2 = p00 / s, p01 / s, p02 / s
     f.p = f.p + k0 * r
     f.v = f.v + k1 * r
@@ -145,7 +146,7 @@ def filter_predict(f: CoordFilter, params: Params, options: Options) -> None:
         # F P F^T for F = [[1, 1, 1/2], [0, 1, 1], [0, 0, 1]], plus q * Q_JERK
         r00 = a + b + half * c; r01 = b + d + half * e; r02 = c + e + half * g
         r11 = d + e; r12 = e + g
-        q = p32(params.kf_q)
+        q = p64(params.kf_q)
         qj = Q_JERK
         f.cov = np.stack([
             r00 + r01 + half * r02 + q * qj[0, 0],
@@ -196,7 +197,7 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
     pair_of_2 = [-1] * len(rows2)
     taken3 = [False] * len(rows3)
     m = iou_matrix(b2, b3)
-    for bi, bj in greedy_match(-m, list(range(len(b3))), -p32(params.merge_iou)):
+    for bi, bj in greedy_match(-m, list(range(len(b3))), -p64(params.merge_iou)):
         pair_of_2[bi] = bj
         taken3[bj] = True
 
@@ -220,7 +221,7 @@ def affinity_matrix(objects: list[Obj], tracks: list[Track], params: Params, opt
     IoU' = IoU (against the track's predicted box) when >= a_c and the track is at most epsilon
     frames old, else 0; the LiDAR term counts only when both have a 3D box (d = centroid distance).
     """
-    ac, a_c, a_l = p32(params.alpha_c), p32(params.a_c), p32(params.a_l)
+    ac, a_c, a_l = p64(params.alpha_c), p64(params.a_c), p64(params.a_l)
     iou_ = iou_matrix([o.box for o in objects], [predicted_box(t.f2.p, options.truncate) for t in tracks])
     young = np.array([t.age <= params.epsilon for t in tracks])
     iou_c = np.where((iou_ >= a_c) & young[None, :], iou_, 0.0)
@@ -280,7 +281,7 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
     tracks: list[Track] = []
     next_id = 0
     rows = []
-    limit = -p32(params.a_f)
+    limit = -p64(params.a_f)
     for t in range(seq.n_frames):
         objects = frame_objects(seq, t, params, options, image_size)
         pairs = []

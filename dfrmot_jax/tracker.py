@@ -54,8 +54,8 @@ def _objects(params: Params, frame: Frames, options: Options):
 
     Scores are compared in float32 (as parsed); boxes and corners come out in float64.
     """
-    keep2 = frame.valid2 & (frame.score2 >= params.score_2d)
-    keep3 = frame.valid3 & (frame.score3 >= params.score_3d)
+    keep2 = frame.valid2 & (frame.score2 >= params.score_2d.astype(jnp.float32))
+    keep3 = frame.valid3 & (frame.score3 >= params.score_3d.astype(jnp.float32))
     box2 = frame.box2.astype(jnp.float64)
     box3 = frame.box3.astype(jnp.float64)
     z3 = jnp.concatenate([frame.lo3, frame.hi3], axis=-1).astype(jnp.float64)
@@ -75,7 +75,7 @@ def _objects(params: Params, frame: Frames, options: Options):
 def step(params: Params, mem: Memory, frame: Frames, options: Options, emit_boxes: bool = False):
     """One frame: de-duplicate, associate, update memory and filters, write, age. Returns (mem, out).
 
-    Runs under ``jax.enable_x64``: arithmetic in float64, scores and thresholds in float32.
+    Runs under ``jax.enable_x64``: arithmetic and parameters in float64, scores compared in float32.
     """
     kind = options.filter
     mem = memory.reset(mem, frame.reset)
@@ -190,13 +190,14 @@ def device_count() -> int:
     return jax.local_device_count()
 
 
-def _lanes(tree, b: int, pad: int):
-    """Leaves broadcast to [b] and padded with copies of the last lane to b + pad (int32 / float32)."""
+def _lanes(tree, b: int, pad: int, float_dtype):
+    """Leaves broadcast to [b] and padded with copies of the last lane to b + pad: integers as int32,
+    floats as ``float_dtype`` (float64 ``Params`` need the caller's ``jax.enable_x64`` scope)."""
     out = []
     for v in tree:
         v = np.broadcast_to(np.atleast_1d(np.asarray(v)), (b,))
         v = np.concatenate([v, np.repeat(v[-1:], pad)])
-        out.append(jnp.asarray(v, jnp.int32 if v.dtype.kind in "iu" else jnp.float32))
+        out.append(jnp.asarray(v, jnp.int32 if v.dtype.kind in "iub" else float_dtype))
     return type(tree)(*out)
 
 
@@ -212,13 +213,13 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
     n_dev = device_count() if n_devices is None else n_devices
     n_dev = max(1, min(n_dev, b))
     pad = (-b) % n_dev
-    p = _lanes(params, b, pad)
-    if distortion is None:
-        spec, dp, gid2, gid3 = None, jnp.zeros(b + pad, jnp.int32), jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32)
-    else:
-        dpb, spec, gid2, gid3 = distortion
-        dp = _lanes(dpb, b, pad)
     with jax.enable_x64(True):
+        p = _lanes(params, b, pad, jnp.float64)
+        if distortion is None:
+            spec, dp, gid2, gid3 = None, jnp.zeros(b + pad, jnp.int32), jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32)
+        else:
+            dpb, spec, gid2, gid3 = distortion
+            dp = _lanes(dpb, b, pad, jnp.float32)
         fn = _compiled(options, capacity, n_dev, spec)
         out, overflow, peak = fn(p, Frames(*(jnp.asarray(x) for x in frames)), dp, jnp.asarray(gid2), jnp.asarray(gid3))
     out = jax.tree.map(lambda x: np.asarray(x)[:b], out)

@@ -18,7 +18,7 @@ def test_every_param_has_a_range_and_int_params_are_ints():
     assert set(PARAM_RANGES) == set(Params._fields)
     arr = as_arrays(Params())
     for k in Params._fields:
-        assert arr._asdict()[k].dtype == (np.int32 if k in INT_PARAMS else np.float32)
+        assert arr._asdict()[k].dtype == (np.int32 if k in INT_PARAMS else np.float64)
 
 
 def test_validation_names_the_field():
