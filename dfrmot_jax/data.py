@@ -29,6 +29,11 @@ from .params import Options
 
 CLASS_NAMES = {"car": "Car", "pedestrian": "Pedestrian"}
 DEFAULT_IMAGE_SIZE = (1242, 375)
+# The type column of 3D detection files: AB3DMOT's integer codes (the PointRCNN and PointGNN files:
+# car files use 2, pedestrian files 1) or KITTI class names (the 17-column label layout).
+TYPE_CODES_3D = {1: "pedestrian", 2: "car", 3: "cyclist"}
+TYPE_NAMES_3D = frozenset({"car", "van", "truck", "pedestrian", "person", "person_sitting", "cyclist", "tram",
+                           "misc", "dontcare"})
 
 
 class SequenceDets(NamedTuple):
@@ -49,7 +54,8 @@ class Split(NamedTuple):
     box2d [T, M2, 4] f64, score2d [T, M2] f64, valid2d [T, M2] bool, row2d [T, M2] int32 (file row).
     box3d [T, M3, 4] f64 (the 3D detector's image box), proj3d [T, M3, 4] f64 (its 8 corners projected
     with P2, clipped), score3d [T, M3], dims3d [T, M3, 3] (h, w, l), loc3d [T, M3, 3] (x, y, z),
-    rot_y3d [T, M3], alpha3d [T, M3], valid3d [T, M3] bool, row3d [T, M3] int32.
+    rot_y3d [T, M3], alpha3d [T, M3], valid3d [T, M3] bool, row3d [T, M3] int32 (row in the sequence's
+    ``det3d``: the file row, unless the loader dropped 3D rows of another class).
     cls: the class tracked; root: the KITTI root it was read from (its ground truth seeds
     distortion studies).
     """
@@ -108,9 +114,64 @@ def sequences_with_class(root: Path, cls: str) -> list[str]:
     return out
 
 
+def _type_class_3d(token: str) -> str | None:
+    """A 3D detection's type token -> class name (lower case), None when not a known type."""
+    t = str(token).strip()
+    try:
+        v = float(t)
+    except ValueError:
+        name = t.lower()
+        return name if name in TYPE_NAMES_3D else None
+    return TYPE_CODES_3D.get(int(v)) if v == int(v) else None
+
+
+def class_rows_3d(det: Detections3D, cls: str, path=None) -> np.ndarray:
+    """[R] bool: the rows of a 3D detection file whose ``type`` is the class ``cls``.
+
+    Types are AB3DMOT's codes (``1`` pedestrian, ``2`` car, ``3`` cyclist; ``2.0`` is 2) or KITTI
+    class names (any case). Rows of another known type (e.g. a cyclist in a car file) are not the
+    class; an unknown type (e.g. ``7``) raises :class:`KittiFormatError` (file, line, field ``type``)
+    rather than being guessed.
+    """
+    out = np.zeros(det.frame.size, dtype=bool)
+    if not det.frame.size:
+        return out
+    uniq, inv = np.unique(det.type.astype(str), return_inverse=True)
+    inv = inv.reshape(-1)
+    for k, tok in enumerate(uniq):
+        name = _type_class_3d(tok)
+        if name is None:
+            row = int(np.flatnonzero(inv == k)[0])
+            raise KittiFormatError(str(path), _line_of_row(path, row), "type",
+                                   f"unknown 3D detection type {str(tok)!r} (expected AB3DMOT codes 1 = Pedestrian, "
+                                   f"2 = Car, 3 = Cyclist, or a KITTI class name)")
+        if name == cls:
+            out[inv == k] = True
+    return out
+
+
+def _line_of_row(path, row: int) -> int | None:
+    """1-based line number of data row ``row`` of a text file (blank lines are not rows)."""
+    if path is None:
+        return None
+    with open(path, encoding="utf-8", errors="replace") as f:
+        k = -1
+        for n, line in enumerate(f.read().split("\n"), 1):
+            if line and not line.isspace():
+                k += 1
+                if k == row:
+                    return n
+    return None
+
+
 def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
                    image_size=DEFAULT_IMAGE_SIZE) -> list[SequenceDets]:
-    """Read detections and calib of each sequence (default: those whose ground truth has the class)."""
+    """Read detections and calib of each sequence (default: those whose ground truth has the class).
+
+    A missing detection or calib file raises :class:`KittiFormatError` (``file not found``); an
+    empty file is a sequence without detections. 3D rows whose ``type`` is another class are dropped
+    (:func:`class_rows_3d`; on the shipped PointRCNN / PointGNN files every row is the folder's class).
+    """
     root = Path(root)
     if cls not in CLASS_NAMES:
         raise ValueError(f"class {cls!r}: expected one of {sorted(CLASS_NAMES)}")
@@ -121,11 +182,16 @@ def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
     lengths = sequence_lengths(root, sequences)
     out = []
     for name in sequences:
+        p3 = d3 / f"{name}.txt"
+        det3 = read_detections_3d(p3)
+        keep = class_rows_3d(det3, cls, p3)
+        if not keep.all():
+            det3 = Detections3D(*(np.asarray(v)[keep] for v in det3))
         out.append(SequenceDets(
             name=name,
             n_frames=lengths[name],
             det2d=read_detections_2d(d2 / f"{name}.txt"),
-            det3d=read_detections_3d(d3 / f"{name}.txt"),
+            det3d=det3,
             calib=read_calib(root / "calib" / f"{name}.txt"),
         ))
         for kind, det, path in (("2D", out[-1].det2d, d2), ("3D", out[-1].det3d, d3)):

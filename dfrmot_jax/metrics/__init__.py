@@ -12,14 +12,17 @@ Typical use::
 
     gt = prepare_gt(root, "car", sequences)             # once per split
     res = evaluate_files("out/run1", gt)                 # {seq | 'COMBINED': {field: value}}
+    df = evaluate_classes("out/run1", root, "car,pedestrian")  # tidy: class, seq, ...; + class 'average'
     many = evaluate_arrays(gt, ids, boxes, seq_offsets)  # B dicts from [B, T, K] tracker output
     metrics_table(res)                                   # pandas, TrackEval summary (x100)
 """
 
-from dfrmot_jax.metrics.evaluate import (ALL_FIELDS, cached_gt, evaluate_arrays, evaluate_batch,
-                                         evaluate_files)
-from dfrmot_jax.metrics.kitti import DuplicateIdError, PreparedGT, prepare_gt
-from dfrmot_jax.metrics.table import metrics_table
+from dfrmot_jax.metrics.evaluate import (ALL_FIELDS, CLASS_AVERAGED_FIELDS, CLASS_SUMMED_FIELDS, cached_gt,
+                                         class_average, evaluate_arrays, evaluate_batch, evaluate_classes,
+                                         evaluate_files, evaluate_files_classes)
+from dfrmot_jax.metrics.kitti import DuplicateIdError, PreparedGT, class_sequences, prepare_gt
+from dfrmot_jax.metrics.table import classes_table, metrics_table
 
-__all__ = ["PreparedGT", "prepare_gt", "cached_gt", "evaluate_files", "evaluate_arrays", "evaluate_batch",
-           "metrics_table", "DuplicateIdError", "ALL_FIELDS"]
+__all__ = ["PreparedGT", "prepare_gt", "cached_gt", "class_sequences", "evaluate_files", "evaluate_files_classes",
+           "evaluate_classes", "class_average", "evaluate_arrays", "evaluate_batch", "metrics_table", "classes_table",
+           "DuplicateIdError", "ALL_FIELDS", "CLASS_SUMMED_FIELDS", "CLASS_AVERAGED_FIELDS"]

@@ -6,9 +6,15 @@ Wire into an argparse CLI with::
     add_eval_parser(sub)          # registers "eval", set_defaults(func=run_eval)
     args = parser.parse_args(); sys.exit(args.func(args))
 
-Usage: ``dfrmot eval RESULTS_DIR [RESULTS_DIR ...] [--data ROOT] [--class car] [--seqs 0000,0002]
-[--per-seq] [--csv F]``. Prints a compact table (COMBINED per tracker; also every sequence with
-``--per-seq``) and writes a CSV with one row per (tracker, sequence) plus COMBINED.
+Usage: ``dfrmot eval RESULTS_DIR [RESULTS_DIR ...] [--data ROOT] [--class car[,pedestrian]]
+[--seqs 0000,0002] [--per-seq] [--csv F]``. Each class is scored on its own rows of the result files
+(one file may hold ``Car`` and ``Pedestrian`` rows), by default on the sequences whose ground truth
+has the class (car: 20 of KITTI's 21, pedestrian: 15); ``--seqs`` scores every class on exactly
+those. With several classes each tracker also gets a class average row (``class = average``:
+ratio fields averaged over the classes, counts summed; TrackEval's class average). Prints a compact
+table (COMBINED per tracker and class; also every sequence with ``--per-seq``) and writes a CSV with
+one row per (tracker, class, sequence), each class's COMBINED and the average, columns
+``tracker, class, seq`` then every summary field.
 """
 
 from __future__ import annotations
@@ -27,6 +33,15 @@ def _tracker_name(d: Path) -> str:
     return d.parent.name if d.name == "data" and d.parent.name else d.name
 
 
+def _classes_arg(text: str) -> tuple:
+    from dfrmot_jax.metrics.evaluate import parse_classes
+
+    try:
+        return parse_classes(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 def add_eval_parser(subparsers) -> argparse.ArgumentParser:
     """Register the ``eval`` subcommand on an argparse ``subparsers`` object; returns its parser."""
     from dfrmot_jax.paths import default_data_root
@@ -40,10 +55,15 @@ def add_eval_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("results", nargs="+", metavar="RESULTS_DIR", help="folder(s) with SSSS.txt result files")
     p.add_argument("--data", default=None, metavar="ROOT",
                    help=f"KITTI tracking training root (default: $DFRMOT_DATA or {default_data_root()})")
-    p.add_argument("--class", dest="cls", default="car", choices=["car", "pedestrian"], help="class (default car)")
-    p.add_argument("--seqs", default=None, help="comma-separated sequences, e.g. 0000,0002 (default: all in label_02)")
+    p.add_argument("--class", dest="cls", default=("car",), type=_classes_arg, metavar="CLASSES",
+                   help="class or comma-separated classes: car, pedestrian or car,pedestrian (default car); "
+                        "several classes add a class average row per tracker")
+    p.add_argument("--seqs", default=None,
+                   help="comma-separated sequences, e.g. 0000,0002, for every class (default: per class the "
+                        "sequences whose ground truth has it)")
     p.add_argument("--per-seq", action="store_true", help="also print every sequence")
-    p.add_argument("--csv", default=None, metavar="F", help="write all metrics, one row per (tracker, sequence)")
+    p.add_argument("--csv", default=None, metavar="F",
+                   help="write all metrics, one row per (tracker, class, sequence) with columns tracker, class, seq")
     p.set_defaults(func=run_eval)
     return p
 
@@ -52,7 +72,8 @@ def _fmt_table(df: pd.DataFrame) -> str:
     from dfrmot_jax.metrics.table import COMPACT_FIELDS, COUNT_FIELDS
 
     cols = [c for c in COMPACT_FIELDS if c in df.columns]
-    out = df[["tracker"] + cols].copy() if "tracker" in df.columns else df[cols].copy()
+    keys = [c for c in ("tracker", "class") if c in df.columns]
+    out = df.set_index("seq")[keys + cols] if "seq" in df.columns else df[keys + cols]
     fmt = {c: (lambda v: f"{int(v)}") if c in COUNT_FIELDS else (lambda v: f"{v:.2f}") for c in cols}
     return out.to_string(formatters=fmt)
 
@@ -60,8 +81,9 @@ def _fmt_table(df: pd.DataFrame) -> str:
 def run_eval(args) -> int:
     """Run the ``eval`` subcommand for parsed ``args``; returns the exit status (0 ok, 2 error)."""
     from dfrmot_jax.io.kitti import KittiFormatError
-    from dfrmot_jax.metrics.evaluate import cached_gt, evaluate_files
-    from dfrmot_jax.metrics.table import metrics_table
+    from dfrmot_jax.metrics.evaluate import (AVERAGE, cached_class_sequences, cached_gt, class_average,
+                                             evaluate_files, parse_classes)
+    from dfrmot_jax.metrics.table import classes_table
     from dfrmot_jax.paths import default_data_root
 
     root = Path(args.data) if args.data else default_data_root()
@@ -70,7 +92,13 @@ def run_eval(args) -> int:
         return 2
     seqs = [s.strip() for s in args.seqs.split(",") if s.strip()] if args.seqs else None
     try:
-        gt = cached_gt(root, args.cls, seqs)
+        classes = parse_classes(args.cls)
+        gts = {}
+        for c in classes:
+            cs = seqs if seqs is not None else cached_class_sequences(root, c)
+            if not cs:
+                raise ValueError(f"no sequence of {root / 'label_02'} has ground truth of class {c!r}")
+            gts[c] = cached_gt(root, c, cs)
     except (KittiFormatError, FileNotFoundError, ValueError) as e:
         print(f"dfrmot eval: ground truth: {e}", file=sys.stderr)
         return 2
@@ -86,20 +114,23 @@ def run_eval(args) -> int:
             name = str(d)
         names.append(name)
         try:
-            res = evaluate_files(d, gt)
+            res = {c: evaluate_files(d, gt) for c, gt in gts.items()}
         except (KittiFormatError, ValueError) as e:
             print(f"dfrmot eval: {e}", file=sys.stderr)
             return 2
-        tables.append(metrics_table(res, tracker=name))
-    df = pd.concat(tables)
-    shown = df if args.per_seq else df.loc[["COMBINED"]]
-    print(f"{args.cls}, {len(gt.sequences)} sequences, {gt.n_frames} frames "
-          f"(TrackEval Kitti2DBox; HOTA/DetA/AssA = mean over alphas, %)")
+        if len(res) > 1:
+            res[AVERAGE] = {"COMBINED": class_average({c: r["COMBINED"] for c, r in res.items()})}
+        tables.append(classes_table(res, tracker=name))
+    df = pd.concat(tables, ignore_index=True)
+    shown = df if args.per_seq else df[df["seq"] == "COMBINED"]
+    split = "; ".join(f"{c}, {len(gt.sequences)} sequences, {gt.n_frames} frames" for c, gt in gts.items())
+    note = "; average: ratios averaged over the classes, counts summed" if len(gts) > 1 else ""
+    print(f"{split} (TrackEval Kitti2DBox; HOTA/DetA/AssA = mean over alphas, %{note})")
     print(_fmt_table(shown))
     if args.csv:
         out = Path(args.csv)
         out.parent.mkdir(parents=True, exist_ok=True)
-        df.reset_index().to_csv(out, index=False)
+        df.to_csv(out, index=False)
         print(f"wrote {out}")
     return 0
 

@@ -12,6 +12,16 @@ Results are ``{seq or 'COMBINED': {field: value}}`` dicts with TrackEval's field
 Values are fractions (as TrackEval stores them); :func:`dfrmot_jax.metrics.metrics_table` gives
 the x100 summary view. ``COMBINED`` is TrackEval's ``COMBINED_SEQ`` (sums of counts; HOTA's
 association scores weighted by HOTA_TP, LocA likewise; every ratio recomputed from the sums).
+
+Several classes (:func:`evaluate_files_classes`, :func:`evaluate_classes`): each class is
+evaluated on its own (on the sequences whose ground truth has it, unless sequences are given), and
+the class average (:func:`class_average`) is TrackEval's ``combine_classes_class_averaged`` (the
+KITTI / BoxMOT "class average"): the fields in :data:`CLASS_SUMMED_FIELDS` (counts: CLR_TP CLR_FN
+CLR_FP IDSW MT PT ML Frag CLR_Frames IDTP IDFN IDFP Dets GT_Dets IDs GT_IDs and the per-alpha
+HOTA_TP HOTA_FN HOTA_FP) are summed over the classes, every other field (the ratios: HOTA DetA
+AssA DetRe DetPr AssRe AssPr LocA OWTA per alpha, HOTA(0) LocA(0) HOTALocA(0), MOTA MOTP MODA
+CLR_Re CLR_Pr MTR PTR MLR sMOTA CLR_F1 FP_per_frame MOTAL, IDF1 IDR IDP, and MOTP_sum as TrackEval
+does) is the plain mean over the classes; nothing is recomputed from the sums.
 """
 
 from __future__ import annotations
@@ -20,18 +30,23 @@ import multiprocessing as mp
 import os
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
 from dfrmot_jax.metrics import clear, hota, identity
-from dfrmot_jax.metrics.kitti import (PreparedGT, TrackerDets, prepare_gt, preprocess, read_tracker_files,
-                                      tracker_dets_from_arrays)
+from dfrmot_jax.metrics.kitti import (PreparedGT, TrackerDets, class_sequences, prepare_gt, preprocess,
+                                      read_tracker_files, tracker_dets_from_arrays)
 
 COUNT_FIELDS = ("Dets", "GT_Dets", "IDs", "GT_IDs")
 INTEGER_FIELDS = frozenset(clear.INTEGER_FIELDS + identity.INTEGER_FIELDS + COUNT_FIELDS)
 ARRAY_FIELDS = frozenset(hota.FLOAT_ARRAY_FIELDS + hota.INTEGER_ARRAY_FIELDS)
 ALL_FIELDS = hota.FIELDS + clear.FIELDS + identity.FIELDS + COUNT_FIELDS
+# the class average (TrackEval's combine_classes_class_averaged): these are summed, the rest averaged
+CLASS_SUMMED_FIELDS = hota.INTEGER_ARRAY_FIELDS + clear.INTEGER_FIELDS + identity.INTEGER_FIELDS + COUNT_FIELDS
+CLASS_AVERAGED_FIELDS = tuple(f for f in ALL_FIELDS if f not in CLASS_SUMMED_FIELDS)
+EVAL_CLASSES = ("car", "pedestrian")
+AVERAGE = "average"
 
 _GT_CACHE: dict = {}
 
@@ -61,6 +76,77 @@ def cached_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Prep
         _GT_CACHE.clear()
     _GT_CACHE[key] = (stamp, gt)
     return gt
+
+
+_SEQ_CACHE: dict = {}
+
+
+def _label_stamp(label_dir: Path) -> tuple:
+    out = []
+    for p in sorted(label_dir.glob("*.txt")):
+        st = os.stat(p)
+        out.append((p.stem, st.st_mtime_ns, st.st_size))
+    return tuple(out)
+
+
+def cached_class_sequences(root, cls: str = "car") -> tuple:
+    """:func:`dfrmot_jax.metrics.kitti.class_sequences` of every ``label_02`` sequence, memoised on
+    (root, class, label files' names, mtime and size)."""
+    label_dir = Path(root) / "label_02"
+    key = (str(Path(root).resolve()), cls.lower())
+    stamp = _label_stamp(label_dir)
+    hit = _SEQ_CACHE.get(key)
+    if hit is not None and hit[0] == stamp:
+        return hit[1]
+    seqs = class_sequences(root, cls)
+    if len(_SEQ_CACHE) > 16:
+        _SEQ_CACHE.clear()
+    _SEQ_CACHE[key] = (stamp, seqs)
+    return seqs
+
+
+def parse_classes(classes) -> tuple:
+    """``'car,pedestrian'`` / ``['Car', 'pedestrian']`` -> ``('car', 'pedestrian')`` (lower case, in
+    the given order, duplicates dropped). Raises ValueError for an empty list or a class TrackEval's
+    KITTI 2D box cannot evaluate (only ``car`` and ``pedestrian``)."""
+    if isinstance(classes, str):
+        classes = classes.split(",")
+    out = []
+    for c in classes:
+        c = str(c).strip().lower()
+        if not c:
+            continue
+        if c not in EVAL_CLASSES:
+            raise ValueError(f"class {c!r} is not evaluatable (TrackEval's KITTI 2D box: "
+                             f"{', '.join(EVAL_CLASSES)})")
+        if c not in out:
+            out.append(c)
+    if not out:
+        raise ValueError("no class given")
+    return tuple(out)
+
+
+def class_average(per_class: Mapping[str, Mapping[str, object]]) -> dict[str, object]:
+    """The class average of one result dict per class, ``{cls: {field: value}}`` (e.g. each class's
+    ``COMBINED``), exactly as TrackEval's ``combine_classes_class_averaged`` (all classes, none skipped
+    for being empty): :data:`CLASS_SUMMED_FIELDS` summed (``sum`` in class order), every other field
+    (:data:`CLASS_AVERAGED_FIELDS`, per alpha for the HOTA arrays) ``np.mean`` over the classes.
+    Returns ``{field: value}`` with the fields present in every input.
+    """
+    vals = list(per_class.values())
+    if not vals:
+        raise ValueError("class_average: no class results")
+    out: dict[str, object] = {}
+    for f in ALL_FIELDS:
+        if not all(f in v for v in vals):
+            continue
+        if f in CLASS_SUMMED_FIELDS:
+            total = sum(v[f] for v in vals)  # TrackEval's _combine_sum
+            out[f] = np.array(total, dtype=np.float64) if f in ARRAY_FIELDS else int(total)
+        else:
+            m = np.mean([np.asarray(v[f], dtype=np.float64) for v in vals], axis=0)
+            out[f] = m if f in ARRAY_FIELDS else float(m)
+    return out
 
 
 def evaluate_batch(gt: PreparedGT, dets: TrackerDets) -> dict[str, dict[str, np.ndarray]]:
@@ -131,6 +217,47 @@ def evaluate_files(results_dir, root=None, cls: str = "car", sequences: Sequence
     gt = cached_gt(root, cls, sequences)
     dets = read_tracker_files(results_dir, gt, missing=missing)
     return _to_dicts(gt, evaluate_batch(gt, dets))[0]
+
+
+def evaluate_files_classes(results_dir, root=None, classes: Sequence[str] | str = EVAL_CLASSES,
+                           sequences: Sequence | None = None, missing: str = "empty") -> dict[str, dict]:
+    """Evaluate one tracker's result files for several classes, each like :func:`evaluate_files`.
+
+    One file ``results_dir/SSSS.txt`` holds the rows of every class (type names ``Car``,
+    ``Pedestrian``, ... in column 3); each class is scored on its own rows only, exactly as
+    TrackEval's Kitti2DBox does with ``CLASSES_TO_EVAL`` = several classes.
+    classes: ``('car', 'pedestrian')`` (default), a list or a comma-separated str.
+    sequences: default, per class, the sequences whose ground truth has that class
+    (:func:`cached_class_sequences`: car 20 of KITTI's 21, pedestrian 15); given, every class is
+    scored on exactly these (as TrackEval's seqmap).
+    Returns ``{cls: {seq: {field: value}, ..., 'COMBINED': {...}}, ...}`` and, with two or more
+    classes, ``'average': {'COMBINED': class_average(each class's COMBINED)}`` (:func:`class_average`).
+    """
+    if root is None:
+        from dfrmot_jax.paths import default_data_root
+        root = default_data_root()
+    out: dict[str, dict] = {}
+    for c in parse_classes(classes):
+        seqs = sequences if sequences is not None else cached_class_sequences(root, c)
+        if not len(seqs):
+            raise ValueError(f"no sequence of {Path(root) / 'label_02'} has ground truth of class {c!r}")
+        out[c] = evaluate_files(results_dir, cached_gt(root, c, seqs), missing=missing)
+    if len(out) > 1:
+        out[AVERAGE] = {"COMBINED": class_average({c: r["COMBINED"] for c, r in out.items()})}
+    return out
+
+
+def evaluate_classes(results_dir, root=None, classes: Sequence[str] | str = EVAL_CLASSES,
+                     sequences: Sequence | None = None, missing: str = "empty", tracker: str | None = None):
+    """:func:`evaluate_files_classes` as a tidy pandas DataFrame (:func:`dfrmot_jax.metrics.table.classes_table`).
+
+    Columns ``[tracker,] class, seq`` and TrackEval's summary fields (ratios x100, counts int); one
+    row per (class, sequence), each class's ``COMBINED``, and with two or more classes a last row
+    ``class = 'average', seq = 'COMBINED'`` (ratio columns the mean over the classes, counts summed).
+    """
+    from dfrmot_jax.metrics.table import classes_table
+
+    return classes_table(evaluate_files_classes(results_dir, root, classes, sequences, missing), tracker=tracker)
 
 
 def _lane_slices(dets: TrackerDets, lanes: range) -> TrackerDets:

@@ -45,6 +45,7 @@ __all__ = [
     "TrackerDets",
     "EvalBatch",
     "prepare_gt",
+    "class_sequences",
     "read_tracker_files",
     "tracker_dets_from_arrays",
     "preprocess",
@@ -258,6 +259,32 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
         dc_start=segment_starts(np.bincount(dc_frame, minlength=F)),
         root=str(root),
     )
+
+
+def class_sequences(root, cls: str = "car", sequences: Sequence | None = None) -> tuple:
+    """The sequences of ``root/label_02`` whose ground truth has at least one object of class ``cls``.
+
+    An object of the class is any row whose type maps to the class id (``Car``/``car_2`` for car,
+    ``Pedestrian`` for pedestrian; any case, track id, occlusion or truncation; not the distractors
+    ``Van``/``Person``). sequences: the candidates (default every ``label_02/*.txt``, sorted).
+    On KITTI training: car 20 of 21 (not 0017), pedestrian 15. Returns a tuple of names.
+    """
+    kio = _kitti_io()
+    cls = cls.lower()
+    if cls not in _DISTRACTORS:
+        raise ValueError(f"class {cls!r} is not evaluatable (TrackEval's KITTI 2D box: 'car' or 'pedestrian')")
+    names_of_cls = {n for n, i in CLASS_NAME_TO_ID.items() if i == CLASS_NAME_TO_ID[cls]}
+    label_dir = Path(root) / "label_02"
+    if sequences is None:
+        cand = sorted(p.stem for p in label_dir.glob("*.txt"))
+    else:
+        cand = [_seq_name(s) for s in sequences]
+    out = []
+    for name in cand:
+        types = kio.read_tracking_labels(label_dir / f"{name}.txt").type
+        if types.size and np.isin(np.char.lower(types.astype(str)), list(names_of_cls)).any():
+            out.append(name)
+    return tuple(out)
 
 
 class TrackerDets(NamedTuple):

@@ -9,7 +9,9 @@ import pandas as pd
 
 from dfrmot_jax.metrics import clear, hota, identity
 
-# TrackEval's summary fields, in its order (HOTA, CLEAR, Identity, Count)
+# TrackEval's summary fields, in its order (HOTA, CLEAR, Identity, Count). In a class average row
+# (``class = 'average'``) the PERCENT_FIELDS (ratios) are the mean over the classes and the
+# COUNT_FIELDS are summed (see dfrmot_jax.metrics.evaluate.class_average).
 PERCENT_FIELDS = (hota.FLOAT_ARRAY_FIELDS + hota.FLOAT_FIELDS + clear.MAIN_FLOAT_FIELDS + identity.FLOAT_FIELDS)
 COUNT_FIELDS = clear.MAIN_INTEGER_FIELDS + identity.INTEGER_FIELDS + ("Dets", "GT_Dets", "IDs", "GT_IDs")
 TABLE_FIELDS = (hota.FLOAT_ARRAY_FIELDS + hota.FLOAT_FIELDS + clear.MAIN_FLOAT_FIELDS + clear.MAIN_INTEGER_FIELDS
@@ -58,3 +60,26 @@ def metrics_table(results: Mapping[str, Mapping[str, object]], tracker: str | No
         if f in df:
             df[f] = df[f].astype("int64")
     return df
+
+
+def classes_table(results_by_class: Mapping[str, Mapping[str, Mapping[str, object]]],
+                  tracker: str | None = None) -> pd.DataFrame:
+    """Tidy table of several classes: columns ``[tracker,] class, seq`` and the summary fields.
+
+    results_by_class: ``{cls: {seq or 'COMBINED': {field: value}}}`` as from
+    :func:`dfrmot_jax.metrics.evaluate.evaluate_files_classes` (a class ``'average'`` holds only
+    ``COMBINED``: ratios averaged over the classes, counts summed). Rows: per class its sequences
+    then ``COMBINED``, classes in the given order; a plain RangeIndex.
+    """
+    parts = []
+    for cls, res in results_by_class.items():
+        df = metrics_table(res, tracker=tracker).reset_index()
+        df["class"] = cls
+        parts.append(df)
+    out = pd.concat(parts, ignore_index=True)
+    keys = (["tracker"] if tracker is not None else []) + ["class", "seq"]
+    out = out[keys + [c for c in out.columns if c not in keys]]
+    for f in COUNT_FIELDS:
+        if f in out:
+            out[f] = out[f].astype("int64")
+    return out

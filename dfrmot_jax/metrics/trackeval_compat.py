@@ -24,7 +24,8 @@ import shutil
 from pathlib import Path
 from typing import Mapping, Sequence
 
-__all__ = ["write_seqmap", "make_gt_folder", "make_tracker_folder", "run_trackeval", "flatten_trackeval"]
+__all__ = ["write_seqmap", "make_gt_folder", "make_tracker_folder", "run_trackeval", "run_trackeval_classes",
+           "flatten_trackeval"]
 
 
 def write_seqmap(path, lengths: Mapping[str, int]) -> Path:
@@ -99,14 +100,8 @@ def flatten_trackeval(res_tracker: Mapping, cls: str) -> dict[str, dict[str, obj
     return out
 
 
-def run_trackeval(gt_folder, trackers_folder, cls: str = "car", trackers: Sequence[str] | None = None,
-                  quiet: bool = True) -> dict[str, dict[str, dict[str, object]]]:
-    """Run TrackEval's Kitti2DBox evaluation (HOTA, CLEAR, Identity, Count) in-process, serially.
-
-    Returns {tracker: {seq or 'COMBINED': {field: value}}} (see :func:`flatten_trackeval`).
-    Raises whatever TrackEval raises (``BREAK_ON_ERROR``). With ``quiet`` TrackEval's prints are
-    swallowed.
-    """
+def _evaluate(gt_folder, trackers_folder, classes: Sequence[str], trackers: Sequence[str] | None, quiet: bool):
+    """TrackEval's Kitti2DBox with ``CLASSES_TO_EVAL = classes``; returns (raw results, metric objects)."""
     import trackeval  # lazy: only the parity tests and the benchmark need it
     from trackeval import _timing
 
@@ -116,7 +111,7 @@ def run_trackeval(gt_folder, trackers_folder, cls: str = "car", trackers: Sequen
                        BREAK_ON_ERROR=True, DISPLAY_LESS_PROGRESS=True)
     ds_config = trackeval.datasets.Kitti2DBox.get_default_dataset_config()
     ds_config.update(GT_FOLDER=str(gt_folder), TRACKERS_FOLDER=str(trackers_folder), OUTPUT_FOLDER=str(trackers_folder),
-                     CLASSES_TO_EVAL=[cls], SPLIT_TO_EVAL="training", PRINT_CONFIG=False,
+                     CLASSES_TO_EVAL=list(classes), SPLIT_TO_EVAL="training", PRINT_CONFIG=False,
                      TRACKERS_TO_EVAL=None if trackers is None else list(trackers))
     metric_config = {"THRESHOLD": 0.5, "PRINT_CONFIG": False}
     _timing.DO_TIMING = False
@@ -125,6 +120,44 @@ def run_trackeval(gt_folder, trackers_folder, cls: str = "car", trackers: Sequen
         evaluator = trackeval.Evaluator(eval_config)
         dataset = trackeval.datasets.Kitti2DBox(ds_config)
         metrics = [trackeval.metrics.HOTA(), trackeval.metrics.CLEAR(dict(metric_config)),
-                   trackeval.metrics.Identity(dict(metric_config))]
-        res, _msg = evaluator.evaluate([dataset], metrics)
-    return {tr: flatten_trackeval(r, cls) for tr, r in res["Kitti2DBox"].items()}
+                   trackeval.metrics.Identity(dict(metric_config)), trackeval.metrics.Count()]
+        res, _msg = evaluator.evaluate([dataset], metrics[:3])
+    return res["Kitti2DBox"], metrics
+
+
+def run_trackeval(gt_folder, trackers_folder, cls: str = "car", trackers: Sequence[str] | None = None,
+                  quiet: bool = True) -> dict[str, dict[str, dict[str, object]]]:
+    """Run TrackEval's Kitti2DBox evaluation (HOTA, CLEAR, Identity, Count) in-process, serially.
+
+    Returns {tracker: {seq or 'COMBINED': {field: value}}} (see :func:`flatten_trackeval`).
+    Raises whatever TrackEval raises (``BREAK_ON_ERROR``). With ``quiet`` TrackEval's prints are
+    swallowed.
+    """
+    res, _ = _evaluate(gt_folder, trackers_folder, [cls], trackers, quiet)
+    return {tr: flatten_trackeval(r, cls) for tr, r in res.items()}
+
+
+def run_trackeval_classes(gt_folder, trackers_folder, classes: Sequence[str] = ("car", "pedestrian"),
+                          trackers: Sequence[str] | None = None, quiet: bool = True) -> dict[str, dict]:
+    """TrackEval's Kitti2DBox on several classes at once (``CLASSES_TO_EVAL = classes``), one run.
+
+    Every class is scored on every sequence of the seqmap (TrackEval has one sequence list).
+    Returns {tracker: {cls: {seq or 'COMBINED': {field: value}}, ..., 'average': {'COMBINED': ...}}},
+    'average' being TrackEval's own ``combine_classes_class_averaged`` of each metric over the
+    classes' ``COMBINED_SEQ`` (Kitti2DBox sets ``should_classes_combine = False``, so the Evaluator
+    does not compute it; it is called here directly, ``ignore_empty_classes=False`` as the Evaluator
+    would).
+    """
+    classes = [c.lower() for c in classes]
+    res, metrics = _evaluate(gt_folder, trackers_folder, classes, trackers, quiet)
+    out = {}
+    for tr, r in res.items():
+        per = {c: flatten_trackeval(r, c) for c in classes}
+        avg: dict[str, object] = {}
+        comb = r["COMBINED_SEQ"]
+        for m in metrics:
+            name = m.get_name()
+            avg.update(m.combine_classes_class_averaged({c: comb[c][name] for c in classes}))
+        per["average"] = {"COMBINED": avg}
+        out[tr] = per
+    return out
