@@ -30,6 +30,9 @@ class TrackResult(NamedTuple):
     own boxes); dropped [B, T] births lost per frame;
     overflow [B] births lost in total (0 unless a lane overflowed at the largest capacity tried);
     peak [B] most live tracks; capacity [B] the capacity each lane ran with.
+    With ``track(detail=True)`` (result files), else None: src3 [B, T, K] int32, own3 [B, T, K]
+    bool and, output "filtered", box3 [B, T, K, 6] float32: the 3D detection each row carries and
+    the tracks' filtered 3D corners (``tracker.StepOutput``).
     """
 
     ids: np.ndarray
@@ -40,6 +43,9 @@ class TrackResult(NamedTuple):
     capacity: np.ndarray
     frames: Frames
     options: Options
+    src3: np.ndarray | None = None
+    own3: np.ndarray | None = None
+    box3: np.ndarray | None = None
 
     def lane_boxes(self, b: int) -> np.ndarray:
         return self.boxes if self.boxes.ndim == 3 else self.boxes[b]
@@ -88,7 +94,7 @@ def prepare_distortion(split: Split, frames: Frames, options: Options, dps: dist
 
 def track(split: Split | Frames, params: Params, options: Options = Options(), *, chunk: int = 64,
           grow: bool = True, progress=None, distortion: distort.DistortParams | None = None,
-          spec: distort.DistortSpec | None = None, clutter_slots: int = 0) -> TrackResult:
+          spec: distort.DistortSpec | None = None, clutter_slots: int = 0, detail: bool = False) -> TrackResult:
     """Track every lane of ``params`` (leaves scalar or [B]) over the split.
 
     chunk: lanes per compiled call (memory: chunk x T x K int32 ids); progress: a callable(n) told
@@ -96,6 +102,8 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     distortion: ``DistortParams`` with leaves [B] (or scalars): lane b's detections are distorted by
     its own levels and seed inside the scan (``distort.py``); needs a ``Split`` (ground truth).
     spec / clutter_slots: the static ``DistortSpec`` (default from the data and the levels used).
+    detail: also return the 3D detection each written row carries (``TrackResult.src3``), for
+    result files with 3D fields; costs memory per lane, so sweeps leave it off.
     """
     options = options.validate()
     validate_params(params)
@@ -115,7 +123,11 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
         frames, extra = prepare_distortion(split, frames, options, distortion, spec, clutter_slots)
     per_lane_boxes = options.output == "filtered" or extra is not None
     cap0 = options.capacity or default_capacity(frames, params, options)
-    ids = dropped = boxes = None
+    per_slot = ["ids"] + (["boxes"] if per_lane_boxes else []) + (["src3", "own3"] if detail else []) \
+        + (["box3"] if detail and options.output == "filtered" else [])
+    fill = {"ids": -1, "src3": -1}
+    got: dict[str, np.ndarray] = {}
+    dropped = None
     overflow = np.zeros(b, np.int64); peak = np.zeros(b, np.int64); capacity = np.full(b, cap0, np.int64)
     todo = np.arange(b)
     cap = cap0
@@ -123,22 +135,17 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
         for start in range(0, todo.size, chunk):
             lanes = todo[start:start + chunk]
             lane_distortion = None if extra is None else (_take(distortion, lanes),) + extra
-            out = run_batch(_take(params, lanes), frames, options, cap, distortion=lane_distortion)
-            if ids is None:
-                ids = np.empty((b,) + out.ids.shape[1:], np.int32)
+            out = run_batch(_take(params, lanes), frames, options, cap, distortion=lane_distortion, detail=detail)
+            if dropped is None:
                 dropped = np.empty((b,) + out.dropped.shape[1:], np.int32)
-                if per_lane_boxes:
-                    boxes = np.empty((b,) + out.boxes.shape[1:], np.float32)
-            if options.output == "filtered" and out.boxes.shape[2] != boxes.shape[2]:
-                boxes = _widen(boxes, out.boxes.shape[2]); ids = _widen(ids, out.ids.shape[2], -1)
-            if options.output == "detections" and per_lane_boxes:
-                boxes[lanes] = out.boxes
-            if options.output == "filtered":
-                boxes[lanes, :, :out.boxes.shape[2]] = out.boxes
-                ids[lanes] = -1
-                ids[lanes, :, :out.ids.shape[2]] = out.ids
-            else:
-                ids[lanes] = out.ids
+            for name in per_slot:
+                v = getattr(out, name)
+                if name not in got:
+                    got[name] = np.empty((b,) + v.shape[1:], v.dtype)
+                # a lane re-run with more track slots ("filtered": slots are tracks) widens axis 2
+                got[name] = _widen(got[name], v.shape[2], fill.get(name, 0))
+                got[name][lanes] = fill.get(name, 0)
+                got[name][lanes, :, :v.shape[2]] = v
             dropped[lanes] = out.dropped; overflow[lanes] = out.overflow; peak[lanes] = out.peak
             capacity[lanes] = cap
             if progress is not None and cap == cap0:
@@ -151,9 +158,9 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
         bad = np.flatnonzero(overflow > 0)
         warnings.warn(f"track memory overflow in {bad.size} lane(s) (e.g. lane {bad[0]}: {overflow[bad[0]]} births "
                       f"dropped at capacity {capacity[bad[0]]}); raise Options.capacity", RuntimeWarning, stacklevel=2)
-    if not per_lane_boxes:
-        boxes = output_boxes(frames, options)
-    return TrackResult(ids, boxes, dropped, overflow, peak, capacity, frames, options)
+    boxes = got["boxes"] if per_lane_boxes else output_boxes(frames, options)
+    return TrackResult(got["ids"], boxes, dropped, overflow, peak, capacity, frames, options,
+                       got.get("src3"), got.get("own3"), got.get("box3"))
 
 
 def _widen(a: np.ndarray, k: int, fill=0) -> np.ndarray:

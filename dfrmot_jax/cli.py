@@ -18,11 +18,31 @@ def _parse_seqs(text: str | None):
     return [s.strip().zfill(4) for s in text.split(",") if s.strip()]
 
 
-def _settings(args):
-    from .params import parse_assignment, preset
+def _classes(text: str) -> list[str]:
+    from .params import CLASSES
 
-    params, options = preset(args.preset)
+    classes = [c.strip() for c in text.split(",") if c.strip()]
+    bad = [c for c in classes if c not in CLASSES]
+    if bad or not classes or len(set(classes)) != len(classes):
+        raise ValueError(f"--class {text!r}: expected one or more of {list(CLASSES)}, comma-separated, each once")
+    return classes
+
+
+def _settings(args, cls: str = "car"):
+    """The preset for the class, then every ``--set NAME=VALUE`` and ``--set CLASS.NAME=VALUE`` of it."""
+    from .params import CLASSES, parse_assignment, preset
+
+    params, options = preset(args.preset, cls)
     for item in args.set or []:
+        lhs, eq, rhs = item.partition("=")
+        prefix, dot, name = lhs.strip().partition(".")
+        if dot:
+            if prefix not in CLASSES:
+                raise ValueError(f"--set {item}: {prefix!r} is not a class; per-class settings are CLASS.NAME=VALUE "
+                                 f"with CLASS one of {list(CLASSES)}")
+            if prefix != cls:
+                continue
+            item = f"{name}{eq}{rhs}"
         params, options = parse_assignment(item, params, options)
     return params, options
 
@@ -30,20 +50,28 @@ def _settings(args):
 def cmd_track(args) -> int:
     from .api import track
     from .data import load_split
-    from .results import write_lane
+    from .results import ClassRun, write_runs
 
-    params, options = _settings(args)
     root = Path(args.data) if args.data else default_data_root()
+    classes = _classes(args.cls)
+    settings = {cls: _settings(args, cls) for cls in classes}
     t0 = time.perf_counter()
-    split = load_split(root, args.det2d, args.det3d, args.cls, _parse_seqs(args.seqs))
-    res = track(split, params, options)
-    paths = write_lane(args.out, split, res.frames, options, res.ids[0],
-                       None if options.output == "detections" else res.lane_boxes(0))
-    n = int((res.ids[0] >= 0).sum())
-    print(f"tracked {len(split.names)} sequences, {split.n_frames} frames, {n} lines in "
-          f"{time.perf_counter() - t0:.1f} s -> {Path(args.out)} ({len(paths)} files); "
-          f"capacity {int(res.capacity[0])}, peak {int(res.peak[0])} live tracks, overflow {int(res.overflow[0])}")
-    return 0 if res.overflow[0] == 0 else 3
+    runs, status = [], 0
+    for cls in classes:
+        params, options = settings[cls]
+        split = load_split(root, args.det2d, args.det3d, cls, _parse_seqs(args.seqs))
+        res = track(split, params, options, detail=True)
+        runs.append(ClassRun(split, res.frames, options, res.ids[0],
+                             None if options.output == "detections" else res.lane_boxes(0),
+                             res.src3[0], res.own3[0], None if res.box3 is None else res.box3[0]))
+        n = int((res.ids[0] >= 0).sum())
+        print(f"{cls}: tracked {len(split.names)} sequences, {split.n_frames} frames, {n} lines; capacity "
+              f"{int(res.capacity[0])}, peak {int(res.peak[0])} live tracks, overflow {int(res.overflow[0])}")
+        status = status or (0 if res.overflow[0] == 0 else 3)
+    paths = write_runs(args.out, runs, columns=args.columns)
+    print(f"wrote {len(paths)} files to {Path(args.out)} in {time.perf_counter() - t0:.1f} s"
+          + (" (classes " + " + ".join(classes) + " merged per sequence, ids unique per file)" if len(classes) > 1 else ""))
+    return status
 
 
 def cmd_demo(args) -> int:
@@ -80,9 +108,15 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--det2d", default="rrc", help="2D detector: name under ROOT/detections or a directory")
     t.add_argument("--det3d", default="pointrcnn", help="3D detector: name under ROOT/detections or a directory")
     t.add_argument("--preset", default="dfr2023", help="dfr2023 (published run) | dfr_head (authors' code at HEAD)")
-    t.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a parameter or option (repeatable)")
-    t.add_argument("--class", dest="cls", default="car", choices=["car", "pedestrian"])
+    t.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="override a parameter or option (repeatable); CLASS.NAME=VALUE for one class only, "
+                        "e.g. pedestrian.a_l=2")
+    t.add_argument("--class", dest="cls", default="car",
+                   help="car | pedestrian | car,pedestrian (each class with its own settings, one file per sequence)")
     t.add_argument("--seqs", help="comma-separated sequences (default: those whose ground truth has the class)")
+    t.add_argument("--columns", default="kitti", choices=["kitti", "authors"],
+                   help="result columns: kitti (standard KITTI rows with each row's 3D box and score) | authors "
+                        "(the authors' C++ 18 columns, byte for byte)")
     t.add_argument("--out", required=True, help="output directory")
     t.set_defaults(func=cmd_track)
 

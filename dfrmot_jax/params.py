@@ -144,10 +144,22 @@ PRESETS: dict[str, tuple[Params, Options]] = {
 }
 
 
-def preset(name: str) -> tuple[Params, Options]:
+CLASSES = ("car", "pedestrian")
+
+#: Per-class changes applied on top of every preset. The authors' C++ tracks cars only and has no
+#: class-specific setting; the pedestrian values are this project's defaults, chosen by the
+#: cross-validated pedestrian sweep (``sweeps/kitti_pedestrian.toml``, findings in sweeps/README.md).
+CLASS_DEFAULTS: dict[str, dict[str, Any]] = {"car": {}, "pedestrian": {}}
+
+
+def preset(name: str, cls: str = "car") -> tuple[Params, Options]:
+    """A preset's (Params, Options) for one class: the preset, then ``CLASS_DEFAULTS[cls]``."""
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}: expected one of {sorted(PRESETS)}")
-    return PRESETS[name]
+    if cls not in CLASS_DEFAULTS:
+        raise ValueError(f"unknown class {cls!r}: expected one of {list(CLASS_DEFAULTS)}")
+    params, options = PRESETS[name]
+    return params._replace(**CLASS_DEFAULTS[cls]), options
 
 
 def validate_params(params: Params) -> Params:

@@ -40,6 +40,7 @@ class Obj:
     hi3: np.ndarray | None        # [3] max corner
     kind: str                     # "2d" (row of the 2D file) or "3d" (unmatched 3D detection)
     index: int                    # file row of the detection it came from
+    row3: int = -1                # file row (in seq.det3d) of its 3D detection (paired or lone), -1 = none
 
 
 @dataclass
@@ -61,6 +62,9 @@ class Track:
     age: int = 0                      # frames since the last match
     hits: int = 1
     out_box: np.ndarray = field(default_factory=lambda: np.zeros(4, F64))
+    row3: int = -1                    # file row of the last 3D detection it took (kept by 2D-only matches)
+    own3: bool = False                # this frame's matched object had its own 3D detection
+    out_box3: np.ndarray | None = None  # [6] 3D filter position taken with out_box (None: no 3D filter)
 
 
 def iou_matrix(a, b) -> np.ndarray:
@@ -207,11 +211,11 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
         lo = hi = None
         if j >= 0:
             lo, hi = extent3(rows3[j])
-        objects.append(Obj(b2[i], lo, hi, "2d", int(r)))
+        objects.append(Obj(b2[i], lo, hi, "2d", int(r), int(rows3[j]) if j >= 0 else -1))
     for j, r in enumerate(rows3):
         if not taken3[j]:
             lo, hi = extent3(r)
-            objects.append(Obj(b3[j], lo, hi, "3d", int(r)))
+            objects.append(Obj(b3[j], lo, hi, "3d", int(r), int(r)))
     return objects
 
 
@@ -272,10 +276,16 @@ def greedy_match(cost: np.ndarray, track_ids: list[int], limit: F64) -> list[tup
 
 def track_sequence(seq: SequenceDets, params: Params, options: Options,
                    image_size=(1242, 375)) -> list[tuple]:
-    """Run one sequence; returns output rows ``(frame, id, x1, y1, x2, y2, kind, index)``.
+    """Run one sequence; returns output rows ``(frame, id, x1, y1, x2, y2, kind, index, row3, own3, box3)``.
 
     kind/index name the detection written ("2d"/"3d", file row) with output="detections";
     with output="filtered" kind is "track" and index -1.
+    row3 / own3 name the 3D detection whose values the row carries (its file row in ``seq.det3d``,
+    -1 = none): with output="detections" the object's own 3D detection (own3 True) or, for an
+    object without 3D matched to a track with 3D, the track's stale last one (own3 False, spec
+    section 5); with "filtered" the track's last 3D detection (own3 True when this frame's matched
+    object had its own). box3: output "filtered" only, [6] float64 the track's 3D filter position
+    (min corner, max corner) taken with the 2D box, None without a 3D filter; None for "detections".
     """
     options.validate()
     tracks: list[Track] = []
@@ -299,28 +309,36 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
             filter_update(trk.f2, obj.box, params, options)
             trk.out_box = trk.f2.p.copy()
             filter_predict(trk.f2, params, options)
+            trk.own3 = obj.lo3 is not None
             if obj.lo3 is not None:
+                trk.row3 = obj.row3
                 z3 = np.concatenate([obj.lo3, obj.hi3])
                 if trk.f3 is None:
                     trk.f3 = filter_init(z3, params, options)
+                    trk.out_box3 = trk.f3.p.copy()
                 else:
                     filter_update(trk.f3, z3, params, options)
+                    trk.out_box3 = trk.f3.p.copy()
                     filter_predict(trk.f3, params, options)
             elif trk.f3 is not None:
+                trk.out_box3 = trk.f3.p.copy()
                 filter_predict(trk.f3, params, options)
             obj_track[i] = trk
             matched_tracks.add(id(trk))
         for trk in tracks:
             if id(trk) not in matched_tracks:
                 trk.out_box = trk.f2.p.copy()
+                trk.own3 = False
                 filter_predict(trk.f2, params, options)
                 if trk.f3 is not None:
+                    trk.out_box3 = trk.f3.p.copy()
                     filter_predict(trk.f3, params, options)
         for i, obj in enumerate(objects):
             if i in obj_track:
                 continue
             f3 = filter_init(np.concatenate([obj.lo3, obj.hi3]), params, options) if obj.lo3 is not None else None
-            trk = Track(id=next_id, f2=filter_init(obj.box, params, options), f3=f3)
+            trk = Track(id=next_id, f2=filter_init(obj.box, params, options), f3=f3,
+                        row3=obj.row3, own3=f3 is not None, out_box3=None if f3 is None else f3.p.copy())
             trk.out_box = trk.f2.p.copy()
             next_id += 1
             tracks.append(trk)
@@ -330,12 +348,15 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
             for i, obj in enumerate(objects):
                 trk = obj_track[i]
                 if trk.hits >= params.min_hits:
-                    rows.append((t, trk.id, *[float(v) for v in obj.box], obj.kind, obj.index))
+                    own3 = obj.lo3 is not None
+                    row3 = obj.row3 if own3 else trk.row3
+                    rows.append((t, trk.id, *[float(v) for v in obj.box], obj.kind, obj.index, row3, own3, None))
         else:
             for trk in sorted(tracks, key=lambda k: k.id):
                 if trk.hits >= params.min_hits and trk.age <= params.keep_lost:
                     box = predicted_box(trk.out_box, truncate=False)  # corners may cross
-                    rows.append((t, trk.id, *[float(F32(v)) for v in box], "track", -1))
+                    box3 = None if trk.out_box3 is None else trk.out_box3.astype(F64).copy()
+                    rows.append((t, trk.id, *[float(F32(v)) for v in box], "track", -1, trk.row3, trk.own3, box3))
 
         # End of frame: forget tracks unmatched for more than epsilon frames, age the others.
         tracks = [trk for trk in tracks if trk.age <= params.epsilon]

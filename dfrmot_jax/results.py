@@ -1,4 +1,12 @@
-"""From the tracker's padded output to rows and KITTI result files."""
+"""From the tracker's padded output to rows and KITTI result files.
+
+A lane's output is ``ids [T, K]`` (track id written in each output slot, -1 none) and, for its 3D
+columns, ``src3 [T, K]`` (which 3D detection's values each row carries: the global flat index
+``t * M3 + slot`` into the split's ``[T, M3]`` 3D arrays, -1 none; a stale box comes from an
+earlier frame), ``own3 [T, K]`` (it is the object's own 3D detection, not the stale one of the
+track it matched) and, with output "filtered", ``box3 [T, K, 6]`` (the track's filtered 3D
+corners). The column sets themselves are in :mod:`dfrmot_jax.io.columns`.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +16,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .data import CLASS_NAMES, Frames, Split, object_boxes
-from .io.kitti import write_tracking_results
+from .io.columns import COLUMN_SETS
+from .io.kitti import tracking_lines, write_text_atomic
 from .params import Options
 
 
@@ -17,12 +26,19 @@ class LaneRows(NamedTuple):
 
     frame [R] int64 (within the sequence), track_id [R] int64, box [R, 4] float64,
     slot [R] int64 output slot (object slot with output "detections", track slot with "filtered").
+    3D columns (None when not given): src3 [R] int64 global 3D index into the split's [T, M3]
+    arrays (-1 none), own3 [R] bool, box3 [R, 6] float64 (filtered corners, NaN rows: none),
+    score2 [R] float64 the written detection's own score (NaN: unknown).
     """
 
     frame: np.ndarray
     track_id: np.ndarray
     box: np.ndarray
     slot: np.ndarray
+    src3: np.ndarray | None = None
+    own3: np.ndarray | None = None
+    box3: np.ndarray | None = None
+    score2: np.ndarray | None = None
 
 
 def output_boxes(frames: Frames, options: Options, boxes: np.ndarray | None = None) -> np.ndarray:
@@ -32,25 +48,149 @@ def output_boxes(frames: Frames, options: Options, boxes: np.ndarray | None = No
     return boxes
 
 
-def lane_rows(split: Split, s: int, ids: np.ndarray, boxes: np.ndarray) -> LaneRows:
-    """Rows of sequence s from one lane: ids [T, K], boxes [T, K, 4] (whole split)."""
+def slot_scores(split: Split, frames: Frames, options: Options) -> np.ndarray | None:
+    """[T, K] the detection score of each object slot (output "detections"; NaN for padding slots
+    such as clutter), None for output "filtered" (slots are tracks).
+
+    Object slots follow ``data.object_boxes``: fused = the frames' 2D slots then their 3D slots;
+    "2d" = 2D slots; "3d" = 3D slots. A 2D slot k < M2 is ``split.score2d[t, k]``, a 3D slot
+    j < M3 ``split.score3d[t, j]``.
+    """
+    if options.output != "detections":
+        return None
+    T = split.n_frames
+    k2, k3 = frames.box2.shape[1], frames.box3.shape[1]
+
+    def pad(a: np.ndarray, valid: np.ndarray, k: int) -> np.ndarray:
+        out = np.full((T, k), np.nan)
+        m = min(k, a.shape[1])
+        out[:, :m] = np.where(valid[:, :m], a[:, :m], np.nan)
+        return out
+
+    s2 = pad(split.score2d, split.valid2d, k2)
+    s3 = pad(split.score3d, split.valid3d, k3)
+    if options.modality == "2d":
+        return s2
+    if options.modality == "3d":
+        return s3
+    return np.concatenate([s2, s3], axis=1)
+
+
+def lane_rows(split: Split, s: int, ids: np.ndarray, boxes: np.ndarray, *, src3: np.ndarray | None = None,
+              own3: np.ndarray | None = None, box3: np.ndarray | None = None,
+              scores: np.ndarray | None = None) -> LaneRows:
+    """Rows of sequence s from one lane: ids [T, K], boxes [T, K, 4] (whole split).
+
+    Optional [T, K] inputs give the rows' 3D columns: src3 (global 3D index, -1 none), own3
+    (default: src3 >= 0), box3 [T, K, 6] (rows without src3 count as "no 3D filter"), scores
+    (``slot_scores``).
+    """
     sl = split.sequence_slice(s)
     ids_s = ids[sl]
     t, k = np.nonzero(ids_s >= 0)
+    extra = {}
+    if src3 is not None:
+        src = np.asarray(src3)[sl][t, k].astype(np.int64)
+        extra["src3"] = src
+        extra["own3"] = (src >= 0) if own3 is None else np.asarray(own3)[sl][t, k].astype(bool) & (src >= 0)
+    if box3 is not None:
+        b3 = np.asarray(box3, np.float64)[sl][t, k]
+        if src3 is not None:
+            b3 = np.where((extra["src3"] >= 0)[:, None], b3, np.nan)
+        extra["box3"] = b3
+    if scores is not None:
+        extra["score2"] = np.asarray(scores, np.float64)[sl][t, k]
     return LaneRows(t.astype(np.int64), ids_s[t, k].astype(np.int64), boxes[sl][t, k].astype(np.float64),
-                    k.astype(np.int64))
+                    k.astype(np.int64), **extra)
+
+
+def row_3d_values(split: Split, rows: LaneRows) -> dict:
+    """Keyword arguments of ``io.columns.format_lines`` for the rows: has3, own3, dims, loc, rot_y,
+    alpha, score3 (looked up in the split by ``rows.src3``), score2, box3."""
+    out = {"score2": rows.score2, "box3": rows.box3}
+    if rows.src3 is None:
+        return out
+    m3 = split.valid3d.shape[1]
+    src = rows.src3
+    size = split.valid3d.size
+    if np.any((src < -1) | (src >= size)):
+        raise ValueError(f"src3 out of range: expected -1 or 0..{size - 1} (t * M3 + slot, M3 = {m3})")
+    has3 = src >= 0
+    t, j = np.divmod(np.where(has3, src, 0), m3)
+    if np.any(has3 & ~split.valid3d[t, j]):
+        raise ValueError("src3 names an empty 3D detection slot")
+    out.update(has3=has3, own3=rows.own3, dims=split.dims3d[t, j], loc=split.loc3d[t, j],
+               rot_y=split.rot_y3d[t, j], alpha=split.alpha3d[t, j], score3=split.score3d[t, j])
+    return out
+
+
+def _check_columns(columns: str) -> None:
+    if columns not in COLUMN_SETS:
+        raise ValueError(f"columns={columns!r}: expected one of {COLUMN_SETS}")
+
+
+class ClassRun(NamedTuple):
+    """One class's lane to write: its split, prepared frames, options and outputs (``write_runs``)."""
+
+    split: Split
+    frames: Frames
+    options: Options
+    ids: np.ndarray
+    boxes: np.ndarray | None = None
+    src3: np.ndarray | None = None
+    own3: np.ndarray | None = None
+    box3: np.ndarray | None = None
 
 
 def write_lane(out_dir, split: Split, frames: Frames, options: Options, ids: np.ndarray,
-               boxes: np.ndarray | None = None) -> list[Path]:
-    """Write one KITTI result file per sequence of the split for one lane (ids [T, K])."""
+               boxes: np.ndarray | None = None, *, columns: str = "kitti", src3: np.ndarray | None = None,
+               own3: np.ndarray | None = None, box3: np.ndarray | None = None) -> list[Path]:
+    """Write one KITTI result file per sequence of the split for one lane (ids [T, K]).
+
+    columns: "kitti" (standard KITTI results, default) | "authors" (the C++'s own 18 columns);
+    see :mod:`dfrmot_jax.io.columns`. src3 [T, K] int (global 3D index ``t * M3 + slot`` of the
+    3D detection each row carries, -1 none), own3 [T, K] bool (default src3 >= 0), box3 [T, K, 6]
+    (output "filtered": the tracks' filtered 3D corners). Without src3 the 3D fields are
+    placeholders; the kitti columns still carry each detection's own score (output "detections").
+    """
+    return write_runs(out_dir, [ClassRun(split, frames, options, ids, boxes, src3, own3, box3)], columns=columns)
+
+
+def write_runs(out_dir, runs: list[ClassRun], *, columns: str = "kitti") -> list[Path]:
+    """Write one result file per sequence of any run: several classes (one ``ClassRun`` each, e.g.
+    car and pedestrian) share a sequence's file, merged frame by frame in the order of ``runs``,
+    with each later class's track ids offset past the earlier classes' in that sequence so that
+    ids are unique within a file. Returns the paths, sorted by sequence."""
+    _check_columns(columns)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    allboxes = output_boxes(frames, options, boxes)
+    per_seq: dict[str, list[tuple[np.ndarray, list[str]]]] = {}
+    next_id: dict[str, int] = {}
+    for run in runs:
+        split, options, ids = run.split, run.options, run.ids
+        for name, a in (("src3", run.src3), ("own3", run.own3)):
+            if a is not None and np.shape(a) != np.shape(ids):
+                raise ValueError(f"write_lane: {name} has shape {np.shape(a)}, expected {np.shape(ids)} (as ids)")
+        if run.box3 is not None and np.shape(run.box3) != np.shape(ids) + (6,):
+            raise ValueError(f"write_lane: box3 has shape {np.shape(run.box3)}, expected {np.shape(ids) + (6,)}")
+        allboxes = output_boxes(run.frames, options, run.boxes)
+        scores = slot_scores(split, run.frames, options)
+        for s, name in enumerate(split.names):
+            r = lane_rows(split, s, ids, allboxes, src3=run.src3, own3=run.own3, box3=run.box3, scores=scores)
+            v = row_3d_values(split, r)
+            offset = next_id.get(name, 0)
+            next_id[name] = offset + int(r.track_id.max(initial=-1)) + 1
+            lines = tracking_lines(r.frame, r.track_id + offset, r.box, type_name=CLASS_NAMES[split.cls],
+                                   alpha=v.get("alpha"), dims=v.get("dims"), loc=v.get("loc"), rot_y=v.get("rot_y"),
+                                   score=v.get("score3"), columns=columns, centroid=options.centroid,
+                                   has3=v.get("has3"), own3=v.get("own3"), score2=v.get("score2"), box3=v.get("box3"))
+            per_seq.setdefault(name, []).append((r.frame, lines))
     paths = []
-    for s, name in enumerate(split.names):
-        r = lane_rows(split, s, ids, allboxes)
+    for name in sorted(per_seq):
+        frame = np.concatenate([f for f, _ in per_seq[name]])
+        lines = [line for _, ls in per_seq[name] for line in ls]
+        order = np.argsort(frame, kind="stable")
         path = out_dir / f"{name}.txt"
-        write_tracking_results(path, r.frame, r.track_id, r.box, type_name=CLASS_NAMES[split.cls])
+        write_text_atomic(path, "".join(lines[i] for i in order))
         paths.append(path)
     return paths

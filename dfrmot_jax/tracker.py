@@ -29,11 +29,19 @@ class StepOutput(NamedTuple):
     "filtered" they are the N track slots.
     boxes [K, 4] float32 (output "filtered", or "detections" with a distortion) or [0].
     dropped [] int32 births lost for want of a track slot in this frame.
+    With ``detail`` (result files), else [0]: src3 [K] int32 the 3D detection whose values a row
+    carries, as a global index ``t * M3 + slot`` into the split's [T, M3] arrays (-1 none): the
+    object's own, or for a 2D-only object the last one its track took (the C++'s stale 3D box);
+    own3 [K] bool it is the object's own; box3 [K, 6] float32 (output "filtered") the track's
+    filtered 3D corners (min, max), meaningful where src3 >= 0.
     """
 
     ids: jnp.ndarray
     boxes: jnp.ndarray
     dropped: jnp.ndarray
+    src3: jnp.ndarray
+    own3: jnp.ndarray
+    box3: jnp.ndarray
 
 
 def init(options: Options, capacity: int, params: Params | None = None) -> Memory:
@@ -50,7 +58,8 @@ def _f64(params: Params) -> Params:
 
 
 def _objects(params: Params, frame: Frames, options: Options):
-    """This frame's objects: box [O, 4], z3 [O, 6] (3D min, max corners), has3d [O], valid [O].
+    """This frame's objects: box [O, 4], z3 [O, 6] (3D min, max corners), has3d [O], valid [O],
+    slot3 [O] int32 the 3D detection slot of each object (meaningful where has3d).
 
     Scores are compared in float32 (as parsed); boxes and corners come out in float64.
     """
@@ -59,27 +68,33 @@ def _objects(params: Params, frame: Frames, options: Options):
     box2 = frame.box2.astype(jnp.float64)
     box3 = frame.box3.astype(jnp.float64)
     z3 = jnp.concatenate([frame.lo3, frame.hi3], axis=-1).astype(jnp.float64)
+    slots3 = jnp.arange(keep3.shape[0], dtype=jnp.int32)
     if options.modality == "2d":
-        return box2, jnp.zeros((keep2.shape[0], 6), jnp.float64), jnp.zeros_like(keep2), keep2
+        return (box2, jnp.zeros((keep2.shape[0], 6), jnp.float64), jnp.zeros_like(keep2), keep2,
+                jnp.zeros(keep2.shape, jnp.int32))
     if options.modality == "3d":
-        return box3, z3, keep3, keep3
+        return box3, z3, keep3, keep3, slots3
     pair = associate.greedy_max(associate.iou_matrix(box2, box3),
                                 keep2[:, None] & keep3[None, :], params.merge_iou)
     paired2 = jnp.any(pair, axis=1)
     lone3 = keep3 & ~jnp.any(pair, axis=0)
     z3_of_2 = memory.gather_rows(pair.T, z3)                       # [M2, 6], zeros where unpaired
     return (jnp.concatenate([box2, box3]), jnp.concatenate([z3_of_2, z3]),
-            jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]))
+            jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]),
+            jnp.concatenate([memory.gather_rows(pair.T, slots3), slots3]))
 
 
-def step(params: Params, mem: Memory, frame: Frames, options: Options, emit_boxes: bool = False):
+def step(params: Params, mem: Memory, frame: Frames, options: Options, emit_boxes: bool = False,
+         detail: bool = False, t=0):
     """One frame: de-duplicate, associate, update memory and filters, write, age. Returns (mem, out).
 
-    Runs under ``jax.enable_x64``: arithmetic and parameters in float64, scores compared in float32.
+    detail (static): also the 3D detection each row carries (``StepOutput.src3``); t: the frame's
+    global index. Runs under ``jax.enable_x64``: arithmetic and parameters in float64, scores
+    compared in float32.
     """
     kind = options.filter
     mem = memory.reset(mem, frame.reset)
-    box, z3, has3, valid = _objects(params, frame, options)
+    box, z3, has3, valid, slot3 = _objects(params, frame, options)
     params = _f64(params)
 
     # Association on the tracks' predictions.
@@ -120,9 +135,15 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, emit_boxe
     hits = jnp.where(born, 1, mem.hits + matched_obj.astype(jnp.int32))
     age = jnp.where(observed, 0, mem.age)
     alive = mem.alive | born
+    last3 = mem.last3
+    if detail:
+        z_src3 = memory.gather_rows(assign, t * frame.valid3.shape[0] + slot3)
+        last3 = jnp.where(observed & z_has3, z_src3, jnp.where(born, -1, last3))
     mem = Memory(alive=alive, tid=tid, age=age, hits=hits, has3d=had3 | z_has3, filt=filt,
                  next_id=mem.next_id + jnp.sum(newborn, dtype=jnp.int32), overflow=mem.overflow + dropped,
-                 peak=jnp.maximum(mem.peak, jnp.sum(alive, dtype=jnp.int32)), cov0=mem.cov0)
+                 peak=jnp.maximum(mem.peak, jnp.sum(alive, dtype=jnp.int32)), cov0=mem.cov0, last3=last3)
+    none = jnp.zeros((0,), jnp.int32)
+    src3, own3, box3 = none, none.astype(bool), none.astype(jnp.float32)
 
     writable = hits >= params.min_hits
     if options.output == "detections":
@@ -130,49 +151,62 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, emit_boxe
         obj_hits = (jnp.sum(jnp.where(assign, hits[None, :], 0), axis=1, dtype=jnp.int32)
                     + jnp.where(newborn & ~jnp.any(birth, 1), 1, 0))
         ids = jnp.where(valid & (obj_hits >= params.min_hits), obj_id, -1)
-        out = StepOutput(ids, box.astype(jnp.float32) if emit_boxes else jnp.zeros((0,), jnp.float32), dropped)
+        if detail:
+            src3 = jnp.where(jnp.any(assign, axis=1), jnp.sum(jnp.where(assign, last3[None, :], 0), axis=1), -1)
+            own3 = has3 & valid
+        out = StepOutput(ids, box.astype(jnp.float32) if emit_boxes else jnp.zeros((0,), jnp.float32), dropped,
+                         src3, own3, box3)
     else:
         shown = jnp.where(born[:, None], z[:, :4], jnp.where(matched_obj[:, None], updated.p[:, :4], f.p[:, :4]))
         shown = associate.predicted_boxes(shown, False)  # filter corners may cross: x2 = x1 + |x2 - x1|
         ids = jnp.where(alive & writable & (age <= params.keep_lost), tid, -1)
-        out = StepOutput(ids, shown.astype(jnp.float32), dropped)
+        if detail:
+            src3, own3 = last3, observed & z_has3
+            box3 = jnp.where(start3[:, None], z[:, 4:], updated.p[:, 4:]).astype(jnp.float32)
+        out = StepOutput(ids, shown.astype(jnp.float32), dropped, src3, own3, box3)
     return memory.end_of_frame(mem, params.epsilon), out
 
 
-def run(params: Params, frames: Frames, options: Options, capacity: int, distortion=None):
+def run(params: Params, frames: Frames, options: Options, capacity: int, distortion=None, detail: bool = False):
     """One lane over all frames: (final Memory, StepOutput stacked [T, ...]).
 
     distortion: None, or (dp, spec, gid2 [T, M2], gid3 [T, M3]): each frame is first distorted by
     ``distort.distort_frame`` with this lane's ``DistortParams`` dp (static ``DistortSpec`` spec).
+    detail: see ``step``.
     """
     t = jnp.arange(frames.reset.shape[0], dtype=jnp.int32)
     mem0 = init(options, capacity, params)
     if distortion is None:
-        return jax.lax.scan(lambda m, fr: step(params, m, fr, options), mem0, frames)
+        return jax.lax.scan(lambda m, xs: step(params, m, xs[0], options, detail=detail, t=xs[1]), mem0, (frames, t))
     dp, spec, gid2, gid3 = distortion
 
     def body(m, xs):
         fr, g2, g3, ti = xs
-        return step(params, m, distort.distort_frame(fr, g2, g3, ti, dp, spec), options, emit_boxes=True)
+        return step(params, m, distort.distort_frame(fr, g2, g3, ti, dp, spec), options, emit_boxes=True,
+                    detail=detail, t=ti)
 
     return jax.lax.scan(body, mem0, (frames, gid2, gid3, t))
 
 
 class BatchOutput(NamedTuple):
     """ids [B, T, K] int32; boxes [B, T, K, 4] float32 or [B, T, 0]; dropped [B, T] int32;
-    overflow [B] int32 (births dropped in total); peak [B] int32 (most live tracks)."""
+    overflow [B] int32 (births dropped in total); peak [B] int32 (most live tracks);
+    src3 [B, T, K], own3 [B, T, K], box3 [B, T, K, 6] with ``detail`` (else [B, T, 0])."""
 
     ids: np.ndarray
     boxes: np.ndarray
     dropped: np.ndarray
     overflow: np.ndarray
     peak: np.ndarray
+    src3: np.ndarray
+    own3: np.ndarray
+    box3: np.ndarray
 
 
 @functools.lru_cache(maxsize=None)
-def _compiled(options: Options, capacity: int, n_devices: int, spec=None):
+def _compiled(options: Options, capacity: int, n_devices: int, spec=None, detail: bool = False):
     def lane(params, frames, dp, gid2, gid3):
-        mem, out = run(params, frames, options, capacity, None if spec is None else (dp, spec, gid2, gid3))
+        mem, out = run(params, frames, options, capacity, None if spec is None else (dp, spec, gid2, gid3), detail)
         return out, mem.overflow, mem.peak
 
     batched = jax.vmap(lane, in_axes=(0, None, 0, None, None))
@@ -202,11 +236,12 @@ def _lanes(tree, b: int, pad: int, float_dtype):
 
 
 def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n_devices: int | None = None,
-              distortion=None):
+              distortion=None, detail: bool = False):
     """All lanes of a ``Params`` batch [B] over the split; the batch is split over ``n_devices``.
 
     distortion: None, or (dp, spec, gid2, gid3) with ``DistortParams`` dp [B] (one per lane), a
     static ``DistortSpec``, and ground-truth ids [T, M2], [T, M3] of the (clutter-padded) frames.
+    detail: also the rows' 3D detections (``StepOutput.src3``; for result files).
     Returns BatchOutput (numpy). Lanes are padded to a multiple of the device count and trimmed.
     """
     b = max(np.atleast_1d(np.asarray(v)).shape[0] for v in params)
@@ -220,7 +255,8 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
         else:
             dpb, spec, gid2, gid3 = distortion
             dp = _lanes(dpb, b, pad, jnp.float32)
-        fn = _compiled(options, capacity, n_dev, spec)
+        fn = _compiled(options, capacity, n_dev, spec, detail)
         out, overflow, peak = fn(p, Frames(*(jnp.asarray(x) for x in frames)), dp, jnp.asarray(gid2), jnp.asarray(gid3))
     out = jax.tree.map(lambda x: np.asarray(x)[:b], out)
-    return BatchOutput(out.ids, out.boxes, out.dropped, np.asarray(overflow)[:b], np.asarray(peak)[:b])
+    return BatchOutput(out.ids, out.boxes, out.dropped, np.asarray(overflow)[:b], np.asarray(peak)[:b],
+                       out.src3, out.own3, out.box3)

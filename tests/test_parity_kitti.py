@@ -34,6 +34,18 @@ def test_dfr2023_reproduces_the_published_output_line_for_line(kitti_root, tmp_p
     assert total == 28812
 
 
+def test_dfr2023_authors_columns_are_byte_identical_to_the_published_files(kitti_root, tmp_path):
+    assert main(["track", "--data", str(kitti_root), "--preset", "dfr2023", "--columns", "authors",
+                 "--out", str(tmp_path)]) == 0
+    seqs = sequences_with_class(kitti_root, "car")
+    lines = 0
+    for s in seqs:
+        ours, theirs = (tmp_path / f"{s}.txt").read_bytes(), (kitti_root / REFERENCE / f"{s}.txt").read_bytes()
+        assert ours == theirs, f"sequence {s} differs"
+        lines += theirs.count(b"\n")
+    assert (len(seqs), lines) == (20, 28812)
+
+
 def test_dfr2023_output_scores_the_published_figures_with_trackeval(kitti_root, tmp_path):
     compat = pytest.importorskip("dfrmot_jax.metrics.trackeval_compat")
     pytest.importorskip("trackeval")

@@ -63,7 +63,7 @@ def test_second_call_with_new_values_does_not_recompile(scene):
     frames = prepare_frames(split, Options())
     cap = default_capacity(frames, Params(), Options())
     tracker.run_batch(stack_params([Params(), Params(a_l=5.0)]), frames, Options(), cap)
-    fn = tracker._compiled(Options(), cap, min(2, tracker.device_count()), None)
+    fn = tracker._compiled(Options(), cap, min(2, tracker.device_count()), None, False)
     before = fn._cache_size()
     out = tracker.run_batch(stack_params([Params(a_l=3.0, epsilon=5), Params(score_2d=0.7)]), frames, Options(), cap)
     assert fn._cache_size() == before == 1

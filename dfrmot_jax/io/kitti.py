@@ -8,6 +8,7 @@ endings are accepted and an empty file gives zero-length arrays.
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import NamedTuple, Sequence
 
@@ -478,26 +479,6 @@ def read_calib(path) -> Calib:
     )
 
 
-def _format_column(v: np.ndarray) -> list[str]:
-    if v.size and np.all(v == np.round(v)) and np.all(np.abs(v) < 1e15):
-        return [str(x) for x in v.astype(np.int64).tolist()]
-    return [_fmt_value(x) for x in v.tolist()]
-
-
-def _as_float(name: str, value, shape: tuple[int, ...], default: float) -> np.ndarray:
-    if value is None:
-        return np.full(shape, default, dtype=np.float64)
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"write_tracking_results: {name} must be numeric") from None
-    if arr.shape != shape:
-        raise ValueError(f"write_tracking_results: {name} has shape {arr.shape}, expected {shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"write_tracking_results: {name} has non-finite values")
-    return arr
-
-
 def _as_int(name: str, value, n: int) -> np.ndarray:
     arr = np.asarray(value)
     if arr.shape != (n,):
@@ -520,16 +501,40 @@ def write_tracking_results(
     loc=None,
     rot_y=None,
     score=None,
+    *,
+    columns: str = "kitti",
+    centroid: str = "legacy",
+    has3=None,
+    own3=None,
+    score2=None,
+    box3=None,
 ) -> None:
     """Write KITTI tracking result lines ``frame id type -1 -1 alpha x1 y1 x2 y2 h w l x y z ry score``.
 
     frame, track_id: [R] integers (frames non-negative and ascending); box: [R, 4] ``x1, y1, x2, y2``;
-    type_name: a str or [R] strs; alpha [R], dims [R, 3] ``h, w, l``, loc [R, 3], rot_y [R],
-    score [R]; None gives alpha -10, dims -1 -1 -1, loc -1000 -1000 -1000, rot_y -10, score 1.
-    Rows are written in the given order; integer values print as integers, others like ``%g``.
-    Parent directories are created; no rows gives an empty file. Raises ValueError for inputs that
-    :func:`read_tracking_labels` would reject.
+    type_name: a str or [R] strs. The other columns come from :mod:`dfrmot_jax.io.columns`
+    (``format_lines``), which holds both column sets: ``columns="kitti"`` (default) or
+    ``"authors"`` (the C++'s own 18 columns), ``centroid`` the run's 3D axes.
+    alpha [R], dims [R, 3] ``h, w, l``, loc [R, 3], rot_y [R], score [R]: the 3D detection written
+    on each row (``format_lines``' alpha, dims, loc, rot_y, score3); has3 / own3 [R] bool say which
+    rows carry it (default: every row, when any of them is given); score2 [R] the 2D detection's
+    score; box3 [R, 6] filtered 3D corners (output "filtered").
+    With only frame, track_id and box: alpha -10, dims -1 -1 -1, loc -1000 -1000 -1000, rot_y -10,
+    score 1. Rows are written in the given order. The file is replaced atomically (written next to
+    it, then renamed); parent directories are created; no rows gives an empty file. Raises
+    ValueError for inputs that :func:`read_tracking_labels` would reject.
     """
+    write_text_atomic(path, "".join(tracking_lines(frame, track_id, box, type_name, alpha, dims, loc, rot_y, score,
+                                                   columns=columns, centroid=centroid, has3=has3, own3=own3,
+                                                   score2=score2, box3=box3)))
+
+
+def tracking_lines(frame, track_id, box, type_name="Car", alpha=None, dims=None, loc=None, rot_y=None, score=None,
+                   *, columns: str = "kitti", centroid: str = "legacy", has3=None, own3=None, score2=None,
+                   box3=None) -> list[str]:
+    """The lines :func:`write_tracking_results` writes (same arguments, same checks), each ending in "\\n"."""
+    from .columns import format_lines
+
     box_arr = np.asarray(box, dtype=np.float64)
     if box_arr.ndim != 2 or box_arr.shape[1] != 4:
         if not (box_arr.size == 0 and box_arr.ndim <= 2):
@@ -538,7 +543,8 @@ def write_tracking_results(
     n = box_arr.shape[0]
     frame_arr = _as_int("frame", frame, n)
     id_arr = _as_int("track_id", track_id, n)
-    box_arr = _as_float("box", box_arr, (n, 4), 0.0)
+    if not np.all(np.isfinite(box_arr)):
+        raise ValueError("write_tracking_results: box has non-finite values")
     if np.any(frame_arr < 0):
         raise ValueError("write_tracking_results: negative frame")
     if np.any(frame_arr[1:] < frame_arr[:-1]):
@@ -556,30 +562,28 @@ def write_tracking_results(
         if not t or any(ch.isspace() for ch in t):
             raise ValueError(f"write_tracking_results: bad type name {t!r}")
 
-    alpha_arr = _as_float("alpha", alpha, (n,), -10.0)
-    dims_arr = _as_float("dims", dims, (n, 3), -1.0)
-    loc_arr = _as_float("loc", loc, (n, 3), -1000.0)
-    rot_arr = _as_float("rot_y", rot_y, (n,), -10.0)
-    score_arr = _as_float("score", score, (n,), 1.0)
+    try:
+        lines = format_lines(frame_arr, id_arr, box_arr, types, columns, centroid, has3=has3, own3=own3,
+                             dims=dims, loc=loc, rot_y=rot_y, alpha=alpha, score3=score, score2=score2,
+                             box3=box3)
+    except ValueError as e:
+        message = str(e).removeprefix("format_lines: ").replace("score3", "score")  # this function's name for it
+        raise ValueError(f"write_tracking_results: {message}") from None
+    return lines
 
-    cols = [
-        [str(x) for x in frame_arr.tolist()],
-        [str(x) for x in id_arr.tolist()],
-        types,
-        ["-1"] * n,
-        ["-1"] * n,
-        _format_column(alpha_arr),
-        *(_format_column(box_arr[:, k]) for k in range(4)),
-        *(_format_column(dims_arr[:, k]) for k in range(3)),
-        *(_format_column(loc_arr[:, k]) for k in range(3)),
-        _format_column(rot_arr),
-        _format_column(score_arr),
-    ]
-    body = "".join(" ".join(row) + "\n" for row in zip(*cols))
+
+def write_text_atomic(path, text: str) -> None:
+    """Replace ``path`` with ``text`` atomically: written next to it, then renamed (parents created)."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    with open(out, "w", encoding="utf-8", newline="\n") as f:
-        f.write(body)
+    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "w", encoding="utf-8", newline="\n") as f:
+            f.write(text)
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
 
 
 def sequence_lengths(root, sequences=None) -> dict[str, int]:
