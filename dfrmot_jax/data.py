@@ -19,6 +19,7 @@ from .io.kitti import (
     Detections2D,
     Detections3D,
     KittiFormatError,
+    line_of_row,
     read_calib,
     read_detections_2d,
     read_detections_3d,
@@ -142,26 +143,12 @@ def class_rows_3d(det: Detections3D, cls: str, path=None) -> np.ndarray:
         name = _type_class_3d(tok)
         if name is None:
             row = int(np.flatnonzero(inv == k)[0])
-            raise KittiFormatError(str(path), _line_of_row(path, row), "type",
+            raise KittiFormatError(str(path), line_of_row(path, row), "type",
                                    f"unknown 3D detection type {str(tok)!r} (expected AB3DMOT codes 1 = Pedestrian, "
                                    f"2 = Car, 3 = Cyclist, or a KITTI class name)")
         if name == cls:
             out[inv == k] = True
     return out
-
-
-def _line_of_row(path, row: int) -> int | None:
-    """1-based line number of data row ``row`` of a text file (blank lines are not rows)."""
-    if path is None:
-        return None
-    with open(path, encoding="utf-8", errors="replace") as f:
-        k = -1
-        for n, line in enumerate(f.read().split("\n"), 1):
-            if line and not line.isspace():
-                k += 1
-                if k == row:
-                    return n
-    return None
 
 
 def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,

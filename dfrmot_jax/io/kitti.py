@@ -158,6 +158,21 @@ def _read_text(path) -> _Text:
     return _Text(p, lines, numbers)
 
 
+def line_of_row(path, row: int) -> int | None:
+    """1-based line number of data row ``row`` of a text file (blank lines are not rows); None
+    when there is no path or no such row."""
+    if path is None:
+        return None
+    with open(path, encoding="utf-8", errors="replace") as f:
+        k = -1
+        for n, line in enumerate(f.read().split("\n"), 1):
+            if line and not line.isspace():
+                k += 1
+                if k == row:
+                    return n
+    return None
+
+
 def _quoted(token: str) -> str:
     return repr(token.strip())
 

@@ -88,23 +88,11 @@ def _class_ids(types: np.ndarray, path, kio, rows: np.ndarray | None = None) -> 
         if cid is None:
             r = int(np.flatnonzero(inv.reshape(-1) == k)[0])
             r = r if rows is None else int(rows[r])
-            raise kio.KittiFormatError(path, _line_of_row(path, r), "type",
+            raise kio.KittiFormatError(path, kio.line_of_row(path, r) or r + 1, "type",
                                        f"unknown class {name!r} (TrackEval accepts "
                                        f"{', '.join(sorted(CLASS_NAME_TO_ID))}; case-insensitive)")
         ids[k] = cid
     return ids[inv.reshape(-1)]
-
-
-def _line_of_row(path, row: int) -> int:
-    """1-based line number of data row ``row`` (blank lines are not rows)."""
-    with open(path, encoding="utf-8", errors="replace") as f:
-        k = -1
-        for n, line in enumerate(f.read().split("\n"), 1):
-            if line and not line.isspace():
-                k += 1
-                if k == row:
-                    return n
-    return row + 1
 
 
 @dataclass(eq=False)
@@ -339,7 +327,7 @@ def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty") -> T
         bad = valid[lab.frame[valid] >= gt.lengths[s]]
         if bad.size:
             r = int(bad[0])
-            raise kio.KittiFormatError(path, _line_of_row(path, r), "frame",
+            raise kio.KittiFormatError(path, kio.line_of_row(path, r) or r + 1, "frame",
                                        f"frame {int(lab.frame[r])} is beyond sequence {name} "
                                        f"({int(gt.lengths[s])} frames: 0..{int(gt.lengths[s]) - 1})")
         keep = np.flatnonzero((cid == gt.cls_id) & (lab.track_id >= 0))
@@ -443,7 +431,8 @@ def _duplicate_error(gt: PreparedGT, dets: TrackerDets, idx: int) -> Exception:
     if dets.paths and dets.paths[lane] and dets.paths[lane][s]:
         kio = _kitti_io()
         path = dets.paths[lane][s]
-        return kio.KittiFormatError(path, _line_of_row(path, int(dets.source[idx])), "track_id", msg)
+        row = int(dets.source[idx])
+        return kio.KittiFormatError(path, kio.line_of_row(path, row) or row + 1, "track_id", msg)
     return DuplicateIdError(f"config {lane}: {msg}")
 
 
