@@ -40,9 +40,9 @@ def _best(fn, repeats):
 def main() -> None:
     from dfrmot_jax.io.kitti import read_tracking_labels, sequence_lengths
     from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, prepare_gt
-    from dfrmot_jax.metrics.edits import load_results, pack_arrays, stress_edit
+    from dfrmot_jax.testing.metric_edits import load_results, pack_arrays, stress_edit
     from dfrmot_jax.metrics.evaluate import _GT_CACHE
-    from dfrmot_jax.metrics.trackeval_compat import make_gt_folder, make_tracker_folder, run_trackeval
+    from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, make_tracker_folder, run_trackeval
     from dfrmot_jax.paths import default_data_root
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

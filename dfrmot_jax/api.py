@@ -14,10 +14,11 @@ from typing import NamedTuple
 import numpy as np
 
 from . import distort
+from .core.devices import setup_host_devices
 from .data import Frames, Split, prepare_frames
 from .params import Options, Params, as_arrays, batch_size, validate_params
 from .results import output_boxes
-from .tracker import run_batch
+from .core.run import FrameHook, run_batch
 
 MAX_CAPACITY = 4096
 
@@ -105,6 +106,7 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     detail: also return the 3D detection each written row carries (``TrackResult.src3``), for
     result files with 3D fields; costs memory per lane, so sweeps leave it off.
     """
+    setup_host_devices()          # before this call's first JAX operation
     options = options.validate()
     validate_params(params)
     params = as_arrays(params)
@@ -134,8 +136,9 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     while todo.size:
         for start in range(0, todo.size, chunk):
             lanes = todo[start:start + chunk]
-            lane_distortion = None if extra is None else (_take(distortion, lanes),) + extra
-            out = run_batch(_take(params, lanes), frames, options, cap, distortion=lane_distortion, detail=detail)
+            hook = None if extra is None else FrameHook(distort.FrameDistortion(extra[0]), _take(distortion, lanes),
+                                                        extra[1:])
+            out = run_batch(_take(params, lanes), frames, options, cap, hook=hook, detail=detail)
             if dropped is None:
                 dropped = np.empty((b,) + out.dropped.shape[1:], np.int32)
             for name in per_slot:

@@ -26,6 +26,7 @@ from .io.kitti import (
     read_tracking_labels,
     sequence_lengths,
 )
+from .core.step import Frames
 from .params import Options
 
 CLASS_NAMES = {"car": "Car", "pedestrian": "Pedestrian"}
@@ -250,25 +251,6 @@ def load_split(root, det2d="rrc", det3d="pointrcnn", cls: str = "car", sequences
 
 # ---------------------------------------------------------------------------------------------
 # Inputs of the scan for one set of static options
-
-
-class Frames(NamedTuple):
-    """Per-frame device inputs of the tracker (float32 / bool), leading axis T.
-
-    reset [T]; box2 [T, M2, 4] and box3 [T, M3, 4] (x1, y1, x2, y2; integer-valued when truncating;
-    box3 is the 3D detection's image box chosen by ``Options.merge``); score2 [T, M2]; score3 [T, M3];
-    valid2 [T, M2]; valid3 [T, M3]; lo3, hi3 [T, M3, 3]: the internal 3D box corners (``Options.centroid``).
-    """
-
-    reset: np.ndarray
-    box2: np.ndarray
-    score2: np.ndarray
-    valid2: np.ndarray
-    box3: np.ndarray
-    score3: np.ndarray
-    valid3: np.ndarray
-    lo3: np.ndarray
-    hi3: np.ndarray
 
 
 def truncate_2d_box(box: np.ndarray) -> np.ndarray:

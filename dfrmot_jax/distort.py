@@ -829,6 +829,16 @@ def _jitter_box(box, valid, sigma, key, truncate_fn):
     return jnp.where((sigma > 0) & valid[:, None], out, box).astype(box.dtype)
 
 
+class FrameDistortion(NamedTuple):
+    """The tracker's per-frame hook (``core.run.FrameHook.fn``) of a distortion study: hashable by
+    its static spec; the hook's lane values are ``DistortParams``, its xs the (gid2, gid3) arrays."""
+
+    spec: DistortSpec
+
+    def __call__(self, frame: Frames, dp: DistortParams, gids, t) -> Frames:
+        return distort_frame(frame, gids[0], gids[1], t, dp, self.spec)
+
+
 def distort_frame(frame: Frames, gid2, gid3, t, dp: DistortParams, spec: DistortSpec,
                   image_size=DEFAULT_IMAGE_SIZE) -> Frames:
     """One frame's inputs distorted for one lane (pure, jittable, vmappable over ``dp``).

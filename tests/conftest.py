@@ -2,7 +2,11 @@ from pathlib import Path
 
 import pytest
 
+from dfrmot_jax import setup_host_devices
 from dfrmot_jax.paths import ENV_VAR, data_available, default_data_root
+
+# One XLA device per core for the whole session, before any test runs a JAX operation.
+setup_host_devices()
 
 
 @pytest.fixture(scope="session")

@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dfrmot_jax import associate, reference
+from dfrmot_jax.core import associate, boxes
+from dfrmot_jax.testing import reference
 
 
 @pytest.fixture(autouse=True)
@@ -100,12 +101,12 @@ def test_iou_matrix_matches_reference(a, b):
         return np.array([x1, y1, x1 + w, y1 + h], np.float64)
 
     A = np.stack([box(t) for t in a]); B = np.stack([box(t) for t in b])
-    got = np.asarray(associate.iou_matrix(jnp.asarray(A), jnp.asarray(B)))
+    got = np.asarray(boxes.iou_matrix(jnp.asarray(A), jnp.asarray(B)))
     want = np.array([[reference.iou(x, y) for y in B] for x in A])
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
 
 
 def test_predicted_boxes_truncate_like_the_code():
     p = jnp.array([[10.7, 20.2, 50.9, 80.99]])
-    np.testing.assert_array_equal(associate.predicted_boxes(p, True), [[10, 20, 50, 80]])
-    np.testing.assert_allclose(associate.predicted_boxes(p, False), [[10.7, 20.2, 50.9, 80.99]], rtol=1e-6)
+    np.testing.assert_array_equal(boxes.predicted_boxes(p, True), [[10, 20, 50, 80]])
+    np.testing.assert_allclose(boxes.predicted_boxes(p, False), [[10.7, 20.2, 50.9, 80.99]], rtol=1e-6)

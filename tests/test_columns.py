@@ -12,8 +12,8 @@ from dfrmot_jax.io.columns import (COLUMN_SETS, authors_box_columns, fmt_cxx, fm
                                   invert_box3d_extent)
 from dfrmot_jax.io.kitti import read_tracking_labels, write_tracking_results
 from dfrmot_jax.params import Options, Params, preset
-from dfrmot_jax.parity import reference_lane, reference_rows
-from dfrmot_jax.reference import track_sequence
+from dfrmot_jax.testing.parity import reference_lane, reference_rows
+from dfrmot_jax.testing.reference import track_sequence
 from dfrmot_jax.results import write_lane
 
 from test_reference import _seq
@@ -220,7 +220,7 @@ def test_both_column_sets_score_identically(dfr2023, written, kitti_root, tmp_pa
     assert int(scores["kitti"]["COMBINED"]["IDSW"]) == 177
 
     pytest.importorskip("trackeval")
-    from dfrmot_jax.metrics.trackeval_compat import make_gt_folder, make_tracker_folder, run_trackeval
+    from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, make_tracker_folder, run_trackeval
 
     few = ["0000", "0011", "0014", "0020"]
     gt = make_gt_folder(tmp_path / "gt", kitti_root, {s: int(split.lengths[split.names.index(s)]) for s in few})
@@ -233,7 +233,7 @@ def test_both_column_sets_score_identically(dfr2023, written, kitti_root, tmp_pa
 
 def test_readers_accept_both_column_sets(dfr2023, written, kitti_root):
     from dfrmot_jax.metrics import prepare_gt
-    from dfrmot_jax.metrics.edits import load_results
+    from dfrmot_jax.testing.metric_edits import load_results
     from dfrmot_jax.metrics.kitti import read_tracker_files
 
     seqs, split, *_ = dfr2023

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dfrmot_jax import kalman
+from dfrmot_jax.core import filters as kalman
 
 F = np.array([[1, 1, 0.5], [0, 1, 1], [0, 0, 1]], dtype=np.float64)
 H = np.array([[1.0, 0.0, 0.0]])
@@ -14,6 +14,17 @@ H = np.array([[1.0, 0.0, 0.0]])
 def _dense(cov6):
     a, b, c, d, e, g = cov6
     return np.array([[a, b, c], [b, d, e], [c, e, g]])
+
+
+def _dense_steady_state(q, r, iters=500):
+    """Gains and predicted covariance by a dense Riccati iteration (independent of kalman.steady_cov)."""
+    Q = q * kalman.Q_JERK
+    P = np.eye(3) * 1e3
+    for _ in range(iters):
+        K = P[:, 0] / (P[0, 0] + r)
+        P = F @ (P - np.outer(K, P[0, :])) @ F.T + Q
+    K = P[:, 0] / (P[0, 0] + r)
+    return np.array([K[0], K[1], K[2] / 2.0]), P
 
 
 def _random_state(rng, k=7):
@@ -74,9 +85,12 @@ def test_fixed_gain_is_the_authors_dt_free_form():
 @pytest.mark.parametrize("q,r", [(1.0, 1.0), (0.1, 1.0), (10.0, 0.5)])
 def test_steady_start_kalman_equals_fixed_gain_on_a_stream(q, r):
     """Born at the steady-state covariance, the Kalman filter is the fixed-gain filter with its gains."""
-    gains, P = kalman.steady_state(q, r)
+    gains, P = _dense_steady_state(q, r)
     np.testing.assert_allclose(np.asarray(kalman.steady_cov(q, r)), [P[0, 0], P[0, 1], P[0, 2], P[1, 1], P[1, 2], P[2, 2]],
                                rtol=1e-9)
+    mine, P2 = kalman.steady_state(q, r)
+    np.testing.assert_allclose(mine, gains, rtol=1e-9)
+    np.testing.assert_allclose(P2, P, rtol=1e-9)
     rng = np.random.default_rng(2)
     zs = np.cumsum(rng.normal(3, 1, 200)) + rng.normal(0, 0.5, 200)
     k = kalman.init(jnp.array([zs[0]]), "kalman", cov0=kalman.steady_cov(q, r))

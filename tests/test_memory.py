@@ -3,7 +3,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dfrmot_jax import memory
+from dfrmot_jax.core import memory
 
 
 @pytest.fixture(autouse=True)

@@ -220,7 +220,7 @@ def test_cli_eval_rejects_unknown_class(kitti_root, tmp_path, capsys):
 def test_two_classes_vs_trackeval(two_class, kitti_root):
     """TrackEval's Kitti2DBox with CLASSES_TO_EVAL = [car, pedestrian] on the merged files (one seqmap)."""
     pytest.importorskip("trackeval")
-    from dfrmot_jax.metrics.trackeval_compat import make_gt_folder, make_tracker_folder, run_trackeval_classes
+    from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, make_tracker_folder, run_trackeval_classes
 
     tmp = two_class["tmp"] / "te"
     gt = prepare_gt(kitti_root, "car", TE_SEQS)

@@ -124,7 +124,7 @@ def test_lenient_rows_like_trackeval(tmp_path, gt0, kitti_root):
     """Rows TrackEval skips before any check (negative ids: any class, any frame) and a duplicate id
     removed by preprocessing must not raise, and must give TrackEval's numbers."""
     pytest.importorskip("trackeval")
-    from dfrmot_jax.metrics.trackeval_compat import make_gt_folder, make_tracker_folder, run_trackeval
+    from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, make_tracker_folder, run_trackeval
 
     text = (_row(0, i=1, box=(296, 160, 452, 288)) + _row(0, i=-1, t="Whatever") + _row(3, i=2)
             + _row(5, i=3) + _row(5, i=3, box=(1000, 10, 1010, 30))

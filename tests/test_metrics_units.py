@@ -9,7 +9,7 @@ from scipy.optimize import linear_sum_assignment
 
 from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, metrics_table, prepare_gt
 from dfrmot_jax.metrics.boxes import columns, gather_iou, pair_ioa, pair_iou
-from dfrmot_jax.metrics.edits import SeqResults, f32, pack_arrays, write_results
+from dfrmot_jax.testing.metric_edits import SeqResults, f32, pack_arrays, write_results
 from dfrmot_jax.metrics.pairs import (assign_frames, enumerate_pairs, nontrivial_segments, numpy_col_sums,
                                       numpy_row_sums, segment_starts)
 
@@ -153,7 +153,7 @@ def _assert_close(te, ours, tag=""):
 def test_random_scenes_vs_trackeval(tmp_path, cls):
     """Dense random scenes (distractors, occlusion, truncation, DontCare, tiny boxes, exact duplicates)."""
     pytest.importorskip("trackeval")
-    from dfrmot_jax.metrics.trackeval_compat import make_gt_folder, run_trackeval
+    from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, run_trackeval
 
     rng = np.random.default_rng(10 if cls == "car" else 11)
     root = tmp_path / "root"
@@ -256,7 +256,7 @@ def test_identity_matching_value_equals_trackeval_formulation():
 
 
 def test_evaluate_arrays_in_worker_processes(kitti_root):
-    from dfrmot_jax.metrics.edits import load_results
+    from dfrmot_jax.testing.metric_edits import load_results
 
     seqs = ["0000", "0003"]
     gt = prepare_gt(kitti_root, "car", seqs)

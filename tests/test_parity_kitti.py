@@ -8,9 +8,9 @@ from dfrmot_jax.api import track
 from dfrmot_jax.cli import main
 from dfrmot_jax.data import load_sequences, pack, sequences_with_class
 from dfrmot_jax.io.kitti import read_tracking_labels
-from dfrmot_jax.kalman import steady_state
+from dfrmot_jax.core.filters import steady_state
 from dfrmot_jax.params import Options, Params, preset, stack_params
-from dfrmot_jax.parity import lane_mismatches, reference_pool, reference_rows
+from dfrmot_jax.testing.parity import lane_mismatches, reference_pool, reference_rows
 from dfrmot_jax.testing import random_options, random_params
 
 REFERENCE = "reference/dfr_fastmot_rrc_pointrcnn"
@@ -47,7 +47,7 @@ def test_dfr2023_authors_columns_are_byte_identical_to_the_published_files(kitti
 
 
 def test_dfr2023_output_scores_the_published_figures_with_trackeval(kitti_root, tmp_path):
-    compat = pytest.importorskip("dfrmot_jax.metrics.trackeval_compat")
+    compat = pytest.importorskip("dfrmot_jax.testing.trackeval_adapter")
     pytest.importorskip("trackeval")
     assert main(["track", "--data", str(kitti_root), "--preset", "dfr2023", "--out", str(tmp_path / "ours")]) == 0
     from dfrmot_jax.io.kitti import sequence_lengths

@@ -5,7 +5,7 @@ import numpy as np
 from dfrmot_jax.data import SequenceDets
 from dfrmot_jax.io.kitti import Calib, Detections2D, Detections3D
 from dfrmot_jax.params import Options, Params
-from dfrmot_jax.reference import greedy_match, iou, track_sequence
+from dfrmot_jax.testing.reference import greedy_match, iou, track_sequence
 
 
 def _seq(frames2, boxes2, scores2, n_frames, frames3=(), boxes3=(), scores3=(), loc3=()):

@@ -5,11 +5,12 @@ import warnings
 import numpy as np
 import pytest
 
-from dfrmot_jax import tracker
+from dfrmot_jax.core import run as tracker
 from dfrmot_jax.api import default_capacity, track
 from dfrmot_jax.data import load_sequences, pack, prepare_frames
 from dfrmot_jax.params import Options, Params, stack_params
-from dfrmot_jax.parity import lane_mismatches, reference_rows
+from dfrmot_jax.testing.recompile import no_recompile
+from dfrmot_jax.testing.parity import lane_mismatches, reference_rows
 from dfrmot_jax.synthetic import make_scene
 from dfrmot_jax.testing import random_params, random_settings
 
@@ -63,11 +64,14 @@ def test_second_call_with_new_values_does_not_recompile(scene):
     frames = prepare_frames(split, Options())
     cap = default_capacity(frames, Params(), Options())
     tracker.run_batch(stack_params([Params(), Params(a_l=5.0)]), frames, Options(), cap)
-    fn = tracker._compiled(Options(), cap, min(2, tracker.device_count()), None, False)
-    before = fn._cache_size()
-    out = tracker.run_batch(stack_params([Params(a_l=3.0, epsilon=5), Params(score_2d=0.7)]), frames, Options(), cap)
-    assert fn._cache_size() == before == 1
+    fn = tracker.compiled(Options(), cap, min(2, tracker.device_count()), None, False)
+    with no_recompile():
+        out = tracker.run_batch(stack_params([Params(a_l=3.0, epsilon=5), Params(score_2d=0.7)]), frames, Options(),
+                                cap)
+    assert fn._cache_size() == 1
     assert out.ids.shape[0] == 2
+    with pytest.raises(AssertionError, match="recompiled"), no_recompile():
+        tracker.run_batch(stack_params([Params(a_l=3.0)] * 2), frames, Options(), cap + 8)
 
 
 CHANGES = {

@@ -26,7 +26,7 @@ Q_JERK = np.array([[1 / 20, 1 / 8, 1 / 6], [1 / 8, 1 / 3, 1 / 2], [1 / 6, 1 / 2,
 
 
 class FilterState(NamedTuple):
-    """p, v, a [..., K]; cov [6, ..., K] (Kalman) or a [0] placeholder (fixed gain)."""
+    """p, v, a [..., K]; cov [6, ..., K] (Kalman) or [0, ..., K] (fixed gain: no covariance)."""
 
     p: jnp.ndarray
     v: jnp.ndarray
@@ -41,7 +41,7 @@ def init(z, kind: str, kf_r=1.0, kf_p0=100.0, cov0=None) -> FilterState:
     """
     z = jnp.asarray(z)
     zero = jnp.zeros_like(z)
-    cov = jnp.zeros((0,), z.dtype)
+    cov = jnp.zeros((0,) + z.shape, z.dtype)
     if kind == "kalman":
         if cov0 is None:
             r = jnp.broadcast_to(jnp.asarray(kf_r, z.dtype), z.shape)
@@ -114,16 +114,10 @@ def steady_cov(kf_q, kf_r, iters: int = STEADY_ITERS):
 
 
 def steady_state(kf_q: float, kf_r: float, iters: int = STEADY_ITERS) -> tuple[np.ndarray, np.ndarray]:
-    """Steady-state gains (alpha, beta, gamma) and predicted covariance [3, 3] of the Kalman filter.
-
-    Riccati iteration in float64; ``gamma`` is returned in the fixed-gain convention (a += 2 gamma r).
-    """
-    F = np.array([[1, 1, 0.5], [0, 1, 1], [0, 0, 1]], dtype=np.float64)
-    Q = kf_q * Q_JERK
-    P = np.eye(3) * 1e3
-    for _ in range(iters):
-        K = P[:, 0] / (P[0, 0] + kf_r)
-        Pu = P - np.outer(K, P[0, :])
-        P = F @ Pu @ F.T + Q
+    """Steady-state gains (alpha, beta, gamma) and predicted covariance [3, 3] of the Kalman filter
+    (``steady_cov`` in float64); ``gamma`` in the fixed-gain convention (a += 2 gamma r)."""
+    with jax.enable_x64(True):
+        a, b, c, d, e, g = np.asarray(steady_cov(jnp.float64(kf_q), jnp.float64(kf_r), iters))
+    P = np.array([[a, b, c], [b, d, e], [c, e, g]])
     K = P[:, 0] / (P[0, 0] + kf_r)
     return np.array([K[0], K[1], K[2] / 2.0]), P

@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from .kalman import FilterState
+from .filters import FilterState
 
 #: coordinates per track: 2D top-left (x, y), bottom-right (x, y); 3D min corner (3), max corner (3)
 N_COORDS = 10
@@ -23,7 +23,7 @@ class Memory(NamedTuple):
 
     alive [N] bool; tid [N] int32 track id; age [N] int32 frames since the last match;
     hits [N] int32 matches including the birth; has3d [N] bool (3D filter started);
-    filt: FilterState with p, v, a [N, 10] float64 (cov [6, N, 10] for the Kalman filter);
+    filt: FilterState with p, v, a [N, 10] float64 (cov [6, N, 10] for the Kalman filter, [0, N, 10] else);
     next_id [] int32; overflow [] int32 births dropped for want of a slot (cumulative);
     peak [] int32 largest number of live tracks seen (capacity headroom);
     cov0 [6] float64 Kalman covariance of a new track with the "steady" start (else unused);
@@ -47,7 +47,7 @@ class Memory(NamedTuple):
 def empty(capacity: int, kalman: bool) -> Memory:
     n = capacity
     zeros = jnp.zeros((n, N_COORDS), jnp.float64)
-    cov = jnp.zeros((6, n, N_COORDS), jnp.float64) if kalman else jnp.zeros((0,), jnp.float64)
+    cov = jnp.zeros((6 if kalman else 0, n, N_COORDS), jnp.float64)
     return Memory(
         alive=jnp.zeros(n, bool), tid=jnp.zeros(n, jnp.int32), age=jnp.zeros(n, jnp.int32),
         hits=jnp.zeros(n, jnp.int32), has3d=jnp.zeros(n, bool), filt=FilterState(zeros, zeros, zeros, cov),

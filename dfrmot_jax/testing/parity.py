@@ -8,11 +8,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .api import TrackResult
-from .data import SequenceDets, Split
-from .params import Options, Params
+from ..api import TrackResult
+from ..data import SequenceDets, Split
+from ..params import Options, Params
 from .reference import track_sequence
-from .results import lane_rows
+from ..results import lane_rows
 
 
 def reference_pool(workers: int = 2) -> ProcessPoolExecutor:

@@ -1,0 +1,180 @@
+"""One frame of the DFR-FastMOT tracker for one setting, as a pure function: ``init`` and ``step``.
+
+``step(params, mem, frame) -> (mem, out)``: de-duplicate the frame's 2D and 3D detections into
+objects, associate them with the tracks' predictions, update memory and filters, write, age.
+``Frames`` are the per-frame inputs (leading axis T when scanned, ``core.run``). ``Options`` are static.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..params import Options, Params
+from . import associate, boxes, filters, memory
+from .memory import Memory
+
+
+class Frames(NamedTuple):
+    """Per-frame device inputs of the tracker (float32 / bool), leading axis T.
+
+    reset [T]; box2 [T, M2, 4] and box3 [T, M3, 4] (x1, y1, x2, y2; integer-valued when truncating;
+    box3 is the 3D detection's image box chosen by ``Options.merge``); score2 [T, M2]; score3 [T, M3];
+    valid2 [T, M2]; valid3 [T, M3]; lo3, hi3 [T, M3, 3]: the internal 3D box corners (``Options.centroid``).
+    """
+
+    reset: np.ndarray
+    box2: np.ndarray
+    score2: np.ndarray
+    valid2: np.ndarray
+    box3: np.ndarray
+    score3: np.ndarray
+    valid3: np.ndarray
+    lo3: np.ndarray
+    hi3: np.ndarray
+
+
+class StepOutput(NamedTuple):
+    """One frame's output of one lane.
+
+    ids [K] int32: track id written in each output slot, -1 = nothing written. With output
+    "detections" the slots are the frame's objects (2D detection slots, then 3D detection slots);
+    with "filtered" they are the N track slots.
+    boxes [K, 4] float32 the written boxes (``core.run`` keeps them only where a lane's boxes differ
+    from the data's, ``data.object_boxes``: [K, 0] otherwise).
+    dropped [] int32 births lost for want of a track slot in this frame.
+    With ``detail`` (result files): src3 [K] int32 the 3D detection whose values a row carries, as a
+    global index ``t * M3 + slot`` into the split's [T, M3] arrays (-1 none): the object's own, or
+    for a 2D-only object the last one its track took (the C++'s stale 3D box); own3 [K] bool it is
+    the object's own; box3 [K, 6] float32 (output "filtered") the track's filtered 3D corners
+    (min, max), meaningful where src3 >= 0. Without: [0], [0], [0, 6].
+    """
+
+    ids: jnp.ndarray
+    boxes: jnp.ndarray
+    dropped: jnp.ndarray
+    src3: jnp.ndarray
+    own3: jnp.ndarray
+    box3: jnp.ndarray
+
+
+def init(options: Options, capacity: int, params: Params | None = None) -> Memory:
+    """Empty memory; with the steady Kalman start, its covariance is solved here once per lane."""
+    mem = memory.empty(capacity, options.filter == "kalman")
+    if options.filter == "kalman" and options.kalman_init == "steady":
+        mem = mem._replace(cov0=filters.steady_cov(jnp.asarray(params.kf_q, jnp.float64),
+                                                  jnp.asarray(params.kf_r, jnp.float64)))
+    return mem
+
+
+def _f64(params: Params) -> Params:
+    return Params(*(v.astype(jnp.float64) if jnp.issubdtype(v.dtype, jnp.floating) else v for v in params))
+
+
+def _objects(params: Params, frame: Frames, options: Options):
+    """This frame's objects: box [O, 4], z3 [O, 6] (3D min, max corners), has3d [O], valid [O],
+    slot3 [O] int32 the 3D detection slot of each object (meaningful where has3d).
+
+    Scores are compared in float32 (as parsed); boxes and corners come out in float64.
+    """
+    keep2 = frame.valid2 & (frame.score2 >= params.score_2d.astype(jnp.float32))
+    keep3 = frame.valid3 & (frame.score3 >= params.score_3d.astype(jnp.float32))
+    box2 = frame.box2.astype(jnp.float64)
+    box3 = frame.box3.astype(jnp.float64)
+    z3 = jnp.concatenate([frame.lo3, frame.hi3], axis=-1).astype(jnp.float64)
+    slots3 = jnp.arange(keep3.shape[0], dtype=jnp.int32)
+    if options.modality == "2d":
+        return (box2, jnp.zeros((keep2.shape[0], 6), jnp.float64), jnp.zeros_like(keep2), keep2,
+                jnp.zeros(keep2.shape, jnp.int32))
+    if options.modality == "3d":
+        return box3, z3, keep3, keep3, slots3
+    pair = associate.greedy_max(boxes.iou_matrix(box2, box3),
+                                keep2[:, None] & keep3[None, :], params.merge_iou)
+    paired2 = jnp.any(pair, axis=1)
+    lone3 = keep3 & ~jnp.any(pair, axis=0)
+    z3_of_2 = memory.gather_rows(pair.T, z3)                       # [M2, 6], zeros where unpaired
+    return (jnp.concatenate([box2, box3]), jnp.concatenate([z3_of_2, z3]),
+            jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]),
+            jnp.concatenate([memory.gather_rows(pair.T, slots3), slots3]))
+
+
+def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: bool = False, t=0):
+    """One frame: de-duplicate, associate, update memory and filters, write, age. Returns (mem, out).
+
+    detail (static): also the 3D detection each row carries (``StepOutput.src3``); t: the frame's
+    global index. Runs under ``jax.enable_x64``: arithmetic and parameters in float64, scores
+    compared in float32.
+    """
+    kind = options.filter
+    mem = memory.reset(mem, frame.reset)
+    box, z3, has3, valid, slot3 = _objects(params, frame, options)
+    params = _f64(params)
+
+    # Association on the tracks' predictions.
+    f = mem.filt
+    iou = boxes.iou_matrix(box, boxes.predicted_boxes(f.p[:, :4], options.truncate))
+    dist = associate.centroid_distance(z3, f.p[:, 4:])
+    m_f = associate.fused_affinity(iou, mem.age <= params.epsilon, dist, has3[:, None] & mem.has3d[None, :],
+                                   params.a_c, params.a_l, params.alpha_c)
+    match = associate.greedy_min(-m_f, valid[:, None] & mem.alive[None, :], mem.tid, -params.a_f)
+    matched_obj = jnp.any(match, axis=0)
+    newborn = valid & ~jnp.any(match, axis=1)
+    birth, rank, dropped = memory.births(mem.alive, newborn)
+    assign = match | birth
+    born = jnp.any(birth, axis=0)
+    observed = matched_obj | born
+
+    # Measurements moved into the slots; filter modes per slot.
+    z = memory.gather_rows(assign, jnp.concatenate([box, z3], axis=1))        # [N, 10]
+    z_has3 = memory.gather_rows(assign, has3)                                    # [N]
+    had3 = mem.has3d & ~born
+    start3 = z_has3 & ~had3                                                      # first 3D observation
+    upd2 = matched_obj
+    upd3 = matched_obj & z_has3 & had3
+    pred3 = had3 & mem.alive
+    is2d = jnp.arange(memory.N_COORDS) < 4
+    do_update = jnp.where(is2d[None, :], upd2[:, None], upd3[:, None])
+    do_init = jnp.where(is2d[None, :], born[:, None], (born | matched_obj)[:, None] & start3[:, None])
+    do_predict = jnp.where(is2d[None, :], (mem.alive & ~born)[:, None], pred3[:, None])
+
+    gains = (params.gain_alpha, params.gain_beta, params.gain_gamma)
+    updated = filters.select(do_update, filters.update(f, z, kind, gains, params.kf_r), f)
+    predicted = filters.select(do_predict, filters.predict(updated, kind, params.kf_q), updated)
+    cov0 = mem.cov0 if kind == "kalman" and options.kalman_init == "steady" else None
+    filt = filters.select(do_init, filters.init(z, kind, params.kf_r, params.kf_p0, cov0), predicted)
+
+    born_id = mem.next_id + rank                                                  # [O]
+    tid = jnp.where(born, memory.gather_rows(birth, born_id), mem.tid)
+    hits = jnp.where(born, 1, mem.hits + matched_obj.astype(jnp.int32))
+    age = jnp.where(observed, 0, mem.age)
+    alive = mem.alive | born
+    last3 = mem.last3
+    if detail:
+        z_src3 = memory.gather_rows(assign, t * frame.valid3.shape[0] + slot3)
+        last3 = jnp.where(observed & z_has3, z_src3, jnp.where(born, -1, last3))
+    mem = Memory(alive=alive, tid=tid, age=age, hits=hits, has3d=had3 | z_has3, filt=filt,
+                 next_id=mem.next_id + jnp.sum(newborn, dtype=jnp.int32), overflow=mem.overflow + dropped,
+                 peak=jnp.maximum(mem.peak, jnp.sum(alive, dtype=jnp.int32)), cov0=mem.cov0, last3=last3)
+    src3, own3, box3 = jnp.zeros((0,), jnp.int32), jnp.zeros((0,), bool), jnp.zeros((0, 6), jnp.float32)
+
+    writable = hits >= params.min_hits
+    if options.output == "detections":
+        obj_id = jnp.sum(jnp.where(match, tid[None, :], 0), axis=1, dtype=jnp.int32) + jnp.where(newborn, born_id, 0)
+        obj_hits = (jnp.sum(jnp.where(assign, hits[None, :], 0), axis=1, dtype=jnp.int32)
+                    + jnp.where(newborn & ~jnp.any(birth, 1), 1, 0))
+        ids = jnp.where(valid & (obj_hits >= params.min_hits), obj_id, -1)
+        if detail:
+            src3 = jnp.where(jnp.any(assign, axis=1), jnp.sum(jnp.where(assign, last3[None, :], 0), axis=1), -1)
+            own3 = has3 & valid
+        out = StepOutput(ids, box.astype(jnp.float32), dropped, src3, own3, box3)
+    else:
+        shown = jnp.where(born[:, None], z[:, :4], jnp.where(matched_obj[:, None], updated.p[:, :4], f.p[:, :4]))
+        shown = boxes.predicted_boxes(shown, False)  # filter corners may cross: x2 = x1 + |x2 - x1|
+        ids = jnp.where(alive & writable & (age <= params.keep_lost), tid, -1)
+        if detail:
+            src3, own3 = last3, observed & z_has3
+            box3 = jnp.where(start3[:, None], z[:, 4:], updated.p[:, 4:]).astype(jnp.float32)
+        out = StepOutput(ids, shown.astype(jnp.float32), dropped, src3, own3, box3)
+    return memory.end_of_frame(mem, params.epsilon), out
