@@ -14,6 +14,10 @@ The pipeline::
         ground truth reused, identical tracker outputs scored once) ─▶ DIR/chunks/<id>.parquet
         written atomically (tmp file + os.replace); a rerun skips chunks whose file exists
     table ─▶ one row per (config, sequence) + one ``COMBINED`` row per config
+    several classes (data.class = ["car", "pedestrian"]) ─▶ every config run per class, each class
+        on its own split (its chunks, its compilation); per-class axes ``pedestrian.a_l`` are
+        columns of the config table (in config_hash only where they differ from the plain value);
+        rows carry ``class``, plus one class-average row per config (class "average")
     report() ─▶ best configs by an objective, the baseline beside them, sensitivity per axis,
         k-fold cross-validation over sequences (best chosen on training folds, scored held out);
         with distortion: the objective per level and kind (mean ± SE over seeds) per setting, and
@@ -24,6 +28,7 @@ See ``sweeps/README.md`` for the file format. Python use::
     import dfrmot_jax as dm
     df = dm.sweep("sweeps/kitti_dfr_grid.toml", out="results/grid")     # or a dict spec
     rep = dm.sweep_report(df, objective="HOTA", folds=5); print(rep.text)
+    rep = dm.sweep_report(df, cls="pedestrian")          # several classes: one class or "average"
     from dfrmot_jax.sweep import robustness_contrast, robustness_curves     # distortion sweeps
     curves = robustness_curves(df, ("HOTA", "AssA", "IDSW"))                # per setting, kind, level
     gaps = robustness_contrast(df, "epsilon", high=[30, 60], low=[1, 2, 3], by=["filter"])
@@ -51,14 +56,15 @@ import numpy as np
 import pandas as pd
 
 from . import distort
-from .params import INT_PARAMS, PARAM_RANGES, PRESETS, Options, Params
+from .params import CLASSES, INT_PARAMS, PARAM_RANGES, PRESETS, Options, Params, preset
 
 __all__ = [
     "SweepConfigError", "SweepSpec", "DataSettings", "Axis", "load_spec", "parse_spec", "expand", "config_hash",
     "resolve_data", "plan", "sweep", "load_results", "sweep_report", "SweepReport", "cross_validate",
     "make_folds", "sensitivity", "combine_sequences", "PARAM_NAMES", "OPTION_NAMES", "EXTRA_AXES",
     "OBJECTIVES", "MINIMISE", "DISTORTION_AXES", "DistortionAxes", "robustness_curves", "robustness_contrast",
-    "robustness_summary", "Contrast", "n_settings", "setting_axes",
+    "robustness_summary", "Contrast", "n_settings", "setting_axes", "resolve_data_all", "class_view",
+    "class_columns", "AVERAGE",
 ]
 
 PARAM_NAMES: tuple[str, ...] = Params._fields
@@ -95,7 +101,11 @@ RAW_FIELDS = ("HOTA_TP", "HOTA_FN", "HOTA_FP", "AssA", "AssRe", "AssPr", "LocA")
 TOP_KEYS = ("name", "description", "chunk", "seed", "samples", "data", "baseline", "params", "options", "variants",
             "distortion", "report")
 DATA_KEYS = ("root", "det2d", "det3d", "class", "sequences")
-REPORT_KEYS = ("objective", "folds", "top", "contrast")
+BASELINE_KEYS = ("preset", "class")
+REPORT_KEYS = ("objective", "folds", "top", "contrast", "class")
+#: The ``class`` of the class-average rows of a sweep over several classes (one per config,
+#: ``sequence = COMBINED``) and the report's name for ranking on them.
+AVERAGE = "average"
 VARIANT_KEYS = ("name", "params", "options")
 
 
@@ -116,16 +126,25 @@ class SweepConfigError(ValueError):
 @dataclass(frozen=True)
 class Axis:
     """One swept name: ``kind`` 'grid' (``values`` crossed with the other grid axes) or a random
-    distribution 'uniform' | 'loguniform' | 'randint' (``values`` = (low, high)) | 'choice'."""
+    distribution 'uniform' | 'loguniform' | 'randint' (``values`` = (low, high)) | 'choice'.
+
+    ``cls``: a per-class parameter axis (``[params] pedestrian.a_l = [...]``): ``name`` is then
+    ``"pedestrian.a_l"`` (its column in the config table) and the axis moves that class only."""
 
     name: str
     kind: str
     values: tuple
     key: str
+    cls: str | None = None
 
     @property
     def is_grid(self) -> bool:
         return self.kind == "grid"
+
+    @property
+    def param(self) -> str:
+        """The parameter or option name (without the class)."""
+        return self.name.split(".", 1)[1] if self.cls else self.name
 
 
 @dataclass(frozen=True)
@@ -231,7 +250,15 @@ class Contrast:
 
 @dataclass(frozen=True)
 class SweepSpec:
-    """A parsed sweep file. ``data_root`` None = ``$DFRMOT_DATA`` / the default root."""
+    """A parsed sweep file. ``data_root`` None = ``$DFRMOT_DATA`` / the default root.
+
+    ``classes``: the classes every config is run for (``data.class``, a name or a list; ``cls``
+    is the first). The baseline of class ``k`` is ``params.preset(baseline, baseline_class or k)``.
+    """
+
+    def __post_init__(self):
+        if not self.classes:
+            object.__setattr__(self, "classes", (self.cls,))
 
     name: str
     description: str = ""
@@ -245,6 +272,9 @@ class SweepSpec:
     sequences: tuple[str, ...] | None = None
     baseline: str = "dfr2023"
     variants: tuple[Variant, ...] = ()
+    classes: tuple[str, ...] = ()               # data.class as a tuple (``cls`` is the first); () = (cls,)
+    baseline_class: str | None = None           # [baseline] class: every class's baseline is preset(baseline, it)
+    report_class: str | None = None             # report.class: a class or "average" (None: see report_class_of)
     objective: str = "HOTA"
     folds: int | None = None
     top: int = 10
@@ -411,13 +441,47 @@ def _option_axis(name: str, spec, key: str, source) -> Axis:
     return Axis(name, "grid", vals, key)
 
 
-def _axes(table, kind: str, prefix: str, source) -> tuple[Axis, ...]:
+def _class_axis(cls: str, name: str, spec, key: str, source, classes: Sequence[str]) -> Axis:
+    """A per-class parameter axis ``<cls>.<name>`` (``key`` names it in errors)."""
+    if cls not in CLASSES:
+        raise _err(key.rsplit(".", 1)[0] if "." in key else key,
+                   f"{cls!r} is neither a parameter nor a class; parameters are {list(PARAM_NAMES)}, "
+                   f"classes {list(CLASSES)} (per-class axes: <class>.<parameter>)", source)
+    if cls not in classes:
+        raise _err(key, f"class {cls!r} is not swept (data.class = {list(classes)})", source)
+    if name in OPTION_NAMES and name not in PARAM_NAMES:
+        raise _err(key, "static options apply to every class; per-class axes are for parameters", source)
+    axis = _param_axis(name, spec, key, source)
+    return replace(axis, name=f"{cls}.{name}", cls=cls)
+
+
+def _axes(table, kind: str, prefix: str, source, classes: Sequence[str] = ("car",)) -> tuple[Axis, ...]:
     if table is None:
         return ()
     if not isinstance(table, Mapping):
         raise _err(prefix, f"expected a table, got {type(table).__name__}", source)
-    make = _param_axis if kind == "params" else _option_axis
-    return tuple(make(k, v, f"{prefix}.{k}", source) for k, v in table.items())
+    if kind != "params":
+        for k in table:
+            if k in CLASSES or "." in k:
+                raise _err(f"{prefix}.{k}", "static options apply to every class: per-class axes "
+                                            "(<class>.<name>) are for [params]", source)
+        return tuple(_option_axis(k, v, f"{prefix}.{k}", source) for k, v in table.items())
+    out = []
+    for k, v in table.items():
+        if "." in k:                                   # a quoted key "pedestrian.a_l"
+            cls, name = k.split(".", 1)
+            out.append(_class_axis(cls, name, v, f"{prefix}.{k}", source, classes))
+        elif k not in PARAM_NAMES and k not in OPTION_NAMES and isinstance(v, Mapping) and \
+                not set(v) & set(GRID_KINDS + RANDOM_KINDS):      # pedestrian.a_l = ... / [params.pedestrian]
+            if k not in CLASSES:
+                raise _err(f"{prefix}.{k}", f"unknown parameter or class; parameters are {list(PARAM_NAMES)}, "
+                                            f"classes {list(CLASSES)} (per-class axes: <class>.<parameter>)",
+                           source)
+            for name, spec in v.items():
+                out.append(_class_axis(k, name, spec, f"{prefix}.{k}.{name}", source, classes))
+        else:
+            out.append(_param_axis(k, v, f"{prefix}.{k}", source))
+    return tuple(out)
 
 
 def _positive_int(doc, key, default, source, minimum=1, prefix=""):
@@ -602,6 +666,24 @@ def _parse_contrast(c, source) -> Contrast | None:
     return Contrast(axis, groups[0], groups[1], tuple(by))
 
 
+def _parse_classes(v, source) -> tuple[str, ...]:
+    """``data.class``: a class name or a non-empty list of distinct class names."""
+    if isinstance(v, str):
+        items = [("data.class", v)]
+    elif isinstance(v, list) and v:
+        items = [(f"data.class[{i}]", c) for i, c in enumerate(v)]
+    else:
+        raise _err("data.class", f"{v!r}: expected a class name or a non-empty list of classes {list(CLASSES)}",
+                   source)
+    for key, c in items:
+        if c not in CLASSES:
+            raise _err(key, f"{c!r} is not one of {list(CLASSES)}", source)
+    out = tuple(c for _, c in items)
+    if len(set(out)) != len(out):
+        raise _err("data.class", "a class is listed twice", source)
+    return out
+
+
 def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     """Validate a sweep given as a dict (the parsed TOML); raises :class:`SweepConfigError`."""
     _check_keys(doc, TOP_KEYS, "", source)
@@ -615,20 +697,24 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
 
     data = doc.get("data", {})
     _check_keys(data, DATA_KEYS, "data.", source)
-    for k in ("root", "det2d", "det3d", "class"):
+    for k in ("root", "det2d", "det3d"):
         if k in data and (not isinstance(data[k], str) or not data[k]):
             raise _err(f"data.{k}", f"{data[k]!r}: expected a non-empty string", source)
-    cls = data.get("class", "car")
-    if cls not in ("car", "pedestrian"):
-        raise _err("data.class", f"{cls!r} is not one of ['car', 'pedestrian']", source)
+    classes = _parse_classes(data.get("class", "car"), source)
+    cls = classes[0]
     root = data.get("root")
     if root is not None and source is not None and not Path(root).expanduser().is_absolute():
         root = str((Path(source).parent / Path(root).expanduser()).resolve())
     sequences = _parse_sequences(data.get("sequences"), "data.sequences", source)
 
     base = doc.get("baseline", "dfr2023")
+    base_cls = None
     if isinstance(base, Mapping):
-        _check_keys(base, ("preset",), "baseline.", source)
+        _check_keys(base, BASELINE_KEYS, "baseline.", source)
+        base_cls = base.get("class")
+        if base_cls is not None and base_cls not in CLASSES:
+            raise _err("baseline.class", f"{base_cls!r}: expected one of {list(CLASSES)} (every class's "
+                                         f"baseline is the preset as tuned for this class)", source)
         base = base.get("preset", "dfr2023")
         bkey = "baseline.preset"
     else:
@@ -636,7 +722,7 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     if base not in PRESETS:
         raise _err(bkey, f"unknown preset {base!r}; expected one of {sorted(PRESETS)}", source)
 
-    params = _axes(doc.get("params"), "params", "params", source)
+    params = _axes(doc.get("params"), "params", "params", source, classes)
     options = _axes(doc.get("options"), "options", "options", source)
     variants_doc = doc.get("variants")
     variants = []
@@ -647,7 +733,7 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
             raise _err("variants", "expected a non-empty array of tables ([[variants]])", source)
         for i, v in enumerate(variants_doc):
             _check_keys(v, VARIANT_KEYS, f"variants[{i}].", source)
-            vp = _axes(v.get("params"), "params", f"variants[{i}].params", source)
+            vp = _axes(v.get("params"), "params", f"variants[{i}].params", source, classes)
             vo = _axes(v.get("options"), "options", f"variants[{i}].options", source)
             over_p = {a.name for a in vp}
             over_o = {a.name for a in vo}
@@ -663,13 +749,17 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     folds = _positive_int(rep, "folds", None, source, minimum=2)
     top = _positive_int(rep, "top", 10, source)
     contrast = _parse_contrast(rep.get("contrast"), source)
+    report_class = rep.get("class")
+    if report_class is not None and report_class not in classes + (AVERAGE,):
+        raise _err("report.class", f"{report_class!r}: expected one of the sweep's classes {list(classes)} or "
+                                   f"{AVERAGE!r}", source)
     distortion = _parse_distortion(doc.get("distortion"), source)
 
     spec = SweepSpec(name=name, description=str(desc), chunk=chunk, seed=seed, samples=samples, data_root=root,
                      det2d=data.get("det2d", "rrc"), det3d=data.get("det3d", "pointrcnn"), cls=cls,
                      sequences=sequences, baseline=base, variants=tuple(variants), objective=objective,
                      folds=folds, top=top, distortion=distortion, contrast=contrast, source=source,
-                     raw=dict(doc))
+                     raw=dict(doc), classes=classes, baseline_class=base_cls, report_class=report_class)
     for v in spec.variants:
         if samples > 1 and all(a.is_grid for a in v.params):
             raise _err("samples", f"samples = {samples} repeats the grid with random parameters redrawn, but "
@@ -703,15 +793,47 @@ def _canon(name: str, v):
     return str(v)
 
 
+def _split_class_column(name: str) -> tuple[str, str] | None:
+    """``"pedestrian.a_l"`` -> ("pedestrian", "a_l"); None for any other column."""
+    if not isinstance(name, str) or "." not in name:
+        return None
+    cls, param = name.split(".", 1)
+    return (cls, param) if cls in CLASSES and param in PARAM_NAMES else None
+
+
+def class_columns(columns) -> list[str]:
+    """The per-class parameter columns (``<class>.<parameter>``) among ``columns``, in their order."""
+    return [c for c in columns if _split_class_column(c) is not None]
+
+
+def _class_extra(row: Mapping[str, Any]) -> dict:
+    """{class: {parameter: canonical value}} of the row's class columns that differ from its plain ones."""
+    out: dict[str, dict] = {}
+    for col in row:
+        cp = _split_class_column(col)
+        if cp is None:
+            continue
+        cls, p = cp
+        v = _canon(p, row[col])
+        if v != _canon(p, row[p]):
+            out.setdefault(cls, {})[p] = v
+    return out
+
+
 def config_hash(row: Mapping[str, Any], settings: Mapping[str, Any] | None = None) -> str:
     """Stable 16-hex-digit hash of a config: every parameter and option (+ extra axes off their
     default, such as the distortion axes; + ``settings``, sweep-wide values off their defaults that
-    change this row, e.g. a distortion lane's burst start rate)."""
+    change this row, e.g. a distortion lane's burst start rate; + a sweep over several classes' per-class
+    values, columns ``<class>.<parameter>``, where they differ from the plain column: a row without
+    such a difference hashes exactly as before)."""
     key = {"params": {n: _canon(n, row[n]) for n in PARAM_NAMES},
            "options": {n: _canon(n, row[n]) for n in OPTION_NAMES}}
     extra = {n: _canon(n, row[n]) for n, d in _extra_axes().items() if n in row and row[n] != d}
     if settings:
         extra["settings"] = dict(settings)
+    classes = _class_extra(row)
+    if classes:
+        extra["classes"] = classes
     if extra:
         key["extra"] = extra
     text = json.dumps(key, sort_keys=True, separators=(",", ":"))
@@ -749,27 +871,46 @@ def expand(spec) -> pd.DataFrame:
     """
     spec = _as_spec(spec)
     src = spec.source
-    bparams, boptions = PRESETS[spec.baseline]
-    base_row = {**bparams._asdict(), **boptions._asdict()}
+    single = len(spec.classes) == 1
+    base_row, class_base = _baseline_rows(spec)
+    # per-class columns: class defaults off the plain baseline, and every per-class axis
+    explicit = [a.name for v in spec.variants for a in v.params if a.cls] if not single else []
+    derived = [f"{k}.{p}" for k, b in class_base.items() for p in PARAM_NAMES
+               if _canon(p, b[p]) != _canon(p, base_row[p])]
+    ccols = [f"{k}.{p}" for k in spec.classes for p in PARAM_NAMES if f"{k}.{p}" in set(explicit + derived)]
     rng = np.random.default_rng(spec.seed)
-    rows: list[dict] = [{"variant": "baseline", "baseline": True, **base_row}]
+    first = {**base_row, **{c: class_base[_split_class_column(c)[0]][_split_class_column(c)[1]] for c in ccols}}
+    rows: list[dict] = [{"variant": "baseline", "baseline": True, **first}]
     for v in spec.variants:
         grid_axes = [a for a in v.params if a.is_grid] + list(v.options)
         rand_axes = [a for a in v.params if not a.is_grid]
+        plain_set = {a.name for a in v.params if not a.cls}
         combos = list(itertools.product(*(a.values for a in grid_axes)))
         n = len(combos) * spec.samples
         draws = {a.name: _draw(a, rng, n) for a in rand_axes}
         i = 0
         for _ in range(spec.samples):
             for combo in combos:
+                vals = {a.name: val for a, val in zip(grid_axes, combo)}
+                vals.update({name: d[i] for name, d in draws.items()})
                 row = {"variant": v.name, "baseline": False, **base_row}
-                row.update({a.name: val for a, val in zip(grid_axes, combo)})
-                row.update({name: d[i] for name, d in draws.items()})
+                row.update({k: x for k, x in vals.items() if _split_class_column(k) is None})
+                if single:           # the one class's per-class axes are its parameters
+                    row.update({_split_class_column(k)[1]: x for k, x in vals.items()
+                                if _split_class_column(k) is not None})
+                for c in ccols:      # precedence: per-class axis > plain axis > the class's baseline
+                    k, p = _split_class_column(c)
+                    row[c] = vals[c] if c in vals else row[p] if p in plain_set else class_base[k][p]
                 rows.append(row)
                 i += 1
-    table = pd.DataFrame(rows, columns=["variant", "baseline"] + list(PARAM_NAMES) + list(OPTION_NAMES))
-    for n in PARAM_NAMES:
-        table[n] = table[n].astype("int64" if n in INT_PARAMS else "float64")
+    table = pd.DataFrame(rows, columns=["variant", "baseline"] + list(PARAM_NAMES) + ccols + list(OPTION_NAMES))
+    for c in ccols:          # a class default that no row moves off the plain value says nothing
+        k, p = _split_class_column(c)
+        if c not in explicit and all(_canon(p, x) == _canon(p, y) for x, y in zip(table[c], table[p])):
+            table = table.drop(columns=[c])
+    for n in list(PARAM_NAMES) + class_columns(table.columns):
+        t = _split_class_column(n)[1] if _split_class_column(n) else n
+        table[n] = table[n].astype("int64" if t in INT_PARAMS else "float64")
     for n in OPTION_NAMES:
         d = Options._field_defaults[n]
         table[n] = table[n].astype(bool if isinstance(d, bool) else "int64" if isinstance(d, int) else object)
@@ -782,13 +923,30 @@ def expand(spec) -> pd.DataFrame:
     if len(table) < 2:
         raise _err("params", "the sweep has no config besides the baseline: add parameters or options to sweep",
                    src)
-    bad = table[(table["keep_lost"] > 0) & (table["output"] == "detections")]
-    if len(bad):
+    for kl in ["keep_lost"] + [c for c in class_columns(table.columns) if c.endswith(".keep_lost")]:
+        bad = table[(table[kl] > 0) & (table["output"] == "detections")]
+        if not len(bad):
+            continue
         r = bad.iloc[0]
-        raise _err("params.keep_lost", f"keep_lost = {r['keep_lost']} writes lost tracks' predicted boxes and needs "
+        raise _err(f"params.{kl}", f"{kl} = {r[kl]} writes lost tracks' predicted boxes and needs "
                                        f"output = \"filtered\" (variant {r['variant']!r} pairs it with output = "
                                        f"\"detections\"); use [[variants]] to give keep_lost its own output", src)
     return table
+
+
+def _baseline_rows(spec: SweepSpec) -> tuple[dict, dict[str, dict]]:
+    """(the plain baseline row: parameters and options, {class: its baseline parameters}).
+
+    One class: the plain row is ``preset(baseline, baseline_class or the class)`` and there are no
+    per-class values. Several: the plain row is the bare preset (``PRESETS[baseline]``; with
+    ``[baseline] class``, ``preset(baseline, that class)``), and class ``k``'s baseline is
+    ``preset(baseline, baseline_class or k)``."""
+    if len(spec.classes) == 1:
+        p, o = preset(spec.baseline, spec.baseline_class or spec.classes[0])
+        return {**p._asdict(), **o._asdict()}, {}
+    p, o = preset(spec.baseline, spec.baseline_class) if spec.baseline_class else PRESETS[spec.baseline]
+    per = {k: preset(spec.baseline, spec.baseline_class or k)[0]._asdict() for k in spec.classes}
+    return {**p._asdict(), **o._asdict()}, per
 
 
 def _cross_distortion(table: pd.DataFrame, dist: DistortionAxes) -> pd.DataFrame:
@@ -816,13 +974,27 @@ def _cross_distortion(table: pd.DataFrame, dist: DistortionAxes) -> pd.DataFrame
     return out.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
 
 
-def resolve_data(spec, data_root=None) -> DataSettings:
-    """Resolve and check the data settings (root, detectors, class, sequences) before any work."""
+def resolve_data_all(spec, data_root=None) -> tuple[DataSettings, ...]:
+    """The data settings of every class of the sweep (``data.class`` order), each checked before any
+    work: each class has its own split (the sequences whose ground truth has the class, or
+    ``data.sequences``)."""
+    spec = _as_spec(spec)
+    return tuple(resolve_data(spec, data_root, cls=c) for c in spec.classes)
+
+
+def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
+    """Resolve and check the data settings (root, detectors, class, sequences) before any work.
+
+    ``cls``: which of the sweep's classes (default: the first; :func:`resolve_data_all` gives all)."""
     from .data import detection_dir, sequences_with_class
     from .io.kitti import KittiFormatError, sequence_lengths
     from .paths import default_data_root
 
     spec = _as_spec(spec)
+    if cls is not None:
+        if cls not in spec.classes:
+            raise ValueError(f"class {cls!r} is not one of the sweep's classes {list(spec.classes)}")
+        spec = replace(spec, cls=cls)
     src = spec.source
     root = Path(data_root if data_root is not None else (spec.data_root or default_data_root())).expanduser()
     if not (root / "label_02").is_dir():
@@ -854,6 +1026,7 @@ class Chunk:
     group: int
     options: Options
     configs: tuple[int, ...]
+    cls: str = "car"
 
 
 def _row_options(row: Mapping) -> Options:
@@ -868,12 +1041,16 @@ def _groups(table: pd.DataFrame) -> dict[Options, list[int]]:
     return groups
 
 
-def plan(table: pd.DataFrame, data: DataSettings, chunk: int,
+def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk: int,
          distortion: DistortionAxes | None = None) -> list[Chunk]:
     """Group the configs by static options (first appearance order), cut each group into chunks.
 
-    A chunk's id hashes the data settings, its config hashes and (distortion sweeps) the
-    distortion settings (``DistortionAxes.identity``)."""
+    A chunk's id hashes the data settings (its class's), its config hashes and (distortion sweeps)
+    the distortion settings (``DistortionAxes.identity``). ``data``: one class's settings or, for a
+    sweep over several classes, every class's (:func:`resolve_data_all`): the chunks of each class
+    in turn, every config in every class."""
+    if not isinstance(data, DataSettings):
+        return [c for d in data for c in plan(table, d, chunk, distortion)]
     groups = _groups(table)
     hashes = table["config_hash"].to_numpy()
     ident = data.identity()
@@ -885,7 +1062,7 @@ def plan(table: pd.DataFrame, data: DataSettings, chunk: int,
             if distortion is not None:
                 doc["distortion"] = distortion.identity()
             text = json.dumps(doc, sort_keys=True)
-            out.append(Chunk(hashlib.sha1(text.encode()).hexdigest()[:20], g, opts, part))
+            out.append(Chunk(hashlib.sha1(text.encode()).hexdigest()[:20], g, opts, part, data.cls))
     return out
 
 
@@ -1013,11 +1190,14 @@ def _versions() -> tuple[str, str]:
     return __version__, jax.__version__
 
 
-def _params_of(table: pd.DataFrame, rows: Sequence[int]) -> Params:
+def _params_of(table: pd.DataFrame, rows: Sequence[int], cls: str | None = None) -> Params:
+    """The parameters of table rows for class ``cls`` (its ``<cls>.<parameter>`` columns where the
+    table has them, else the plain ones)."""
     from .params import as_arrays
 
     sub = table.iloc[list(rows)]
-    return as_arrays(Params(**{n: sub[n].to_numpy() for n in PARAM_NAMES}))
+    return as_arrays(Params(**{n: sub[f"{cls}.{n}" if f"{cls}.{n}" in sub.columns else n].to_numpy()
+                               for n in PARAM_NAMES}))
 
 
 def _chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, metrics: dict, res, versions,
@@ -1031,7 +1211,7 @@ def _chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, me
     cols["config"] = np.repeat(sub["config"].to_numpy(), R)
     cols["config_hash"] = np.repeat(sub["config_hash"].to_numpy(), R)
     cols["sequence"] = np.tile(np.array(list(seq_names) + [COMBINED], dtype=object), L)
-    for c in ["variant", "baseline"] + list(PARAM_NAMES) + list(OPTION_NAMES) + \
+    for c in ["variant", "baseline"] + list(PARAM_NAMES) + class_columns(sub.columns) + list(OPTION_NAMES) + \
             [n for n in _extra_axes() if n in sub.columns]:
         cols[c] = np.repeat(sub[c].to_numpy(), R)
     seq_sum = summary_columns(metrics["seq"])
@@ -1074,9 +1254,80 @@ def _chunk_path(out: Path, chunk: Chunk) -> Path:
     return out / "chunks" / f"{chunk.id}.parquet"
 
 
-def _finish(df: pd.DataFrame) -> pd.DataFrame:
-    df = df.sort_values("config", kind="mergesort").reset_index(drop=True)
-    return df
+def _finish(df: pd.DataFrame, classes: Sequence[str] = ()) -> pd.DataFrame:
+    """Rows by config (within a config: classes in order, each its sequences then COMBINED); with
+    several classes, each config's class-average row last (:func:`_average_rows`)."""
+    df = df[df["class"] != AVERAGE] if "class" in df.columns else df
+    classes = list(classes) or list(pd.unique(df["class"])) if "class" in df.columns else []
+    if len(classes) > 1:
+        df = pd.concat([df, _average_rows(df, classes)], ignore_index=True)
+        order = {c: i for i, c in enumerate(list(classes) + [AVERAGE])}
+        key = df["class"].map(order).to_numpy()
+        df = df.iloc[np.lexsort((np.arange(len(df)), key, df["config"].to_numpy()))]
+    else:
+        df = df.sort_values("config", kind="mergesort")
+    return df.reset_index(drop=True)
+
+
+def _metric_combiner(col: str) -> str | None:
+    """How the class average treats a metric column: "sum" (counts), "mean" (ratios) or None."""
+    from .metrics.evaluate import CLASS_AVERAGED_FIELDS, CLASS_SUMMED_FIELDS
+
+    if col in CLASS_SUMMED_FIELDS:
+        return "sum"
+    if col in CLASS_AVERAGED_FIELDS:
+        return "mean"
+    return None
+
+
+def _class_average_columns(per_class: Sequence[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """The class average of summary columns (arrays [C] per class, x100 ratios): TrackEval's
+    ``combine_classes_class_averaged`` as :func:`dfrmot_jax.metrics.evaluate.class_average` does it
+    (``CLASS_SUMMED_FIELDS`` summed, ``CLASS_AVERAGED_FIELDS`` averaged), vectorised over configs.
+    A summary column is a linear function of its field (a ratio x100, HOTA's the mean over alphas),
+    so averaging the columns equals the summary of the averaged fields."""
+    out = {}
+    for f in per_class[0]:
+        how = _metric_combiner(f)
+        if how is None or not all(f in p for p in per_class):
+            continue
+        stack = np.stack([np.asarray(p[f]) for p in per_class])
+        out[f] = stack.sum(axis=0) if how == "sum" else stack.astype(np.float64).mean(axis=0)
+    return out
+
+
+def _average_rows(df: pd.DataFrame, classes: Sequence[str]) -> pd.DataFrame:
+    """One ``class = "average"``, ``sequence = COMBINED`` row per config that has every class's
+    COMBINED row: metric columns the class average (:func:`_class_average_columns`), ``frames``
+    and ``overflow`` summed, ``peak_tracks`` the largest, ``chunk`` empty, the per-alpha column
+    the class average of its fields; the config's other columns as in its rows."""
+    comb = df[df["sequence"] == COMBINED]
+    parts = [comb[comb["class"] == c].set_index("config") for c in classes]
+    configs = parts[0].index
+    for p in parts[1:]:
+        configs = configs.intersection(p.index, sort=False)
+    if not len(configs):
+        return df.iloc[:0]
+    parts = [p.loc[configs] for p in parts]
+    out = parts[0].copy()
+    metrics = _class_average_columns([{c: p[c].to_numpy() for c in p.columns if _metric_combiner(c)}
+                                      for p in parts])
+    for f, v in metrics.items():
+        out[f] = v.astype(out[f].dtype) if np.issubdtype(out[f].dtype, np.integer) else v
+    for f, how in (("frames", "sum"), ("overflow", "sum"), ("peak_tracks", "max")):
+        if f in out.columns:
+            stack = np.stack([p[f].to_numpy() for p in parts])
+            out[f] = stack.sum(axis=0) if how == "sum" else stack.max(axis=0)
+    if RAW_COLUMN in out.columns:
+        raws = np.stack([np.stack(p[RAW_COLUMN].to_numpy()) for p in parts])      # [K, C, 7 * 19]
+        raws = raws.reshape(raws.shape[:2] + (len(RAW_FIELDS), -1))
+        avg = np.stack([raws[:, :, i].sum(axis=0) if _metric_combiner(f) == "sum" else raws[:, :, i].mean(axis=0)
+                        for i, f in enumerate(RAW_FIELDS)], axis=1)
+        out[RAW_COLUMN] = list(avg.reshape(len(configs), -1))
+    out["class"] = AVERAGE
+    if "chunk" in out.columns:
+        out["chunk"] = ""
+    return out.reset_index()[df.columns]
 
 
 @dataclass
@@ -1102,6 +1353,11 @@ def sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: in
     (default: 2 for large sweeps, 0 = in-process); ``raw=False`` drops the per-alpha column
     ``_hota_alpha`` (needed for cross-validation).
     Bad files fail before any work with a :class:`SweepConfigError` naming the key.
+
+    Several classes (``data.class = ["car", "pedestrian"]``): every config is run for every class,
+    each on its own split; rows carry their ``class``, and each config gets one more row, ``class =
+    "average"``, ``sequence = COMBINED``: the class average (TrackEval's / KITTI's: ratios averaged
+    over the classes, counts summed; :func:`dfrmot_jax.metrics.evaluate.class_average`).
     """
     spec = _as_spec(spec)
     if chunk is not None:
@@ -1112,11 +1368,13 @@ def sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: in
         spec = replace(spec, folds=int(folds))
     log = log if log is not None else (lambda msg: print(msg, file=sys.stderr, flush=True))
     table = expand(spec)
-    data = resolve_data(spec, data_root)
-    if spec.folds is not None and not 2 <= spec.folds <= len(data.sequences):
-        raise SweepConfigError("folds", f"{spec.folds}: expected 2 .. {len(data.sequences)} (the sequences)",
-                               spec.source)
-    chunks = plan(table, data, spec.chunk, spec.distortion)
+    datas = resolve_data_all(spec, data_root)
+    data = datas[0]
+    n_seq = min(len(d.sequences) for d in datas)
+    if spec.folds is not None and not 2 <= spec.folds <= n_seq:
+        raise SweepConfigError("folds", f"{spec.folds}: expected 2 .. {n_seq} (the sequences"
+                               + (" of the class with the fewest)" if len(datas) > 1 else ")"), spec.source)
+    chunks = plan(table, datas, spec.chunk, spec.distortion)
     outdir = Path(out) if out is not None else None
     if outdir is not None:
         (outdir / "chunks").mkdir(parents=True, exist_ok=True)
@@ -1124,6 +1382,13 @@ def sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: in
                     "data": data.identity(), "lengths": list(data.lengths), "baseline": spec.baseline,
                     "chunk": spec.chunk, "objective": spec.objective, "folds": spec.folds, "top": spec.top,
                     "configs": len(table), "chunks": [c.id for c in chunks], "spec": _jsonable(spec.raw)}
+        if len(datas) > 1:
+            manifest["classes"] = list(spec.classes)
+            manifest["class_data"] = {d.cls: {**d.identity(), "lengths": list(d.lengths)} for d in datas}
+        if spec.baseline_class is not None:
+            manifest["baseline_class"] = spec.baseline_class
+        if spec.report_class is not None:
+            manifest["report_class"] = spec.report_class
         if spec.distortion is not None:
             manifest["distortion"] = {"kinds": {k: list(v) for k, v in spec.distortion.kinds},
                                       "seeds": list(spec.distortion.seeds), **spec.distortion.identity()}
@@ -1132,26 +1397,29 @@ def sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: in
         _atomic_text(json.dumps(manifest, indent=1), outdir / "manifest.json")
         _atomic_parquet(table, outdir / "configs.parquet")
     done = {c.id for c in chunks if outdir is not None and _chunk_path(outdir, c).is_file()}
-    todo = [c for c in chunks if c.id not in done]
-    n_done = sum(len(c.configs) for c in chunks if c.id in done)
-    total_cf = len(table) * sum(data.lengths)
-    n_groups = len({c.group for c in chunks})
-    lanes = ""
-    if spec.distortion is not None:
-        n_set = n_settings(table)
-        lanes = (f" = {n_set:,} settings x {spec.distortion.n_lanes} distortion lanes (kinds "
-                 f"{', '.join(k for k, _ in spec.distortion.kinds)}; {len(spec.distortion.seeds)} seeds)")
-    log(f"sweep {spec.name}: {len(table):,} configs{lanes} ({n_groups} option group(s), {len(chunks)} chunks of <= "
-        f"{spec.chunk}; {len(done)} done) x {len(data.sequences)} sequences / {sum(data.lengths):,} frames = "
-        f"{total_cf / 1e6:.1f} M config-frames" + (f" -> {outdir}" if outdir else ""))
     frames_out: dict[str, pd.DataFrame] = {}
-    if todo:
-        _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, len(table), progress, workers, log)
+    for d in datas:
+        cchunks = [c for c in chunks if c.cls == d.cls]
+        todo = [c for c in cchunks if c.id not in done]
+        n_done = sum(len(c.configs) for c in cchunks if c.id in done)
+        total_cf = len(table) * sum(d.lengths)
+        n_groups = len({c.group for c in cchunks})
+        lanes = ""
+        if spec.distortion is not None:
+            n_set = n_settings(table)
+            lanes = (f" = {n_set:,} settings x {spec.distortion.n_lanes} distortion lanes (kinds "
+                     f"{', '.join(k for k, _ in spec.distortion.kinds)}; {len(spec.distortion.seeds)} seeds)")
+        name = spec.name if len(datas) == 1 else f"{spec.name} [{d.cls}]"
+        log(f"sweep {name}: {len(table):,} configs{lanes} ({n_groups} option group(s), {len(cchunks)} chunks of <= "
+            f"{spec.chunk}; {sum(c.id in done for c in cchunks)} done) x {len(d.sequences)} sequences / "
+            f"{sum(d.lengths):,} frames = {total_cf / 1e6:.1f} M config-frames" + (f" -> {outdir}" if outdir else ""))
+        if todo:
+            _run_chunks(spec, table, d, todo, outdir, frames_out, n_done, len(table), progress, workers, log)
     if outdir is None:
         df = pd.concat([frames_out[c.id] for c in chunks], ignore_index=True)
     else:
         df = pd.concat([pd.read_parquet(_chunk_path(outdir, c)) for c in chunks], ignore_index=True)
-    df = _finish(df)
+    df = _finish(df, spec.classes)
     if outdir is not None:
         _atomic_parquet(df, outdir / "results.parquet")
     if not raw:
@@ -1182,6 +1450,7 @@ def _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, n_total, pr
     from .metrics import cached_gt
 
     t0 = time.perf_counter()
+    label = spec.name if len(spec.classes) == 1 else f"{spec.name} [{data.cls}]"
     split = load_split(data.root, data.det2d, data.det3d, data.cls, list(data.sequences))
     gt = cached_gt(data.root, data.cls, list(data.sequences))
     if tuple(gt.sequences) != tuple(split.names) or not np.array_equal(gt.lengths, split.lengths):
@@ -1201,7 +1470,7 @@ def _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, n_total, pr
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=n_total, initial=n_done, unit="cfg", desc=spec.name, dynamic_ncols=True, smoothing=0.05,
+        bar = tqdm(total=n_total, initial=n_done, unit="cfg", desc=label, dynamic_ncols=True, smoothing=0.05,
                    file=sys.stderr)
     inflight: deque[_Pending] = deque()
 
@@ -1248,7 +1517,7 @@ def _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, n_total, pr
             if frames_cache is None or frames_cache[0] != c.options:
                 frames_cache = (c.options, prepare_frames(split, c.options))
             frames = frames_cache[1]
-            params = _params_of(table, c.configs)
+            params = _params_of(table, c.configs, data.cls)
             opts = c.options
             dps = None
             if dist is not None:
@@ -1263,7 +1532,8 @@ def _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, n_total, pr
                 # compilation), raised from the peaks once a chunk overflowed (``track`` re-runs an
                 # overflowing lane with twice the slots, so results never depend on this choice).
                 if c.options not in caps:
-                    group = _params_of(table, [i for d in todo if d.options == c.options for i in d.configs])
+                    group = _params_of(table, [i for d in todo if d.options == c.options for i in d.configs],
+                                       data.cls)
                     caps[c.options] = default_capacity(frames, group, opts)
                     if dist is not None and dist.clutter_slots:      # room for the clutter's births
                         caps[c.options] += 8 * math.ceil(3 * dist.clutter_slots / 8)
@@ -1315,7 +1585,7 @@ def _run_chunks(spec, table, data, todo, outdir, frames_out, n_done, n_total, pr
             pool.shutdown(wait=True, cancel_futures=True)
     dt = time.perf_counter() - t0
     n = sum(len(c.configs) for c in todo)
-    log(f"sweep {spec.name}: {n:,} configs tracked and scored in {dt:.1f} s ({n / dt:.1f} configs/s, "
+    log(f"sweep {label}: {n:,} configs tracked and scored in {dt:.1f} s ({n / dt:.1f} configs/s, "
         f"{n * split.n_frames / dt / 1e3:.0f} k config-frames/s; setup {timing['setup']:.1f} s, tracking "
         f"{timing['track']:.1f} s, metrics {timing['metrics']:.1f} s in-process + {timing['wait']:.1f} s waiting "
         f"for workers, tables {timing['write']:.1f} s; {len(ev.memo):,} distinct outputs scored)")
@@ -1348,7 +1618,7 @@ def load_results(out, *, allow_partial: bool = False) -> pd.DataFrame:
     final = out / "results.parquet"
     if final.is_file() and all(p.is_file() for p in paths):
         df = pd.read_parquet(final)
-        if set(df["chunk"].unique()) == set(manifest["chunks"]):
+        if set(df.loc[df["chunk"] != "", "chunk"].unique()) == set(manifest["chunks"]):
             return df
     have = [p for p in paths if p.is_file()]
     if len(have) < len(paths) and not allow_partial:
@@ -1356,7 +1626,7 @@ def load_results(out, *, allow_partial: bool = False) -> pd.DataFrame:
                                 f"(rerun the sweep to resume)")
     if not have:
         raise FileNotFoundError(f"{out}: no finished chunk yet")
-    return _finish(pd.concat([pd.read_parquet(p) for p in have], ignore_index=True))
+    return _finish(pd.concat([pd.read_parquet(p) for p in have], ignore_index=True), manifest.get("classes", ()))
 
 
 def _manifest(out: Path) -> dict:
@@ -1388,7 +1658,7 @@ def _rank(values: np.ndarray, objective: str) -> np.ndarray:
 
 def varied_axes(df: pd.DataFrame) -> list[str]:
     comb = df[df["sequence"] == COMBINED]
-    return [c for c in list(PARAM_NAMES) + list(OPTION_NAMES) + list(_extra_axes())
+    return [c for c in list(PARAM_NAMES) + class_columns(comb.columns) + list(OPTION_NAMES) + list(_extra_axes())
             if c in comb.columns and comb[c].nunique() > 1]
 
 
@@ -1457,7 +1727,7 @@ def _check_distorted(df: pd.DataFrame) -> None:
 
 def n_settings(table: pd.DataFrame) -> int:
     """Distinct parameter / option settings of a table (a distortion sweep's configs without lanes)."""
-    return int(len(table.drop_duplicates(list(PARAM_NAMES) + list(OPTION_NAMES))))
+    return int(len(table.drop_duplicates(list(PARAM_NAMES) + class_columns(table.columns) + list(OPTION_NAMES))))
 
 
 def setting_axes(df: pd.DataFrame) -> list[str]:
@@ -1753,7 +2023,7 @@ def _objective_on(arrays: dict, cols: Sequence[int], objective: str, rows=None) 
     return summary_columns(combine_sequences(sub))[objective]
 
 
-def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA") -> dict:
+def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA", cls: str | None = None) -> dict:
     """k-fold cross-validation over sequences (:func:`make_folds`, stratified by frame count).
 
     For each fold the best config by ``objective`` on the other folds (COMBINED over them, exactly
@@ -1761,8 +2031,24 @@ def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA") ->
     objective over all sequences when each sequence is tracked with the config chosen without it
     (directly comparable to a config's COMBINED figure); ``mean_held_out`` the mean of the folds'
     held-out figures. Returns a dict with per-fold details and the baseline's figures.
+
+    A sweep over several classes: ``cls`` = one class (its rows, :func:`class_view`) or
+    ``"average"`` (the default): the objective is the class average (ratios averaged over the
+    classes, counts summed) of each class's COMBINED over its sequences in the fold. Each class's
+    sequences are folded on their own (``make_folds`` per class; fold f holds out fold f of every
+    class, so every fold scores every class); a config is chosen on the class average over the
+    other folds of every class and scored on the class average over the held-out ones. The unit
+    held out is a (class, sequence) pair: a scene held out for one class may be in the training
+    folds of another (the classes' ground truth is disjoint). ``test_sequences`` of a fold (and
+    ``fold_sequences``) are then ``{class: [sequences]}``.
     """
     _check_objective(df, objective)
+    classes = _classes_of(df)
+    cls = report_class_of(df, cls)
+    if cls == AVERAGE:
+        return _cross_validate_average(df, classes, folds, objective)
+    if classes:
+        df = class_view(df, cls)
     comb, names, lengths, arrays = _per_sequence_arrays(df)
     fold_names = make_folds(names, lengths, folds)
     base = np.flatnonzero(comb["baseline"].to_numpy())
@@ -1786,6 +2072,100 @@ def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA") ->
             "mean_held_out": float(np.mean([p["held_out"] for p in per_fold])),
             "baseline": None if b is None else float(comb.at[b, objective]), "per_fold": per_fold,
             "fold_sequences": fold_names}
+
+
+def _cross_validate_average(df: pd.DataFrame, classes: Sequence[str], folds: int, objective: str) -> dict:
+    """:func:`cross_validate` on the class average (every class's sequences folded on their own)."""
+    avg = df[(df["class"] == AVERAGE) & (df["sequence"] == COMBINED)]
+    configs = avg["config"].to_numpy()
+    comb = avg.reset_index(drop=True)
+    per = []
+    for k in classes:
+        rows = df[(df["class"] == k) & df["config"].isin(configs)]
+        ck, names, lengths, arrays = _per_sequence_arrays(rows)
+        if not np.array_equal(ck["config"].to_numpy(), configs):
+            raise ValueError(f"class {k!r} does not hold the configs of the class-average rows")
+        per.append((k, names, lengths, arrays, make_folds(names, lengths, folds)))
+
+    def score(cols_of) -> np.ndarray:
+        return _class_average_columns([{objective: _objective_on(arrays, cols_of(i, names), objective)}
+                                       for i, (_, names, _, arrays, _) in enumerate(per)])[objective]
+
+    base = np.flatnonzero(comb["baseline"].to_numpy())
+    b = int(base[0]) if base.size else None
+    chosen = [np.zeros(len(names), np.int64) for _, names, _, _, _ in per]
+    per_fold = []
+    for f in range(folds):
+        test = {k: fs[f] for k, _, _, _, fs in per}
+        train_score = score(lambda i, names: [j for j, s in enumerate(names) if s not in test[per[i][0]]])
+        test_score = score(lambda i, names: [names.index(s) for s in test[per[i][0]]])
+        best = int(_rank(train_score, objective)[0])
+        for i, (k, names, _, _, _) in enumerate(per):
+            chosen[i][[names.index(s) for s in test[k]]] = best
+        per_fold.append({"fold": f, "test_sequences": test, "config": int(comb.at[best, "config"]),
+                         "config_hash": comb.at[best, "config_hash"], "train": float(train_score[best]),
+                         "held_out": float(test_score[best]),
+                         "baseline_held_out": None if b is None else float(test_score[b])})
+    pooled = []
+    for i, (_, names, _, arrays, _) in enumerate(per):
+        sub = {fname: np.stack([v[chosen[i][s], s] for s in range(len(names))])[None] for fname, v in arrays.items()}
+        pooled.append({objective: summary_columns(combine_sequences(sub))[objective]})
+    cv = float(_class_average_columns(pooled)[objective][0])
+    return {"objective": objective, "folds": folds, "class": AVERAGE, "classes": list(classes),
+            "cross_validated": cv, "mean_held_out": float(np.mean([p["held_out"] for p in per_fold])),
+            "baseline": None if b is None else float(comb.at[b, objective]), "per_fold": per_fold,
+            "fold_sequences": [{k: fs[f] for k, _, _, _, fs in per} for f in range(folds)]}
+
+
+def _classes_of(df: pd.DataFrame) -> list[str]:
+    """The classes of a table (``class`` column, in order; the class average left out)."""
+    if "class" not in df.columns:
+        return []
+    return [c for c in pd.unique(df["class"]) if c != AVERAGE]
+
+
+def report_class_of(df: pd.DataFrame, cls: str | None = None) -> str | None:
+    """The class a report ranks on: ``cls`` checked against the table, by default ``"average"``
+    for a sweep over several classes, else its class. ``"average"`` of one class is that class."""
+    classes = _classes_of(df)
+    if cls is None or cls == AVERAGE:
+        if len(classes) > 1:
+            return AVERAGE
+        return classes[0] if classes else None
+    if cls not in classes:
+        raise ValueError(f"class {cls!r}: not in the table; its classes are {classes}"
+                         + (f" (or {AVERAGE!r})" if len(classes) > 1 else ""))
+    return cls
+
+
+def class_view(df: pd.DataFrame, cls: str) -> pd.DataFrame:
+    """The rows of one class of a sweep table, as a single-class table of that class.
+
+    Per-class columns ``<cls>.<parameter>`` replace the plain ones (every parameter column then
+    holds the value that class was tracked with) and all per-class columns are dropped; configs
+    that are then alike (differing only in another class's values) are kept once (the first). A
+    single-class table without per-class columns is returned as it is. ``cls = "average"``: the
+    class-average rows (one per config, ``sequence = COMBINED``), all columns kept.
+    """
+    classes = _classes_of(df)
+    cls = report_class_of(df, cls)
+    ccols = class_columns(df.columns)
+    if cls == AVERAGE:
+        return df[df["class"] == AVERAGE].reset_index(drop=True)
+    if len(classes) <= 1 and not ccols:
+        return df
+    rows = df[df["class"] == cls].copy()
+    for c in ccols:
+        k, p = _split_class_column(c)
+        if k == cls:
+            rows[p] = rows[c]
+    rows = rows.drop(columns=ccols)
+    keys = list(PARAM_NAMES) + list(OPTION_NAMES) + [n for n in _extra_axes() if n in rows.columns]
+    comb = rows[rows["sequence"] == COMBINED]
+    keep = comb.drop_duplicates(keys, keep="first")["config"]
+    if len(keep) < len(comb):
+        rows = rows[rows["config"].isin(keep.to_numpy())]
+    return rows.reset_index(drop=True)
 
 
 @dataclass
@@ -1821,7 +2201,7 @@ def _json_value(v):
 
 
 def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top: int = 10,
-                 contrast: Contrast | Mapping | None = None) -> SweepReport:
+                 contrast: Contrast | Mapping | None = None, cls: str | None = None) -> SweepReport:
     """Best configs by ``objective`` (HOTA, MOTA, IDF1, AssA, ... maximised; IDSW, Frag, ...
     minimised), the baseline beside them, the sensitivity per axis and, with ``folds``, the
     cross-validated best. ``results``: a table from :func:`sweep` or a sweep directory.
@@ -1830,7 +2210,12 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     the ``top`` settings and, with ``contrast`` (a :class:`Contrast`, a dict ``{axis, high, low,
     by}`` or, for a directory, the sweep file's ``report.contrast``), the gap between two groups of
     an axis per level (:func:`robustness_contrast`) and where it stops helping
-    (:func:`robustness_summary`)."""
+    (:func:`robustness_summary`).
+
+    A sweep over several classes ranks on ``cls``: one class (its rows with its own parameter values,
+    :func:`class_view`) or ``"average"`` (default; for a directory: the file's ``report.class``):
+    the class average (ratios averaged over the classes, counts summed), cross-validated with each
+    class's sequences folded on their own (:func:`cross_validate`)."""
     if not isinstance(results, pd.DataFrame):
         d = Path(results)
         manifest = _manifest(d)
@@ -1839,12 +2224,19 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
             folds = manifest.get("folds")
         if contrast is None and manifest.get("contrast"):
             contrast = manifest["contrast"]
+        if cls is None:
+            cls = manifest.get("report_class")
         n_expected = manifest.get("configs")
     else:
         df, n_expected = results, None
     if isinstance(contrast, Mapping):
         contrast = _parse_contrast(dict(contrast), None)
     _check_objective(df, objective)
+    full = df
+    classes = _classes_of(full)
+    cls = report_class_of(full, cls)
+    if classes:
+        df = class_view(full, cls)
     comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
     axes = varied_axes(df)
     order = _rank(comb[objective].to_numpy(), objective)
@@ -1857,10 +2249,23 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     topdf.insert(0, "rank", np.arange(1, len(topdf) + 1))
     lines = []
     name = df["sweep"].iloc[0] if "sweep" in df.columns else "sweep"
-    seqs = df.loc[df["sequence"] != COMBINED, "sequence"].nunique()
-    partial = f" (partial: {len(comb)} of {n_expected} configs)" if n_expected and n_expected != len(comb) else ""
-    lines.append(f"sweep {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
-                 f"({'lower' if _direction(objective) < 0 else 'higher'} is better)")
+    n_cfg = int(full["config"].nunique())
+    partial = f" (partial: {n_cfg} of {n_expected} configs)" if n_expected and n_expected != n_cfg else ""
+    better = "lower" if _direction(objective) < 0 else "higher"
+    if len(classes) > 1:
+        per = {k: full.loc[(full["class"] == k) & (full["sequence"] != COMBINED), "sequence"].nunique()
+               for k in classes}
+        seqs = per[cls] if cls != AVERAGE else sum(per.values())
+        on = (f"the class average ({', '.join(classes)}: ratios averaged over the classes, counts summed)"
+              if cls == AVERAGE else f"class {cls}" + (f" ({len(comb):,} distinct configs for it)"
+                                                        if len(comb) != n_cfg else ""))
+        lines.append(f"sweep {name}: {n_cfg:,} configs x classes "
+                     f"{', '.join(f'{k} ({n} sequences)' for k, n in per.items())}{partial}; objective "
+                     f"{objective} ({better} is better) on {on}")
+    else:
+        seqs = df.loc[df["sequence"] != COMBINED, "sequence"].nunique()
+        lines.append(f"sweep {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
+                     f"({better} is better)" + (f"; class {cls}" if cls and cls != "car" else ""))
     lines.append("")
     lines.append(f"top {len(topdf)} configs (in-sample, COMBINED over all sequences):")
     view = topdf.copy()
@@ -1891,15 +2296,19 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
             lines.extend(con_lines)
     cv = None
     if folds:
-        cv = cross_validate(df, folds, objective)
+        cv = cross_validate(full, folds, objective, cls)
         lines.append("")
-        lines.append(f"{folds}-fold cross-validation over sequences (stratified by frame count): best config chosen "
-                     f"on the training folds, scored on the held-out fold")
+        lines.append(f"{folds}-fold cross-validation over sequences (stratified by frame count"
+                     + ("; each class's sequences folded on their own" if cv.get("class") == AVERAGE else "")
+                     + "): best config chosen on the training folds, scored on the held-out fold")
         fold_rows = []
         for p in cv["per_fold"]:
             row = comb[comb["config"] == p["config"]].iloc[0]
             changed = ", ".join(f"{a}={_fmt(row[a])}" for a in axes if baseline is None or row[a] != baseline[a])
-            fold_rows.append({"fold": p["fold"], "held_out_sequences": ",".join(p["test_sequences"]),
+            test = p["test_sequences"]
+            held = (" ".join(f"{k}:{','.join(v)}" for k, v in test.items()) if isinstance(test, Mapping)
+                    else ",".join(test))
+            fold_rows.append({"fold": p["fold"], "held_out_sequences": held,
                               "config": p["config"], "train": p["train"], "held_out": p["held_out"],
                               "baseline_held_out": p["baseline_held_out"], "changed": changed or "(baseline)"})
         lines.append(pd.DataFrame(fold_rows).to_string(index=False, float_format=lambda v: f"{v:.3f}"))
@@ -1908,6 +2317,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
                      + (f" | baseline {baseline[objective]:.3f}" if baseline is not None else ""))
     summary = {"objective": objective, "direction": "min" if _direction(objective) < 0 else "max",
                "configs": int(len(comb)), "sequences": int(seqs),
+               **({"class": cls} if classes else {}), **({"classes": classes} if len(classes) > 1 else {}),
                "baseline": None if baseline is None else float(baseline[objective]),
                "best_in_sample": float(best[objective]),
                "best_config": {"config": int(best["config"]), "config_hash": best["config_hash"],

@@ -10,6 +10,7 @@ Usage::
 
     dfrmot sweep sweeps/kitti_dfr_grid.toml --out results/grid [--folds 5] [--summary]
     dfrmot report results/grid [--objective HOTA|MOTA|IDF1|AssA|IDSW] [--folds 5] [--top 10]
+    dfrmot report results/classes --class pedestrian      # several classes: one class, or average (default)
     dfrmot report results/robustness --contrast epsilon:30,60/1,2,3:filter    # distortion sweeps
 
 Exit status: 0 ok, 2 bad sweep file / data / arguments (nothing was run), 3 some config overflowed
@@ -41,6 +42,9 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--summary", action="store_true", help="print the report when the sweep is done")
     p.add_argument("--objective", help="report objective (default: the file's, else HOTA); IDSW etc. are minimised")
     p.add_argument("--top", type=int, help="configs listed in the report (default 10)")
+    p.add_argument("--class", dest="cls", metavar="CLASS",
+                   help="report on one class of the sweep, or 'average' (default for several classes: the "
+                        "class average; else the file's report.class)")
     p.add_argument("--workers", type=int, help="metric processes beside the tracker (default: 2 for large sweeps)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--dry-run", action="store_true", help="check the file and data, print the plan, run nothing")
@@ -59,6 +63,10 @@ def add_report_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--objective", help="HOTA (default), MOTA, IDF1, AssA, DetA, IDSW (minimised), ...")
     p.add_argument("--folds", type=int, help="k-fold cross-validation over sequences (default: the sweep's --folds)")
     p.add_argument("--top", type=int, help="configs listed (default 10)")
+    p.add_argument("--class", dest="cls", metavar="CLASS",
+                   help="sweeps over several classes: rank on one class (its own parameter values) or on "
+                        "'average' (ratios averaged over the classes, counts summed; the default unless the file's "
+                        "report.class says otherwise)")
     p.add_argument("--csv", metavar="F", help="also write the tidy table (without the per-alpha column) as CSV")
     p.add_argument("--contrast", metavar="AXIS:HIGH/LOW[:BY]",
                    help="distortion sweeps: the gap between two groups of an axis per level, paired by seed, e.g. "
@@ -75,19 +83,27 @@ def _error(cmd: str, e: Exception) -> int:
 
 def run_sweep_command(args) -> int:
     from .io.kitti import KittiFormatError
-    from .sweep import OPTION_NAMES, expand, load_spec, n_settings, plan, resolve_data, sweep, sweep_report
+    from .sweep import (OPTION_NAMES, class_columns, expand, load_spec, n_settings, plan, resolve_data_all, sweep,
+                        sweep_report)
 
     try:
         spec = load_spec(args.file)
         out = Path(args.out) if args.out else Path("results") / "sweeps" / spec.name
         if args.dry_run:
             table = expand(spec)
-            data = resolve_data(spec, args.data)
-            chunks = plan(table, data, args.chunk or spec.chunk, spec.distortion)
+            datas = resolve_data_all(spec, args.data)
+            chunks = plan(table, datas, args.chunk or spec.chunk, spec.distortion)
             groups = table.groupby(list(OPTION_NAMES), sort=False).size().rename("configs")
+            frames = sum(sum(d.lengths) for d in datas)
+            if len(datas) == 1:
+                where = f"{len(datas[0].sequences)} sequences / {frames:,} frames"
+            else:
+                where = "classes " + ", ".join(f"{d.cls} ({len(d.sequences)} sequences / {sum(d.lengths):,} frames)"
+                                               for d in datas)
             print(f"sweep {spec.name}: {len(table):,} configs, {len(groups)} option group(s), {len(chunks)} chunks, "
-                  f"{len(data.sequences)} sequences / {sum(data.lengths):,} frames "
-                  f"({len(table) * sum(data.lengths) / 1e6:.1f} M config-frames) -> {out}")
+                  f"{where} ({len(table) * frames / 1e6:.1f} M config-frames) -> {out}")
+            if class_columns(table.columns):
+                print(f"per-class columns: {', '.join(class_columns(table.columns))}")
             print(groups.to_string())
             if spec.distortion is not None:
                 d = spec.distortion
@@ -102,7 +118,7 @@ def run_sweep_command(args) -> int:
         if args.summary:
             rep = sweep_report(df, objective=args.objective or spec.objective,
                                folds=args.folds if args.folds is not None else spec.folds, top=args.top or spec.top,
-                               contrast=spec.contrast)
+                               contrast=spec.contrast, cls=args.cls or spec.report_class)
             print(rep.text)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         return _error("sweep", e)
@@ -142,7 +158,7 @@ def run_report_command(args) -> int:
     try:
         contrast = parse_contrast(args.contrast) if getattr(args, "contrast", None) else None
         rep = sweep_report(Path(args.dir), objective=args.objective or _manifest_objective(args.dir),
-                           folds=args.folds, top=args.top or 10, contrast=contrast)
+                           folds=args.folds, top=args.top or 10, contrast=contrast, cls=getattr(args, "cls", None))
         print(rep.text)
         if args.csv:
             df = load_results(args.dir, allow_partial=True)
