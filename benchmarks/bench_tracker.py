@@ -19,12 +19,14 @@ import time
 
 import numpy as np
 
-import dfrmot_jax  # noqa: F401  (sets up one XLA device per core before JAX loads)
+import dfrmot_jax
+
+dfrmot_jax.setup_host_devices()   # one XLA device per core, before any JAX operation
 
 from dfrmot_jax.core import run as tracker
 from dfrmot_jax.api import default_capacity
 from dfrmot_jax.data import load_sequences, pack, prepare_frames
-from dfrmot_jax.params import Params, preset, stack_params
+from dfrmot_jax.config import Params, preset, stack_params
 from dfrmot_jax.paths import default_data_root
 from dfrmot_jax.testing.reference import track_sequence
 from machine import machine_info

@@ -12,7 +12,7 @@ __version__ = "0.1.0"
 from .api import TrackResult, default_capacity, track
 from .core.devices import setup_host_devices
 from .data import Split, load_split, prepare_frames
-from .params import Options, Params, preset, stack_params
+from .config import Options, Params, preset, stack_params
 from .sweep import sweep, sweep_report
 
 __all__ = ["Options", "Params", "Split", "TrackResult", "default_capacity", "load_split", "prepare_frames",

@@ -16,7 +16,7 @@ import numpy as np
 from . import distort
 from .core.devices import setup_host_devices
 from .data import Frames, Split, prepare_frames
-from .params import Options, Params, as_arrays, batch_size, validate_params
+from .config import Options, Params, as_arrays, batch_size, validate_params
 from .results import output_boxes
 from .core.run import FrameHook, run_batch
 

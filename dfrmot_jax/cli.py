@@ -19,7 +19,7 @@ def _parse_seqs(text: str | None):
 
 
 def _classes(text: str) -> list[str]:
-    from .params import CLASSES
+    from .config import CLASSES
 
     classes = [c.strip() for c in text.split(",") if c.strip()]
     bad = [c for c in classes if c not in CLASSES]
@@ -30,7 +30,7 @@ def _classes(text: str) -> list[str]:
 
 def _settings(args, cls: str = "car"):
     """The preset for the class, then every ``--set NAME=VALUE`` and ``--set CLASS.NAME=VALUE`` of it."""
-    from .params import CLASSES, parse_assignment, preset
+    from .config import CLASSES, parse_assignment, preset
 
     params, options = preset(args.preset, cls)
     for item in args.set or []:
@@ -77,7 +77,7 @@ def cmd_track(args) -> int:
 def cmd_demo(args) -> int:
     from .api import track
     from .data import load_split
-    from .params import Options, Params
+    from .config import Options, Params
     from .results import write_lane
     from .synthetic import make_scene
 

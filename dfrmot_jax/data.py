@@ -27,7 +27,7 @@ from .io.kitti import (
     sequence_lengths,
 )
 from .core.step import Frames
-from .params import Options
+from .config import Options
 
 CLASS_NAMES = {"car": "Car", "pedestrian": "Pedestrian"}
 DEFAULT_IMAGE_SIZE = (1242, 375)

@@ -102,7 +102,7 @@ import numpy as np
 from .data import DEFAULT_IMAGE_SIZE, Frames, Split, image_box_3d
 from .geometry import iou_2d
 from .io.kitti import read_tracking_labels
-from .params import Options
+from .config import Options
 
 # ---------------------------------------------------------------------------------------------
 # Parameters

@@ -18,7 +18,7 @@ import numpy as np
 from .data import CLASS_NAMES, Frames, Split, object_boxes
 from .io.columns import COLUMN_SETS
 from .io.kitti import tracking_lines, write_text_atomic
-from .params import Options
+from .config import Options
 
 
 class LaneRows(NamedTuple):

@@ -56,7 +56,7 @@ import numpy as np
 import pandas as pd
 
 from . import distort
-from .params import CLASSES, INT_PARAMS, PARAM_RANGES, PRESETS, Options, Params, preset
+from .config import CLASSES, INT_PARAMS, PRESETS, Options, Params, option_problem, param_problem, preset
 
 __all__ = [
     "SweepConfigError", "SweepSpec", "DataSettings", "Axis", "load_spec", "parse_spec", "expand", "config_hash",
@@ -319,18 +319,10 @@ def _clean_float(v: float) -> float:
 
 
 def _check_param_value(name: str, v, key: str, source) -> int | float:
-    if not _is_number(v):
-        raise _err(key, f"{v!r} is not a number", source)
-    if not math.isfinite(float(v)):
-        raise _err(key, f"{v!r} is not finite", source)
-    lo, hi = PARAM_RANGES[name]
-    if not lo <= float(v) <= hi:
-        raise _err(key, f"value {v!r} outside the valid range [{lo:g}, {hi:g}] of parameter {name}", source)
-    if name in INT_PARAMS:
-        if float(v) != round(float(v)):
-            raise _err(key, f"value {v!r}: parameter {name} takes integers", source)
-        return int(round(float(v)))
-    return float(v)
+    problem = param_problem(name, v)
+    if problem:
+        raise _err(key, f"{v!r}: parameter {name}: {problem}", source)
+    return int(round(float(v))) if name in INT_PARAMS else float(v)
 
 
 def _param_axis(name: str, spec, key: str, source) -> Axis:
@@ -403,23 +395,9 @@ def _param_axis(name: str, spec, key: str, source) -> Axis:
 
 
 def _check_option_value(name: str, v, key: str, source):
-    default = Options._field_defaults[name]
-    if isinstance(default, bool):
-        if not isinstance(v, bool):
-            raise _err(key, f"{v!r}: expected true or false", source)
-        return v
-    if isinstance(default, int):
-        if not isinstance(v, int) or isinstance(v, bool) or v < 0:
-            raise _err(key, f"{v!r}: expected an integer >= 0" + (" (0 = from the data)" if name == "capacity" else ""),
-                       source)
-    elif isinstance(default, str) and not isinstance(v, str):
-        raise _err(key, f"{v!r}: expected a string", source)
-    try:
-        Options(**{name: v}).validate()
-    except ValueError as e:
-        msg = str(e)
-        tail = msg.split(": ", 1)[1] if msg.startswith("option ") and ": " in msg else msg
-        raise _err(key, f"{v!r}: {tail}", source) from None
+    problem = option_problem(name, v)
+    if problem:
+        raise _err(key, f"{v!r}: {problem}", source)
     return v
 
 
@@ -1193,7 +1171,7 @@ def _versions() -> tuple[str, str]:
 def _params_of(table: pd.DataFrame, rows: Sequence[int], cls: str | None = None) -> Params:
     """The parameters of table rows for class ``cls`` (its ``<cls>.<parameter>`` columns where the
     table has them, else the plain ones)."""
-    from .params import as_arrays
+    from .config import as_arrays
 
     sub = table.iloc[list(rows)]
     return as_arrays(Params(**{n: sub[f"{cls}.{n}" if f"{cls}.{n}" in sub.columns else n].to_numpy()

@@ -6,7 +6,7 @@ import pytest
 from dfrmot_jax import distort
 from dfrmot_jax.api import track
 from dfrmot_jax.data import load_split
-from dfrmot_jax.params import Options, Params, stack_params
+from dfrmot_jax.config import Options, Params, stack_params
 from dfrmot_jax.synthetic import make_scene
 
 

@@ -21,7 +21,7 @@ import pytest
 from dfrmot_jax.api import track
 from dfrmot_jax.data import SequenceDets, load_sequences, pack
 from dfrmot_jax.io.kitti import Calib, Detections2D, Detections3D
-from dfrmot_jax.params import CXX_GAIN_ALPHA, CXX_GAIN_BETA, CXX_GAIN_GAMMA, Options, preset
+from dfrmot_jax.config import CXX_GAIN_ALPHA, CXX_GAIN_BETA, CXX_GAIN_GAMMA, preset
 from dfrmot_jax.testing.parity import lane_mismatches, reference_pool, reference_rows
 from dfrmot_jax.testing.reference import track_sequence
 

@@ -11,7 +11,7 @@ from dfrmot_jax.api import track  # noqa: E402
 from dfrmot_jax.data import load_split  # noqa: E402
 from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, prepare_gt  # noqa: E402
 from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, make_tracker_folder, run_trackeval  # noqa: E402
-from dfrmot_jax.params import Options, stack_params  # noqa: E402
+from dfrmot_jax.config import Options, stack_params  # noqa: E402
 from dfrmot_jax.results import write_lane  # noqa: E402
 from dfrmot_jax.testing import random_params  # noqa: E402
 

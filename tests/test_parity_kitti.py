@@ -9,7 +9,7 @@ from dfrmot_jax.cli import main
 from dfrmot_jax.data import load_sequences, pack, sequences_with_class
 from dfrmot_jax.io.kitti import read_tracking_labels
 from dfrmot_jax.core.filters import steady_state
-from dfrmot_jax.params import Options, Params, preset, stack_params
+from dfrmot_jax.config import Options, Params, preset, stack_params
 from dfrmot_jax.testing.parity import lane_mismatches, reference_pool, reference_rows
 from dfrmot_jax.testing import random_options, random_params
 

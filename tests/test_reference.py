@@ -4,7 +4,7 @@ import numpy as np
 
 from dfrmot_jax.data import SequenceDets
 from dfrmot_jax.io.kitti import Calib, Detections2D, Detections3D
-from dfrmot_jax.params import Options, Params
+from dfrmot_jax.config import Options, Params
 from dfrmot_jax.testing.reference import greedy_match, iou, track_sequence
 
 

@@ -6,7 +6,7 @@ import pytest
 
 from dfrmot_jax.api import track
 from dfrmot_jax.data import load_sequences, pack
-from dfrmot_jax.params import preset, stack_params
+from dfrmot_jax.config import preset, stack_params
 from dfrmot_jax.testing.parity import reference_lane, reference_rows
 from dfrmot_jax.testing import random_settings
 

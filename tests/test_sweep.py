@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from dfrmot_jax.params import Options, Params
+from dfrmot_jax.config import Options, Params
 from dfrmot_jax.sweep import (COMBINED, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, SweepConfigError,
                               combine_sequences, config_hash, cross_validate, expand, load_results, load_spec,
                               make_folds, plan, resolve_data, sensitivity, summary_columns, sweep,

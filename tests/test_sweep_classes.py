@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from dfrmot_jax import params as params_mod
-from dfrmot_jax.params import PRESETS, preset
+from dfrmot_jax import config as config_mod
+from dfrmot_jax.config import PRESETS, preset
 from dfrmot_jax.sweep import (AVERAGE, COMBINED, PARAM_NAMES, RAW_COLUMN, SweepConfigError, class_columns,
                               class_view, config_hash, cross_validate, expand, load_results, load_spec, make_folds,
                               parse_spec, plan, resolve_data_all, sweep, sweep_report)
@@ -95,13 +95,13 @@ def run(root, tmp_path_factory):
 @pytest.fixture
 def no_ped_defaults(monkeypatch):
     """No pedestrian defaults for one test (per-class axes alone)."""
-    monkeypatch.setitem(params_mod.CLASS_DEFAULTS, "pedestrian", {})
+    monkeypatch.setitem(config_mod.CLASS_DEFAULTS, "pedestrian", {})
 
 
 @pytest.fixture
 def ped_defaults(monkeypatch):
     """CLASS_DEFAULTS["pedestrian"] set (as after tuning) for one test."""
-    monkeypatch.setitem(params_mod.CLASS_DEFAULTS, "pedestrian", {"a_l": 2.0, "score_2d": 0.6})
+    monkeypatch.setitem(config_mod.CLASS_DEFAULTS, "pedestrian", {"a_l": 2.0, "score_2d": 0.6})
 
 
 # ---- hashes ------------------------------------------------------------------------------------------
@@ -129,7 +129,7 @@ def test_multi_class_without_class_values_hashes_as_single_class(monkeypatch):
     car_base = {"preset": "dfr2023", "class": "car"}
     multi = expand({"data": {"class": ["car", "pedestrian"]}, "baseline": car_base, "params": axes})
     pd.testing.assert_frame_equal(single, multi)
-    monkeypatch.setitem(params_mod.CLASS_DEFAULTS, "pedestrian", {})
+    monkeypatch.setitem(config_mod.CLASS_DEFAULTS, "pedestrian", {})
     pd.testing.assert_frame_equal(single, expand({"data": {"class": ["car", "pedestrian"]}, "params": axes}))
 
 
@@ -220,7 +220,7 @@ def test_shipped_pedestrian_sweep_baseline_is_the_car_settings(ped_defaults):
     for k, v in PRESETS["dfr2023"][0]._asdict().items():
         assert base[k] == v, k
     assert base["config_hash"] == expand({"params": {"a_l": [1.0]}}).loc[0, "config_hash"]
-    params_mod.CLASS_DEFAULTS["pedestrian"] = {}
+    config_mod.CLASS_DEFAULTS["pedestrian"] = {}
     pd.testing.assert_frame_equal(t, expand(spec))        # the table does not depend on the pedestrian defaults
 
 
@@ -444,7 +444,7 @@ def test_raw_column_of_average_rows(run):
 def test_shipped_ablation_tuned_variant_is_the_pedestrian_default():
     t = expand(load_spec(SWEEPS / "kitti_pedestrian_ablation.toml"))
     tuned = t[t["variant"] == "tuned"].iloc[0]
-    assert params_mod.CLASS_DEFAULTS["pedestrian"], "the pedestrian defaults are set"
+    assert config_mod.CLASS_DEFAULTS["pedestrian"], "the pedestrian defaults are set"
     for k, v in preset("dfr2023", "pedestrian")[0]._asdict().items():
         assert tuned[k] == v, k
     for k, v in PRESETS["dfr2023"][0]._asdict().items():
@@ -456,7 +456,7 @@ def test_kitti_pedestrian_baseline_and_defaults(kitti_root):
     the pedestrian defaults (CLASS_DEFAULTS, from sweeps/kitti_pedestrian.toml) 55.82."""
     df = sweep({"name": "ped", "data": {"root": str(kitti_root), "class": "pedestrian"},
                 "baseline": {"preset": "dfr2023", "class": "car"},
-                "variants": [{"name": "tuned", "params": dict(params_mod.CLASS_DEFAULTS["pedestrian"])}]},
+                "variants": [{"name": "tuned", "params": dict(config_mod.CLASS_DEFAULTS["pedestrian"])}]},
                progress=False, log=lambda m: None)
     comb = df[df["sequence"] == COMBINED].set_index("variant")
     assert df["sequence"].nunique() == 16                               # 15 sequences with pedestrians

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from dfrmot_jax import distort
-from dfrmot_jax.params import Options, Params
+from dfrmot_jax.config import Options, Params
 from dfrmot_jax.sweep import (COMBINED, DISTORTION_AXES, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, SweepConfigError,
                               config_hash, expand, load_results, load_spec, n_settings, plan, resolve_data,
                               robustness_contrast, robustness_curves, robustness_summary, sweep, sweep_report)

@@ -6,7 +6,7 @@ import pytest
 from dfrmot_jax.cli import main
 from dfrmot_jax.io.kitti import read_tracking_labels
 from dfrmot_jax.metrics import evaluate_classes
-from dfrmot_jax.params import preset
+from dfrmot_jax.config import preset
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import pytest
 from dfrmot_jax.core import run as tracker
 from dfrmot_jax.api import default_capacity, track
 from dfrmot_jax.data import load_sequences, pack, prepare_frames
-from dfrmot_jax.params import Options, Params, stack_params
+from dfrmot_jax.config import Options, Params, stack_params
 from dfrmot_jax.testing.recompile import no_recompile
 from dfrmot_jax.testing.parity import lane_mismatches, reference_rows
 from dfrmot_jax.synthetic import make_scene
@@ -31,7 +31,7 @@ def _assert_parity(split, seqs, params, options):
 
 @pytest.mark.parametrize("name", ["dfr2023", "dfr_head"])
 def test_presets_match_reference(scene, name):
-    from dfrmot_jax.params import preset
+    from dfrmot_jax.config import preset
 
     _, seqs, split = scene
     _assert_parity(split, seqs, *preset(name))

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..params import Options, Params
+from ..config import Options, Params
 from .devices import setup_host_devices
 from .step import Frames, init, step
 

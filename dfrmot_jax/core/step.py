@@ -12,7 +12,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from ..params import Options, Params
+from ..config import Options, Params
 from . import associate, boxes, filters, memory
 from .memory import Memory
 

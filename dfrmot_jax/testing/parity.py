@@ -10,7 +10,7 @@ import numpy as np
 
 from ..api import TrackResult
 from ..data import SequenceDets, Split
-from ..params import Options, Params
+from ..config import Options, Params
 from .reference import track_sequence
 from ..results import lane_rows
 

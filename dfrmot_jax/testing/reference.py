@@ -16,7 +16,7 @@ import numpy as np
 
 from ..data import SequenceDets, box3d_extent, truncate_2d_box, truncate_3d_box
 from ..geometry import project_box3d_to_image
-from ..params import Options, Params
+from ..config import Options, Params
 
 F32 = np.float32
 F64 = np.float64

@@ -125,15 +125,51 @@ class Options(NamedTuple):
     kalman_init: str = "diffuse"
 
     def validate(self) -> "Options":
-        for name, allowed in (("filter", FILTERS), ("merge", MERGES), ("centroid", CENTROIDS),
-                              ("modality", MODALITIES), ("output", OUTPUTS), ("kalman_init", KALMAN_INITS)):
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"option {name}={getattr(self, name)!r}: expected one of {allowed}")
-        if not isinstance(self.truncate, (bool, np.bool_)):
-            raise ValueError(f"option truncate={self.truncate!r}: expected True or False")
-        if int(self.capacity) < 0:
-            raise ValueError(f"option capacity={self.capacity!r}: expected >= 0")
+        for name, value in self._asdict().items():
+            problem = option_problem(name, value)
+            if problem:
+                raise ValueError(f"option {name}={value!r}: {problem}")
         return self
+
+
+OPTION_CHOICES: dict[str, tuple[str, ...]] = {"filter": FILTERS, "merge": MERGES, "centroid": CENTROIDS,
+                                              "modality": MODALITIES, "output": OUTPUTS, "kalman_init": KALMAN_INITS}
+
+
+def option_problem(name: str, value) -> str | None:
+    """What is wrong with ``value`` for option ``name`` (None: nothing). The one check of options:
+    ``Options.validate`` and the sweep files' validation call it."""
+    if name in OPTION_CHOICES:
+        return None if isinstance(value, str) and value in OPTION_CHOICES[name] else \
+            f"expected one of {OPTION_CHOICES[name]}"
+    if name == "truncate":
+        return None if isinstance(value, (bool, np.bool_)) else "expected true or false"
+    if name == "capacity":
+        ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 0
+        return None if ok else "expected an integer >= 0 (0 = from the data)"
+    return f"unknown option; options are {list(Options._fields)}"
+
+
+def param_problem(name: str, value) -> str | None:
+    """What is wrong with ``value`` (a number or an array of them) for parameter ``name`` (None:
+    nothing): not a number, not finite, outside ``PARAM_RANGES``, or not an integer where one is
+    needed. The one check of parameters: ``validate_params`` and the sweep files' validation call it."""
+    if name not in PARAM_RANGES:
+        return f"unknown parameter; parameters are {list(Params._fields)}"
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        return "not a number"
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return "not a number"
+    lo, hi = PARAM_RANGES[name]
+    if not np.all(np.isfinite(arr)):
+        return "not finite"
+    if np.any(arr < lo) or np.any(arr > hi):
+        return f"outside the valid range [{lo:g}, {hi:g}]"
+    if name in INT_PARAMS and np.any(arr != np.round(arr)):
+        return "expected an integer"
+    return None
 
 
 PRESETS: dict[str, tuple[Params, Options]] = {
@@ -176,16 +212,12 @@ def preset(name: str, cls: str = "car") -> tuple[Params, Options]:
 
 
 def validate_params(params: Params) -> Params:
-    """Raise ValueError naming the field when a value is outside PARAM_RANGES or not finite."""
+    """Raise ValueError naming the field when a value is not a finite number inside PARAM_RANGES
+    (an integer where one is needed): :func:`param_problem`."""
     for name, value in params._asdict().items():
-        arr = np.asarray(value, dtype=np.float64)
-        lo, hi = PARAM_RANGES[name]
-        if not np.all(np.isfinite(arr)):
-            raise ValueError(f"parameter {name}: not finite ({value!r})")
-        if np.any(arr < lo) or np.any(arr > hi):
-            raise ValueError(f"parameter {name}={value!r}: outside [{lo}, {hi}]")
-        if name in INT_PARAMS and np.any(arr != np.round(arr)):
-            raise ValueError(f"parameter {name}={value!r}: expected an integer")
+        problem = param_problem(name, value)
+        if problem:
+            raise ValueError(f"parameter {name}={value!r}: {problem}")
     return params
 
 

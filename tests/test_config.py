@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from dfrmot_jax.params import (INT_PARAMS, PARAM_RANGES, Options, Params, as_arrays, batch_size, parse_assignment,
+from dfrmot_jax.config import (INT_PARAMS, PARAM_RANGES, Options, Params, as_arrays, batch_size, parse_assignment,
                                preset, stack_params, unstack_params, validate_params)
 
 
