@@ -170,24 +170,20 @@ def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
     lengths = sequence_lengths(root, sequences)
     out = []
     for name in sequences:
-        p3 = d3 / f"{name}.txt"
-        det3 = read_detections_3d(p3)
+        p2, p3 = d2 / f"{name}.txt", d3 / f"{name}.txt"
+        det2, det3 = read_detections_2d(p2), read_detections_3d(p3)
+        for kind, det, path in (("2D", det2, p2), ("3D", det3, p3)):
+            beyond = det.frame >= lengths[name]
+            if beyond.any():
+                row = int(np.argmax(beyond))
+                raise KittiFormatError(str(path), line_of_row(path, row), "frame",
+                                       f"{kind} detection at frame {int(det.frame[row])} beyond the sequence "
+                                       f"({lengths[name]} frames)")
         keep = class_rows_3d(det3, cls, p3)
         if not keep.all():
             det3 = Detections3D(*(np.asarray(v)[keep] for v in det3))
-        out.append(SequenceDets(
-            name=name,
-            n_frames=lengths[name],
-            det2d=read_detections_2d(d2 / f"{name}.txt"),
-            det3d=det3,
-            calib=read_calib(root / "calib" / f"{name}.txt"),
-        ))
-        for kind, det, path in (("2D", out[-1].det2d, d2), ("3D", out[-1].det3d, d3)):
-            if det.frame.size and det.frame.max() >= lengths[name]:
-                line = int(np.argmax(det.frame >= lengths[name])) + 1
-                raise KittiFormatError(str(path / f"{name}.txt"), line, "frame",
-                                       f"{kind} detection at frame {int(det.frame.max())} beyond the sequence "
-                                       f"({lengths[name]} frames)")
+        out.append(SequenceDets(name=name, n_frames=lengths[name], det2d=det2, det3d=det3,
+                                calib=read_calib(root / "calib" / f"{name}.txt")))
     return out
 
 

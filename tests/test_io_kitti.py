@@ -719,3 +719,32 @@ def test_real_data_loads_fast(kitti_root):
         read_calib(kitti_root / "calib" / f"{seq}.txt")
     elapsed = time.perf_counter() - t0
     assert elapsed < 3.0, f"loading the training split took {elapsed:.2f} s"
+
+
+def test_values_downstream_types_cannot_hold_are_refused_located(tmp_path):
+    from dfrmot_jax.io.kitti import KittiFormatError, read_detections_2d, read_tracking_labels
+
+    p = tmp_path / "d.txt"
+    p.write_text("0,1,2,3,4,0.5\n1,1,2,4e38,4,0.5\n")
+    with pytest.raises(KittiFormatError, match=r"d\.txt:2: field 'x2': outside the float32 range"):
+        read_detections_2d(p)
+    row = "1 Car 0 0 -1 1 2 3 4 1 1 1 1 1 1 0"
+    p.write_text(f"0 {row}\n1e19 {row}\n")
+    with pytest.raises(KittiFormatError, match=r"d\.txt:2: field 'frame': too large"):
+        read_tracking_labels(p)
+    p.write_text(f"0 {row}\n1 9223372036854775808 Car 0 0 -1 1 2 3 4 1 1 1 1 1 1 0\n")
+    with pytest.raises(KittiFormatError, match=r"d\.txt:2: field 'track_id': too large"):
+        read_tracking_labels(p)
+
+
+def test_frame_beyond_the_sequence_names_the_file_line_after_blank_lines(tmp_path):
+    from dfrmot_jax.data import load_sequences
+    from dfrmot_jax.io.kitti import KittiFormatError
+    from dfrmot_jax.synthetic import make_scene
+
+    root = make_scene(tmp_path / "scene", n_sequences=1, n_frames=20, seed=2)
+    det = root / "detections" / "synth2d" / "car" / "0000.txt"
+    lines = det.read_text().splitlines()
+    det.write_text("\n\n" + "\n".join(lines[:3] + ["25,1,2,3,4,0.9"]) + "\n")
+    with pytest.raises(KittiFormatError, match=r"0000\.txt:6: field 'frame': 2D detection at frame 25 beyond"):
+        load_sequences(root, "synth2d", "synth3d", "car")

@@ -133,6 +133,8 @@ _FIELDS_TRACK_SCORE = _FIELDS_TRACK + ("score",)
 
 _STRING_FIELDS = frozenset({"type"})
 _INT_FIELDS = ("frame", "track_id")
+#: frames index int32 arrays; ids only need to stay exact integers through float64 parsing
+_INT_MAX = {"frame": int(np.iinfo(np.int32).max), "track_id": 2**53 - 1}
 _DIM_FIELDS = ("h", "w", "l")
 
 
@@ -289,6 +291,18 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
         problems.append((r, 0, name, f"{what}: {_quoted(token(r, name))}"))
 
     col = {name: values[:, j] for j, name in ((j, fields[i]) for j, i in enumerate(numeric))}
+
+    # Values are float32 (boxes, scores, 3D values) or int32 (frames, ids) downstream: a value they
+    # cannot hold is refused here, located, not later at write time.
+    too_big = np.isfinite(values) & (np.abs(values) > np.finfo(np.float32).max)
+    if too_big.any():
+        r, j = divmod(int(np.argmax(too_big)), values.shape[1])
+        name = fields[numeric[j]]
+        problems.append((r, 0, name, f"outside the float32 range: {_quoted(token(r, name))}"))
+    for name, most in _INT_MAX.items():
+        if name in col and np.any(np.abs(col[name]) > most):
+            r = int(np.argmax(np.abs(col[name]) > most))
+            problems.append((r, 1, name, f"too large (at most {most}): {_quoted(token(r, name))}"))
 
     def first(mask: np.ndarray) -> int | None:
         if mask.any():
