@@ -18,9 +18,12 @@ from .core.devices import setup_host_devices
 from .data import Frames, Split, prepare_frames
 from .config import Options, Params, as_arrays, batch_size, validate_params
 from .results import output_boxes
+from .core.associate import MAX_ROWS
 from .core.run import FrameHook, run_batch
 
 MAX_CAPACITY = 4096
+#: objects (detection slots) per frame the greedy order keys can tell apart (core.associate.MAX_ROWS)
+MAX_OBJECTS = MAX_ROWS
 
 
 class TrackResult(NamedTuple):
@@ -52,11 +55,12 @@ class TrackResult(NamedTuple):
         return self.boxes if self.boxes.ndim == 3 else self.boxes[b]
 
 
-def default_capacity(frames: Frames, params: Params, options: Options) -> int:
+def default_capacity(frames: Frames, params: Params, options: Options, clutter_slots: int = 0) -> int:
     """Track slots from the data: 1.5 x the most objects any frame keeps at the batch's loosest
     score thresholds, rounded up to a multiple of 8 (at least 16). Every [objects, tracks] operation
     of a step scales with it, so it is tight on purpose: a lane that overflows is re-run by ``track``
-    with twice the slots."""
+    with twice the slots. ``clutter_slots``: a distortion's clutter slots per frame (not in
+    ``frames``), room for their births: 3 x as many slots more, a multiple of 8."""
     s2 = np.min(np.asarray(params.score_2d, np.float32))
     s3 = np.min(np.asarray(params.score_3d, np.float32))
     n2 = np.sum(frames.valid2 & (frames.score2 >= s2), axis=1)
@@ -68,7 +72,8 @@ def default_capacity(frames: Frames, params: Params, options: Options) -> int:
     else:
         n = n2 + n3
     most = int(n.max(initial=0))
-    return max(16, int(np.ceil(1.5 * most / 8.0)) * 8)
+    cap = max(16, int(np.ceil(1.5 * most / 8.0)) * 8)
+    return cap + (8 * int(np.ceil(3 * clutter_slots / 8)) if clutter_slots else 0)
 
 
 def _take(tree, idx: np.ndarray):
@@ -124,6 +129,12 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
         distortion = distort.DistortParams(*(np.broadcast_to(np.asarray(v), (b,)) for v in distortion))
         frames, extra = prepare_distortion(split, frames, options, distortion, spec, clutter_slots)
     per_lane_boxes = options.output == "filtered" or extra is not None
+    n_objects = {"2d": frames.box2.shape[1], "3d": frames.box3.shape[1]}.get(
+        options.modality, frames.box2.shape[1] + frames.box3.shape[1])
+    if n_objects > MAX_OBJECTS:
+        raise ValueError(f"a frame holds up to {frames.box2.shape[1]} 2D and {frames.box3.shape[1]} 3D detection slots "
+                         f"({n_objects} objects with modality {options.modality!r}, clutter slots included): at most "
+                         f"{MAX_OBJECTS} objects per frame are supported")
     cap0 = options.capacity or default_capacity(frames, params, options)
     per_slot = ["ids"] + (["boxes"] if per_lane_boxes else []) + (["src3", "own3"] if detail else []) \
         + (["box3"] if detail and options.output == "filtered" else [])

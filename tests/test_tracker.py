@@ -140,3 +140,44 @@ def test_keep_lost_needs_filtered_output(scene):
     _, _, split = scene
     with pytest.raises(ValueError, match="keep_lost"):
         track(split, stack_params([Params(keep_lost=2)]), Options())
+
+
+def test_more_than_64_objects_in_a_frame_track_like_the_oracle(tmp_path):
+    """100 detections in one frame (2D + 3D rows past the old 64-row limit): tracker == oracle."""
+    from dfrmot_jax.io.kitti import Calib, Detections2D, Detections3D
+    from dfrmot_jax.data import SequenceDets
+
+    rng = np.random.default_rng(5)
+    n, frames = 60, 4
+    x = np.repeat(rng.uniform(0, 1100, n)[None], frames, 0) + np.arange(frames)[:, None] * 3.0
+    y = np.repeat(rng.uniform(0, 300, n)[None], frames, 0)
+    box2 = np.stack([x, y, x + 40, y + 30], -1).reshape(-1, 4)
+    f2 = np.repeat(np.arange(frames), n)
+    d2 = Detections2D(f2, box2, np.full(f2.size, 0.9))
+    m = 45
+    f3 = np.repeat(np.arange(frames), m)
+    b3 = box2.reshape(frames, n, 4)[:, :m].reshape(-1, 4) + 1.0
+    loc = np.stack([rng.uniform(-20, 20, f3.size), np.full(f3.size, 1.5), rng.uniform(5, 60, f3.size)], -1)
+    d3 = Detections3D(f3, np.array(["2"] * f3.size, object), b3, np.full(f3.size, 9.0),
+                      np.tile([1.5, 1.6, 3.9], (f3.size, 1)), loc, np.zeros(f3.size), np.zeros(f3.size))
+    P2 = np.array([[721.5, 0, 609.6, 44.9], [0, 721.5, 172.9, 0.2], [0, 0, 1, 0.003]])
+    seq = SequenceDets("0000", frames, d2, d3, Calib(P2, np.eye(3), np.zeros((3, 4)), np.stack([P2] * 4),
+                                                     np.zeros((3, 4))))
+    split = pack([seq])
+    assert split.box2d.shape[1] + split.box3d.shape[1] > 64
+    res = track(split, stack_params([Params()]), Options())
+    bad = lane_mismatches(split, res, 0, reference_rows([seq], Params(), Options()), tol=0.0)
+    assert bad["lines"] >= frames * n and (bad["missing"], bad["extra"], bad["id"], bad["box"]) == (0, 0, 0, 0), bad
+
+
+def test_too_many_objects_per_frame_is_refused_up_front():
+    from dfrmot_jax.api import MAX_OBJECTS
+
+    from dfrmot_jax.core.step import Frames
+
+    T, m2, m3 = 2, MAX_OBJECTS, 8
+    fr = Frames(np.zeros(T, bool), np.zeros((T, m2, 4), np.float32), np.zeros((T, m2), np.float32),
+                np.zeros((T, m2), bool), np.zeros((T, m3, 4), np.float32), np.zeros((T, m3), np.float32),
+                np.zeros((T, m3), bool), np.zeros((T, m3, 3), np.float32), np.zeros((T, m3, 3), np.float32))
+    with pytest.raises(ValueError, match=f"at most {MAX_OBJECTS} objects per frame"):
+        track(fr, stack_params([Params()]), Options())

@@ -40,22 +40,33 @@ def fused_affinity(iou, age_ok, dist, both3d, a_c, a_l, alpha_c):
 
 #: low bits of a cost's ordered float64 pattern that carry the tie-break instead (track id, row)
 TIE_BITS = 28
-ROW_BITS = 6
+#: rows (objects of a frame) take at least 6 of them, more for more rows; MAX_ROWS leaves 18 bits
+#: (262,143 track ids per sequence) for the column key
+MIN_ROW_BITS, MAX_ROWS = 6, 1 << 10
 _MAX64 = np.iinfo(np.int64).max
+
+
+def row_bits(n_rows: int) -> int:
+    """Tie-break bits of the row for a matrix of n_rows (static): 6 up to 64 rows, then log2."""
+    if n_rows > MAX_ROWS:
+        raise ValueError(f"at most {MAX_ROWS} objects (2D + 3D detection slots) in a frame, got {n_rows}")
+    return max(MIN_ROW_BITS, (n_rows - 1).bit_length())
 
 
 def order_key(cost, valid, col_key, limit):
     """A unique int64 per entry [O, N] ordering entries as (cost, col_key, row); MAX where excluded.
 
     The cost's float64 bit pattern is made order-preserving; its lowest ``TIE_BITS`` bits (costs
-    within 2^-24 relative) are replaced by the tie-break: the column key (track id, < 2^22), then
-    the row (< 2^6). ``reference.order_key`` is the same in NumPy.
+    within 2^-24 relative) are replaced by the tie-break: the column key (track id, < 2^(28 - b)),
+    then the row (< 2^b, b = ``row_bits(O)``: 6 up to 64 rows). ``reference.order_key`` orders the
+    same way in NumPy.
     """
+    rb = row_bits(cost.shape[0])
     c = jnp.where(valid & (cost < limit), cost, jnp.inf) + 0.0  # + 0.0 turns -0.0 into +0.0
     bits = jax.lax.bitcast_convert_type(c.astype(jnp.float64), jnp.int64)
     ordered = jnp.where(bits >= 0, bits, bits ^ jnp.int64(0x7FFFFFFFFFFFFFFF))
     rows = jnp.arange(cost.shape[0], dtype=jnp.int64)[:, None]
-    key = ((ordered >> TIE_BITS) << TIE_BITS) | (col_key.astype(jnp.int64)[None, :] << ROW_BITS) | rows
+    key = ((ordered >> TIE_BITS) << TIE_BITS) | (col_key.astype(jnp.int64)[None, :] << rb) | rows
     return jnp.where(c < jnp.inf, key, _MAX64)
 
 
@@ -75,8 +86,6 @@ def greedy_min(cost, valid, col_key, limit, unroll: int = 2):
     column-major ``minCoeff`` over tracks kept in id order. ``unroll`` rounds run inline (a CPU
     while-loop iteration costs more than a round); a loop finishes the rare frames that need more.
     """
-    if cost.shape[0] > 1 << ROW_BITS:
-        raise ValueError(f"greedy_min: at most {1 << ROW_BITS} rows, got {cost.shape[0]}")
     key = order_key(cost, valid, col_key, limit)
     match = jnp.zeros(cost.shape, bool)
     for _ in range(unroll):

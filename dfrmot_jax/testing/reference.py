@@ -243,10 +243,10 @@ def affinity_matrix(objects: list[Obj], tracks: list[Track], params: Params, opt
     return ac * iou_c + (F64(1) - ac) * (1.0 - m_l)
 
 
-TIE_BITS, ROW_BITS = 28, 6
+TIE_BITS = 28
 
 
-def order_key(cost: F64, col_key: int, row: int) -> int:
+def order_key(cost: F64, col_key: int, row: int, row_bits: int = 6) -> int:
     """The entry's place in the greedy order: (cost to 2^-24 relative, column key, row).
 
     The cost's float64 bits, made order-preserving, with the lowest TIE_BITS replaced by the
@@ -255,7 +255,7 @@ def order_key(cost: F64, col_key: int, row: int) -> int:
     bits = int(np.array(F64(cost) + F64(0.0), F64).view(np.int64))
     if bits < 0:
         bits ^= 0x7FFFFFFFFFFFFFFF
-    return ((bits >> TIE_BITS) << TIE_BITS) | (col_key << ROW_BITS) | row
+    return ((bits >> TIE_BITS) << TIE_BITS) | (col_key << row_bits) | row
 
 
 def greedy_match(cost: np.ndarray, track_ids: list[int], limit: F64) -> list[tuple[int, int]]:
@@ -264,7 +264,8 @@ def greedy_match(cost: np.ndarray, track_ids: list[int], limit: F64) -> list[tup
 
     The tracker calls it with cost = -M_f and limit = -a_f: the largest affinity first, while M_f > a_f.
     """
-    entries = sorted((order_key(cost[i, j], track_ids[j], i), i, j) for i, j in zip(*np.nonzero(cost < limit)))
+    rb = max(6, (cost.shape[0] - 1).bit_length())     # rows never spill into the track-id bits
+    entries = sorted((order_key(cost[i, j], track_ids[j], i, rb), i, j) for i, j in zip(*np.nonzero(cost < limit)))
     used_rows, used_cols, pairs = set(), set(), []
     for _, i, j in entries:
         if i not in used_rows and j not in used_cols:
