@@ -106,7 +106,7 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     chunk: lanes per compiled call (memory: chunk x T x K int32 ids); progress: a callable(n) told
     how many lanes finished, e.g. a tqdm bar's ``update``.
     distortion: ``DistortParams`` with leaves [B] (or scalars): lane b's detections are distorted by
-    its own levels and seed inside the scan (``distort.py``); needs a ``Split`` (ground truth).
+    its own levels and seed inside the scan (``dfrmot_jax.distort``); needs a ``Split`` (ground truth).
     spec / clutter_slots: the static ``DistortSpec`` (default from the data and the levels used).
     detail: also return the 3D detection each written row carries (``TrackResult.src3``), for
     result files with 3D fields; costs memory per lane, so sweeps leave it off.

@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .geometry import project_box3d_to_image
+from .geometry import box3d_extent, project_box3d_to_image, truncate_2d_box, truncate_3d_box
 from .io.kitti import (
     Calib,
     Detections2D,
@@ -247,43 +247,6 @@ def load_split(root, det2d="rrc", det3d="pointrcnn", cls: str = "car", sequences
 
 # ---------------------------------------------------------------------------------------------
 # Inputs of the scan for one set of static options
-
-
-def truncate_2d_box(box: np.ndarray) -> np.ndarray:
-    """The 2D loader's integer box: x = trunc(x1), w = |x - trunc(x2)| (C++ stoi), as x1, y1, x1+w, y1+h."""
-    x = np.trunc(box[..., 0]); y = np.trunc(box[..., 1])
-    w = np.abs(x - np.trunc(box[..., 2])); h = np.abs(y - np.trunc(box[..., 3]))
-    return np.stack([x, y, x + w, y + h], axis=-1)
-
-
-def truncate_3d_box(box: np.ndarray) -> np.ndarray:
-    """The 3D loader's integer image box: x = trunc(x1), w = trunc(|x - x2|)."""
-    x = np.trunc(box[..., 0]); y = np.trunc(box[..., 1])
-    w = np.trunc(np.abs(x - box[..., 2])); h = np.trunc(np.abs(y - box[..., 3]))
-    return np.stack([x, y, x + w, y + h], axis=-1)
-
-
-def box3d_extent(dims: np.ndarray, loc: np.ndarray, centroid: str) -> tuple[np.ndarray, np.ndarray]:
-    """Internal 3D box (min corner, max corner) [..., 3] in float32, as the authors' loader builds it.
-
-    legacy: min = (z, y, x), max = min + (l, w, h)      (published runs)
-    head:   min = (z, -x, -y), max = min + (l, h, w)    (code at HEAD)
-    kitti:  min = (x - l/2, y - h, z - w/2), max = (x + l/2, y, z + w/2)   (geometric centre (x, y - h/2, z))
-    """
-    h, w, l = (dims[..., i].astype(np.float32) for i in range(3))
-    x, y, z = (loc[..., i].astype(np.float32) for i in range(3))
-    if centroid == "legacy":
-        lo = np.stack([z, y, x], -1); ext = np.stack([l, w, h], -1)
-        return lo, lo + ext
-    if centroid == "head":
-        lo = np.stack([z, -x, -y], -1); ext = np.stack([l, h, w], -1)
-        return lo, lo + ext
-    if centroid == "kitti":
-        half = np.float32(0.5)
-        lo = np.stack([x - half * l, y - h, z - half * w], -1)
-        hi = np.stack([x + half * l, y, z + half * w], -1)
-        return lo, hi
-    raise ValueError(f"centroid {centroid!r}")
 
 
 def image_box_3d(split_box3d: np.ndarray, split_proj3d: np.ndarray, options: Options) -> np.ndarray:

@@ -1,4 +1,11 @@
-"""Box geometry for KITTI data (NumPy, used at data-load time, not inside jitted code).
+"""Box geometry for KITTI data (NumPy, used at data-load time).
+
+The loaders' integer truncation of image boxes (:func:`truncate_2d_box`, :func:`truncate_3d_box`),
+the internal 3D box (:func:`box3d_extent`) and the IoU (:func:`iou_2d`, via ``core.boxes.iou``)
+are array-generic: NumPy in, NumPy out; jax in, jax out. ``dfrmot_jax.distort`` traces the very
+same functions inside the tracker's scan (jitter re-truncates, clutter builds 3D boxes). The one
+projection that stays separate is the distortions' in-scan clutter projection
+(``distort.exact.project_box``): see :func:`project_box3d_to_image` for why.
 
 Conventions (KITTI object / tracking labels, rectified camera-0 coordinates):
 
@@ -15,7 +22,11 @@ Conventions (KITTI object / tracking labels, rectified camera-0 coordinates):
 
 from __future__ import annotations
 
+import jax
+import jax.numpy as jnp
 import numpy as np
+
+from .core.boxes import iou
 
 #: Default KITTI image size (width, height) of camera 02.
 KITTI_IMAGE_SIZE = (1242, 375)
@@ -23,10 +34,17 @@ KITTI_IMAGE_SIZE = (1242, 375)
 #: Corners with a projective depth at or below this many metres count as "behind the camera".
 MIN_DEPTH = 0.1
 
-# Object-frame corner pattern of computeBox3D (columns: corners 0..7).
-_X_PATTERN = np.array([0.5, 0.5, -0.5, -0.5, 0.5, 0.5, -0.5, -0.5])   # times l
-_Y_PATTERN = np.array([0.0, 0.0, 0.0, 0.0, -1.0, -1.0, -1.0, -1.0])   # times h
-_Z_PATTERN = np.array([0.5, -0.5, -0.5, 0.5, 0.5, -0.5, -0.5, 0.5])   # times w
+#: Object-frame corner pattern of computeBox3D: rows x (times l), y (times h), z (times w); columns
+#: corners 0..7 (0-3 bottom face, 4-7 top face). Every value is exact in float32.
+CORNER_PATTERN = np.array([[0.5, 0.5, -0.5, -0.5, 0.5, 0.5, -0.5, -0.5],
+                           [0.0, 0.0, 0.0, 0.0, -1.0, -1.0, -1.0, -1.0],
+                           [0.5, -0.5, -0.5, 0.5, 0.5, -0.5, -0.5, 0.5]])
+_X_PATTERN, _Y_PATTERN, _Z_PATTERN = CORNER_PATTERN
+
+
+def _xp(*arrays):
+    """jnp when any input is a jax array (also a tracer), else NumPy."""
+    return jnp if any(isinstance(a, jax.Array) for a in arrays) else np
 
 
 def box3d_corners(dims, loc, rot_y) -> np.ndarray:
@@ -105,6 +123,14 @@ def project_box3d_to_image(dims, loc, rot_y, P2, image_size=KITTI_IMAGE_SIZE, cl
           remaining corners (an approximation: it does not intersect the box edges with the near
           plane, so the box of a car straddling the camera plane is too small towards the image
           border). When no corner is in front, the box is all-NaN (NaN also survives clipping).
+          ``distort.exact.project_box`` (the 3D clutter's image boxes) applies the same rule.
+
+    Arithmetic: float64 NumPy (corners, then ``points @ P[:, :3].T + P[:, 3]``). These values are
+    ``Split.proj3d``, the image boxes of ``merge="calib_projection"`` / ``modality="3d"`` runs, so
+    they are kept as they are. The distortions' projection cannot call this function (it runs
+    traced inside the scan, per lane and frame) and uses float32 with exact products instead, so
+    that ``distort_frame`` and ``distort_split`` agree bit for bit (``distort.exact.lin``); the two
+    can differ in the last float32 bits, never in the behind-the-camera rule.
     """
     corners = box3d_corners(dims, loc, rot_y)                              # [..., 8, 3]
     hom = _homogeneous_project(corners, P2)                                # [..., 8, 3]
@@ -140,15 +166,57 @@ def iou_2d(a, b) -> np.ndarray:
         ``[...]`` float IoU in ``[0, 1]``; boxes are continuous (area ``(x2-x1)*(y2-y1)``, no
         ``+1``). The IoU is 0 when the boxes do not overlap, when the union is empty
         (degenerate boxes) and when a box contains NaN.
+
+    NumPy float64: ``core.boxes.iou`` (areas clipped at 0) of the inputs as float64 arrays.
     """
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
-    iw = np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0])
-    ih = np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1])
-    inter = np.clip(iw, 0.0, None) * np.clip(ih, 0.0, None)
-    area_a = np.clip(a[..., 2] - a[..., 0], 0.0, None) * np.clip(a[..., 3] - a[..., 1], 0.0, None)
-    area_b = np.clip(b[..., 2] - b[..., 0], 0.0, None) * np.clip(b[..., 3] - b[..., 1], 0.0, None)
-    union = area_a + area_b - inter
-    ok = np.isfinite(union) & np.isfinite(inter) & (union > 0)
-    iou = np.where(ok, inter / np.where(ok, union, 1.0), 0.0)
-    return iou
+    return iou(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64), clip_areas=True)
+
+
+def truncate_2d_box(box):
+    """The 2D loader's integer box: x = trunc(x1), w = |x - trunc(x2)| (C++ stoi), as x1, y1, x1+w, y1+h.
+
+    Array-generic (NumPy or jax, ``[..., 4]``); ``dfrmot_jax.data.truncate_2d_box`` is the same rule.
+    """
+    xp = _xp(box)
+    x = xp.trunc(box[..., 0]); y = xp.trunc(box[..., 1])
+    w = xp.abs(x - xp.trunc(box[..., 2])); h = xp.abs(y - xp.trunc(box[..., 3]))
+    return xp.stack([x, y, x + w, y + h], axis=-1)
+
+
+def truncate_3d_box(box):
+    """The 3D loader's integer image box: x = trunc(x1), w = trunc(|x - x2|).
+
+    Array-generic (NumPy or jax, ``[..., 4]``); ``dfrmot_jax.data.truncate_3d_box`` is the same rule.
+    """
+    xp = _xp(box)
+    x = xp.trunc(box[..., 0]); y = xp.trunc(box[..., 1])
+    w = xp.trunc(xp.abs(x - box[..., 2])); h = xp.trunc(xp.abs(y - box[..., 3]))
+    return xp.stack([x, y, x + w, y + h], axis=-1)
+
+
+def box3d_extent(dims, loc, centroid: str):
+    """Internal 3D box (min corner, max corner) [..., 3] in float32, as the authors' loader builds it.
+
+    legacy: min = (z, y, x), max = min + (l, w, h)      (published runs)
+    head:   min = (z, -x, -y), max = min + (l, h, w)    (code at HEAD)
+    kitti:  min = (x - l/2, y - h, z - w/2), max = (x + l/2, y, z + w/2)   (geometric centre (x, y - h/2, z))
+
+    Array-generic (NumPy or jax); ``dfrmot_jax.data.box3d_extent`` is the same rule. Every value is
+    one float32 operation on float32 inputs (``0.5 * l`` is exact), so no multiply-add can be
+    contracted differently in different XLA programs.
+    """
+    xp = _xp(dims, loc)
+    h, w, l = (xp.asarray(dims[..., i]).astype(xp.float32) for i in range(3))
+    x, y, z = (xp.asarray(loc[..., i]).astype(xp.float32) for i in range(3))
+    if centroid == "legacy":
+        lo = xp.stack([z, y, x], -1); ext = xp.stack([l, w, h], -1)
+        return lo, lo + ext
+    if centroid == "head":
+        lo = xp.stack([z, -x, -y], -1); ext = xp.stack([l, h, w], -1)
+        return lo, lo + ext
+    if centroid == "kitti":
+        half = xp.float32(0.5)
+        lo = xp.stack([x - half * l, y - h, z - half * w], -1)
+        hi = xp.stack([x + half * l, y, z + half * w], -1)
+        return lo, hi
+    raise ValueError(f"centroid {centroid!r}")

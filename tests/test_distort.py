@@ -521,3 +521,74 @@ def test_clutter_and_bursts_are_nested_across_levels(synthetic):
                 spec)
     assert np.all(out.valid2[2] <= out.valid2[1]) and np.all(out.valid2[1] <= out.valid2[0])
     assert np.all(out.valid3[2] <= out.valid3[1]) and np.all(out.valid3[1] <= out.valid3[0])
+
+
+# ---- one geometry: the distortions trace the loaders' own functions ---------------------------
+
+
+def _random_boxes(rng, n):
+    b = rng.uniform(-20, 1300, (n, 4))
+    b[: n // 4, 2:] = b[: n // 4, :2] - rng.uniform(0, 30, (n // 4, 2))      # some inverted boxes
+    return b
+
+
+def test_truncation_and_extent_are_the_loaders_in_numpy_and_jax():
+    rng = np.random.default_rng(0)
+    box = _random_boxes(rng, 64)
+    for generic, loader in ((dm.geometry.truncate_2d_box, dm.data.truncate_2d_box),
+                            (dm.geometry.truncate_3d_box, dm.data.truncate_3d_box)):
+        ref = loader(box)
+        assert generic(box).tobytes() == ref.tobytes()                          # NumPy path: the same bits
+        f32 = box.astype(np.float32)
+        assert np.asarray(jax.jit(generic)(jnp.asarray(f32))).tobytes() == loader(f32).tobytes()
+    dims = rng.uniform(0.5, 5.0, (32, 3)); loc = rng.uniform(-30, 60, (32, 3))
+    for centroid in ("legacy", "head", "kitti"):
+        ref = box3d_extent(dims, loc, centroid)
+        got_np = dm.geometry.box3d_extent(dims, loc, centroid)
+        with jax.enable_x64(True):
+            got_j = jax.jit(dm.geometry.box3d_extent, static_argnums=2)(jnp.asarray(dims, jnp.float32),
+                                                                           jnp.asarray(loc, jnp.float32), centroid)
+        for r, a, b in zip(ref, got_np, got_j):
+            assert a.dtype == np.float32 and a.tobytes() == r.tobytes()
+            assert np.asarray(b).tobytes() == r.tobytes()
+
+
+def test_one_iou_for_loader_tracker_and_clutter():
+    from dfrmot_jax.core import boxes
+    rng = np.random.default_rng(1)
+    a, b = _random_boxes(rng, 24), _random_boxes(rng, 20)
+    a[3] = np.nan
+    ref = dm.geometry.iou_2d(a[:, None], b[None])
+    assert ref.dtype == np.float64 and ref.tobytes() == boxes.iou(a[:, None], b[None]).tobytes()
+    af, bf = a.astype(np.float32), b.astype(np.float32)
+    # the tracker's matrix: raw (unclipped) areas, which only matters for inverted boxes
+    m = np.asarray(boxes.iou_matrix(jnp.asarray(af), jnp.asarray(bf)))
+    assert np.array_equal(m, np.asarray(boxes.iou(jnp.asarray(af)[:, None], jnp.asarray(bf)[None], clip_areas=False)))
+    ok = (af[:, 2] >= af[:, 0]) & (af[:, 3] >= af[:, 1])
+    okb = (bf[:, 2] >= bf[:, 0]) & (bf[:, 3] >= bf[:, 1])
+    clipped = np.asarray(boxes.iou(jnp.asarray(af)[:, None], jnp.asarray(bf)[None]))
+    assert np.array_equal(m[np.ix_(ok, okb)], clipped[np.ix_(ok, okb)])
+    np.testing.assert_allclose(clipped, ref, atol=1e-6)
+    assert np.all(clipped[3] == 0)
+
+
+def test_clutter_projection_has_the_loaders_behind_the_camera_rule():
+    from dfrmot_jax.distort.exact import project_box
+    P2 = np.array(D.DEFAULT_P2).reshape(3, 4)
+    dims = np.array([[1.5, 1.6, 3.9]] * 4)
+    loc = np.array([[2.0, 1.6, 20.0],       # in front
+                    [1.0, 1.6, 1.0],        # straddles the camera plane: corners behind are ignored
+                    [0.0, 1.6, -10.0],      # behind: NaN
+                    [-3.0, 1.6, 0.5]])
+    rot = np.array([0.3, 1.2, 0.0, -0.7])
+    ref = dm.geometry.project_box3d_to_image(dims, loc, rot, P2, (W, H))
+    with jax.enable_x64(True):
+        got = np.asarray(project_box(jnp.asarray(dims, jnp.float32), jnp.asarray(loc, jnp.float32),
+                                     jnp.asarray(rot, jnp.float32), D.DEFAULT_P2, (W, H)))
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(ref))
+    assert np.all(np.isnan(got[2]))
+    np.testing.assert_allclose(got[~np.isnan(ref)], ref[~np.isnan(ref)], rtol=0, atol=2e-3)
+    # the 3D clutter never gets there: its nearest corner is ~2.9 m in front with a KITTI P2
+    half_diag = 0.5 * np.hypot(D.CAR_DIMS[1], D.CAR_DIMS[2])
+    assert D.CLUTTER_Z[0] - half_diag + P2[2, 3] > 10 * dm.geometry.MIN_DEPTH

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..data import box3d_extent
+from ..geometry import box3d_extent
 
 __all__ = ["COLUMN_SETS", "format_lines", "invert_box3d_extent", "kitti_values", "authors_values"]
 

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..data import SequenceDets, box3d_extent, truncate_2d_box, truncate_3d_box
-from ..geometry import project_box3d_to_image
+from ..data import SequenceDets
+from ..geometry import box3d_extent, project_box3d_to_image, truncate_2d_box, truncate_3d_box
 from ..config import Options, Params
 
 F32 = np.float32
