@@ -52,7 +52,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from dfrmot_jax.paths import data_available, default_data_root
-    from dfrmot_jax.sweep import (expand, load_spec, n_settings, robustness_contrast, robustness_summary, sweep,
+    from dfrmot_jax.sweep import (expand, load_spec, n_settings, robustness_contrast, robustness_summary, run_sweep,
                                   sweep_report)
 
     machine = machine_info()
@@ -78,7 +78,7 @@ def main(argv=None) -> int:
     load0 = os.getloadavg()
     try:
         t0, c0 = time.perf_counter(), cpu_time()
-        df = sweep(spec, out, progress=args.progress, workers=args.workers, chunk=args.chunk)
+        df = run_sweep(spec, out, progress=args.progress, workers=args.workers, chunk=args.chunk)
         seconds = time.perf_counter() - t0
         cpu_seconds = cpu_time() - c0      # this process and its metric workers
         load1 = os.getloadavg()

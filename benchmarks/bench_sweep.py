@@ -37,7 +37,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from dfrmot_jax.paths import data_available, default_data_root
-    from dfrmot_jax.sweep import expand, load_spec, sweep, sweep_report
+    from dfrmot_jax.sweep import expand, load_spec, run_sweep, sweep_report
 
     machine = machine_info()
     spec = load_spec(args.sweep)
@@ -51,7 +51,7 @@ def main(argv=None) -> int:
     load0 = os.getloadavg()[0]
     try:
         t0, c0 = time.perf_counter(), cpu_time()
-        df = sweep(spec, out, progress=args.progress, workers=args.workers)
+        df = run_sweep(spec, out, progress=args.progress, workers=args.workers)
         seconds = time.perf_counter() - t0
         cpu_seconds = cpu_time() - c0      # this process and its metric workers
         load1 = os.getloadavg()[0]

@@ -13,7 +13,7 @@ from .api import TrackResult, default_capacity, track
 from .core.devices import setup_host_devices
 from .data import Split, load_split, prepare_frames
 from .config import Options, Params, preset, stack_params
-from .sweep import sweep, sweep_report
+from .sweep import run_sweep, sweep_report   # binds dfrmot_jax.sweep, the sweep package
 
 __all__ = ["Options", "Params", "Split", "TrackResult", "default_capacity", "load_split", "prepare_frames",
-           "preset", "setup_host_devices", "stack_params", "track", "__version__", "sweep", "sweep_report"]
+           "preset", "setup_host_devices", "stack_params", "track", "__version__", "run_sweep", "sweep", "sweep_report"]

@@ -12,7 +12,7 @@ import pytest
 from dfrmot_jax.config import Options, Params
 from dfrmot_jax.sweep import (COMBINED, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, SweepConfigError,
                               combine_sequences, config_hash, cross_validate, expand, load_results, load_spec,
-                              make_folds, plan, resolve_data, sensitivity, summary_columns, sweep,
+                              make_folds, plan, resolve_data, sensitivity, summary_columns, run_sweep,
                               sweep_report)
 from dfrmot_jax.synthetic import make_scene
 
@@ -33,7 +33,7 @@ def small_spec(root, **extra) -> dict:
 
 @pytest.fixture(scope="module")
 def small_table(scene) -> pd.DataFrame:
-    return sweep(small_spec(scene), progress=False, log=lambda m: None)
+    return run_sweep(small_spec(scene), progress=False, log=lambda m: None)
 
 
 # ---- the sweep file -------------------------------------------------------------------------------
@@ -145,7 +145,7 @@ def test_bad_file_fails_before_any_work(scene, tmp_path, monkeypatch):
     monkeypatch.setattr(dfrmot_jax.api, "track", boom)
     f = tmp_path / "bad.toml"
     f.write_text(f'[data]\nroot = "{scene}"\ndet2d = "synth2d"\ndet3d = "nope"\n[params]\na_l = [4.0, 6.0]\n')
-    from dfrmot_jax.sweep_cli import main
+    from dfrmot_jax.cli import main
 
     assert main(["sweep", str(f), "--out", str(tmp_path / "out"), "--no-progress"]) == 2
     assert not (tmp_path / "out").exists()
@@ -246,12 +246,12 @@ def test_recombining_all_sequences_gives_combined(small_table):
 
 
 def test_deterministic_in_memory_equals_directory(small_table, scene, tmp_path):
-    a = sweep(small_spec(scene), out=tmp_path / "a", progress=False, log=lambda m: None)
+    a = run_sweep(small_spec(scene), out=tmp_path / "a", progress=False, log=lambda m: None)
     pd.testing.assert_frame_equal(a.drop(columns=[RAW_COLUMN]), small_table.drop(columns=[RAW_COLUMN]))
     assert all(np.array_equal(x, y) for x, y in zip(a[RAW_COLUMN], small_table[RAW_COLUMN]))
     # a rerun resumes everything: no work, the same table
     logs = []
-    b = sweep(small_spec(scene), out=tmp_path / "a", progress=False, log=logs.append)
+    b = run_sweep(small_spec(scene), out=tmp_path / "a", progress=False, log=logs.append)
     assert "tracked" not in " ".join(logs)
     pd.testing.assert_frame_equal(a, b)
     pd.testing.assert_frame_equal(load_results(tmp_path / "a"), b)
@@ -259,20 +259,20 @@ def test_deterministic_in_memory_equals_directory(small_table, scene, tmp_path):
     spec = small_spec(scene)
     spec["params"] = {**spec["params"], "score_2d": [0.3, 0.45, 0.6]}
     logs = []
-    c = sweep(spec, out=tmp_path / "a", progress=False, log=logs.append, chunk=4)
+    c = run_sweep(spec, out=tmp_path / "a", progress=False, log=logs.append, chunk=4)
     assert len(c) == len(expand(spec)) * 4
 
 
 def test_chunking_and_track_slots_do_not_change_results(small_table, scene):
     """Chunks of 2 (later chunks run with track slots sized from the group's earlier peaks) give the
     same rows as one chunk per option group."""
-    df = sweep(small_spec(scene), chunk=2, progress=False, log=lambda m: None)
+    df = run_sweep(small_spec(scene), chunk=2, progress=False, log=lambda m: None)
     cols = [c for c in df.columns if c not in ("chunk", RAW_COLUMN)]
     pd.testing.assert_frame_equal(df[cols], small_table[cols])
 
 
 def test_metric_worker_processes_give_the_same_table(small_table, scene):
-    df = sweep(small_spec(scene), chunk=2, workers=2, progress=False, log=lambda m: None)
+    df = run_sweep(small_spec(scene), chunk=2, workers=2, progress=False, log=lambda m: None)
     cols = [c for c in df.columns if c not in ("chunk", RAW_COLUMN)]
     pd.testing.assert_frame_equal(df[cols], small_table[cols])
     assert all(np.array_equal(x, y) for x, y in zip(df[RAW_COLUMN], small_table[RAW_COLUMN]))
@@ -281,7 +281,7 @@ def test_metric_worker_processes_give_the_same_table(small_table, scene):
 def test_duplicate_outputs_scored_once_same_result(scene):
     """kf_q does not matter to the fixed-gain filter: identical outputs, identical rows."""
     spec = small_spec(scene, params={"kf_q": [0.5, 1.0, 2.0]}, options={})
-    df = sweep(spec, progress=False, log=lambda m: None)
+    df = run_sweep(spec, progress=False, log=lambda m: None)
     comb = df[df["sequence"] == COMBINED]
     assert comb["HOTA"].nunique() == 1 and comb["IDSW"].nunique() == 1
 

@@ -16,7 +16,7 @@ from dfrmot_jax import config as config_mod
 from dfrmot_jax.config import PRESETS, preset
 from dfrmot_jax.sweep import (AVERAGE, COMBINED, PARAM_NAMES, RAW_COLUMN, SweepConfigError, class_columns,
                               class_view, config_hash, cross_validate, expand, load_results, load_spec, make_folds,
-                              parse_spec, plan, resolve_data_all, sweep, sweep_report)
+                              parse_spec, plan, resolve_data_all, run_sweep, sweep_report)
 from dfrmot_jax.synthetic import make_scene
 
 SWEEPS = Path(__file__).parent.parent / "sweeps"
@@ -88,7 +88,7 @@ def mc_spec(root, **extra) -> dict:
 @pytest.fixture(scope="module")
 def run(root, tmp_path_factory):
     out = tmp_path_factory.mktemp("classes_out") / "run"
-    df = sweep(mc_spec(root), out=out, progress=False, workers=0, log=lambda m: None)
+    df = run_sweep(mc_spec(root), out=out, progress=False, workers=0, log=lambda m: None)
     return df, out
 
 
@@ -312,7 +312,7 @@ def test_pedestrian_rows_equal_a_single_class_sweep(run, root):
     """The pedestrian rows of the two-class sweep are what a pedestrian-only sweep of the same
     effective settings gives (the chunk split, compilation and metrics are per class)."""
     df, _ = run
-    one = sweep({"name": "ped", "chunk": 8,
+    one = run_sweep({"name": "ped", "chunk": 8,
                  "data": {"root": str(root), "det2d": "synth2d", "det3d": "synth3d", "class": "pedestrian"},
                  "baseline": {"preset": "dfr2023", "class": "car"},
                  "params": {"score_2d": [0.3, 0.45], "min_hits": [1, 2]}},
@@ -330,7 +330,7 @@ def test_resume_and_directory(run, root):
     df, out = run
     pd.testing.assert_frame_equal(load_results(out), df)
     logs = []
-    again = sweep(mc_spec(root), out=out, progress=False, workers=0, log=logs.append)
+    again = run_sweep(mc_spec(root), out=out, progress=False, workers=0, log=logs.append)
     assert "tracked" not in " ".join(logs) and "[pedestrian]" in " ".join(logs)
     pd.testing.assert_frame_equal(again, df)
     # from the chunks alone (no results.parquet) the average rows are rebuilt identically
@@ -407,7 +407,7 @@ def test_report_defaults_to_the_average(run):
 
 
 def test_cli_report_class(run, root, tmp_path, capsys):
-    from dfrmot_jax.sweep_cli import main
+    from dfrmot_jax.cli import main
 
     _, out = run
     assert main(["report", str(out), "--class", "pedestrian", "--folds", "2"]) == 0
@@ -454,7 +454,7 @@ def test_shipped_ablation_tuned_variant_is_the_pedestrian_default():
 def test_kitti_pedestrian_baseline_and_defaults(kitti_root):
     """On KITTI (skipped without the data): pedestrians with the car settings score HOTA 50.43, with
     the pedestrian defaults (CLASS_DEFAULTS, from sweeps/kitti_pedestrian.toml) 55.82."""
-    df = sweep({"name": "ped", "data": {"root": str(kitti_root), "class": "pedestrian"},
+    df = run_sweep({"name": "ped", "data": {"root": str(kitti_root), "class": "pedestrian"},
                 "baseline": {"preset": "dfr2023", "class": "car"},
                 "variants": [{"name": "tuned", "params": dict(config_mod.CLASS_DEFAULTS["pedestrian"])}]},
                progress=False, log=lambda m: None)

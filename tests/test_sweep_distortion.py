@@ -13,7 +13,7 @@ from dfrmot_jax import distort
 from dfrmot_jax.config import Options, Params
 from dfrmot_jax.sweep import (COMBINED, DISTORTION_AXES, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, SweepConfigError,
                               config_hash, expand, load_results, load_spec, n_settings, plan, resolve_data,
-                              robustness_contrast, robustness_curves, robustness_summary, sweep, sweep_report)
+                              robustness_contrast, robustness_curves, robustness_summary, run_sweep, sweep_report)
 from dfrmot_jax.synthetic import make_scene
 
 METRICS = ["HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW", "Frag", "CLR_FP", "CLR_FN", "IDTP"]
@@ -41,14 +41,14 @@ def quiet(**kw):
 
 @pytest.fixture(scope="module")
 def dist_table(scene) -> pd.DataFrame:
-    return sweep(dist_spec(scene), **quiet())
+    return run_sweep(dist_spec(scene), **quiet())
 
 
 @pytest.fixture(scope="module")
 def clean_table(scene) -> pd.DataFrame:
     spec = dist_spec(scene)
     del spec["distortion"]
-    return sweep(spec, **quiet())
+    return run_sweep(spec, **quiet())
 
 
 # ---- the config table ----------------------------------------------------------------------------
@@ -150,7 +150,7 @@ def test_bad_distortion_fails_before_any_work(scene, tmp_path, monkeypatch):
     f = tmp_path / "bad.toml"
     f.write_text(f'[data]\nroot = "{scene}"\ndet2d = "synth2d"\ndet3d = "synth3d"\n[params]\nepsilon = [1, 30]\n'
                  f'[distortion]\nkind = "drop"\nlevel = [0.0, 1.2]\nseeds = 3\n')
-    from dfrmot_jax.sweep_cli import main
+    from dfrmot_jax.cli import main
 
     assert main(["sweep", str(f), "--out", str(tmp_path / "out"), "--no-progress"]) == 2
     assert not (tmp_path / "out").exists()
@@ -215,7 +215,7 @@ def test_rows_equal_direct_track_with_per_lane_boxes(dist_table, scene):
 
     spec = dist_spec(scene, distortion={"kind": "jitter", "level": [3.0], "seeds": [4]}, chunk=64,
                      options={"output": "filtered"})
-    df = sweep(spec, **quiet())
+    df = run_sweep(spec, **quiet())
     split = dm.load_split(scene, "synth2d", "synth3d", "car")
     gt = prepare_gt(scene, "car", split.names)
     comb = df[(df["sequence"] == COMBINED) & (df["distortion.kind"] == "jitter")]
@@ -236,7 +236,7 @@ def test_rows_equal_direct_track_with_per_lane_boxes(dist_table, scene):
 def test_clutter_lanes_add_false_positives(scene):
     spec = dist_spec(scene, options={}, distortion={"kind": "clutter", "level": [0, 1.5], "seeds": 2,
                                                      "clutter_slots": 3})
-    df = sweep(spec, **quiet())
+    df = run_sweep(spec, **quiet())
     comb = df[df["sequence"] == COMBINED]
     fp = comb.groupby(["epsilon", "distortion.kind"])["CLR_FP"].mean().unstack()
     assert (fp["clutter"] > fp["none"]).all() and (comb["overflow"] == 0).all()
@@ -247,7 +247,7 @@ def test_clutter_lanes_add_false_positives(scene):
 
 
 def test_deterministic_and_chunking_independent(dist_table, scene):
-    again = sweep(dist_spec(scene, chunk=3), **quiet())
+    again = run_sweep(dist_spec(scene, chunk=3), **quiet())
     cols = [c for c in dist_table.columns if c not in ("chunk", RAW_COLUMN)]
     pd.testing.assert_frame_equal(again[cols], dist_table[cols])
     assert all(np.array_equal(a, b) for a, b in zip(again[RAW_COLUMN], dist_table[RAW_COLUMN]))
@@ -256,7 +256,7 @@ def test_deterministic_and_chunking_independent(dist_table, scene):
 def test_resume_skips_finished_chunks(dist_table, scene, tmp_path):
     out = tmp_path / "run"
     spec = dist_spec(scene)
-    first = sweep(spec, out=out, **quiet())
+    first = run_sweep(spec, out=out, **quiet())
     chunks = sorted((out / "chunks").glob("*.parquet"))
     manifest = json.loads((out / "manifest.json").read_text())
     assert len(chunks) == len(manifest["chunks"]) >= 3
@@ -266,14 +266,14 @@ def test_resume_skips_finished_chunks(dist_table, scene, tmp_path):
         p.unlink()
     (out / "results.parquet").unlink()
     logs = []
-    resumed = sweep(spec, out=out, progress=False, log=logs.append)
+    resumed = run_sweep(spec, out=out, progress=False, log=logs.append)
     assert f"{len(chunks) - 2} done" in logs[0] and "tracked" in " ".join(logs)
     pd.testing.assert_frame_equal(resumed, first)
     cols = [c for c in first.columns if c != RAW_COLUMN]
     pd.testing.assert_frame_equal(first[cols], dist_table[cols])
     # everything finished: no work at all
     logs = []
-    again = sweep(spec, out=out, progress=False, log=logs.append)
+    again = run_sweep(spec, out=out, progress=False, log=logs.append)
     assert f"{len(chunks)} done" in logs[0] and "tracked" not in " ".join(logs)
     pd.testing.assert_frame_equal(again, first)
     pd.testing.assert_frame_equal(load_results(out), first)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from dfrmot_jax.sweep import COMBINED, sweep, sweep_report
+from dfrmot_jax.sweep import COMBINED, run_sweep, sweep_report
 
 # TrackEval's KITTI 2D box evaluation (car) of the authors' published RRC + PointRCNN files
 PUBLISHED = {"HOTA": 82.79, "DetA": 83.12, "AssA": 82.59, "MOTA": 90.73, "MOTP": 90.57, "IDSW": 177,
@@ -15,7 +15,7 @@ def test_baseline_row_reproduces_dfr2023(kitti_root):
     spec = {"name": "kitti_baseline", "chunk": 2,
             "data": {"root": str(kitti_root), "det2d": "rrc", "det3d": "pointrcnn", "class": "car"},
             "baseline": {"preset": "dfr2023"}, "params": {"a_l": [8.0, 5.0]}}
-    df = sweep(spec, progress=False, log=lambda m: None)
+    df = run_sweep(spec, progress=False, log=lambda m: None)
     comb = df[df["sequence"] == COMBINED]
     assert len(comb) == 2 and df["sequence"].nunique() == 21          # 20 sequences with cars + COMBINED
     base = comb[comb["baseline"]].iloc[0]

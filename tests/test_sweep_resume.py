@@ -1,8 +1,12 @@
-"""Resume: a sweep killed mid-run (a real subprocess, SIGKILL) and rerun equals an uninterrupted run."""
+"""Resume: a sweep killed mid-run (a real subprocess, SIGKILL) and rerun equals an uninterrupted run; a
+directory written by the previous version (``tests/fixtures/sweep_v1``, hash scheme 1) resumes with
+nothing recomputed."""
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -12,7 +16,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from dfrmot_jax.sweep import COMBINED, sweep
+from dfrmot_jax.sweep import (COMBINED, HASH_VERSION, HashVersionError, expand, hash_version, load_results, run_sweep,
+                              sweep_report)
 from dfrmot_jax.synthetic import make_scene
 
 N_CHUNKS = 8
@@ -33,7 +38,7 @@ score_2d = [0.3, 0.45, 0.6, 0.7]
 
 
 def _cmd(toml: Path, out: Path) -> list[str]:
-    return [sys.executable, "-m", "dfrmot_jax.sweep_cli", "sweep", str(toml), "--out", str(out),
+    return [sys.executable, "-m", "dfrmot_jax.cli", "sweep", str(toml), "--out", str(out),
             "--workers", "0", "--no-progress"]
 
 
@@ -68,9 +73,88 @@ def test_killed_sweep_resumes_to_the_same_table(tmp_path):
     assert len(list(chunks.glob("*.parquet"))) == N_CHUNKS
 
     resumed = pd.read_parquet(out / "results.parquet")
-    clean = sweep(toml, out=tmp_path / "clean", progress=False, workers=0, log=lambda m: None)
+    clean = run_sweep(toml, out=tmp_path / "clean", progress=False, workers=0, log=lambda m: None)
     pd.testing.assert_frame_equal(resumed, clean)
     assert not resumed.duplicated(["config", "sequence"]).any()
     assert resumed["config"].nunique() == 16
     assert (resumed.groupby("config")["sequence"].apply(list)
             .map(lambda s: s == ["0000", "0001", "0002", COMBINED]).all())
+
+
+# ---- result directories written by earlier versions ---------------------------------------------
+
+FIXTURES = Path(__file__).parent / "fixtures"
+V1 = FIXTURES / "sweep_v1"
+
+
+def _v1_spec() -> dict:
+    """Regenerate the synthetic data of the v1 fixture (not committed) where it was written from,
+    and return the fixture's sweep spec."""
+    doc = json.loads((V1 / "scene.json").read_text())
+    kw = dict(doc["make_scene"])
+    directory = Path(kw.pop("directory"))
+    assert json.loads((V1 / "manifest.json").read_text())["data"]["root"] == str(directory)
+    try:
+        make_scene(directory, **kw)
+    except OSError as e:      # the fixture's data root is a fixed absolute path (part of its chunk ids)
+        pytest.skip(f"cannot write the v1 fixture's scene at {directory}: {e}")
+    return doc["spec"]
+
+
+def test_v1_directory_resumes_without_recomputation(tmp_path, monkeypatch):
+    import dfrmot_jax
+    import dfrmot_jax.api
+    import dfrmot_jax.sweep.runner
+
+    spec = _v1_spec()
+    out = tmp_path / "sweep_v1"
+    shutil.copytree(V1, out)
+    old_manifest = json.loads((out / "manifest.json").read_text())
+    assert "hash_version" not in old_manifest and hash_version(old_manifest) == 1
+    stamps = {p.name: p.stat().st_mtime_ns for p in (out / "chunks").iterdir()}
+
+    def boom(*a, **k):
+        raise AssertionError("a chunk of the v1 directory was recomputed")
+
+    monkeypatch.setattr(dfrmot_jax.api, "track", boom)
+    monkeypatch.setattr(dfrmot_jax.sweep.runner, "_ChunkRunner", boom)
+    logs: list[str] = []
+    df = run_sweep(spec, out=out, progress=False, workers=0, log=logs.append)
+    assert len(logs) == 1 and "1 chunks of <= 4; 1 done" in logs[0]
+    assert {p.name: p.stat().st_mtime_ns for p in (out / "chunks").iterdir()} == stamps
+    pd.testing.assert_frame_equal(df, pd.read_parquet(V1 / "results.parquet"))
+    pd.testing.assert_frame_equal(load_results(out), df)
+    # same config hashes and chunk ids; the manifest now says which scheme they are
+    assert expand(spec)["config_hash"].tolist() == pd.read_parquet(V1 / "configs.parquet")["config_hash"].tolist()
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["chunks"] == old_manifest["chunks"]
+    assert manifest["hash_version"] == HASH_VERSION == 1
+
+    rep = sweep_report(out, folds=2)
+    assert rep.summary["configs"] == 4 and rep.summary["folds"] == 2
+    assert rep.text.startswith("sweep v1_fixture: 4 configs x 2 sequences")
+
+    # the deprecated spellings still run (and resume) a sweep, with a DeprecationWarning
+    with pytest.warns(DeprecationWarning, match="run_sweep"):
+        again = dfrmot_jax.sweep(spec, out=out, progress=False, workers=0, log=logs.append)
+    with pytest.warns(DeprecationWarning, match="run_sweep"):
+        dfrmot_jax.sweep.sweep(spec, out=out, progress=False, workers=0, log=logs.append)
+    pd.testing.assert_frame_equal(again, df)
+
+
+def test_directory_of_another_hash_scheme_is_refused(tmp_path):
+    spec = _v1_spec()
+    out = tmp_path / "sweep_v2"
+    shutil.copytree(V1, out)
+    manifest = json.loads((out / "manifest.json").read_text())
+    (out / "manifest.json").write_text(json.dumps({**manifest, "hash_version": HASH_VERSION + 1}))
+    with pytest.raises(HashVersionError, match="config_hash scheme"):
+        run_sweep(spec, out=out, progress=False, workers=0, log=lambda m: None)
+
+
+def test_config_hashes_are_those_of_version_1():
+    """Config hashes of tables with options, random axes, distortion lanes and per-class axes, as
+    the previous sweep module (hash scheme 1) computed them."""
+    doc = json.loads((FIXTURES / "sweep_v1_hashes.json").read_text())
+    for name, spec in doc["specs"].items():
+        assert expand(spec)["config_hash"].tolist() == doc["config_hash"][name], name

@@ -22,10 +22,17 @@ HOTA_TP HOTA_FN HOTA_FP) are summed over the classes, every other field (the rat
 AssA DetRe DetPr AssRe AssPr LocA OWTA per alpha, HOTA(0) LocA(0) HOTALocA(0), MOTA MOTP MODA
 CLR_Re CLR_Pr MTR PTR MLR sMOTA CLR_F1 FP_per_frame MOTAL, IDF1 IDR IDP, and MOTP_sum as TrackEval
 does) is the plain mean over the classes; nothing is recomputed from the sums.
+
+Sweeps (:mod:`dfrmot_jax.sweep`) score padded tracker output with :class:`LaneScorer` (each
+distinct output scored once, in sub-batches of lanes, optionally in a :func:`worker_pool`), keep
+TrackEval's summary view per row (:func:`summary_columns`), re-combine any subset of sequences
+from the per-alpha fields :data:`RAW_FIELDS` (:func:`combine_sequences`) and average classes
+column-wise (:func:`class_average_columns`).
 """
 
 from __future__ import annotations
 
+import hashlib
 import multiprocessing as mp
 import os
 from concurrent.futures import ProcessPoolExecutor
@@ -45,6 +52,9 @@ ALL_FIELDS = hota.FIELDS + clear.FIELDS + identity.FIELDS + COUNT_FIELDS
 # the class average (TrackEval's combine_classes_class_averaged): these are summed, the rest averaged
 CLASS_SUMMED_FIELDS = hota.INTEGER_ARRAY_FIELDS + clear.INTEGER_FIELDS + identity.INTEGER_FIELDS + COUNT_FIELDS
 CLASS_AVERAGED_FIELDS = tuple(f for f in ALL_FIELDS if f not in CLASS_SUMMED_FIELDS)
+#: per-alpha HOTA fields that, with CLEAR's summed fields, Identity's and the counts, re-combine any
+#: subset of sequences exactly as TrackEval combines sequences (:func:`combine_sequences`).
+RAW_FIELDS = ("HOTA_TP", "HOTA_FN", "HOTA_FP", "AssA", "AssRe", "AssPr", "LocA")
 EVAL_CLASSES = ("car", "pedestrian")
 AVERAGE = "average"
 
@@ -161,13 +171,22 @@ def evaluate_batch(gt: PreparedGT, dets: TrackerDets) -> dict[str, dict[str, np.
     seq["GT_Dets"] = np.broadcast_to(gt.n_gt_dets[None, :], (L, S))
     seq["IDs"] = b.n_tr_ids
     seq["GT_IDs"] = np.broadcast_to(gt.n_gt_ids[None, :], (L, S))
-    comb = {}
-    comb.update(hota.hota_combine(seq))
-    comb.update(clear.clear_combine(seq))
-    comb.update(identity.identity_combine(seq))
+    return {"seq": seq, "comb": combine_sequences(seq)}
+
+
+def combine_sequences(seq_rows: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """TrackEval's ``combine_sequences`` over axis 1 of per-sequence fields [C, S(, 19)] -> fields [C(, 19)].
+
+    ``seq_rows`` holds ``RAW_FIELDS`` (per alpha), CLEAR's summed fields, Identity's and the counts.
+    """
+    h = hota.hota_combine({f: seq_rows[f] for f in RAW_FIELDS})
+    c = clear.clear_combine({f: seq_rows[f] for f in clear.SUMMED_FIELDS})
+    i = identity.identity_combine({f: seq_rows[f] for f in identity.INTEGER_FIELDS})
+    out = {**h, **c, **i}
     for f in COUNT_FIELDS:
-        comb[f] = seq[f].sum(axis=1)
-    return {"seq": seq, "comb": comb}
+        if f in seq_rows:
+            out[f] = seq_rows[f].sum(axis=1)
+    return out
 
 
 def _to_dicts(gt: PreparedGT, out: dict) -> list[dict[str, dict[str, object]]]:
@@ -260,11 +279,24 @@ def evaluate_classes(results_dir, root=None, classes: Sequence[str] | str = EVAL
     return classes_table(evaluate_files_classes(results_dir, root, classes, sequences, missing), tracker=tracker)
 
 
-def _lane_slices(dets: TrackerDets, lanes: range) -> TrackerDets:
-    a = np.searchsorted(dets.lane, lanes.start, side="left")
-    b = np.searchsorted(dets.lane, lanes.stop, side="left")
-    return TrackerDets(len(lanes), dets.lane[a:b] - lanes.start, dets.frame[a:b], dets.track_id[a:b],
-                       dets.box[a:b], dets.source[a:b])
+def lane_slice(dets: TrackerDets, a: int, b: int) -> TrackerDets:
+    """Lanes a..b-1 of flattened tracker output (rows are sorted by lane), renumbered from 0."""
+    i, j = np.searchsorted(dets.lane, [a, b], side="left")
+    return dets._replace(n_lanes=b - a, lane=dets.lane[i:j] - a, frame=dets.frame[i:j],
+                         track_id=dets.track_id[i:j], box=dets.box[i:j], source=dets.source[i:j],
+                         paths=dets.paths[a:b] if dets.paths else dets.paths)
+
+
+def _concat(outs: list[dict]) -> dict:
+    return {part: {f: np.concatenate([o[part][f] for o in outs], axis=0) for f in outs[0][part]}
+            for part in ("seq", "comb")}
+
+
+def evaluate_lanes(gt: PreparedGT, dets: TrackerDets, lanes_per_batch: int = 16) -> dict:
+    """:func:`evaluate_batch` over sub-batches of ``lanes_per_batch`` lanes (bounded memory), concatenated:
+    ``{'seq': {field: [L, S(, 19)]}, 'comb': {field: [L(, 19)]}}``."""
+    return _concat([evaluate_batch(gt, lane_slice(dets, a, min(a + lanes_per_batch, dets.n_lanes)))
+                    for a in range(0, dets.n_lanes, lanes_per_batch)])
 
 
 _WORKER_GT: PreparedGT | None = None
@@ -279,9 +311,80 @@ def _run_chunk(dets: TrackerDets) -> dict:
     return evaluate_batch(_WORKER_GT, dets)
 
 
-def _concat(outs: list[dict]) -> dict:
-    return {part: {f: np.concatenate([o[part][f] for o in outs], axis=0) for f in outs[0][part]}
-            for part in ("seq", "comb")}
+def _run_lanes(dets: TrackerDets, lanes_per_batch: int) -> dict:
+    return evaluate_lanes(_WORKER_GT, dets, lanes_per_batch)
+
+
+def worker_pool(gt: PreparedGT, workers: int, start_method: str | None = None) -> ProcessPoolExecutor:
+    """A process pool whose workers hold ``gt`` (sent once): submit ``_run_chunk(dets)`` /
+    ``_run_lanes(dets, lanes_per_batch)``. ``start_method`` default ``'forkserver'`` where available,
+    else ``'spawn'`` (both safe in a process running JAX threads)."""
+    method = start_method or ("forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn")
+    return ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method), initializer=_init_worker,
+                               initargs=(gt,))
+
+
+class LaneScorer:
+    """Scores lanes of padded tracker output against prepared ground truth, each distinct output once.
+
+    A lane's output is identified by a digest of its ids (and its own boxes, when boxes are per
+    lane); :meth:`new_lanes` picks the lanes whose output is not scored yet, :meth:`store` keeps
+    their scores and :meth:`gather` returns the scores of every lane of a batch."""
+
+    def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16):
+        self.gt = gt
+        self.offsets = np.asarray(offsets, np.int64)
+        self.lanes_per_batch = lanes_per_batch
+        self.memo: dict[bytes, tuple[dict, dict]] = {}
+
+    def __len__(self) -> int:
+        return len(self.memo)
+
+    @staticmethod
+    def digests(ids: np.ndarray, boxes: np.ndarray) -> list[bytes]:
+        out = []
+        for b in range(ids.shape[0]):
+            h = hashlib.sha1(np.ascontiguousarray(ids[b]).tobytes())
+            if boxes.ndim == 4:
+                h.update(np.ascontiguousarray(boxes[b][ids[b] >= 0]).tobytes())
+            out.append(h.digest())
+        return out
+
+    def new_lanes(self, digests: Sequence[bytes], busy=frozenset()) -> list[int]:
+        """The first lane of each digest not scored yet and not in ``busy`` (being scored elsewhere)."""
+        seen: set[bytes] = set()
+        out = []
+        for i, d in enumerate(digests):
+            if d not in self.memo and d not in seen:
+                seen.add(d)
+                if d not in busy:
+                    out.append(i)
+        return out
+
+    def dets(self, ids, boxes, lanes) -> TrackerDets:
+        lanes = np.asarray(lanes, np.int64)
+        bx = boxes[lanes] if boxes.ndim == 4 else np.broadcast_to(boxes, (len(lanes),) + boxes.shape)
+        return tracker_dets_from_arrays(self.gt, ids[lanes], bx, self.offsets)
+
+    def evaluate(self, dets: TrackerDets) -> dict:
+        return evaluate_lanes(self.gt, dets, self.lanes_per_batch)
+
+    def submit(self, pool: ProcessPoolExecutor, dets: TrackerDets):
+        return pool.submit(_run_lanes, dets, self.lanes_per_batch)
+
+    def store(self, digests: Sequence[bytes], lanes: Sequence[int], result: dict) -> None:
+        """Keep the scores ``result`` (:func:`evaluate_lanes` of ``lanes``, in order) under their digests."""
+        for j, lane in enumerate(lanes):
+            d = digests[lane]
+            if d not in self.memo:
+                self.memo[d] = ({f: v[j] for f, v in result["seq"].items()},
+                                {f: v[j] for f, v in result["comb"].items()})
+
+    def gather(self, digests: Sequence[bytes]) -> dict:
+        """The scores of every lane (all scored): ``{'seq': {f: [B, S(, 19)]}, 'comb': {f: [B(, 19)]}}``."""
+        per = [self.memo[d] for d in digests]
+        return {"seq": {f: np.stack([s[f] for s, _ in per]) for f in per[0][0]},
+                "comb": {f: np.stack([c[f] for _, c in per]) for f in per[0][1]}}
 
 
 def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, chunk: int = 4, workers: int | None = 1,
@@ -308,15 +411,66 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, chunk: int 
     if B == 0:
         return []
     chunk = max(1, int(chunk))
-    tasks = [_lane_slices(dets, range(a, min(a + chunk, B))) for a in range(0, B, chunk)]
+    tasks = [lane_slice(dets, a, min(a + chunk, B)) for a in range(0, B, chunk)]
     if workers is None:
         workers = 2 if (B >= 64 and (os.cpu_count() or 1) >= 2) else 1
     if workers > 1 and len(tasks) > 1:
-        methods = mp.get_all_start_methods()
-        method = start_method or ("forkserver" if "forkserver" in methods else "spawn")
-        with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=mp.get_context(method),
-                                 initializer=_init_worker, initargs=(gt,)) as ex:
+        with worker_pool(gt, min(workers, len(tasks)), start_method) as ex:
             outs = list(ex.map(_run_chunk, tasks))
     else:
         outs = [evaluate_batch(gt, t) for t in tasks]
     return _to_dicts(gt, _concat(outs))
+
+
+# ---------------------------------------------------------------------------------------------
+# Summary columns and the class average, vectorised over rows (sweep tables)
+
+
+def summary_columns(seq: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """TrackEval fields (arrays [..., 19] or [...]) -> the summary columns of ``metrics_table``
+    (HOTA family: mean over alphas x100; other ratios x100; counts int64), vectorised."""
+    from dfrmot_jax.metrics import table
+
+    out = {}
+    for f in table.TABLE_FIELDS:
+        if f not in seq:
+            continue
+        v = np.asarray(seq[f])
+        if f in table.COUNT_FIELDS:
+            out[f] = np.rint(v.astype(np.float64)).astype(np.int64)
+        elif f in hota.FLOAT_ARRAY_FIELDS:
+            out[f] = 100.0 * np.mean(v.astype(np.float64), axis=-1)
+        else:
+            out[f] = 100.0 * v.astype(np.float64)
+    for f in ("CLR_Frames",):
+        if f in seq:
+            out[f] = np.rint(np.asarray(seq[f], np.float64)).astype(np.int64)
+    if "MOTP_sum" in seq:
+        out["MOTP_sum"] = np.asarray(seq["MOTP_sum"], np.float64)
+    return out
+
+
+def class_combiner(field: str) -> str | None:
+    """How the class average treats a field or summary column: "sum" (:data:`CLASS_SUMMED_FIELDS`),
+    "mean" (:data:`CLASS_AVERAGED_FIELDS`) or None (not a metric)."""
+    if field in CLASS_SUMMED_FIELDS:
+        return "sum"
+    if field in CLASS_AVERAGED_FIELDS:
+        return "mean"
+    return None
+
+
+def class_average_columns(per_class: Sequence[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """The class average of summary columns (arrays [C] per class, x100 ratios): TrackEval's
+    ``combine_classes_class_averaged`` as :func:`class_average` does it (``CLASS_SUMMED_FIELDS``
+    summed, ``CLASS_AVERAGED_FIELDS`` averaged), vectorised over rows. A summary column is a linear
+    function of its field (a ratio x100, HOTA's the mean over alphas), so averaging the columns
+    equals the summary of the averaged fields."""
+    out = {}
+    for f in per_class[0]:
+        how = class_combiner(f)
+        if how is None or not all(f in p for p in per_class):
+            continue
+        stack = np.stack([np.asarray(p[f]) for p in per_class])
+        out[f] = stack.sum(axis=0) if how == "sum" else stack.astype(np.float64).mean(axis=0)
+    return out

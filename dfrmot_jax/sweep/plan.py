@@ -1,0 +1,126 @@
+"""Planning a sweep: the data settings resolved and checked, configs grouped by static options (one
+compilation each) and cut into chunks (the resume unit; chunk id = hash of the data settings, the
+chunk's config hashes and, with distortion, the distortion settings)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import pandas as pd
+
+from ..config import Options
+from .distortion import DistortionAxes
+from .spec import OPTION_NAMES, _as_spec, _err
+
+
+@dataclass(frozen=True)
+class DataSettings:
+    """Resolved data settings of a sweep (part of every chunk's identity)."""
+
+    root: str
+    det2d: str
+    det3d: str
+    cls: str
+    sequences: tuple[str, ...]
+    lengths: tuple[int, ...] = ()
+
+    def identity(self) -> dict:
+        return {"root": self.root, "det2d": self.det2d, "det3d": self.det3d, "class": self.cls,
+                "sequences": list(self.sequences)}
+
+
+def resolve_data_all(spec, data_root=None) -> tuple[DataSettings, ...]:
+    """The data settings of every class of the sweep (``data.class`` order), each checked before any
+    work: each class has its own split (the sequences whose ground truth has the class, or
+    ``data.sequences``)."""
+    spec = _as_spec(spec)
+    return tuple(resolve_data(spec, data_root, cls=c) for c in spec.classes)
+
+
+def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
+    """Resolve and check the data settings (root, detectors, class, sequences) before any work.
+
+    ``cls``: which of the sweep's classes (default: the first; :func:`resolve_data_all` gives all)."""
+    from ..data import detection_dir, sequences_with_class
+    from ..io.kitti import KittiFormatError, sequence_lengths
+    from ..paths import default_data_root
+
+    spec = _as_spec(spec)
+    if cls is not None:
+        if cls not in spec.classes:
+            raise ValueError(f"class {cls!r} is not one of the sweep's classes {list(spec.classes)}")
+        spec = replace(spec, cls=cls)
+    src = spec.source
+    root = Path(data_root if data_root is not None else (spec.data_root or default_data_root())).expanduser()
+    if not (root / "label_02").is_dir():
+        raise _err("data.root", f"{root} has no label_02/ (the KITTI tracking training root; set it in the "
+                                f"sweep file, with --data, or with $DFRMOT_DATA)", src)
+    root = root.resolve()
+    for key, det in (("data.det2d", spec.det2d), ("data.det3d", spec.det3d)):
+        try:
+            detection_dir(root, det, spec.cls)
+        except KittiFormatError as e:
+            raise _err(key, e.message, src) from None
+    if spec.sequences is None:
+        seqs = tuple(sequences_with_class(root, spec.cls))
+        if not seqs:
+            raise _err("data.sequences", f"no sequence under {root / 'label_02'} has class {spec.cls}", src)
+    else:
+        missing = [s for s in spec.sequences if not (root / "label_02" / f"{s}.txt").is_file()]
+        if missing:
+            raise _err("data.sequences", f"no ground truth for {missing} under {root / 'label_02'}", src)
+        seqs = spec.sequences
+    lengths = sequence_lengths(root, list(seqs))
+    return DataSettings(str(root), str(spec.det2d), str(spec.det3d), spec.cls, tuple(seqs),
+                        tuple(int(lengths[s]) for s in seqs))
+
+
+
+@dataclass(frozen=True)
+class Chunk:
+    id: str
+    group: int
+    options: Options
+    configs: tuple[int, ...]
+    cls: str = "car"
+
+
+def _row_options(row: Mapping) -> Options:
+    return Options(**{n: type(Options._field_defaults[n])(row[n]) for n in OPTION_NAMES})
+
+
+def _groups(table: pd.DataFrame) -> dict[Options, list[int]]:
+    """Config rows by static options, in first-appearance order."""
+    groups: dict[Options, list[int]] = {}
+    for row in table[["config"] + list(OPTION_NAMES)].to_dict("records"):
+        groups.setdefault(_row_options(row), []).append(int(row["config"]))
+    return groups
+
+
+def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk: int,
+         distortion: DistortionAxes | None = None) -> list[Chunk]:
+    """Group the configs by static options (first appearance order), cut each group into chunks.
+
+    A chunk's id hashes the data settings (its class's), its config hashes and (distortion sweeps)
+    the distortion settings (``DistortionAxes.identity``). ``data``: one class's settings or, for a
+    sweep over several classes, every class's (:func:`resolve_data_all`): the chunks of each class
+    in turn, every config in every class."""
+    if not isinstance(data, DataSettings):
+        return [c for d in data for c in plan(table, d, chunk, distortion)]
+    groups = _groups(table)
+    hashes = table["config_hash"].to_numpy()
+    ident = data.identity()
+    out = []
+    for g, (opts, idx) in enumerate(groups.items()):
+        for a in range(0, len(idx), chunk):
+            part = tuple(idx[a:a + chunk])
+            doc = {"data": ident, "configs": [hashes[i] for i in part]}
+            if distortion is not None:
+                doc["distortion"] = distortion.identity()
+            text = json.dumps(doc, sort_keys=True)
+            out.append(Chunk(hashlib.sha1(text.encode()).hexdigest()[:20], g, opts, part, data.cls))
+    return out

@@ -1,0 +1,239 @@
+"""The config table of a sweep (``expand``: one row per config) and its identity (``config_hash``).
+
+``config_hash`` is the resume identity of a config: result rows and chunk ids
+(:func:`dfrmot_jax.sweep.plan.plan`) are keyed by it. Its scheme is versioned: :data:`HASH_VERSION`
+is recorded in every sweep directory's manifest (``hash_version``; a directory without it is
+version 1, the scheme of every directory written before the version existed). A change that
+alters any hash or chunk id must bump it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from ..config import CLASSES, INT_PARAMS, PRESETS, Options, Params, as_arrays, preset
+from .distortion import DistortionAxes
+from .spec import DISTORTION_AXES, OPTION_NAMES, PARAM_NAMES, Axis, SweepSpec, _as_spec, _err, _extra_axes
+
+#: The scheme of ``config_hash`` and chunk ids; recorded in the manifest as ``hash_version``.
+HASH_VERSION = 1
+
+COMBINED = "COMBINED"
+RAW_COLUMN = "_hota_alpha"
+#: the per-alpha HOTA fields of a row (``RAW_FIELDS``, flattened, 7 x 19), so that any subset of
+#: sequences can be re-combined exactly as TrackEval combines sequences (cross-validation).
+
+
+def _canon(name: str, v):
+    """Canonical value for hashing: parameters as the tracker sees them (float32 / int32)."""
+    if name in PARAM_NAMES:
+        return int(v) if name in INT_PARAMS else repr(float(np.float32(v)))
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    return str(v)
+
+
+def _split_class_column(name: str) -> tuple[str, str] | None:
+    """``"pedestrian.a_l"`` -> ("pedestrian", "a_l"); None for any other column."""
+    if not isinstance(name, str) or "." not in name:
+        return None
+    cls, param = name.split(".", 1)
+    return (cls, param) if cls in CLASSES and param in PARAM_NAMES else None
+
+
+def class_columns(columns) -> list[str]:
+    """The per-class parameter columns (``<class>.<parameter>``) among ``columns``, in their order."""
+    return [c for c in columns if _split_class_column(c) is not None]
+
+
+def _class_extra(row: Mapping[str, Any]) -> dict:
+    """{class: {parameter: canonical value}} of the row's class columns that differ from its plain ones."""
+    out: dict[str, dict] = {}
+    for col in row:
+        cp = _split_class_column(col)
+        if cp is None:
+            continue
+        cls, p = cp
+        v = _canon(p, row[col])
+        if v != _canon(p, row[p]):
+            out.setdefault(cls, {})[p] = v
+    return out
+
+
+def config_hash(row: Mapping[str, Any], settings: Mapping[str, Any] | None = None) -> str:
+    """Stable 16-hex-digit hash of a config: every parameter and option (+ extra axes off their
+    default, such as the distortion axes; + ``settings``, sweep-wide values off their defaults that
+    change this row, e.g. a distortion lane's burst start rate; + a sweep over several classes' per-class
+    values, columns ``<class>.<parameter>``, where they differ from the plain column: a row without
+    such a difference hashes exactly as before)."""
+    key = {"params": {n: _canon(n, row[n]) for n in PARAM_NAMES},
+           "options": {n: _canon(n, row[n]) for n in OPTION_NAMES}}
+    extra = {n: _canon(n, row[n]) for n, d in _extra_axes().items() if n in row and row[n] != d}
+    if settings:
+        extra["settings"] = dict(settings)
+    classes = _class_extra(row)
+    if classes:
+        extra["classes"] = classes
+    if extra:
+        key["extra"] = extra
+    text = json.dumps(key, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha1(text.encode()).hexdigest()[:16]
+
+
+def _draw(axis: Axis, rng: np.random.Generator, n: int) -> list:
+    lo_hi = axis.values
+    if axis.kind == "uniform":
+        return [float(v) for v in rng.uniform(lo_hi[0], lo_hi[1], n)]
+    if axis.kind == "loguniform":
+        return [float(v) for v in np.exp(rng.uniform(np.log(lo_hi[0]), np.log(lo_hi[1]), n))]
+    if axis.kind == "randint":
+        return [int(v) for v in rng.integers(lo_hi[0], lo_hi[1], n)]
+    if axis.kind == "choice":
+        return [axis.values[i] for i in rng.integers(0, len(axis.values), n)]
+    raise AssertionError(axis.kind)
+
+
+def expand(spec) -> pd.DataFrame:
+    """The config table of a sweep: one row per config, the baseline first.
+
+    Columns: ``config`` (row number), ``config_hash``, ``variant``, ``baseline`` (bool), every
+    parameter (``PARAM_NAMES``) and option (``OPTION_NAMES``). Grid axes are crossed (the first axis
+    slowest; parameters, then options); random axes (uniform, loguniform, randint, choice) are drawn
+    per config from ``numpy.random.default_rng(seed)``; ``samples`` repeats each variant's grid with
+    the random axes redrawn (Ray Tune's ``num_samples``). Configs that hash alike are kept once.
+
+    With a [distortion] table every config (the baseline too) is crossed with the distortion lanes,
+    innermost (kind, then level, then seed), adding the columns ``DISTORTION_AXES``
+    (``distortion.kind``, ``distortion.level``, ``distortion.seed``). Level 0 is the identity for
+    every kind and seed: it is one lane per config, the undistorted one (kind "none", level 0, seed
+    0: the same hash as the config without distortion). Without [distortion] the table is as before
+    (no distortion columns).
+    """
+    spec = _as_spec(spec)
+    src = spec.source
+    single = len(spec.classes) == 1
+    base_row, class_base = _baseline_rows(spec)
+    # per-class columns: class defaults off the plain baseline, and every per-class axis
+    explicit = [a.name for v in spec.variants for a in v.params if a.cls] if not single else []
+    derived = [f"{k}.{p}" for k, b in class_base.items() for p in PARAM_NAMES
+               if _canon(p, b[p]) != _canon(p, base_row[p])]
+    ccols = [f"{k}.{p}" for k in spec.classes for p in PARAM_NAMES if f"{k}.{p}" in set(explicit + derived)]
+    rng = np.random.default_rng(spec.seed)
+    first = {**base_row, **{c: class_base[_split_class_column(c)[0]][_split_class_column(c)[1]] for c in ccols}}
+    rows: list[dict] = [{"variant": "baseline", "baseline": True, **first}]
+    for v in spec.variants:
+        grid_axes = [a for a in v.params if a.is_grid] + list(v.options)
+        rand_axes = [a for a in v.params if not a.is_grid]
+        plain_set = {a.name for a in v.params if not a.cls}
+        combos = list(itertools.product(*(a.values for a in grid_axes)))
+        n = len(combos) * spec.samples
+        draws = {a.name: _draw(a, rng, n) for a in rand_axes}
+        i = 0
+        for _ in range(spec.samples):
+            for combo in combos:
+                vals = {a.name: val for a, val in zip(grid_axes, combo)}
+                vals.update({name: d[i] for name, d in draws.items()})
+                row = {"variant": v.name, "baseline": False, **base_row}
+                row.update({k: x for k, x in vals.items() if _split_class_column(k) is None})
+                if single:           # the one class's per-class axes are its parameters
+                    row.update({_split_class_column(k)[1]: x for k, x in vals.items()
+                                if _split_class_column(k) is not None})
+                for c in ccols:      # precedence: per-class axis > plain axis > the class's baseline
+                    k, p = _split_class_column(c)
+                    row[c] = vals[c] if c in vals else row[p] if p in plain_set else class_base[k][p]
+                rows.append(row)
+                i += 1
+    table = pd.DataFrame(rows, columns=["variant", "baseline"] + list(PARAM_NAMES) + ccols + list(OPTION_NAMES))
+    for c in ccols:          # a class default that no row moves off the plain value says nothing
+        k, p = _split_class_column(c)
+        if c not in explicit and all(_canon(p, x) == _canon(p, y) for x, y in zip(table[c], table[p])):
+            table = table.drop(columns=[c])
+    for n in list(PARAM_NAMES) + class_columns(table.columns):
+        t = _split_class_column(n)[1] if _split_class_column(n) else n
+        table[n] = table[n].astype("int64" if t in INT_PARAMS else "float64")
+    for n in OPTION_NAMES:
+        d = Options._field_defaults[n]
+        table[n] = table[n].astype(bool if isinstance(d, bool) else "int64" if isinstance(d, int) else object)
+    hashes = [config_hash(r) for r in table.to_dict("records")]
+    table.insert(0, "config_hash", hashes)
+    table = table.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
+    if spec.distortion is not None:
+        table = _cross_distortion(table, spec.distortion)
+    table.insert(0, "config", np.arange(len(table), dtype=np.int64))
+    if len(table) < 2:
+        raise _err("params", "the sweep has no config besides the baseline: add parameters or options to sweep",
+                   src)
+    for kl in ["keep_lost"] + [c for c in class_columns(table.columns) if c.endswith(".keep_lost")]:
+        bad = table[(table[kl] > 0) & (table["output"] == "detections")]
+        if not len(bad):
+            continue
+        r = bad.iloc[0]
+        raise _err(f"params.{kl}", f"{kl} = {r[kl]} writes lost tracks' predicted boxes and needs "
+                                       f"output = \"filtered\" (variant {r['variant']!r} pairs it with output = "
+                                       f"\"detections\"); use [[variants]] to give keep_lost its own output", src)
+    return table
+
+
+def _baseline_rows(spec: SweepSpec) -> tuple[dict, dict[str, dict]]:
+    """(the plain baseline row: parameters and options, {class: its baseline parameters}).
+
+    One class: the plain row is ``preset(baseline, baseline_class or the class)`` and there are no
+    per-class values. Several: the plain row is the bare preset (``PRESETS[baseline]``; with
+    ``[baseline] class``, ``preset(baseline, that class)``), and class ``k``'s baseline is
+    ``preset(baseline, baseline_class or k)``."""
+    if len(spec.classes) == 1:
+        p, o = preset(spec.baseline, spec.baseline_class or spec.classes[0])
+        return {**p._asdict(), **o._asdict()}, {}
+    p, o = preset(spec.baseline, spec.baseline_class) if spec.baseline_class else PRESETS[spec.baseline]
+    per = {k: preset(spec.baseline, spec.baseline_class or k)[0]._asdict() for k in spec.classes}
+    return {**p._asdict(), **o._asdict()}, per
+
+
+def _cross_distortion(table: pd.DataFrame, dist: DistortionAxes) -> pd.DataFrame:
+    """Every config x the distortion lanes (level 0 once, undistorted), hashes recomputed."""
+    lanes: list[tuple[str, float, int]] = []
+    if any(0.0 in lv for _, lv in dist.kinds):
+        lanes.append(("none", 0.0, 0))
+    for kind, levels in dist.kinds:
+        lanes.extend((kind, float(v), int(s)) for v in levels if v != 0.0 for s in dist.seeds)
+    base = table.drop(columns=["config_hash"]).to_dict("records")
+    rows = []
+    for i, r in enumerate(base):
+        own = lanes if i > 0 or ("none", 0.0, 0) in lanes else [("none", 0.0, 0)] + lanes   # the baseline row stays
+        for kind, level, seed in own:
+            rows.append({**r, "baseline": bool(r["baseline"]) and kind == "none",
+                         "distortion.kind": kind, "distortion.level": level, "distortion.seed": seed})
+    out = pd.DataFrame(rows, columns=list(table.columns.drop("config_hash")) + list(DISTORTION_AXES))
+    for c in table.columns.drop("config_hash"):
+        out[c] = out[c].astype(table[c].dtype)
+    out["distortion.kind"] = out["distortion.kind"].astype(object)
+    out["distortion.level"] = out["distortion.level"].astype("float64")
+    out["distortion.seed"] = out["distortion.seed"].astype("int64")
+    hashes = [config_hash(r, dist.hash_extra(r["distortion.kind"])) for r in out.to_dict("records")]
+    out.insert(0, "config_hash", hashes)
+    return out.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
+
+
+
+def n_settings(table: pd.DataFrame) -> int:
+    """Distinct parameter / option settings of a table (a distortion sweep's configs without lanes)."""
+    return int(len(table.drop_duplicates(list(PARAM_NAMES) + class_columns(table.columns) + list(OPTION_NAMES))))
+
+
+def _params_of(table: pd.DataFrame, rows: Sequence[int], cls: str | None = None) -> Params:
+    """The parameters of table rows for class ``cls`` (its ``<cls>.<parameter>`` columns where the
+    table has them, else the plain ones)."""
+    sub = table.iloc[list(rows)]
+    return as_arrays(Params(**{n: sub[f"{cls}.{n}" if f"{cls}.{n}" in sub.columns else n].to_numpy()
+                               for n in PARAM_NAMES}))
+
