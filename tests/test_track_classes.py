@@ -64,7 +64,7 @@ def test_eval_of_the_two_class_files_scores_each_class_as_alone(runs, kitti_root
 def test_per_class_settings_reach_only_their_class(kitti_root, tmp_path, capsys):
     from argparse import Namespace
 
-    from dfrmot_jax.cli import _settings
+    from dfrmot_jax.cli.track import _settings
 
     args = Namespace(preset="dfr2023", set=["pedestrian.a_l=2", "car.score_2d=0.3", "epsilon=20"])
     car, ped = _settings(args, "car")[0], _settings(args, "pedestrian")[0]

@@ -5,7 +5,7 @@ Kitti2DBox), :mod:`~dfrmot_jax.metrics.hota`, :mod:`~dfrmot_jax.metrics.clear`,
 :mod:`~dfrmot_jax.metrics.identity` (the metrics), :mod:`~dfrmot_jax.metrics.boxes` (IoU),
 :mod:`~dfrmot_jax.metrics.pairs` (per-frame pair bookkeeping and assignments),
 :mod:`~dfrmot_jax.metrics.evaluate` (entry points), :mod:`~dfrmot_jax.metrics.table`,
-:mod:`~dfrmot_jax.metrics.cli` (``dfrmot eval``), :mod:`~dfrmot_jax.testing.trackeval_adapter`
+:mod:`~dfrmot_jax.cli.eval` (``dfrmot eval``), :mod:`~dfrmot_jax.testing.trackeval_adapter`
 (running the reference ``trackeval`` package) and :mod:`~dfrmot_jax.testing.metric_edits` (test outputs).
 
 Typical use::

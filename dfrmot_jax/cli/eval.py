@@ -1,11 +1,5 @@
 """``dfrmot eval``: TrackEval-identical KITTI evaluation of result folders from the command line.
 
-Wire into an argparse CLI with::
-
-    sub = parser.add_subparsers(dest="command")
-    add_eval_parser(sub)          # registers "eval", set_defaults(func=run_eval)
-    args = parser.parse_args(); sys.exit(args.func(args))
-
 Usage: ``dfrmot eval RESULTS_DIR [RESULTS_DIR ...] [--data ROOT] [--class car[,pedestrian]]
 [--seqs 0000,0002] [--per-seq] [--csv F]``. Each class is scored on its own rows of the result files
 (one file may hold ``Car`` and ``Pedestrian`` rows), by default on the sequences whose ground truth
@@ -20,12 +14,9 @@ one row per (tracker, class, sequence), each class's COMBINED and the average, c
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-import pandas as pd
-
-__all__ = ["add_eval_parser", "run_eval", "main"]
+__all__ = ["add_parser", "run"]
 
 
 def _tracker_name(d: Path) -> str:
@@ -34,7 +25,7 @@ def _tracker_name(d: Path) -> str:
 
 
 def _classes_arg(text: str) -> tuple:
-    from dfrmot_jax.metrics.evaluate import parse_classes
+    from ..metrics.evaluate import parse_classes
 
     try:
         return parse_classes(text)
@@ -42,11 +33,12 @@ def _classes_arg(text: str) -> tuple:
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
-def add_eval_parser(subparsers) -> argparse.ArgumentParser:
-    """Register the ``eval`` subcommand on an argparse ``subparsers`` object; returns its parser."""
-    from dfrmot_jax.paths import default_data_root
+def add_parser(sub) -> argparse.ArgumentParser:
+    """Register ``eval`` on an argparse ``subparsers`` object; returns its parser."""
+    from . import guarded
+    from ..paths import default_data_root
 
-    p = subparsers.add_parser(
+    p = sub.add_parser(
         "eval",
         help="evaluate KITTI tracking result folders (TrackEval's KITTI 2D box HOTA/CLEAR/Identity)",
         description="Evaluate KITTI tracking results (RESULTS_DIR/SSSS.txt) exactly like TrackEval's Kitti2DBox. "
@@ -64,12 +56,12 @@ def add_eval_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--per-seq", action="store_true", help="also print every sequence")
     p.add_argument("--csv", default=None, metavar="F",
                    help="write all metrics, one row per (tracker, class, sequence) with columns tracker, class, seq")
-    p.set_defaults(func=run_eval)
+    p.set_defaults(func=guarded(run))
     return p
 
 
-def _fmt_table(df: pd.DataFrame) -> str:
-    from dfrmot_jax.metrics.table import COMPACT_FIELDS, COUNT_FIELDS
+def _fmt_table(df) -> str:
+    from ..metrics.table import COMPACT_FIELDS, COUNT_FIELDS
 
     cols = [c for c in COMPACT_FIELDS if c in df.columns]
     keys = [c for c in ("tracker", "class") if c in df.columns]
@@ -78,18 +70,19 @@ def _fmt_table(df: pd.DataFrame) -> str:
     return out.to_string(formatters=fmt)
 
 
-def run_eval(args) -> int:
-    """Run the ``eval`` subcommand for parsed ``args``; returns the exit status (0 ok, 2 error)."""
-    from dfrmot_jax.io.kitti import KittiFormatError
-    from dfrmot_jax.metrics.evaluate import (AVERAGE, cached_class_sequences, cached_gt, class_average,
-                                             evaluate_files, parse_classes)
-    from dfrmot_jax.metrics.table import classes_table
-    from dfrmot_jax.paths import default_data_root
+def run(args) -> int:
+    """Run ``eval`` for parsed ``args``: 0, or raises (bad ground truth, results or arguments)."""
+    import pandas as pd
+
+    from ..io.kitti import KittiFormatError
+    from ..metrics.evaluate import (AVERAGE, cached_class_sequences, cached_gt, class_average, evaluate_files,
+                                    parse_classes)
+    from ..metrics.table import classes_table
+    from ..paths import default_data_root
 
     root = Path(args.data) if args.data else default_data_root()
     if not (root / "label_02").is_dir():
-        print(f"dfrmot eval: no ground truth at {root / 'label_02'} (use --data or set DFRMOT_DATA)", file=sys.stderr)
-        return 2
+        raise ValueError(f"no ground truth at {root / 'label_02'} (use --data or set DFRMOT_DATA)")
     seqs = [s.strip() for s in args.seqs.split(",") if s.strip()] if args.seqs else None
     try:
         classes = parse_classes(args.cls)
@@ -100,24 +93,18 @@ def run_eval(args) -> int:
                 raise ValueError(f"no sequence of {root / 'label_02'} has ground truth of class {c!r}")
             gts[c] = cached_gt(root, c, cs)
     except (KittiFormatError, FileNotFoundError, ValueError) as e:
-        print(f"dfrmot eval: ground truth: {e}", file=sys.stderr)
-        return 2
+        raise ValueError(f"ground truth: {e}") from e
     tables = []
     names = []
     for d in args.results:
         d = Path(d)
         if not d.is_dir():
-            print(f"dfrmot eval: not a directory: {d}", file=sys.stderr)
-            return 2
+            raise ValueError(f"not a directory: {d}")
         name = _tracker_name(d)
         if name in names:
             name = str(d)
         names.append(name)
-        try:
-            res = {c: evaluate_files(d, gt) for c, gt in gts.items()}
-        except (KittiFormatError, ValueError) as e:
-            print(f"dfrmot eval: {e}", file=sys.stderr)
-            return 2
+        res = {c: evaluate_files(d, gt) for c, gt in gts.items()}
         if len(res) > 1:
             res[AVERAGE] = {"COMBINED": class_average({c: r["COMBINED"] for c, r in res.items()})}
         tables.append(classes_table(res, tracker=name))
@@ -133,16 +120,3 @@ def run_eval(args) -> int:
         df.to_csv(out, index=False)
         print(f"wrote {out}")
     return 0
-
-
-def main(argv=None) -> int:
-    """Stand-alone entry: ``python -m dfrmot_jax.metrics.cli eval ...``."""
-    parser = argparse.ArgumentParser(prog="dfrmot")
-    sub = parser.add_subparsers(dest="command", required=True)
-    add_eval_parser(sub)
-    args = parser.parse_args(argv)
-    return args.func(args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,0 +1,92 @@
+"""``dfrmot sweep``: run a declarative sweep file (tracking + metrics for every config), resumable.
+
+Usage::
+
+    dfrmot sweep sweeps/kitti_dfr_grid.toml --out results/grid [--folds 5] [--summary]
+
+Exit status: 0 ok, 2 bad sweep file / data / arguments (nothing was run), 3 some config overflowed
+its track memory (the ``overflow`` column says which).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    """Register ``sweep`` on an argparse ``subparsers`` object; returns its parser."""
+    from . import guarded
+
+    p = sub.add_parser(
+        "sweep", help="run a sweep file (tracking + metrics for every config), resumable",
+        description="Expand a sweep file (sweeps/*.toml) into configs, track and score them in chunks "
+                    "(one compilation per static option value), append each finished chunk to Parquet under "
+                    "--out; a rerun skips finished chunks. The result is one tidy table: one row per "
+                    "(config, sequence) plus a COMBINED row per config (OUT/results.parquet). Exit status 2: "
+                    "bad sweep file, data or arguments (nothing was run); 3: some config overflowed its track "
+                    "memory.")
+    p.add_argument("file", metavar="FILE", help="sweep file (TOML; see sweeps/README.md)")
+    p.add_argument("--out", metavar="DIR", help="result directory (default: results/sweeps/<name>)")
+    p.add_argument("--data", metavar="ROOT", help="KITTI tracking training root (overrides the file and $DFRMOT_DATA)")
+    p.add_argument("--chunk", type=int, help="configs per chunk (overrides the file)")
+    p.add_argument("--folds", type=int, help="k-fold cross-validation over sequences in the report (k >= 2)")
+    p.add_argument("--summary", action="store_true", help="print the report when the sweep is done")
+    p.add_argument("--objective", help="report objective (default: the file's, else HOTA); IDSW etc. are minimised")
+    p.add_argument("--top", type=int, help="configs listed in the report (default 10)")
+    p.add_argument("--class", dest="cls", metavar="CLASS",
+                   help="report on one class of the sweep, or 'average' (default for several classes: the "
+                        "class average; else the file's report.class)")
+    p.add_argument("--workers", type=int, help="metric processes beside the tracker (default: 2 for large sweeps)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--dry-run", action="store_true", help="check the file and data, print the plan, run nothing")
+    p.set_defaults(func=guarded(run))
+    return p
+
+
+def run(args) -> int:
+    from ..sweep import (OPTION_NAMES, class_columns, expand, load_spec, n_settings, plan, resolve_data_all,
+                         run_sweep, sweep_report)
+
+    spec = load_spec(args.file)
+    out = Path(args.out) if args.out else Path("results") / "sweeps" / spec.name
+    if args.dry_run:
+        table = expand(spec)
+        datas = resolve_data_all(spec, args.data)
+        chunks = plan(table, datas, args.chunk or spec.chunk, spec.distortion)
+        groups = table.groupby(list(OPTION_NAMES), sort=False).size().rename("configs")
+        frames = sum(sum(d.lengths) for d in datas)
+        if len(datas) == 1:
+            where = f"{len(datas[0].sequences)} sequences / {frames:,} frames"
+        else:
+            where = "classes " + ", ".join(f"{d.cls} ({len(d.sequences)} sequences / {sum(d.lengths):,} frames)"
+                                           for d in datas)
+        print(f"sweep {spec.name}: {len(table):,} configs, {len(groups)} option group(s), {len(chunks)} chunks, "
+              f"{where} ({len(table) * frames / 1e6:.1f} M config-frames) -> {out}")
+        if class_columns(table.columns):
+            print(f"per-class columns: {', '.join(class_columns(table.columns))}")
+        print(groups.to_string())
+        if spec.distortion is not None:
+            d = spec.distortion
+            print(f"distortion: {n_settings(table)} settings x {d.n_lanes} lanes (level 0 once, undistorted; "
+                  f"{len(d.seeds)} seeds per nonzero level): "
+                  + "; ".join(f"{k} {', '.join(f'{v:g}' for v in lv)}" for k, lv in d.kinds))
+        return 0
+    df = run_sweep(spec, out, data_root=args.data, chunk=args.chunk, folds=args.folds,
+                   progress=not args.no_progress, workers=args.workers)
+    print(f"{df['config'].nunique():,} configs x {df['sequence'].nunique() - 1} sequences -> "
+          f"{out / 'results.parquet'}")
+    if args.summary:
+        rep = sweep_report(df, objective=args.objective or spec.objective,
+                           folds=args.folds if args.folds is not None else spec.folds, top=args.top or spec.top,
+                           contrast=spec.contrast, cls=args.cls or spec.report_class)
+        print(rep.text)
+    over = df[(df["sequence"] == "COMBINED") & (df["overflow"] > 0)]
+    if len(over):
+        print(f"warning: {len(over)} config(s) overflowed their track memory (column 'overflow'); "
+              f"set options.capacity", file=sys.stderr)
+        return 3
+    return 0

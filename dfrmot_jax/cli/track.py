@@ -1,0 +1,244 @@
+"""``dfrmot track``: track a KITTI split with a preset and ``--set`` overrides, one result file per sequence."""
+
+from __future__ import annotations
+
+import argparse
+import re
+import time
+from pathlib import Path
+
+from ..paths import ENV_VAR
+
+__all__ = ["add_parser", "run", "config_help"]
+
+
+def _parse_seqs(text: str | None):
+    if not text:
+        return None
+    return [s.strip().zfill(4) for s in text.split(",") if s.strip()]
+
+
+def _classes(text: str) -> list[str]:
+    from ..config import CLASSES
+
+    classes = [c.strip() for c in text.split(",") if c.strip()]
+    bad = [c for c in classes if c not in CLASSES]
+    if bad or not classes or len(set(classes)) != len(classes):
+        raise ValueError(f"--class {text!r}: expected one or more of {list(CLASSES)}, comma-separated, each once")
+    return classes
+
+
+def _max_capacity() -> int:
+    from ..api import MAX_CAPACITY
+
+    return MAX_CAPACITY
+
+
+def _check_value(item: str) -> None:
+    """Clear messages for integer settings before :func:`config.parse_assignment` sees them:
+    ``epsilon=2.5`` / ``capacity=abc`` (not an integer) and ``capacity=2147483648`` (above
+    ``api.MAX_CAPACITY``, the most track slots a lane is given). Ranges of parameters are
+    ``config.param_problem``'s."""
+    from ..config import INT_PARAMS, PARAM_RANGES
+
+    name, eq, raw = item.partition("=")
+    name, raw = name.strip(), raw.strip()
+    if not eq or (name not in INT_PARAMS and name != "capacity"):
+        return
+    if name == "capacity":
+        lo, hi, what = 0, _max_capacity(), " track slots per lane, 0 = from the data"
+    else:
+        lo, hi, what = int(PARAM_RANGES[name][0]), int(PARAM_RANGES[name][1]), ""
+    try:
+        value = int(raw)
+    except ValueError:
+        try:
+            got = "write it without a decimal point or exponent" if float(raw).is_integer() else "not an integer"
+        except ValueError:
+            got = "not a number"
+        raise ValueError(f"--set {name}={raw}: {got}; expected an integer from {lo} to {hi}{what}") from None
+    if name == "capacity" and value > hi:
+        raise ValueError(f"--set {name}={raw}: above the maximum capacity {hi} (api.MAX_CAPACITY); expected an "
+                         f"integer from {lo} to {hi}{what}")
+
+
+def _settings(args, cls: str = "car"):
+    """The preset for the class, then every ``--set NAME=VALUE`` and ``--set CLASS.NAME=VALUE`` of it."""
+    from ..config import CLASSES, parse_assignment, preset
+
+    params, options = preset(args.preset, cls)
+    for item in args.set or []:
+        lhs, eq, rhs = item.partition("=")
+        prefix, dot, name = lhs.strip().partition(".")
+        if dot:
+            if prefix not in CLASSES:
+                raise ValueError(f"--set {item}: {prefix!r} is not a class; per-class settings are CLASS.NAME=VALUE "
+                                 f"with CLASS one of {list(CLASSES)}")
+            if prefix != cls:
+                continue
+            item = f"{name}{eq}{rhs}"
+        _check_value(item)
+        params, options = parse_assignment(item, params, options)
+    return params, options
+
+
+# ---- help text generated from dfrmot_jax.config ----------------------------------------------------
+
+_FIELD = re.compile(r"^(\s+)([a-z_][a-z0-9_]*(?:,\s*[a-z_][a-z0-9_]*)*):\s+(\S.*)$")
+
+
+def _plain(text: str) -> str:
+    return text.replace("``", "").replace("`", "")
+
+
+def _first_sentence(text: str) -> str:
+    """Up to the first full stop outside parentheses (``(e.g. a. b)`` does not end a sentence)."""
+    depth = 0
+    for i, ch in enumerate(text):
+        depth += ch == "("
+        depth -= ch == ")"
+        if ch == "." and depth == 0 and (i + 1 == len(text) or text[i + 1].isspace()):
+            return text[:i]
+    return text
+
+
+def docstring_fields(doc: str, fields) -> list[tuple[tuple[str, ...], str]]:
+    """The ``name: text`` entries of a NamedTuple docstring, in order: [(names, first sentence)]
+    (``a, b: text`` is one entry for both names; continuation lines are joined; RST markup dropped)."""
+    entries: list[tuple[list[str], list[str]]] = []
+    for line in (doc or "").splitlines():
+        m = _FIELD.match(line)
+        names = [n.strip() for n in m.group(2).split(",")] if m else []
+        if names and all(n in fields for n in names):
+            entries.append((names, [m.group(3).strip()]))
+        elif entries and line.strip():
+            entries[-1][1].append(line.strip())
+        elif entries:
+            entries.append(([], []))                 # a blank line ends the entry
+    out = []
+    for names, lines in entries:
+        if not names:
+            continue
+        text = ""
+        for part in lines:
+            text += part if text.endswith("-") or not text else " " + part
+        out.append((tuple(names), _first_sentence(_plain(text))))
+    return out
+
+
+def _fmt(v) -> str:
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _grouped(entries, fields):
+    """Every field once, in docstring order then field order: [(names, meaning)]."""
+    seen = {n for names, _ in entries for n in names}
+    return list(entries) + [((n,), "") for n in fields if n not in seen]
+
+
+def config_help(width: int | None = None) -> str:
+    """The ``track --help`` epilog: every parameter, option and preset with its meaning, generated
+    from :mod:`dfrmot_jax.config` (Params / Options docstrings, PARAM_RANGES, OPTION_CHOICES,
+    PRESETS, CLASS_DEFAULTS)."""
+    import shutil
+    import textwrap
+
+    from ..config import CLASS_DEFAULTS, INT_PARAMS, OPTION_CHOICES, PARAM_RANGES, PRESETS, Options, Params
+
+    width = width or max(60, min(120, shutil.get_terminal_size().columns) - 2)
+
+    def meaning(text):
+        return textwrap.fill(text, width, initial_indent=" " * 6, subsequent_indent=" " * 6) if text else None
+
+    base_p, base_o = Params(), Options()
+    out = ["parameters (--set NAME=VALUE; default = the dfr2023 value; ranges inclusive):"]
+    for names, text in _grouped(docstring_fields(Params.__doc__, Params._fields), Params._fields):
+        for name in names:
+            lo, hi = PARAM_RANGES[name]
+            kind = "integer" if name in INT_PARAMS else "number"
+            out.append(f"  {name:<12} default {_fmt(getattr(base_p, name)):<6} {kind} in [{_fmt(lo)}, {_fmt(hi)}]")
+        out += [meaning(text)] if text else []
+    out += ["", "options (--set NAME=VALUE; each value compiles its own program):"]
+    for names, text in _grouped(docstring_fields(Options.__doc__, Options._fields), Options._fields):
+        for name in names:
+            if name in OPTION_CHOICES:
+                values = " | ".join(OPTION_CHOICES[name])
+            elif name == "truncate":
+                values = "true | false"
+            elif name == "capacity":
+                values = f"integer in [0, {_max_capacity()}]"
+            else:
+                values = ""
+            out.append(f"  {name:<12} default {_fmt(getattr(base_o, name)):<12} {values}")
+        out += [meaning(text)] if text else []
+    out += ["", "presets (--preset NAME; what differs from the defaults above):"]
+    for name, (p, o) in PRESETS.items():
+        diff = [f"{k}={_fmt(v)}" for k, v in p._asdict().items() if v != getattr(base_p, k)]
+        diff += [f"{k}={_fmt(v)}" for k, v in o._asdict().items() if v != getattr(base_o, k)]
+        out.append(f"  {name:<12} {' '.join(diff) or '(the defaults)'}")
+    for cls, changes in CLASS_DEFAULTS.items():
+        if changes:
+            out.append(meaning(f"--class {cls}: every preset with "
+                               + " ".join(f"{k}={_fmt(v)}" for k, v in changes.items())).replace(" " * 6, "  ", 1))
+    return "\n".join(out)
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    """Register ``track`` on an argparse ``subparsers`` object; returns its parser."""
+    from . import guarded
+    import shutil
+    import textwrap
+
+    from ..config import PRESETS
+
+    width = max(60, min(120, shutil.get_terminal_size().columns) - 2)
+    t = sub.add_parser("track", help="track a KITTI split and write one result file per sequence",
+                       description=textwrap.fill(
+                           "Track a KITTI split with a preset and --set overrides and write one result file per "
+                           "sequence. Exit status 3 when a lane overflowed its track memory.", width),
+                       epilog=config_help(width), formatter_class=argparse.RawDescriptionHelpFormatter)
+    t.add_argument("--data", help=f"KITTI tracking training root (default ${ENV_VAR} or ../shared/data/kitti/training)")
+    t.add_argument("--det2d", default="rrc", help="2D detector: name under ROOT/detections or a directory")
+    t.add_argument("--det3d", default="pointrcnn", help="3D detector: name under ROOT/detections or a directory")
+    t.add_argument("--preset", default="dfr2023",
+                   help="the settings to start from: " + " | ".join(PRESETS) + " (listed below)")
+    t.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="override a parameter or option (repeatable); CLASS.NAME=VALUE for one class only, "
+                        "e.g. pedestrian.a_l=2")
+    t.add_argument("--class", dest="cls", default="car",
+                   help="car | pedestrian | car,pedestrian (each class with its own settings, one file per sequence)")
+    t.add_argument("--seqs", help="comma-separated sequences (default: those whose ground truth has the class)")
+    t.add_argument("--columns", default="kitti", choices=["kitti", "authors"],
+                   help="result columns: kitti (standard KITTI rows with each row's 3D box and score) | authors "
+                        "(the authors' C++ 18 columns, byte for byte)")
+    t.add_argument("--out", required=True, help="output directory")
+    t.set_defaults(func=guarded(run))
+    return t
+
+
+def run(args) -> int:
+    from ..api import track
+    from ..data import load_split
+    from ..paths import default_data_root
+    from ..results import ClassRun, write_runs
+
+    root = Path(args.data) if args.data else default_data_root()
+    classes = _classes(args.cls)
+    settings = {cls: _settings(args, cls) for cls in classes}
+    t0 = time.perf_counter()
+    runs, status = [], 0
+    for cls in classes:
+        params, options = settings[cls]
+        split = load_split(root, args.det2d, args.det3d, cls, _parse_seqs(args.seqs))
+        res = track(split, params, options, detail=True)
+        runs.append(ClassRun(split, res.frames, options, res.ids[0],
+                             None if options.output == "detections" else res.lane_boxes(0),
+                             res.src3[0], res.own3[0], None if res.box3 is None else res.box3[0]))
+        n = int((res.ids[0] >= 0).sum())
+        print(f"{cls}: tracked {len(split.names)} sequences, {split.n_frames} frames, {n} lines; capacity "
+              f"{int(res.capacity[0])}, peak {int(res.peak[0])} live tracks, overflow {int(res.overflow[0])}")
+        status = status or (0 if res.overflow[0] == 0 else 3)
+    paths = write_runs(args.out, runs, columns=args.columns)
+    print(f"wrote {len(paths)} files to {Path(args.out)} in {time.perf_counter() - t0:.1f} s"
+          + (" (classes " + " + ".join(classes) + " merged per sequence, ids unique per file)" if len(classes) > 1 else ""))
+    return status

@@ -1,0 +1,215 @@
+"""The ``dfrmot`` command's contract: help and version, one error handler (exit 2 one line for bad
+input, exit 1 with the --debug hint for anything else, 130 for Ctrl-C), clear --set messages."""
+
+import subprocess
+import sys
+from argparse import Namespace
+
+import numpy as np
+import pytest
+
+import dfrmot_jax
+from dfrmot_jax.cli import build_parser, main
+from dfrmot_jax.cli import track as track_cmd
+from dfrmot_jax.config import PRESETS, Options, Params
+
+COMMANDS = ("track", "demo", "eval", "sweep", "report")
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    from dfrmot_jax.synthetic import make_scene
+
+    return make_scene(tmp_path_factory.mktemp("cli") / "scene", n_sequences=1, n_frames=30, seed=4)
+
+
+def _run(capsys, argv):
+    """main(argv) -> (status, stdout, stderr lines); argparse exits become their status."""
+    try:
+        status = main(argv)
+    except SystemExit as e:
+        status = e.code
+    out = capsys.readouterr()
+    return status, out.out, out.err.splitlines()
+
+
+def _one_error_line(err, command):
+    assert len(err) == 1, err
+    assert err[0].startswith(f"dfrmot {command}: error: "), err
+    assert "Traceback" not in err[0] and "np." not in err[0]
+    return err[0]
+
+
+# ---- help and version ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv", [["--help"]] + [[c, "--help"] for c in COMMANDS])
+def test_every_help_works_without_rst_markup(argv, capsys):
+    status, out, err = _run(capsys, argv)
+    assert status == 0 and not err
+    assert out.startswith("usage: dfrmot") and "`" not in out
+
+
+def test_top_help_lists_commands_and_exit_statuses(capsys):
+    _, out, _ = _run(capsys, ["--help"])
+    for c in COMMANDS:
+        assert f"    {c} " in out
+    assert "--debug" in out and "--version" in out and "130" in out
+
+
+def test_version(capsys):
+    status, out, _ = _run(capsys, ["--version"])
+    assert status == 0 and out.strip() == f"dfrmot {dfrmot_jax.__version__}"
+
+
+def test_track_help_lists_parameters_options_presets(capsys):
+    _, out, _ = _run(capsys, ["track", "--help"])
+    for name in Params._fields + Options._fields + tuple(PRESETS):
+        assert f"\n  {name} " in out, name
+    meanings = dict((n, m) for names, m in track_cmd.docstring_fields(Params.__doc__, Params._fields) for n in names)
+    assert set(meanings) == set(Params._fields)
+    assert meanings["a_c"] == "camera gate: IoU below a_c counts as 0 in M_c"
+    assert " ".join(meanings["a_c"].split()) in " ".join(out.split())
+    assert "integer in [0, 4096]" in out                       # capacity, api.MAX_CAPACITY
+    assert "fixed_gain | kalman" in out and "a_l=10 centroid=head" in out
+
+
+# ---- bad input: exit 2, one line -----------------------------------------------------------------
+
+def test_bad_input_on_each_command_is_one_line_exit_2(scene, tmp_path, capsys):
+    track = ["track", "--data", str(scene), "--det2d", "synth2d", "--det3d", "synth3d", "--out", str(tmp_path / "o")]
+    status, _, err = _run(capsys, track[:4] + ["nope"] + track[5:])
+    assert status == 2 and "unknown detector 'nope'" in _one_error_line(err, "track")
+
+    status, _, err = _run(capsys, ["demo", "--out", str(tmp_path / "d"), "--frames", "0"])
+    assert status == 2 and "n_frames >= 1" in _one_error_line(err, "demo")
+
+    res = tmp_path / "res"
+    res.mkdir()
+    (res / "0000.txt").write_text("0 1 Bus -1 -1 -10 100 100 200 200 -1 -1 -1 -1000 -1000 -1000 -10 1\n")
+    status, _, err = _run(capsys, ["eval", str(res), "--data", str(scene)])
+    line = _one_error_line(err, "eval")
+    assert status == 2 and "0000.txt:1" in line and "'Bus'" in line
+    status, _, err = _run(capsys, ["eval", str(tmp_path / "missing"), "--data", str(scene)])
+    assert status == 2 and "not a directory" in _one_error_line(err, "eval")
+
+    status, _, err = _run(capsys, ["sweep", str(tmp_path / "missing.toml")])
+    assert status == 2 and "missing.toml" in _one_error_line(err, "sweep")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("this is [ not toml\n")
+    status, _, err = _run(capsys, ["sweep", str(bad), "--dry-run"])
+    assert status == 2 and "not valid TOML" in _one_error_line(err, "sweep")
+
+    status, _, err = _run(capsys, ["report", str(tmp_path)])
+    assert status == 2 and "not a sweep directory" in _one_error_line(err, "report")
+    status, _, err = _run(capsys, ["report", str(tmp_path), "--contrast", "foo"])
+    assert status == 2 and "--contrast" in _one_error_line(err, "report")
+
+
+def test_argument_errors_are_one_line_exit_2(capsys):
+    status, _, err = _run(capsys, ["track"])
+    assert status == 2 and "--out" in _one_error_line(err, "track") and "dfrmot track --help" in err[0]
+    status, _, err = _run(capsys, ["demo", "--frames", "many"])
+    assert status == 2 and "--frames" in _one_error_line(err, "demo")
+    status, _, err = _run(capsys, ["nope"])
+    assert status == 2 and len(err) == 1 and err[0].startswith("dfrmot: error:")
+
+
+def test_bad_input_in_a_real_process_has_no_traceback(scene, tmp_path):
+    out = subprocess.run([sys.executable, "-m", "dfrmot_jax.cli", "track", "--data", str(scene), "--det2d", "nope",
+                          "--out", str(tmp_path / "o")], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+    assert out.stderr.strip().splitlines()[-1].startswith("dfrmot track: error: ")
+
+
+def test_file_errors_name_the_file(monkeypatch, capsys):
+    def denied(args):
+        raise PermissionError(13, "Permission denied", "/results/0000.txt")
+
+    monkeypatch.setattr(track_cmd, "run", denied)
+    status, _, err = _run(capsys, ["track", "--out", "x"])
+    assert status == 2 and _one_error_line(err, "track").endswith("/results/0000.txt: Permission denied")
+
+
+def test_messages_carry_no_numpy_reprs(monkeypatch, capsys):
+    def bad(args):
+        raise ValueError(f"unknown type {np.str_('Bus')!r} at {np.float64(2.5)!r}\nsecond line")
+
+    monkeypatch.setattr(track_cmd, "run", bad)
+    status, _, err = _run(capsys, ["track", "--out", "x"])
+    assert status == 2 and _one_error_line(err, "track") == "dfrmot track: error: unknown type 'Bus' at 2.5; second line"
+
+
+# ---- unexpected errors: exit 1 and the --debug hint; --debug lets the traceback through -----------
+
+def test_unexpected_error_hint_and_debug(monkeypatch, capsys):
+    def boom(args):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(track_cmd, "run", boom)
+    status, _, err = _run(capsys, ["track", "--out", "x"])
+    assert status == 1 and len(err) == 1
+    assert err[0] == "dfrmot track: internal error: RuntimeError: boom (rerun with --debug for the traceback)"
+    with pytest.raises(RuntimeError, match="boom"):
+        main(["--debug", "track", "--out", "x"])
+    with pytest.raises(RuntimeError, match="boom"):
+        main(["track", "--debug", "--out", "x"])
+
+
+def test_interrupt_is_130(monkeypatch, capsys):
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(track_cmd, "run", interrupted)
+    status, _, err = _run(capsys, ["track", "--out", "x"])
+    assert status == 130 and err == ["dfrmot track: interrupted"]
+
+
+_BOOM = ("import sys, dfrmot_jax.cli.track as t\n"
+         "def boom(args):\n    raise RuntimeError('boom')\n"
+         "t.run = boom\nfrom dfrmot_jax.cli import main\nsys.exit(main(sys.argv[1:]))\n")
+
+
+def test_traceback_only_with_debug_in_a_real_process():
+    plain = subprocess.run([sys.executable, "-c", _BOOM, "track", "--out", "x"], capture_output=True, text=True,
+                           timeout=300)
+    assert plain.returncode == 1 and "Traceback" not in plain.stderr
+    assert "rerun with --debug for the traceback" in plain.stderr
+    debug = subprocess.run([sys.executable, "-c", _BOOM, "--debug", "track", "--out", "x"], capture_output=True,
+                           text=True, timeout=300)
+    assert debug.returncode == 1 and "Traceback" in debug.stderr and "RuntimeError: boom" in debug.stderr
+
+
+# ---- --set values --------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("item, want", [
+    ("capacity=abc", "--set capacity=abc: not a number; expected an integer from 0 to 4096"),
+    ("epsilon=2.5", "--set epsilon=2.5: not an integer; expected an integer from 0 to 10000"),
+    ("min_hits=x", "--set min_hits=x: not a number; expected an integer from 1 to 10000"),
+    ("capacity=2147483648", "--set capacity=2147483648: above the maximum capacity 4096 (api.MAX_CAPACITY)"),
+    ("car.capacity=1e9", "--set capacity=1e9: write it without a decimal point or exponent"),
+])
+def test_set_integer_messages(item, want, scene, tmp_path, capsys):
+    status, _, err = _run(capsys, ["track", "--data", str(scene), "--det2d", "synth2d", "--det3d", "synth3d",
+                                   "--set", item, "--out", str(tmp_path / "o")])
+    assert status == 2 and want in _one_error_line(err, "track")
+    assert "invalid literal" not in err[0]
+
+
+def test_set_capacity_bounds_are_inclusive():
+    from dfrmot_jax.api import MAX_CAPACITY
+
+    args = Namespace(preset="dfr2023", set=[f"capacity={MAX_CAPACITY}", "epsilon=0"])
+    params, options = track_cmd._settings(args)
+    assert options.capacity == MAX_CAPACITY and params.epsilon == 0
+    with pytest.raises(ValueError, match="above the maximum capacity"):
+        track_cmd._settings(Namespace(preset="dfr2023", set=[f"capacity={MAX_CAPACITY + 1}"]))
+
+
+def test_one_parser_one_handler():
+    p = build_parser()
+    assert p.prog == "dfrmot"
+    sub = next(a for a in p._actions if a.dest == "command")
+    assert list(sub.choices) == list(COMMANDS)
+    for name, sp in sub.choices.items():
+        func = sp.get_default("func")
+        assert func.__name__ == "run" and func.__wrapped__.__module__ == f"dfrmot_jax.cli.{name}"
