@@ -19,10 +19,13 @@ def cpu_model() -> str:
 
 
 def machine_info() -> dict:
-    """CPU, core count, JAX and package versions, XLA devices (imports JAX: call after dfrmot_jax)."""
+    """CPU, core count, JAX and package versions, XLA devices (asks for one device per core first:
+    querying JAX initialises its backend, after which the count is fixed)."""
     import jax
 
     import dfrmot_jax
+
+    dfrmot_jax.setup_host_devices()
 
     return {"machine": platform.processor() or platform.machine(), "cpu_model": cpu_model(), "cpus": os.cpu_count(),
             "jax": jax.__version__, "dfrmot_jax": dfrmot_jax.__version__, "devices": jax.local_device_count()}

@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .geometry import box3d_extent, project_box3d_to_image, truncate_2d_box, truncate_3d_box
+from .geometry import KITTI_IMAGE_SIZE, box3d_extent, project_box3d_to_image, truncate_2d_box, truncate_3d_box
 from .io.kitti import (
     Calib,
     Detections2D,
@@ -30,7 +30,7 @@ from .core.step import Frames
 from .config import Options
 
 CLASS_NAMES = {"car": "Car", "pedestrian": "Pedestrian"}
-DEFAULT_IMAGE_SIZE = (1242, 375)
+DEFAULT_IMAGE_SIZE = KITTI_IMAGE_SIZE        # (width, height) of camera 02, defined in geometry
 # The type column of 3D detection files: AB3DMOT's integer codes (the PointRCNN and PointGNN files:
 # car files use 2, pedestrian files 1) or KITTI class names (the 17-column label layout).
 TYPE_CODES_3D = {1: "pedestrian", 2: "car", 3: "cyclist"}

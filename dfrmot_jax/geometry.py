@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .core.boxes import iou
+from .core.boxes import iou, truncate_2d_box, truncate_3d_box, xp_of as _xp  # noqa: F401  (re-exported)
 
 #: Default KITTI image size (width, height) of camera 02.
 KITTI_IMAGE_SIZE = (1242, 375)
@@ -40,11 +40,6 @@ CORNER_PATTERN = np.array([[0.5, 0.5, -0.5, -0.5, 0.5, 0.5, -0.5, -0.5],
                            [0.0, 0.0, 0.0, 0.0, -1.0, -1.0, -1.0, -1.0],
                            [0.5, -0.5, -0.5, 0.5, 0.5, -0.5, -0.5, 0.5]])
 _X_PATTERN, _Y_PATTERN, _Z_PATTERN = CORNER_PATTERN
-
-
-def _xp(*arrays):
-    """jnp when any input is a jax array (also a tracer), else NumPy."""
-    return jnp if any(isinstance(a, jax.Array) for a in arrays) else np
 
 
 def box3d_corners(dims, loc, rot_y) -> np.ndarray:
@@ -170,28 +165,6 @@ def iou_2d(a, b) -> np.ndarray:
     NumPy float64: ``core.boxes.iou`` (areas clipped at 0) of the inputs as float64 arrays.
     """
     return iou(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64), clip_areas=True)
-
-
-def truncate_2d_box(box):
-    """The 2D loader's integer box: x = trunc(x1), w = |x - trunc(x2)| (C++ stoi), as x1, y1, x1+w, y1+h.
-
-    Array-generic (NumPy or jax, ``[..., 4]``); ``dfrmot_jax.data.truncate_2d_box`` is the same rule.
-    """
-    xp = _xp(box)
-    x = xp.trunc(box[..., 0]); y = xp.trunc(box[..., 1])
-    w = xp.abs(x - xp.trunc(box[..., 2])); h = xp.abs(y - xp.trunc(box[..., 3]))
-    return xp.stack([x, y, x + w, y + h], axis=-1)
-
-
-def truncate_3d_box(box):
-    """The 3D loader's integer image box: x = trunc(x1), w = trunc(|x - x2|).
-
-    Array-generic (NumPy or jax, ``[..., 4]``); ``dfrmot_jax.data.truncate_3d_box`` is the same rule.
-    """
-    xp = _xp(box)
-    x = xp.trunc(box[..., 0]); y = xp.trunc(box[..., 1])
-    w = xp.trunc(xp.abs(x - box[..., 2])); h = xp.trunc(xp.abs(y - box[..., 3]))
-    return xp.stack([x, y, x + w, y + h], axis=-1)
 
 
 def box3d_extent(dims, loc, centroid: str):

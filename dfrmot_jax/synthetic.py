@@ -69,12 +69,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .geometry import project_box3d_to_image
+from .geometry import KITTI_IMAGE_SIZE, project_box3d_to_image
 
 __all__ = ["make_scene", "NOISE_DEFAULTS", "IMAGE_SIZE", "DT"]
 
 #: Image size (width, height) of the synthetic camera 02, the most common KITTI size.
-IMAGE_SIZE = (1242, 375)
+IMAGE_SIZE = KITTI_IMAGE_SIZE
 #: Seconds between frames (KITTI records at 10 Hz).
 DT = 0.1
 

@@ -1,4 +1,5 @@
-"""Box geometry inside the step: IoU of image boxes and the tracks' predicted boxes (jnp).
+"""Box rules used inside the step and on the host: IoU, the loaders' integer truncation, the
+tracks' predicted boxes.
 
 :func:`iou` is the package's one IoU: NumPy in, NumPy out; jax in, jax out (``geometry.iou_2d``
 and the distortions' clutter placement call it too).
@@ -51,15 +52,42 @@ def iou_matrix(a, b):
     return _iou(tuple(a[:, None, k] for k in range(4)), tuple(b[None, :, k] for k in range(4)), False, jnp)
 
 
+def xp_of(*arrays):
+    """jnp when any input is a jax array (also a tracer), else NumPy."""
+    return jnp if any(isinstance(a, jax.Array) for a in arrays) else np
+
+
+def truncate_2d_box(box):
+    """The 2D loader's integer box: x = trunc(x1), w = |x - trunc(x2)| (C++ stoi), as x1, y1, x1+w, y1+h.
+
+    Array-generic (NumPy or jax, ``[..., 4]``).
+    """
+    xp = xp_of(box)
+    x = xp.trunc(box[..., 0]); y = xp.trunc(box[..., 1])
+    w = xp.abs(x - xp.trunc(box[..., 2])); h = xp.abs(y - xp.trunc(box[..., 3]))
+    return xp.stack([x, y, x + w, y + h], axis=-1)
+
+
+def truncate_3d_box(box):
+    """The 3D loader's integer image box: x = trunc(x1), w = trunc(|x - x2|).
+
+    Array-generic (NumPy or jax, ``[..., 4]``); also the rule of a track's predicted box
+    (:func:`predicted_boxes`).
+    """
+    xp = xp_of(box)
+    x = xp.trunc(box[..., 0]); y = xp.trunc(box[..., 1])
+    w = xp.trunc(xp.abs(x - box[..., 2])); h = xp.trunc(xp.abs(y - box[..., 3]))
+    return xp.stack([x, y, x + w, y + h], axis=-1)
+
+
 def predicted_boxes(p2, truncate: bool):
     """Track boxes [N, 4] from the 2D filter positions (top-left x, y, bottom-right x, y) [N, 4].
 
-    With truncation, as the code: x = trunc(tl_x), w = trunc(|x - br_x|), box (x, y, x + w, y + h).
+    With truncation, as the code: the 3D loader's rule (:func:`truncate_3d_box`); without, the
+    corners may cross: (x1, y1, x1 + |x2 - x1|, y1 + |y2 - y1|).
     """
     if truncate:
-        x = jnp.trunc(p2[:, 0]); y = jnp.trunc(p2[:, 1])
-        w = jnp.trunc(jnp.abs(x - p2[:, 2])); h = jnp.trunc(jnp.abs(y - p2[:, 3]))
-    else:
-        x = p2[:, 0]; y = p2[:, 1]
-        w = jnp.abs(p2[:, 2] - x); h = jnp.abs(p2[:, 3] - y)
+        return truncate_3d_box(p2)
+    x = p2[:, 0]; y = p2[:, 1]
+    w = jnp.abs(p2[:, 2] - x); h = jnp.abs(p2[:, 3] - y)
     return jnp.stack([x, y, x + w, y + h], axis=1)
