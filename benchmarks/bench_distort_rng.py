@@ -35,11 +35,15 @@ import jax.numpy as jnp
 import numpy as np
 from machine import machine_info
 
+import dfrmot_jax
+
+dfrmot_jax.setup_host_devices()   # before any JAX operation (machine_info reports the devices)
+
 from dfrmot_jax import distort as D
 from dfrmot_jax.data import Frames
-from dfrmot_jax.distort import cast_params, draws, noise
+from dfrmot_jax.distort import cast_params, draws
+from dfrmot_jax.distort.hook import apply_draws
 from dfrmot_jax.distort.bursts import burst_length
-from dfrmot_jax.geometry import truncate_2d_box, truncate_3d_box
 
 
 def synth_frames(T: int, M2: int = 14, M3: int = 19, n_obj: int = 8, seed: int = 0):
@@ -80,34 +84,29 @@ def _occluded_keys(gid, t, dp, spec, impl):
     return jnp.any(start & (length > lag[None, :]), axis=1) & (gid >= 0)
 
 
+class KeyDraws:
+    """``distort.apply_draws``'s source of randomness from ``jax.random`` keys of ``impl``."""
+
+    def __init__(self, impl: str):
+        self.impl = impl
+
+    def streams(self, seed, t):
+        kt = jax.random.fold_in(_keys(seed, self.impl), t)
+        return lambda stream: jax.random.fold_in(kt, stream)
+
+    def uniform(self, key, shape):
+        return jax.random.uniform(key, shape, jnp.float32)
+
+    def normal(self, key, shape):
+        return jax.random.normal(key, shape, jnp.float32)
+
+    def occluded(self, gid, t, dp, spec):
+        return _occluded_keys(gid, t, dp, spec, self.impl)
+
+
 def distort_frame_keys(frame, gid2, gid3, t, dp, spec, impl="threefry2x32"):
-    dp = cast_params(dp)
-    t = jnp.asarray(t, jnp.int32)
-    m2 = frame.valid2.shape[0]
-    kt = jax.random.fold_in(_keys(dp.seed, impl), t)
-    key = lambda stream: jax.random.fold_in(kt, stream)
-    uniform = lambda k, shape: jax.random.uniform(k, shape, jnp.float32)
-    normal = lambda k, shape: jax.random.normal(k, shape, jnp.float32)
-    valid2, valid3 = frame.valid2, frame.valid3
-    box2, box3, lo3, hi3, score2, score3 = frame.box2, frame.box3, frame.lo3, frame.hi3, frame.score2, frame.score3
-    on = set(spec.enabled)
-    if "burst" in on:
-        occ = _occluded_keys(jnp.concatenate([gid2, gid3]), t, dp, spec, impl)
-        valid2 = valid2 & ~occ[:m2]
-        valid3 = valid3 & ~occ[m2:]
-    if "drop" in on:
-        valid2 = valid2 & ~(uniform(key(draws.DROP2), valid2.shape) < dp.drop_2d)
-        valid3 = valid3 & ~(uniform(key(draws.DROP3), valid3.shape) < dp.drop_3d)
-    if "jitter" in on:
-        box2 = noise.jitter_box(box2, frame.valid2, dp.jitter_2d, normal(key(draws.JIT2), box2.shape),
-                                truncate_2d_box if spec.truncate else None)
-        box3 = noise.jitter_box(box3, frame.valid3, dp.jitter_box3, normal(key(draws.JITB3), box3.shape),
-                                truncate_3d_box if spec.truncate else None)
-        lo3, hi3 = noise.shift_3d(lo3, hi3, frame.valid3, dp.jitter_3d, normal(key(draws.JIT3), lo3.shape))
-    if "score" in on:
-        score2 = noise.score_noise(score2, frame.valid2, dp.score_noise_2d, normal(key(draws.SCORE2), score2.shape))
-        score3 = noise.score_noise(score3, frame.valid3, dp.score_noise_3d, normal(key(draws.SCORE3), score3.shape))
-    return Frames(frame.reset, box2, score2, valid2, box3, score3, valid3, lo3, hi3)
+    """``distort.distort_frame``'s very steps, with ``jax.random`` draws."""
+    return apply_draws(frame, gid2, gid3, t, dp, spec, KeyDraws(impl))
 
 
 # ---- timing -------------------------------------------------------------------------------------

@@ -22,8 +22,6 @@ Conventions (KITTI object / tracking labels, rectified camera-0 coordinates):
 
 from __future__ import annotations
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from .core.boxes import iou, truncate_2d_box, truncate_3d_box, xp_of as _xp  # noqa: F401  (re-exported)
@@ -174,7 +172,7 @@ def box3d_extent(dims, loc, centroid: str):
     head:   min = (z, -x, -y), max = min + (l, h, w)    (code at HEAD)
     kitti:  min = (x - l/2, y - h, z - w/2), max = (x + l/2, y, z + w/2)   (geometric centre (x, y - h/2, z))
 
-    Array-generic (NumPy or jax); ``dfrmot_jax.data.box3d_extent`` is the same rule. Every value is
+    Array-generic (NumPy or jax; ``dfrmot_jax.data`` re-exports it). Every value is
     one float32 operation on float32 inputs (``0.5 * l`` is exact), so no multiply-add can be
     contracted differently in different XLA programs.
     """

@@ -49,12 +49,36 @@ def distort_frame(frame: Frames, gid2, gid3, t, dp: DistortParams, spec: Distort
     bit-identical to :func:`distort_split`. See the package docstring (``dfrmot_jax.distort``) for the meaning of each
     level and the order of the steps.
     """
+    return apply_draws(frame, gid2, gid3, t, dp, spec, HashDraws(), image_size)
+
+
+class HashDraws(NamedTuple):
+    """Where :func:`apply_draws` takes its randomness: the counter-based hash streams of
+    ``draws`` (the package's choice, see its docstring). ``benchmarks/bench_distort_rng.py`` hands
+    the same steps ``jax.random`` keys instead, to measure the difference."""
+
+    def streams(self, seed, t):
+        return functools.partial(stream_hash, seed, t)
+
+    def uniform(self, key, shape):
+        return uniform(key, shape)
+
+    def normal(self, key, shape):
+        return normal(key, shape)
+
+    def occluded(self, gid, t, dp, spec):
+        return occluded(gid, t, dp, spec)
+
+
+def apply_draws(frame: Frames, gid2, gid3, t, dp: DistortParams, spec: DistortSpec, source,
+                image_size=DEFAULT_IMAGE_SIZE) -> Frames:
+    """The steps of :func:`distort_frame` with the random draws of ``source`` (``HashDraws``)."""
     dp = cast_params(dp)
     t = jnp.asarray(t, jnp.int32)
     gid2 = jnp.asarray(gid2, jnp.int32)
     gid3 = jnp.asarray(gid3, jnp.int32)
     m2 = frame.valid2.shape[0]
-    key = functools.partial(stream_hash, dp.seed, t)
+    key = source.streams(dp.seed, t)
 
     valid2, valid3 = frame.valid2, frame.valid3
     box2, box3, lo3, hi3 = frame.box2, frame.box3, frame.lo3, frame.hi3
@@ -62,24 +86,24 @@ def distort_frame(frame: Frames, gid2, gid3, t, dp: DistortParams, spec: Distort
     on = set(spec.enabled)
     # 1. occlusion bursts (one test for the 2D and 3D slots together: same object, same answer)
     if "burst" in on:
-        occ = occluded(jnp.concatenate([gid2, gid3]), t, dp, spec)
+        occ = source.occluded(jnp.concatenate([gid2, gid3]), t, dp, spec)
         valid2 = valid2 & ~occ[:m2]
         valid3 = valid3 & ~occ[m2:]
     # 2. independent drops
     if "drop" in on:
-        valid2 = valid2 & ~(uniform(key(draws.DROP2), valid2.shape) < dp.drop_2d)
-        valid3 = valid3 & ~(uniform(key(draws.DROP3), valid3.shape) < dp.drop_3d)
+        valid2 = valid2 & ~(source.uniform(key(draws.DROP2), valid2.shape) < dp.drop_2d)
+        valid3 = valid3 & ~(source.uniform(key(draws.DROP3), valid3.shape) < dp.drop_3d)
     # 3. jitter (only slots holding a detection move: empty slots stay as they are)
     if "jitter" in on:
-        box2 = jitter_box(box2, frame.valid2, dp.jitter_2d, normal(key(draws.JIT2), box2.shape),
+        box2 = jitter_box(box2, frame.valid2, dp.jitter_2d, source.normal(key(draws.JIT2), box2.shape),
                           truncate_2d_box if spec.truncate else None)
-        box3 = jitter_box(box3, frame.valid3, dp.jitter_box3, normal(key(draws.JITB3), box3.shape),
+        box3 = jitter_box(box3, frame.valid3, dp.jitter_box3, source.normal(key(draws.JITB3), box3.shape),
                           truncate_3d_box if spec.truncate else None)
-        lo3, hi3 = shift_3d(lo3, hi3, frame.valid3, dp.jitter_3d, normal(key(draws.JIT3), lo3.shape))
+        lo3, hi3 = shift_3d(lo3, hi3, frame.valid3, dp.jitter_3d, source.normal(key(draws.JIT3), lo3.shape))
     # 4. score noise
     if "score" in on:
-        n2 = normal(key(draws.SCORE2), score2.shape)
-        n3 = normal(key(draws.SCORE3), score3.shape)
+        n2 = source.normal(key(draws.SCORE2), score2.shape)
+        n3 = source.normal(key(draws.SCORE3), score3.shape)
         score2 = score_noise(score2, frame.valid2, dp.score_noise_2d, n2)
         score3 = score_noise(score3, frame.valid3, dp.score_noise_3d, n3)
     # 5. clutter in the reserved slots (free space judged against the frame's real detections)
