@@ -43,3 +43,16 @@ def test_errors_are_reported_not_raised(tmp_path, capsys):
 def test_console_script_is_installed():
     out = subprocess.run([sys.executable, "-m", "dfrmot_jax.cli", "--help"], capture_output=True, text=True)
     assert out.returncode == 0 and "track" in out.stdout and "eval" in out.stdout
+
+
+def test_eval_zero_pads_sequence_names_as_track_does(tmp_path, capsys):
+    root = make_scene(tmp_path / "scene", n_sequences=3, n_frames=40, seed=6)
+    base = ["--data", str(root)]
+    assert main(["track", *base, "--det2d", "synth2d", "--det3d", "synth3d", "--seqs", "1,2",
+                 "--out", str(tmp_path / "r")]) == 0
+    capsys.readouterr()
+    assert main(["eval", str(tmp_path / "r"), *base, "--seqs", "1,2", "--per-seq"]) == 0
+    short = capsys.readouterr().out
+    assert main(["eval", str(tmp_path / "r"), *base, "--seqs", "0001,0002", "--per-seq"]) == 0
+    padded = capsys.readouterr().out
+    assert short == padded and "0001" in short and "0002" in short

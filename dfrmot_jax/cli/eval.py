@@ -83,7 +83,9 @@ def run(args) -> int:
     root = Path(args.data) if args.data else default_data_root()
     if not (root / "label_02").is_dir():
         raise ValueError(f"no ground truth at {root / 'label_02'} (use --data or set DFRMOT_DATA)")
-    seqs = [s.strip() for s in args.seqs.split(",") if s.strip()] if args.seqs else None
+    from .track import parse_seqs
+
+    seqs = parse_seqs(args.seqs)
     try:
         classes = parse_classes(args.cls)
         gts = {}

@@ -12,7 +12,8 @@ from ..paths import ENV_VAR
 __all__ = ["add_parser", "run", "config_help"]
 
 
-def _parse_seqs(text: str | None):
+def parse_seqs(text: str | None) -> list[str] | None:
+    """``--seqs 1,0002`` -> ["0001", "0002"] (KITTI names are zero-padded to 4 digits)."""
     if not text:
         return None
     return [s.strip().zfill(4) for s in text.split(",") if s.strip()]
@@ -229,7 +230,7 @@ def run(args) -> int:
     runs, status = [], 0
     for cls in classes:
         params, options = settings[cls]
-        split = load_split(root, args.det2d, args.det3d, cls, _parse_seqs(args.seqs))
+        split = load_split(root, args.det2d, args.det3d, cls, parse_seqs(args.seqs))
         res = track(split, params, options, detail=True)
         runs.append(ClassRun(split, res.frames, options, res.ids[0],
                              None if options.output == "detections" else res.lane_boxes(0),
