@@ -32,9 +32,11 @@ column-wise (:func:`class_average_columns`).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import multiprocessing as mp
 import os
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -318,10 +320,65 @@ def _run_lanes(dets: TrackerDets, lanes_per_batch: int) -> dict:
 def worker_pool(gt: PreparedGT, workers: int, start_method: str | None = None) -> ProcessPoolExecutor:
     """A process pool whose workers hold ``gt`` (sent once): submit ``_run_chunk(dets)`` /
     ``_run_lanes(dets, lanes_per_batch)``. ``start_method`` default ``'forkserver'`` where available,
-    else ``'spawn'`` (both safe in a process running JAX threads)."""
+    else ``'spawn'`` (both safe in a process running JAX threads).
+
+    The forkserver is told not to preload ``__main__``: the workers need only this package, and
+    re-running the caller's script in them would start the sweep again there (a plain script
+    without ``if __name__ == "__main__":`` then dies with "start a new process before ... bootstrapping").
+    """
     method = start_method or ("forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn")
-    return ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method), initializer=_init_worker,
-                               initargs=(gt,))
+    return ProcessPoolExecutor(max_workers=workers, mp_context=_without_main(mp.get_context(method)),
+                               initializer=_init_worker, initargs=(gt,))
+
+
+@contextlib.contextmanager
+def _main_hidden():
+    """While a worker starts, ``__main__`` has no ``__file__`` and a ``None`` ``__spec__``:
+    multiprocessing then does not re-import the caller's script (or module) in the worker."""
+    main = sys.modules.get("__main__")
+    saved = {k: main.__dict__[k] for k in ("__file__", "__spec__") if main is not None and k in main.__dict__}
+    try:
+        if main is not None:
+            main.__dict__.pop("__file__", None)
+            if "__spec__" in saved:
+                main.__spec__ = None
+        yield
+    finally:
+        if main is not None:
+            main.__dict__.update(saved)
+
+
+class _StartWithoutMain:
+    """Mixin of a process class: ``start`` with ``__main__`` hidden (module level: picklable)."""
+
+    def start(self):
+        with _main_hidden():
+            super().start()
+
+
+class _SpawnProcess(_StartWithoutMain, mp.context.SpawnProcess):
+    pass
+
+
+class _SpawnContext(mp.context.SpawnContext):
+    Process = _SpawnProcess
+
+
+if hasattr(mp.context, "ForkServerProcess"):
+    class _ForkServerProcess(_StartWithoutMain, mp.context.ForkServerProcess):
+        pass
+
+    class _ForkServerContext(mp.context.ForkServerContext):
+        Process = _ForkServerProcess
+
+
+def _without_main(ctx):
+    """The same kind of multiprocessing context, its processes started with ``__main__`` hidden
+    (forkserver and spawn; a fork context copies the parent and imports nothing: unchanged)."""
+    method = ctx.get_start_method()
+    if method == "forkserver":
+        return _ForkServerContext()
+    return _SpawnContext() if method == "spawn" else ctx
 
 
 class LaneScorer:
