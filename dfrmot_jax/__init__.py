@@ -12,8 +12,10 @@ __version__ = "0.1.0"
 from .api import TrackResult, default_capacity, track
 from .core.devices import setup_host_devices
 from .data import Split, load_split, prepare_frames
+from .paths import default_data_root
 from .config import Options, Params, preset, stack_params
 from .sweep import run_sweep, sweep_report   # binds dfrmot_jax.sweep, the sweep package
 
-__all__ = ["Options", "Params", "Split", "TrackResult", "default_capacity", "load_split", "prepare_frames",
-           "preset", "setup_host_devices", "stack_params", "track", "__version__", "run_sweep", "sweep", "sweep_report"]
+__all__ = ["Options", "Params", "Split", "TrackResult", "default_capacity", "default_data_root", "load_split",
+           "prepare_frames", "preset", "setup_host_devices", "stack_params", "track", "__version__", "run_sweep",
+           "sweep", "sweep_report"]
