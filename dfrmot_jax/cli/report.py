@@ -70,7 +70,8 @@ def run(args) -> int:
 
     contrast = parse_contrast(args.contrast) if getattr(args, "contrast", None) else None
     rep = sweep_report(Path(args.dir), objective=args.objective or _manifest_objective(args.dir),
-                       folds=args.folds, top=args.top or 10, contrast=contrast, cls=getattr(args, "cls", None))
+                       folds=args.folds, top=10 if args.top is None else args.top, contrast=contrast,
+                       cls=getattr(args, "cls", None))
     print(rep.text)
     if args.csv:
         df = load_results(args.dir, allow_partial=True)

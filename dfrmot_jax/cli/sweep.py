@@ -51,6 +51,12 @@ def run(args) -> int:
     from ..sweep import (OPTION_NAMES, class_columns, expand, load_spec, n_settings, plan, resolve_data_all,
                          run_sweep, sweep_report)
 
+    from ..metrics.table import canonical_objective
+
+    if args.objective is not None:                  # before any work, not after the sweep
+        args.objective = canonical_objective(args.objective)
+    if args.top is not None and args.top < 1:
+        raise ValueError(f"--top {args.top}: expected a whole number >= 1 (configs listed)")
     spec = load_spec(args.file)
     out = Path(args.out) if args.out else Path("results") / "sweeps" / spec.name
     if args.dry_run:
@@ -81,7 +87,7 @@ def run(args) -> int:
           f"{out / 'results.parquet'}")
     if args.summary:
         rep = sweep_report(df, objective=args.objective or spec.objective,
-                           folds=args.folds if args.folds is not None else spec.folds, top=args.top or spec.top,
+                           folds=args.folds if args.folds is not None else spec.folds, top=spec.top if args.top is None else args.top,
                            contrast=spec.contrast, cls=args.cls or spec.report_class)
         print(rep.text)
     over = df[(df["sequence"] == "COMBINED") & (df["overflow"] > 0)]

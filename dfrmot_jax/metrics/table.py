@@ -83,3 +83,13 @@ def classes_table(results_by_class: Mapping[str, Mapping[str, Mapping[str, objec
         if f in out:
             out[f] = out[f].astype("int64")
     return out
+
+
+def canonical_objective(objective) -> str:
+    """A metric name in any case (``hota``, ``idf1``) -> its column name (``HOTA``, ``IDF1``);
+    ValueError naming the metrics when it is none of them."""
+    if isinstance(objective, str):
+        by_lower = {f.lower(): f for f in TABLE_FIELDS}
+        if objective.lower() in by_lower:
+            return by_lower[objective.lower()]
+    raise ValueError(f"objective {objective!r}: not a metric; expected one of {list(TABLE_FIELDS)} (any case)")

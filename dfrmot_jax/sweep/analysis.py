@@ -10,7 +10,7 @@ import pandas as pd
 
 from ..metrics import clear, identity
 from ..metrics.evaluate import RAW_FIELDS, class_average_columns, combine_sequences, summary_columns
-from ..metrics.table import TABLE_FIELDS
+from ..metrics.table import TABLE_FIELDS, canonical_objective  # noqa: F401  (re-exported)
 from .spec import OPTION_NAMES, PARAM_NAMES, _extra_axes
 from .spec import AVERAGE
 from .table import COMBINED, RAW_COLUMN, _split_class_column, class_columns

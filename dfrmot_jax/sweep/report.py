@@ -11,6 +11,7 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
+from ..metrics.table import canonical_objective
 from .analysis import (_check_objective, _classes_of, _direction, _fmt, _json_value, _rank, class_view,
                        cross_validate, report_class_of, sensitivity, varied_axes)
 from .robustness import _contrast_text, _robustness_text, robustness_curves
@@ -67,6 +68,9 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         df, n_expected = results, None
     if isinstance(contrast, Mapping):
         contrast = _parse_contrast(dict(contrast), None)
+    objective = canonical_objective(objective)
+    if not isinstance(top, (int, np.integer)) or isinstance(top, bool) or top < 1:
+        raise ValueError(f"top={top!r}: expected a whole number >= 1 (configs listed)")
     _check_objective(df, objective)
     full = df
     classes = _classes_of(full)

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
+from ..metrics.table import canonical_objective
 from ..config import CLASSES, INT_PARAMS, PRESETS, Options, Params, option_problem, param_problem
 
 if TYPE_CHECKING:
@@ -449,9 +450,10 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
 
     rep = doc.get("report", {})
     _check_keys(rep, REPORT_KEYS, "report.", source)
-    objective = rep.get("objective", "HOTA")
-    if not isinstance(objective, str):
-        raise _err("report.objective", f"{objective!r}: expected a metric name", source)
+    try:
+        objective = canonical_objective(rep.get("objective", "HOTA"))
+    except ValueError as e:
+        raise _err("report.objective", str(e).removeprefix("objective "), source) from None
     folds = _positive_int(rep, "folds", None, source, minimum=2)
     top = _positive_int(rep, "top", 10, source)
     contrast = _parse_contrast(rep.get("contrast"), source)

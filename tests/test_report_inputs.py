@@ -1,0 +1,30 @@
+"""Report settings are checked before any work and read as a user means them."""
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from dfrmot_jax.cli import main
+from dfrmot_jax.sweep import SweepConfigError, parse_spec, sweep_report
+
+FIXTURE = Path(__file__).resolve().parent / "fixtures" / "sweep_v1"
+
+
+def test_a_misspelt_objective_in_a_sweep_file_fails_at_parse_time_naming_the_key():
+    with pytest.raises(SweepConfigError, match=r"report\.objective: 'HOTAA': not a metric"):
+        parse_spec({"params": {"a_l": [4.0, 8.0]}, "report": {"objective": "HOTAA"}})
+    assert parse_spec({"params": {"a_l": [4.0, 8.0]}, "report": {"objective": "idf1"}}).objective == "IDF1"
+
+
+def test_objective_in_any_case_and_top_zero_refused(tmp_path, capsys):
+    d = tmp_path / "sweep"
+    shutil.copytree(FIXTURE, d)
+    low, up = sweep_report(d, objective="hota"), sweep_report(d, objective="HOTA")
+    assert low.summary == up.summary and low.summary["objective"] == "HOTA"
+    assert main(["report", str(d), "--objective", "hota"]) == 0
+    capsys.readouterr()
+    assert main(["report", str(d), "--top", "0"]) == 2
+    assert "top" in capsys.readouterr().err
+    assert main(["sweep", "sweeps/kitti_smoke.toml", "--out", str(tmp_path / "x"), "--objective", "HOTAA"]) == 2
+    assert "HOTAA" in capsys.readouterr().err and not (tmp_path / "x").exists()
