@@ -16,12 +16,11 @@ import numpy as np
 from . import distort
 from .core.devices import setup_host_devices
 from .data import Frames, Split, prepare_frames
-from .config import Options, Params, as_arrays, batch_size, validate_params
+from .config import MAX_CAPACITY, Options, Params, as_arrays, batch_size, validate_params
 from .results import output_boxes
 from .core.associate import MAX_ROWS
 from .core.run import FrameHook, run_batch
 
-MAX_CAPACITY = 4096
 #: objects (detection slots) per frame the greedy order keys can tell apart (core.associate.MAX_ROWS)
 MAX_OBJECTS = MAX_ROWS
 

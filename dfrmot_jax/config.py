@@ -132,6 +132,10 @@ class Options(NamedTuple):
         return self
 
 
+#: the most track slots a lane is given (an explicit capacity, or the data-derived one doubled for
+#: lanes that overflow)
+MAX_CAPACITY = 4096
+
 OPTION_CHOICES: dict[str, tuple[str, ...]] = {"filter": FILTERS, "merge": MERGES, "centroid": CENTROIDS,
                                               "modality": MODALITIES, "output": OUTPUTS, "kalman_init": KALMAN_INITS}
 
@@ -145,8 +149,9 @@ def option_problem(name: str, value) -> str | None:
     if name == "truncate":
         return None if isinstance(value, (bool, np.bool_)) else "expected true or false"
     if name == "capacity":
-        ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 0
-        return None if ok else "expected an integer >= 0 (0 = from the data)"
+        ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) \
+            and 0 <= value <= MAX_CAPACITY
+        return None if ok else f"expected an integer from 0 to {MAX_CAPACITY} (0 = from the data)"
     return f"unknown option; options are {list(Options._fields)}"
 
 

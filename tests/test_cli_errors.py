@@ -69,7 +69,7 @@ def test_track_help_lists_parameters_options_presets(capsys):
     assert set(meanings) == set(Params._fields)
     assert meanings["a_c"] == "camera gate: IoU below a_c counts as 0 in M_c"
     assert " ".join(meanings["a_c"].split()) in " ".join(out.split())
-    assert "integer in [0, 4096]" in out                       # capacity, api.MAX_CAPACITY
+    assert "integer in [0, 4096]" in out                       # capacity, config.MAX_CAPACITY
     assert "fixed_gain | kalman" in out and "a_l=10 centroid=head" in out
 
 
@@ -185,7 +185,7 @@ def test_traceback_only_with_debug_in_a_real_process():
     ("capacity=abc", "--set capacity=abc: not a number; expected an integer from 0 to 4096"),
     ("epsilon=2.5", "--set epsilon=2.5: not an integer; expected an integer from 0 to 10000"),
     ("min_hits=x", "--set min_hits=x: not a number; expected an integer from 1 to 10000"),
-    ("capacity=2147483648", "--set capacity=2147483648: above the maximum capacity 4096 (api.MAX_CAPACITY)"),
+    ("capacity=2147483648", "--set capacity=2147483648: above the maximum capacity 4096 (config.MAX_CAPACITY)"),
     ("car.capacity=1e9", "--set capacity=1e9: write it without a decimal point or exponent"),
 ])
 def test_set_integer_messages(item, want, scene, tmp_path, capsys):

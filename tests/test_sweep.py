@@ -387,3 +387,13 @@ def test_cli_sweep_and_report(scene, tmp_path, capsys):
     assert last["best_cross_validated"] is not None          # --folds stored by the sweep
     assert len(pd.read_csv(tmp_path / "t.csv")) == 4 * 4
     assert main(["report", str(tmp_path / "nothing")]) == 2
+
+
+def test_an_option_capacity_past_the_maximum_is_refused_naming_the_key():
+    from dfrmot_jax.sweep import parse_spec
+
+    from dfrmot_jax.config import MAX_CAPACITY
+
+    with pytest.raises(SweepConfigError, match=r"options\.capacity.*2147483648.*from 0 to 4096"):
+        parse_spec({"params": {"a_l": [4.0, 8.0]}, "options": {"capacity": [2147483648]}})
+    assert MAX_CAPACITY == 4096

@@ -30,7 +30,7 @@ def _classes(text: str) -> list[str]:
 
 
 def _max_capacity() -> int:
-    from ..api import MAX_CAPACITY
+    from ..config import MAX_CAPACITY
 
     return MAX_CAPACITY
 
@@ -38,7 +38,7 @@ def _max_capacity() -> int:
 def _check_value(item: str) -> None:
     """Clear messages for integer settings before :func:`config.parse_assignment` sees them:
     ``epsilon=2.5`` / ``capacity=abc`` (not an integer) and ``capacity=2147483648`` (above
-    ``api.MAX_CAPACITY``, the most track slots a lane is given). Ranges of parameters are
+    ``config.MAX_CAPACITY``, the most track slots a lane is given). Ranges of parameters are
     ``config.param_problem``'s."""
     from ..config import INT_PARAMS, PARAM_RANGES
 
@@ -59,7 +59,7 @@ def _check_value(item: str) -> None:
             got = "not a number"
         raise ValueError(f"--set {name}={raw}: {got}; expected an integer from {lo} to {hi}{what}") from None
     if name == "capacity" and value > hi:
-        raise ValueError(f"--set {name}={raw}: above the maximum capacity {hi} (api.MAX_CAPACITY); expected an "
+        raise ValueError(f"--set {name}={raw}: above the maximum capacity {hi} (config.MAX_CAPACITY); expected an "
                          f"integer from {lo} to {hi}{what}")
 
 
