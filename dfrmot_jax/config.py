@@ -226,16 +226,36 @@ def validate_params(params: Params) -> Params:
     return params
 
 
+def _parse_int(name: str, raw: str, lo: int, hi: int, what: str = "") -> int:
+    """An integer setting from text, with a message a user can act on (not Python's int())."""
+    try:
+        value = int(raw)
+    except ValueError:
+        try:
+            got = "write it without a decimal point or exponent" if float(raw).is_integer() else "not an integer"
+        except ValueError:
+            got = "not a number"
+        raise ValueError(f"--set {name}={raw}: {got}; expected an integer from {lo} to {hi}{what}") from None
+    if name == "capacity" and value > hi:
+        raise ValueError(f"--set {name}={raw}: above the maximum capacity {hi} (config.MAX_CAPACITY); expected an "
+                         f"integer from {lo} to {hi}{what}")
+    return value
+
+
 def parse_assignment(text: str, params: Params, options: Options) -> tuple[Params, Options]:
     """Apply one ``name=value`` (CLI ``--set``) to params or options."""
     if "=" not in text:
         raise ValueError(f"--set {text!r}: expected name=value")
     name, raw = (s.strip() for s in text.split("=", 1))
     if name in Params._fields:
-        try:
-            value = int(raw) if name in INT_PARAMS else float(raw)
-        except ValueError:
-            raise ValueError(f"--set {name}: {raw!r} is not a number") from None
+        if name in INT_PARAMS:
+            lo, hi = PARAM_RANGES[name]
+            value = _parse_int(name, raw, int(lo), int(hi))
+        else:
+            try:
+                value = float(raw)
+            except ValueError:
+                raise ValueError(f"--set {name}: {raw!r} is not a number") from None
         return validate_params(params._replace(**{name: value})), options
     if name in Options._fields:
         if name == "truncate":
@@ -243,7 +263,7 @@ def parse_assignment(text: str, params: Params, options: Options) -> tuple[Param
                 raise ValueError(f"--set truncate: {raw!r} is not true/false")
             value = raw.lower() in ("true", "1")
         elif name == "capacity":
-            value = int(raw)
+            value = _parse_int(name, raw, 0, MAX_CAPACITY, " track slots per lane, 0 = from the data")
         else:
             value = raw
         return params, options._replace(**{name: value}).validate()

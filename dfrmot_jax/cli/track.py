@@ -29,40 +29,6 @@ def _classes(text: str) -> list[str]:
     return classes
 
 
-def _max_capacity() -> int:
-    from ..config import MAX_CAPACITY
-
-    return MAX_CAPACITY
-
-
-def _check_value(item: str) -> None:
-    """Clear messages for integer settings before :func:`config.parse_assignment` sees them:
-    ``epsilon=2.5`` / ``capacity=abc`` (not an integer) and ``capacity=2147483648`` (above
-    ``config.MAX_CAPACITY``, the most track slots a lane is given). Ranges of parameters are
-    ``config.param_problem``'s."""
-    from ..config import INT_PARAMS, PARAM_RANGES
-
-    name, eq, raw = item.partition("=")
-    name, raw = name.strip(), raw.strip()
-    if not eq or (name not in INT_PARAMS and name != "capacity"):
-        return
-    if name == "capacity":
-        lo, hi, what = 0, _max_capacity(), " track slots per lane, 0 = from the data"
-    else:
-        lo, hi, what = int(PARAM_RANGES[name][0]), int(PARAM_RANGES[name][1]), ""
-    try:
-        value = int(raw)
-    except ValueError:
-        try:
-            got = "write it without a decimal point or exponent" if float(raw).is_integer() else "not an integer"
-        except ValueError:
-            got = "not a number"
-        raise ValueError(f"--set {name}={raw}: {got}; expected an integer from {lo} to {hi}{what}") from None
-    if name == "capacity" and value > hi:
-        raise ValueError(f"--set {name}={raw}: above the maximum capacity {hi} (config.MAX_CAPACITY); expected an "
-                         f"integer from {lo} to {hi}{what}")
-
-
 def _settings(args, cls: str = "car"):
     """The preset for the class, then every ``--set NAME=VALUE`` and ``--set CLASS.NAME=VALUE`` of it."""
     from ..config import CLASSES, parse_assignment, preset
@@ -78,7 +44,6 @@ def _settings(args, cls: str = "car"):
             if prefix != cls:
                 continue
             item = f"{name}{eq}{rhs}"
-        _check_value(item)
         params, options = parse_assignment(item, params, options)
     return params, options
 
@@ -144,7 +109,8 @@ def config_help(width: int | None = None) -> str:
     import shutil
     import textwrap
 
-    from ..config import CLASS_DEFAULTS, INT_PARAMS, OPTION_CHOICES, PARAM_RANGES, PRESETS, Options, Params
+    from ..config import (CLASS_DEFAULTS, INT_PARAMS, MAX_CAPACITY, OPTION_CHOICES, PARAM_RANGES, PRESETS, Options,
+                          Params)
 
     width = width or max(60, min(120, shutil.get_terminal_size().columns) - 2)
 
@@ -167,7 +133,7 @@ def config_help(width: int | None = None) -> str:
             elif name == "truncate":
                 values = "true | false"
             elif name == "capacity":
-                values = f"integer in [0, {_max_capacity()}]"
+                values = f"integer in [0, {MAX_CAPACITY}]"
             else:
                 values = ""
             out.append(f"  {name:<12} default {_fmt(getattr(base_o, name)):<12} {values}")
