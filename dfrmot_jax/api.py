@@ -15,7 +15,7 @@ import numpy as np
 
 from . import distort
 from .core.devices import setup_host_devices
-from .data import Frames, Split, prepare_frames
+from .data import Frames, Split, object_slots, prepare_frames
 from .config import MAX_CAPACITY, Options, Params, as_arrays, batch_size, validate_params
 from .results import output_boxes
 from .core.associate import MAX_ROWS
@@ -128,8 +128,7 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
         distortion = distort.DistortParams(*(np.broadcast_to(np.asarray(v), (b,)) for v in distortion))
         frames, extra = prepare_distortion(split, frames, options, distortion, spec, clutter_slots)
     per_lane_boxes = options.output == "filtered" or extra is not None
-    n_objects = {"2d": frames.box2.shape[1], "3d": frames.box3.shape[1]}.get(
-        options.modality, frames.box2.shape[1] + frames.box3.shape[1])
+    n_objects = object_slots(options, frames.valid2[:1], frames.valid3[:1]).shape[1]
     if n_objects > MAX_OBJECTS:
         raise ValueError(f"a frame holds up to {frames.box2.shape[1]} 2D and {frames.box3.shape[1]} 3D detection slots "
                          f"({n_objects} objects with modality {options.modality!r}, clutter slots included): at most "

@@ -275,10 +275,16 @@ def prepare_frames(split: Split, options: Options) -> Frames:
     )
 
 
+def object_slots(options: Options, per_2d: np.ndarray, per_3d: np.ndarray) -> np.ndarray:
+    """Values [T, O, ...] of the tracker's object slots from values of the 2D slots [T, M2, ...] and
+    the 3D slots [T, M3, ...]: the 2D slots, the 3D slots, or both in that order (modality)."""
+    if options.modality == "2d":
+        return per_2d
+    if options.modality == "3d":
+        return per_3d
+    return np.concatenate([per_2d, per_3d], axis=1)
+
+
 def object_boxes(frames: Frames, options: Options) -> np.ndarray:
     """[T, O, 4] the image box of each object slot of the tracker's ``detections`` output."""
-    if options.modality == "2d":
-        return frames.box2
-    if options.modality == "3d":
-        return frames.box3
-    return np.concatenate([frames.box2, frames.box3], axis=1)
+    return object_slots(options, frames.box2, frames.box3)

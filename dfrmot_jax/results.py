@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .data import CLASS_NAMES, Frames, Split, object_boxes
+from .data import CLASS_NAMES, Frames, Split, object_boxes, object_slots
 from .io.columns import COLUMN_SETS
 from .io.kitti import tracking_lines, write_text_atomic
 from .config import Options
@@ -67,13 +67,7 @@ def slot_scores(split: Split, frames: Frames, options: Options) -> np.ndarray | 
         out[:, :m] = np.where(valid[:, :m], a[:, :m], np.nan)
         return out
 
-    s2 = pad(split.score2d, split.valid2d, k2)
-    s3 = pad(split.score3d, split.valid3d, k3)
-    if options.modality == "2d":
-        return s2
-    if options.modality == "3d":
-        return s3
-    return np.concatenate([s2, s3], axis=1)
+    return object_slots(options, pad(split.score2d, split.valid2d, k2), pad(split.score3d, split.valid3d, k3))
 
 
 def lane_rows(split: Split, s: int, ids: np.ndarray, boxes: np.ndarray, *, src3: np.ndarray | None = None,

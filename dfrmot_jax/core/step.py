@@ -69,10 +69,6 @@ def init(options: Options, capacity: int, params: Params | None = None) -> Memor
     return mem
 
 
-def _f64(params: Params) -> Params:
-    return Params(*(v.astype(jnp.float64) if jnp.issubdtype(v.dtype, jnp.floating) else v for v in params))
-
-
 def _objects(params: Params, frame: Frames, options: Options):
     """This frame's objects: box [O, 4], z3 [O, 6] (3D min, max corners), has3d [O], valid [O],
     slot3 [O] int32 the 3D detection slot of each object (meaningful where has3d).
@@ -110,7 +106,6 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: b
     kind = options.filter
     mem = memory.reset(mem, frame.reset)
     box, z3, has3, valid, slot3 = _objects(params, frame, options)
-    params = _f64(params)
 
     # Association on the tracks' predictions.
     f = mem.filt
