@@ -15,7 +15,8 @@ from .data import Split, load_split, prepare_frames
 from .paths import default_data_root
 from .config import Options, Params, preset, stack_params
 from .sweep import run_sweep, sweep_report   # binds dfrmot_jax.sweep, the sweep package
+from .tuning import run_tune as tune
 
 __all__ = ["Options", "Params", "Split", "TrackResult", "default_capacity", "default_data_root", "load_split",
            "prepare_frames", "preset", "setup_host_devices", "stack_params", "track", "__version__", "run_sweep",
-           "sweep", "sweep_report"]
+           "sweep", "sweep_report", "tune"]

@@ -16,7 +16,7 @@ import numpy as np
 from . import distort
 from .core.devices import setup_host_devices
 from .data import Frames, Split, object_slots, prepare_frames
-from .config import MAX_CAPACITY, Options, Params, as_arrays, batch_size, validate_params
+from .config import MAX_CAPACITY, MIN_CAPACITY, Options, Params, as_arrays, batch_size, validate_params
 from .results import output_boxes
 from .core.associate import MAX_ROWS
 from .core.run import FrameHook, run_batch
@@ -71,7 +71,7 @@ def default_capacity(frames: Frames, params: Params, options: Options, clutter_s
     else:
         n = n2 + n3
     most = int(n.max(initial=0))
-    cap = max(16, int(np.ceil(1.5 * most / 8.0)) * 8)
+    cap = max(MIN_CAPACITY, int(np.ceil(1.5 * most / 8.0)) * 8)
     return cap + (8 * int(np.ceil(3 * clutter_slots / 8)) if clutter_slots else 0)
 
 

@@ -42,6 +42,8 @@ class Params(NamedTuple):
     kf_q:       process noise (white-noise jerk spectral density, dt = 1 frame) of the Kalman filter.
     kf_r:       measurement noise variance (pixels^2 or m^2) of the Kalman filter.
     kf_p0:      initial variance of velocity and acceleration at a track's first observation.
+    kf_q3, kf_r3:  kf_q and kf_r of the 3D corners (metres; kf_q, kf_r then apply to the 2D corners,
+                pixels); 0 (the default) = the same as kf_q / kf_r (``INHERITED_PARAMS``).
     keep_lost:  output="filtered" only: frames a lost track keeps being written with its predicted box.
     min_hits:   a track is written only once it has been matched (including its birth) min_hits times.
     """
@@ -60,11 +62,15 @@ class Params(NamedTuple):
     kf_q: Any = 1.0
     kf_r: Any = 1.0
     kf_p0: Any = 100.0
+    kf_q3: Any = 0.0
+    kf_r3: Any = 0.0
     keep_lost: Any = 0
     min_hits: Any = 1
 
 
 INT_PARAMS = frozenset({"epsilon", "keep_lost", "min_hits"})
+#: parameters whose value 0 (their default) means "the value of another parameter": name -> that parameter
+INHERITED_PARAMS = {"kf_q3": "kf_q", "kf_r3": "kf_r"}
 
 #: Valid ranges (inclusive) used to validate user input; sweeps draw inside them.
 PARAM_RANGES: dict[str, tuple[float, float]] = {
@@ -82,6 +88,8 @@ PARAM_RANGES: dict[str, tuple[float, float]] = {
     "kf_q": (1e-9, 1e9),
     "kf_r": (1e-9, 1e9),
     "kf_p0": (0.0, 1e12),
+    "kf_q3": (0.0, 1e9),
+    "kf_r3": (0.0, 1e9),
     "keep_lost": (0, 10_000),
     "min_hits": (1, 10_000),
 }
@@ -93,6 +101,7 @@ CENTROIDS = ("legacy", "head", "kitti")
 MODALITIES = ("fused", "2d", "3d")
 OUTPUTS = ("detections", "filtered")
 KALMAN_INITS = ("diffuse", "steady")
+ASSIGNS = ("greedy", "hungarian")
 
 
 class Options(NamedTuple):
@@ -113,6 +122,9 @@ class Options(NamedTuple):
     kalman_init: Kalman covariance of a new track: "diffuse" (diag(kf_r, kf_p0, kf_p0)) | "steady"
                (the steady-state covariance of (kf_q, kf_r): the filter then equals the fixed-gain
                filter with the matching gains, ``core.filters.steady_state``).
+    assign:    association of objects with tracks among the pairs with M_f > a_f: "greedy" (the largest
+               M_f first, as the code) | "hungarian" (the matching of the largest total M_f - a_f, as the
+               paper's "algorithm similar to the Hungarian algorithm"; equal totals may be split either way).
     """
 
     filter: str = "fixed_gain"
@@ -123,6 +135,7 @@ class Options(NamedTuple):
     output: str = "detections"
     capacity: int = 0
     kalman_init: str = "diffuse"
+    assign: str = "greedy"
 
     def validate(self) -> "Options":
         for name, value in self._asdict().items():
@@ -135,9 +148,12 @@ class Options(NamedTuple):
 #: the most track slots a lane is given (an explicit capacity, or the data-derived one doubled for
 #: lanes that overflow)
 MAX_CAPACITY = 4096
+#: the fewest track slots the data-derived capacity gives (``api.default_capacity``)
+MIN_CAPACITY = 16
 
 OPTION_CHOICES: dict[str, tuple[str, ...]] = {"filter": FILTERS, "merge": MERGES, "centroid": CENTROIDS,
-                                              "modality": MODALITIES, "output": OUTPUTS, "kalman_init": KALMAN_INITS}
+                                              "modality": MODALITIES, "output": OUTPUTS, "kalman_init": KALMAN_INITS,
+                                              "assign": ASSIGNS}
 
 
 def option_problem(name: str, value) -> str | None:

@@ -28,6 +28,7 @@ from .io.kitti import (
 )
 from .core.step import Frames
 from .config import Options
+from .paths import missing_data_message
 
 CLASS_NAMES = {"car": "Car", "pedestrian": "Pedestrian"}
 DEFAULT_IMAGE_SIZE = KITTI_IMAGE_SIZE        # (width, height) of camera 02, defined in geometry
@@ -93,13 +94,17 @@ class Split(NamedTuple):
 
 
 def detection_dir(root: Path, detector: str | Path, cls: str) -> Path:
-    """A detector given by name (``ROOT/detections/<name>/<class>/``) or as a directory path."""
+    """A detector given by name (``ROOT/detections/<name>/<class>/``) or as a directory path: one
+    holding a folder per class (``<dir>/<class>/``), else the folder of the sequence files itself."""
     by_name = Path(root) / "detections" / str(detector) / cls
     if by_name.is_dir():
         return by_name
     as_path = Path(detector)
-    if as_path.is_dir():
-        return as_path
+    for d in (as_path / cls, as_path):
+        if d.is_dir():
+            return d
+    if not (Path(root) / "detections").is_dir():
+        raise KittiFormatError(str(detector), None, None, f"not a directory, and {missing_data_message(root)}")
     known = sorted(p.name for p in (Path(root) / "detections").glob("*") if p.is_dir())
     raise KittiFormatError(str(by_name), None, None,
                            f"unknown detector {str(detector)!r}: not a directory; detectors under the root: {known}")
@@ -156,13 +161,16 @@ def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
                    image_size=DEFAULT_IMAGE_SIZE) -> list[SequenceDets]:
     """Read detections and calib of each sequence (default: those whose ground truth has the class).
 
-    A missing detection or calib file raises :class:`KittiFormatError` (``file not found``); an
-    empty file is a sequence without detections. 3D rows whose ``type`` is another class are dropped
-    (:func:`class_rows_3d`; on the shipped PointRCNN / PointGNN files every row is the folder's class).
+    A root without ``label_02/`` raises ValueError (the KITTI root is wrong), a missing detection or
+    calib file :class:`KittiFormatError` (``file not found``); an empty file is a sequence without
+    detections. 3D rows whose ``type`` is another class are dropped (:func:`class_rows_3d`; on the
+    shipped PointRCNN / PointGNN files every row is the folder's class).
     """
     root = Path(root)
     if cls not in CLASS_NAMES:
         raise ValueError(f"class {cls!r}: expected one of {sorted(CLASS_NAMES)}")
+    if not (root / "label_02").is_dir():
+        raise ValueError(missing_data_message(root))
     d2 = detection_dir(root, det2d, cls)
     d3 = detection_dir(root, det3d, cls)
     if sequences is None:

@@ -10,6 +10,7 @@ corners). The column sets themselves are in :mod:`dfrmot_jax.io.columns`.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import NamedTuple
 
@@ -148,6 +149,18 @@ def write_lane(out_dir, split: Split, frames: Frames, options: Options, ids: np.
     placeholders; the kitti columns still carry each detection's own score (output "detections").
     """
     return write_runs(out_dir, [ClassRun(split, frames, options, ids, boxes, src3, own3, box3)], columns=columns)
+
+
+#: the files ``write_runs`` writes (``SSSS.txt``) or leaves when killed mid-write (``.SSSS.txt.PID.tmp``,
+#: the temporaries of ``io.kitti.write_text_atomic``)
+_RESULT_FILE = re.compile(r"\d{4}\.txt|\.\d{4}\.txt\.\d+\.tmp")
+
+
+def result_files(out_dir) -> list[Path]:
+    """The files of ``out_dir`` that :func:`write_runs` writes or leaves behind, sorted: result files
+    ``SSSS.txt`` and temporaries ``.SSSS.txt.PID.tmp`` of an interrupted write (nothing else)."""
+    return sorted(p for p in Path(out_dir).iterdir()
+                  if _RESULT_FILE.fullmatch(p.name) and (p.is_file() or p.is_symlink()))
 
 
 def write_runs(out_dir, runs: list[ClassRun], *, columns: str = "kitti") -> list[Path]:

@@ -13,7 +13,7 @@ from dfrmot_jax.cli import build_parser, main
 from dfrmot_jax.cli import track as track_cmd
 from dfrmot_jax.config import PRESETS, Options, Params
 
-COMMANDS = ("track", "demo", "eval", "sweep", "report")
+COMMANDS = ("track", "demo", "eval", "sweep", "tune", "report")
 
 
 @pytest.fixture(scope="module")

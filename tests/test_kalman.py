@@ -106,3 +106,54 @@ def test_steady_state_gains_are_a_known_alpha_beta_gamma_family():
     assert 0 < a < 1 and 0 < b < 2 and 0 < g < 1
     (a2, _, _), _ = kalman.steady_state(100.0, 1.0)
     assert a2 > a  # more process noise -> trust measurements more
+
+
+# ---- distinct noise for the 2D and the 3D corners: tracker == oracle ------------------------------------
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    from dfrmot_jax.data import load_sequences, pack
+    from dfrmot_jax.synthetic import make_scene
+
+    root = make_scene(tmp_path_factory.mktemp("scene"), n_sequences=2, n_frames=120, n_cars=6, seed=5)
+    seqs = load_sequences(root, "synth2d", "synth3d", "car")
+    return seqs, pack(seqs)
+
+
+def _filtered_corners(ids, src3, box3):
+    """{(t, id): 3D filtered corners [6]} of one lane's written rows that carry a 3D filter."""
+    t, k = np.nonzero((ids >= 0) & (src3 >= 0))
+    return {(int(a), int(ids[a, b])): np.asarray(box3[a, b], np.float64) for a, b in zip(t, k)}
+
+
+@pytest.mark.parametrize("kalman_init", ["diffuse", "steady"])
+def test_distinct_3d_noise_tracker_matches_oracle(scene, kalman_init):
+    """kf_q3 / kf_r3 drive the 3D corners' filter in both implementations (0 = kf_q / kf_r)."""
+    from dfrmot_jax.api import track
+    from dfrmot_jax.config import Options, Params, stack_params
+    from dfrmot_jax.testing.parity import lane_mismatches, reference_lane, reference_rows
+
+    seqs, split = scene
+    options = Options(filter="kalman", output="filtered", kalman_init=kalman_init)
+    lanes = [Params(kf_q=2.0, kf_r=6.0, kf_q3=0.01, kf_r3=0.05, kf_p0=50.0, a_l=3.0),
+             Params(kf_q=2.0, kf_r=6.0, kf_p0=50.0, a_l=3.0),
+             Params(kf_q=2.0, kf_r=6.0, kf_q3=2.0, kf_r3=6.0, kf_p0=50.0, a_l=3.0),
+             Params(kf_q=0.01, kf_r=0.05, kf_q3=2.0, kf_r3=6.0, kf_p0=50.0, a_l=3.0)]
+    res = track(split, stack_params(lanes), options, detail=True)
+    corners = []
+    for b, params in enumerate(lanes):
+        ref_rows = reference_rows(seqs, params, options)
+        mm = lane_mismatches(split, res, b, ref_rows)
+        assert mm["lines"] > 0 and (mm["missing"], mm["extra"], mm["id"], mm["box"]) == (0, 0, 0, 0), (b, mm)
+        ref = reference_lane(split, seqs, ref_rows, options)
+        got = _filtered_corners(res.ids[b], res.src3[b], res.box3[b])
+        want = _filtered_corners(ref.ids, ref.src3, ref.box3)
+        assert got.keys() == want.keys() and len(got) > 100
+        for key in got:
+            np.testing.assert_array_equal(got[key], want[key].astype(np.float32))
+        corners.append(got)
+    # inheriting (0) equals giving kf_q / kf_r again; the distinct 3D noise changes the 3D filter
+    assert np.array_equal(res.ids[1], res.ids[2]) and np.array_equal(res.box3[1], res.box3[2], equal_nan=True)
+    common = corners[0].keys() & corners[1].keys()
+    assert sum(not np.array_equal(corners[0][k], corners[1][k]) for k in common) > len(common) // 2

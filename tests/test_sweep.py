@@ -11,7 +11,7 @@ import pytest
 
 from dfrmot_jax.config import Options, Params
 from dfrmot_jax.sweep import (COMBINED, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, SweepConfigError,
-                              combine_sequences, config_hash, cross_validate, expand, load_results, load_spec,
+                              SweepDirectoryError, combine_sequences, config_hash, cross_validate, expand, load_results, load_spec,
                               make_folds, plan, resolve_data, sensitivity, summary_columns, run_sweep,
                               sweep_report)
 from dfrmot_jax.synthetic import make_scene
@@ -94,6 +94,19 @@ def test_config_hash_stable_and_canonical():
         assert config_hash({**row, "distortion.level": 0.3}) != h
     finally:
         del EXTRA_AXES["distortion.level"]
+
+
+def test_3d_kalman_noise_hashes_only_off_its_default():
+    """kf_q3 / kf_r3 at 0 (= kf_q / kf_r) keep every earlier hash (the dfr2023 preset's, pinned here);
+    set, they are part of the config."""
+    row = {**Params()._asdict(), **Options()._asdict()}
+    assert config_hash(row) == "2373fa0eace4e653"
+    old = {k: v for k, v in row.items() if k not in ("kf_q3", "kf_r3")}
+    assert config_hash(old) == config_hash(row)
+    assert config_hash({**row, "kf_q3": 0.5}) not in (config_hash(row), config_hash({**row, "kf_r3": 0.5}))
+    table = expand({"params": {"kf_q3": [0.0, 0.5], "kf_r3": [0.0, 2.0]}})
+    assert table["config_hash"].is_unique and len(table) == 4
+    assert table.loc[0, "config_hash"] == config_hash(row)
 
 
 @pytest.mark.parametrize("doc, key", [
@@ -186,6 +199,12 @@ def test_shipped_sweep_files_parse():
     files = sorted((Path(__file__).parent.parent / "sweeps").glob("*.toml"))
     assert any(f.name == "kitti_dfr_grid.toml" for f in files)
     for f in files:
+        if "\n[tune]" in f.read_text():            # a tune file: the sweep part plus its search space
+            from dfrmot_jax.tuning import load_tune, search_space
+
+            spec, _ = load_tune(f)
+            assert search_space(spec).dims
+            continue
         t = expand(load_spec(f))
         assert t.loc[0, "baseline"]
         if f.name == "kitti_dfr_grid.toml":
@@ -255,11 +274,13 @@ def test_deterministic_in_memory_equals_directory(small_table, scene, tmp_path):
     assert "tracked" not in " ".join(logs)
     pd.testing.assert_frame_equal(a, b)
     pd.testing.assert_frame_equal(load_results(tmp_path / "a"), b)
-    # a changed sweep reuses the chunks it shares
+    # a changed sweep is another sweep: refused (the directory belongs to the first), or with
+    # force=True run afresh
     spec = small_spec(scene)
     spec["params"] = {**spec["params"], "score_2d": [0.3, 0.45, 0.6]}
-    logs = []
-    c = run_sweep(spec, out=tmp_path / "a", progress=False, log=logs.append, chunk=4)
+    with pytest.raises(SweepDirectoryError, match="another sweep"):
+        run_sweep(spec, out=tmp_path / "a", progress=False, log=lambda m: None, chunk=4)
+    c = run_sweep(spec, out=tmp_path / "a", progress=False, log=lambda m: None, chunk=4, force=True)
     assert len(c) == len(expand(spec)) * 4
 
 

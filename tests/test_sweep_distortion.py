@@ -331,6 +331,7 @@ def test_report_prints_levels_and_contrast(dist_table, scene, tmp_path, capsys):
     rep = sweep_report(dist_table, top=3, contrast={"axis": "epsilon", "high": [30], "low": [1]})
     assert "robustness: HOTA" in rep.text and "drop \\ level" in rep.text and "burst \\ level" in rep.text
     assert "contrast epsilon in [30] minus epsilon in [1]" in rep.text
+    assert max(len(x) for x in rep.text.splitlines()[:-1]) <= 120      # the JSON line is one object
     last = json.loads(rep.text.strip().splitlines()[-1])
     assert set(last["robustness"]) == {"drop", "burst"}
     assert last["robustness"]["drop"]["levels"] == [0.0, 0.3]

@@ -81,6 +81,7 @@ CHANGES = {
     "gain_beta": (Options(modality="2d"), 0.0), "gain_gamma": (Options(modality="2d"), 0.9),
     "kf_q": (Options(filter="kalman", output="filtered"), 1e4), "kf_r": (Options(filter="kalman", output="filtered"), 1e4),
     "kf_p0": (Options(filter="kalman", output="filtered"), 1e-3),
+    "kf_q3": (Options(filter="kalman", output="filtered"), 1e4), "kf_r3": (Options(filter="kalman", output="filtered"), 1e4),
     "keep_lost": (Options(output="filtered"), 5), "min_hits": (Options(), 4),
 }
 

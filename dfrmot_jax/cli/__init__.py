@@ -1,6 +1,6 @@
 """The ``dfrmot`` command line: one parser, one error handler, one module per subcommand.
 
-Each subcommand module (``track``, ``demo``, ``eval``, ``sweep``, ``report``) has
+Each subcommand module (``track``, ``demo``, ``eval``, ``sweep``, ``tune``, ``report``) has
 ``add_parser(sub)``, which registers the subcommand with ``func=guarded(run)``, and ``run(args)``,
 which returns the exit status or raises. :func:`guarded` is the only place that turns exceptions
 into messages and exit statuses:
@@ -13,7 +13,7 @@ exit 2      bad input: bad arguments (argparse), data (:class:`~dfrmot_jax.io.ki
             values (``ValueError``), sweep files (``SweepConfigError``), missing or unreadable files
             (``FileNotFoundError``, ``PermissionError``, an ``OSError`` naming a file): one line
             ``dfrmot CMD: error: MESSAGE`` (argparse adds ``(see 'dfrmot CMD --help')``)
-exit 3      tracking finished but some lane overflowed its track memory (``track``, ``sweep``)
+exit 3      tracking finished but some lane overflowed its track memory (``track``, ``sweep``, ``tune``)
 exit 130    interrupted (Ctrl-C)
 ==========  ========================================================================================
 
@@ -29,7 +29,7 @@ import re
 import sys
 from typing import Callable
 
-from . import demo, eval, report, sweep, track
+from . import demo, eval, report, sweep, track, tune
 
 __all__ = ["main", "build_parser", "guarded", "EXIT_OK", "EXIT_INTERNAL", "EXIT_INPUT", "EXIT_OVERFLOW",
            "EXIT_INTERRUPTED"]
@@ -37,7 +37,7 @@ __all__ = ["main", "build_parser", "guarded", "EXIT_OK", "EXIT_INTERNAL", "EXIT_
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_OVERFLOW, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 #: The subcommand modules, in the order ``dfrmot --help`` lists them.
-COMMANDS = (track, demo, eval, sweep, report)
+COMMANDS = (track, demo, eval, sweep, tune, report)
 
 DESCRIPTION = ("DFR-FastMOT camera+LiDAR tracking as batched JAX: track KITTI splits, score them "
                "exactly like TrackEval, run and report parameter sweeps.")

@@ -4,8 +4,9 @@ Usage::
 
     dfrmot sweep sweeps/kitti_dfr_grid.toml --out results/grid [--folds 5] [--summary]
 
-Exit status: 0 ok, 2 bad sweep file / data / arguments (nothing was run), 3 some config overflowed
-its track memory (the ``overflow`` column says which).
+Exit status: 0 ok, 2 bad sweep file / data / arguments / output directory (a full disk, a
+directory of another sweep without ``--force``; nothing was run, or the finished chunks are kept),
+3 some config overflowed its track memory (the ``overflow`` column says which).
 """
 
 from __future__ import annotations
@@ -43,13 +44,21 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, help="metric processes beside the tracker (default: 2 for large sweeps)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--dry-run", action="store_true", help="check the file and data, print the plan, run nothing")
+    p.add_argument("--force", action="store_true",
+                   help="--out holds another sweep: delete its chunks and results and run this one (without it: "
+                        "refused)")
+    p.add_argument("--max-configs", type=int, metavar="N",
+                   help="refuse sweeps of more configs, before expanding them (default 250,000)")
+    p.add_argument("--max-memory", type=float, metavar="GB",
+                   help="refuse chunks whose tracker output (configs x frames x track slots) would exceed this "
+                        "(default 2 GB)")
     p.set_defaults(func=guarded(run))
     return p
 
 
 def run(args) -> int:
-    from ..sweep import (OPTION_NAMES, class_columns, expand, load_spec, n_settings, plan, resolve_data_all,
-                         run_sweep, sweep_report)
+    from ..sweep import (OPTION_NAMES, check_memory, class_columns, expand, load_spec, n_settings, plan,
+                         resolve_data_all, run_sweep, sweep_report)
 
     from ..metrics.table import canonical_objective
 
@@ -57,12 +66,17 @@ def run(args) -> int:
         args.objective = canonical_objective(args.objective)
     if args.top is not None and args.top < 1:
         raise ValueError(f"--top {args.top}: expected a whole number >= 1 (configs listed)")
+    if args.max_configs is not None and args.max_configs < 1:
+        raise ValueError(f"--max-configs {args.max_configs}: expected a whole number >= 1")
+    if args.max_memory is not None and not args.max_memory > 0:
+        raise ValueError(f"--max-memory {args.max_memory:g}: expected a number of GB > 0")
     spec = load_spec(args.file)
     out = Path(args.out) if args.out else Path("results") / "sweeps" / spec.name
     if args.dry_run:
-        table = expand(spec)
+        table = expand(spec, max_configs=args.max_configs)
         datas = resolve_data_all(spec, args.data)
         chunks = plan(table, datas, args.chunk or spec.chunk, spec.distortion)
+        check_memory(chunks, datas, spec.distortion, args.max_memory, spec.source)
         groups = table.groupby(list(OPTION_NAMES), sort=False).size().rename("configs")
         frames = sum(sum(d.lengths) for d in datas)
         if len(datas) == 1:
@@ -82,7 +96,8 @@ def run(args) -> int:
                   + "; ".join(f"{k} {', '.join(f'{v:g}' for v in lv)}" for k, lv in d.kinds))
         return 0
     df = run_sweep(spec, out, data_root=args.data, chunk=args.chunk, folds=args.folds,
-                   progress=not args.no_progress, workers=args.workers)
+                   progress=not args.no_progress, workers=args.workers, max_configs=args.max_configs,
+                   max_memory=args.max_memory, force=args.force)
     print(f"{df['config'].nunique():,} configs x {df['sequence'].nunique() - 1} sequences -> "
           f"{out / 'results.parquet'}")
     if args.summary:

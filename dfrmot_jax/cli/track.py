@@ -1,4 +1,9 @@
-"""``dfrmot track``: track a KITTI split with a preset and ``--set`` overrides, one result file per sequence."""
+"""``dfrmot track``: track a KITTI split with a preset and ``--set`` overrides, one result file per sequence.
+
+``--out`` is a new or empty folder: a non-empty one is refused (exit 2) unless ``--overwrite``, which
+removes its old result files (``SSSS.txt`` and temporaries of an interrupted write) before writing
+and keeps every other file, so that no stale sequence is scored with the new ones.
+"""
 
 from __future__ import annotations
 
@@ -165,8 +170,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
                            "sequence. Exit status 3 when a lane overflowed its track memory.", width),
                        epilog=config_help(width), formatter_class=argparse.RawDescriptionHelpFormatter)
     t.add_argument("--data", help=f"KITTI tracking training root (default ${ENV_VAR} or ../shared/data/kitti/training)")
-    t.add_argument("--det2d", default="rrc", help="2D detector: name under ROOT/detections or a directory")
-    t.add_argument("--det3d", default="pointrcnn", help="3D detector: name under ROOT/detections or a directory")
+    t.add_argument("--det2d", default="rrc",
+                   help="2D detector: name under ROOT/detections, or a directory (of SSSS.txt files, or of a folder "
+                        "per class)")
+    t.add_argument("--det3d", default="pointrcnn",
+                   help="3D detector: name under ROOT/detections, or a directory (of SSSS.txt files, or of a folder "
+                        "per class)")
     t.add_argument("--preset", default="dfr2023",
                    help="the settings to start from: " + " | ".join(PRESETS) + " (listed below)")
     t.add_argument("--set", action="append", metavar="NAME=VALUE",
@@ -178,9 +187,32 @@ def add_parser(sub) -> argparse.ArgumentParser:
     t.add_argument("--columns", default="kitti", choices=["kitti", "authors"],
                    help="result columns: kitti (standard KITTI rows with each row's 3D box and score) | authors "
                         "(the authors' C++ 18 columns, byte for byte)")
-    t.add_argument("--out", required=True, help="output directory")
+    t.add_argument("--out", required=True, help="output directory: new or empty (see --overwrite)")
+    t.add_argument("--overwrite", action="store_true",
+                   help="write into a non-empty --out: its old result files (SSSS.txt) are removed first, other "
+                        "files are kept")
     t.set_defaults(func=guarded(run))
     return t
+
+
+def _old_results(out: Path, overwrite: bool) -> list[Path]:
+    """The result files to remove from ``out`` before writing; ValueError when ``out`` is not a
+    directory, or is not empty and not to be overwritten."""
+    from ..results import result_files
+
+    if not out.exists() and not out.is_symlink():
+        return []
+    if not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a directory")
+    entries = sorted(p.name for p in out.iterdir())
+    if not entries:
+        return []
+    if not overwrite:
+        more = ", ..." if len(entries) > 5 else ""
+        raise ValueError(f"--out {out} is not empty ({len(entries)} entries: {', '.join(entries[:5])}{more}): pass "
+                         f"--overwrite to replace its result files (SSSS.txt; other files are kept), or choose a new "
+                         f"folder")
+    return result_files(out)
 
 
 def run(args) -> int:
@@ -189,6 +221,7 @@ def run(args) -> int:
     from ..paths import default_data_root
     from ..results import ClassRun, write_runs
 
+    old = _old_results(Path(args.out), args.overwrite)
     root = Path(args.data) if args.data else default_data_root()
     classes = _classes(args.cls)
     settings = {cls: _settings(args, cls) for cls in classes}
@@ -205,6 +238,8 @@ def run(args) -> int:
         print(f"{cls}: tracked {len(split.names)} sequences, {split.n_frames} frames, {n} lines; capacity "
               f"{int(res.capacity[0])}, peak {int(res.peak[0])} live tracks, overflow {int(res.overflow[0])}")
         status = status or (0 if res.overflow[0] == 0 else 3)
+    for p in old:
+        p.unlink(missing_ok=True)
     paths = write_runs(args.out, runs, columns=args.columns)
     print(f"wrote {len(paths)} files to {Path(args.out)} in {time.perf_counter() - t0:.1f} s"
           + (" (classes " + " + ".join(classes) + " merged per sequence, ids unique per file)" if len(classes) > 1 else ""))

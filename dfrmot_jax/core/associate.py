@@ -1,4 +1,5 @@
-"""Association: the fused affinity and exact greedy assignment, as masked array operations.
+"""Association: the fused affinity and exact greedy assignment, as masked array operations; the
+optimal assignment (Hungarian algorithm, optax) as the alternative.
 
 Greedy "take the best remaining entry" under a strict total order equals repeated rounds of
 "match every entry that is the best of both its row and its column": the globally best entry is
@@ -11,6 +12,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+from optax.assignment import hungarian_algorithm
 
 
 
@@ -91,6 +93,21 @@ def greedy_min(cost, valid, col_key, limit, unroll: int = 2):
     for _ in range(unroll):
         key, match = _round(key, match)
     return jax.lax.while_loop(lambda s: jnp.any(s[0] < _MAX64), lambda s: _round(*s), (key, match))[1]
+
+
+def hungarian_min(cost, valid, limit):
+    """Optimal matching among the entries with cost < limit -> match [O, N] bool (``Options.assign =
+    "hungarian"``).
+
+    Maximises the total margin limit - cost of the matched entries (an unmatched row or column adds
+    nothing: each entry's cost is weighed against the gate; with cost = -M_f, limit = -a_f the total
+    M_f - a_f). Excluded entries weigh 0, so padding never changes the optimum; where several
+    matchings reach the same total the choice is the solver's (``reference.hungarian_match``, SciPy,
+    may choose another).
+    """
+    ok = valid & (cost < limit)
+    rows, cols = hungarian_algorithm(jnp.where(ok, cost - limit, 0.0))
+    return jnp.zeros(cost.shape, bool).at[rows, cols].set(True) & ok
 
 
 def greedy_max(score, valid, threshold):

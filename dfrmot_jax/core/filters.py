@@ -37,7 +37,8 @@ class FilterState(NamedTuple):
 def init(z, kind: str, kf_r=1.0, kf_p0=100.0, cov0=None) -> FilterState:
     """First observation: p = z, v = a = 0 (no prediction follows).
 
-    Kalman covariance: diag(kf_r, kf_p0, kf_p0) ("diffuse"), or ``cov0`` [6] when given ("steady").
+    Kalman covariance: diag(kf_r, kf_p0, kf_p0) ("diffuse"), or ``cov0`` when given ("steady"): [6], or
+    [6, K] per coordinate. kf_r, kf_p0: scalars or broadcastable against z (e.g. [K]).
     """
     z = jnp.asarray(z)
     zero = jnp.zeros_like(z)
@@ -48,7 +49,9 @@ def init(z, kind: str, kf_r=1.0, kf_p0=100.0, cov0=None) -> FilterState:
             p0 = jnp.broadcast_to(jnp.asarray(kf_p0, z.dtype), z.shape)
             cov = jnp.stack([r, zero, zero, p0, zero, p0])
         else:
-            cov = jnp.broadcast_to(jnp.reshape(cov0, (6,) + (1,) * z.ndim), (6,) + z.shape).astype(z.dtype)
+            cov0 = jnp.asarray(cov0)
+            cov0 = jnp.reshape(cov0, (6,) + (1,) * (z.ndim + 1 - cov0.ndim) + cov0.shape[1:])
+            cov = jnp.broadcast_to(cov0, (6,) + z.shape).astype(z.dtype)
     return FilterState(z, zero, zero, cov)
 
 

@@ -26,7 +26,7 @@ class Memory(NamedTuple):
     filt: FilterState with p, v, a [N, 10] float64 (cov [6, N, 10] for the Kalman filter, [0, N, 10] else);
     next_id [] int32; overflow [] int32 births dropped for want of a slot (cumulative);
     peak [] int32 largest number of live tracks seen (capacity headroom);
-    cov0 [6] float64 Kalman covariance of a new track with the "steady" start (else unused);
+    cov0 [6, 10] float64 Kalman covariance of a new track's coordinates with the "steady" start (else unused);
     last3 [N] int32 the last 3D detection a track took (global index ``t * M3 + slot``, -1 none),
     kept only when the step runs with ``detail``.
     """
@@ -51,7 +51,7 @@ def empty(capacity: int, kalman: bool) -> Memory:
     return Memory(
         alive=jnp.zeros(n, bool), tid=jnp.zeros(n, jnp.int32), age=jnp.zeros(n, jnp.int32),
         hits=jnp.zeros(n, jnp.int32), has3d=jnp.zeros(n, bool), filt=FilterState(zeros, zeros, zeros, cov),
-        next_id=jnp.int32(0), overflow=jnp.int32(0), peak=jnp.int32(0), cov0=jnp.zeros(6, jnp.float64),
+        next_id=jnp.int32(0), overflow=jnp.int32(0), peak=jnp.int32(0), cov0=jnp.zeros((6, N_COORDS), jnp.float64),
         last3=jnp.full(n, -1, jnp.int32),
     )
 

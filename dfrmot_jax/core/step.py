@@ -64,9 +64,24 @@ def init(options: Options, capacity: int, params: Params | None = None) -> Memor
     """Empty memory; with the steady Kalman start, its covariance is solved here once per lane."""
     mem = memory.empty(capacity, options.filter == "kalman")
     if options.filter == "kalman" and options.kalman_init == "steady":
-        mem = mem._replace(cov0=filters.steady_cov(jnp.asarray(params.kf_q, jnp.float64),
-                                                  jnp.asarray(params.kf_r, jnp.float64)))
+        q, r = kalman_noise(params)
+        cov2 = filters.steady_cov(q[0], r[0])
+        cov3 = filters.steady_cov(q[-1], r[-1])
+        mem = mem._replace(cov0=jnp.where(_IS_2D, cov2[:, None], cov3[:, None]))
     return mem
+
+
+#: which of the N_COORDS filter coordinates are 2D corners (the others: 3D corners)
+_IS_2D = np.arange(memory.N_COORDS) < 4
+
+
+def kalman_noise(params: Params):
+    """(kf_q, kf_r) of each filter coordinate, float64 [N_COORDS] each: the 2D corners' kf_q, kf_r and the
+    3D corners' kf_q3, kf_r3, where 0 stands for kf_q, kf_r."""
+    q, r = jnp.asarray(params.kf_q, jnp.float64), jnp.asarray(params.kf_r, jnp.float64)
+    q3 = jnp.where(params.kf_q3 > 0, params.kf_q3, q)
+    r3 = jnp.where(params.kf_r3 > 0, params.kf_r3, r)
+    return jnp.where(_IS_2D, q, q3), jnp.where(_IS_2D, r, r3)
 
 
 def _objects(params: Params, frame: Frames, options: Options):
@@ -113,7 +128,11 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: b
     dist = associate.centroid_distance(z3, f.p[:, 4:])
     m_f = associate.fused_affinity(iou, mem.age <= params.epsilon, dist, has3[:, None] & mem.has3d[None, :],
                                    params.a_c, params.a_l, params.alpha_c)
-    match = associate.greedy_min(-m_f, valid[:, None] & mem.alive[None, :], mem.tid, -params.a_f)
+    allowed = valid[:, None] & mem.alive[None, :]
+    if options.assign == "hungarian":
+        match = associate.hungarian_min(-m_f, allowed, -params.a_f)
+    else:
+        match = associate.greedy_min(-m_f, allowed, mem.tid, -params.a_f)
     matched_obj = jnp.any(match, axis=0)
     newborn = valid & ~jnp.any(match, axis=1)
     birth, rank, dropped = memory.births(mem.alive, newborn)
@@ -135,10 +154,11 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: b
     do_predict = jnp.where(is2d[None, :], (mem.alive & ~born)[:, None], pred3[:, None])
 
     gains = (params.gain_alpha, params.gain_beta, params.gain_gamma)
-    updated = filters.select(do_update, filters.update(f, z, kind, gains, params.kf_r), f)
-    predicted = filters.select(do_predict, filters.predict(updated, kind, params.kf_q), updated)
+    kf_q, kf_r = kalman_noise(params)
+    updated = filters.select(do_update, filters.update(f, z, kind, gains, kf_r), f)
+    predicted = filters.select(do_predict, filters.predict(updated, kind, kf_q), updated)
     cov0 = mem.cov0 if kind == "kalman" and options.kalman_init == "steady" else None
-    filt = filters.select(do_init, filters.init(z, kind, params.kf_r, params.kf_p0, cov0), predicted)
+    filt = filters.select(do_init, filters.init(z, kind, kf_r, params.kf_p0, cov0), predicted)
 
     born_id = mem.next_id + rank                                                  # [O]
     tid = jnp.where(born, memory.gather_rows(birth, born_id), mem.tid)

@@ -2,7 +2,7 @@
 
 Every reader returns numpy arrays with rows in file order and raises :class:`KittiFormatError`
 (naming file, 1-based line and field) for any malformed input. Blank lines are skipped, CRLF line
-endings are accepted and an empty file gives zero-length arrays.
+endings and a leading UTF-8 byte-order mark are accepted and an empty file gives zero-length arrays.
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ class _Text(NamedTuple):
 def _read_text(path) -> _Text:
     p = str(path)
     try:
-        with open(path, encoding="utf-8") as f:
+        with open(path, encoding="utf-8-sig") as f:
             raw = f.read().split("\n")
     except FileNotFoundError:
         raise KittiFormatError(p, None, None, "file not found") from None
@@ -165,7 +165,7 @@ def line_of_row(path, row: int) -> int | None:
     when there is no path or no such row."""
     if path is None:
         return None
-    with open(path, encoding="utf-8", errors="replace") as f:
+    with open(path, encoding="utf-8-sig", errors="replace") as f:
         k = -1
         for n, line in enumerate(f.read().split("\n"), 1):
             if line and not line.isspace():

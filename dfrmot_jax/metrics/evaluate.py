@@ -227,8 +227,11 @@ def evaluate_files(results_dir, root=None, cls: str = "car", sequences: Sequence
     :class:`PreparedGT` (then ``cls``/``sequences`` come from it); ground truth is prepared once
     per (root, class, sequences) and cached. sequences: default every ``label_02`` sequence.
     missing: a sequence without a result file is an empty output (``'empty'``, default) or an
-    error (``'error'``); TrackEval itself refuses to run unless every file exists.
-    Returns ``{seq: {field: value}, ..., 'COMBINED': {...}}``.
+    error (``'error'``); TrackEval itself refuses to run unless every file exists. A name that is
+    no readable file (a directory, a dangling symlink) is always an error. ``dfrmot eval`` is
+    stricter by default (it also refuses stale files and results without the class).
+    Files are read as TrackEval reads them (:func:`read_tracker_files`: rows in any order,
+    ``x2 < x1`` allowed, ...). Returns ``{seq: {field: value}, ..., 'COMBINED': {...}}``.
     Raises ``KittiFormatError`` (file, line, field) for malformed files, frames beyond a sequence,
     unknown class names or an id repeated within a frame.
     """
@@ -236,7 +239,12 @@ def evaluate_files(results_dir, root=None, cls: str = "car", sequences: Sequence
         from dfrmot_jax.paths import default_data_root
         root = default_data_root()
     gt = cached_gt(root, cls, sequences)
-    dets = read_tracker_files(results_dir, gt, missing=missing)
+    return evaluate_dets(gt, read_tracker_files(results_dir, gt, missing=missing))
+
+
+def evaluate_dets(gt: PreparedGT, dets: TrackerDets) -> dict[str, dict[str, object]]:
+    """One lane of tracker output (:func:`read_tracker_files`) scored against ``gt``:
+    ``{seq: {field: value}, ..., 'COMBINED': {...}}``."""
     return _to_dicts(gt, evaluate_batch(gt, dets))[0]
 
 

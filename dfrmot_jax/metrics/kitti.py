@@ -9,6 +9,8 @@ What TrackEval does (``trackeval/datasets/kitti_2d_box.py`` and ``_base_dataset.
   ``{car: 1, van: 2, truck: 3, pedestrian: 4, person: 5, cyclist: 6, tram: 7, misc: 8,
   dontcare: 9, car_2: 1}``; any other type name (e.g. ``Person_sitting``) is an error. Truncation
   and occlusion are cast with ``astype(int)``. A frame ``>=`` the sequence length is an error.
+  Result files are read by those rules (:mod:`dfrmot_jax.io.result_rows`: any row order, ``x2 < x1``,
+  frames and ids truncated toward zero, 10+ columns); the ground truth by the strict KITTI reader.
 * **Classes.** Evaluating ``car``: GT of class car (id 1) is evaluated, vans (2) are distractors.
   Evaluating ``pedestrian``: GT pedestrian (4) evaluated, ``Person`` (5; KITTI's sitting persons)
   distractors. GT with occlusion > 2 or truncation > 0 are distractors too. Other GT classes are
@@ -29,6 +31,7 @@ configs ("lanes"), a *lane-frame* ``lf = lane * F + frame``.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -47,6 +50,9 @@ __all__ = [
     "prepare_gt",
     "class_sequences",
     "read_tracker_files",
+    "inspect_results",
+    "ResultFolder",
+    "result_file_problem",
     "tracker_dets_from_arrays",
     "preprocess",
     "DuplicateIdError",
@@ -292,18 +298,69 @@ class TrackerDets(NamedTuple):
     paths: tuple = ()
 
 
+def result_file_problem(path) -> str | None:
+    """Why ``path`` cannot be read as a result file although something has that name: ``'is a
+    directory'``, ``'is a dangling symlink (to TARGET)'``, ``'is not a regular file'``; None for a
+    readable file (after symlinks) and for no entry at all (a missing file)."""
+    path = Path(path)
+    if path.is_file() or not (path.exists() or path.is_symlink()):
+        return None
+    if path.is_dir():
+        return "is a directory"
+    if not path.exists():
+        return f"is a dangling symlink (to {os.readlink(path)})"
+    return "is not a regular file"
+
+
+class ResultFolder(NamedTuple):
+    """What a results folder holds for the sequences to evaluate (:func:`inspect_results`).
+
+    missing: names of sequences without a result file; unreadable: ``(path, why)`` of names that
+    are no readable file (:func:`result_file_problem`); unexpected: ``*.txt`` file names that are
+    no sequence of the ground truth (stale or foreign files), sorted.
+    """
+
+    missing: tuple
+    unreadable: tuple
+    unexpected: tuple
+
+
+def inspect_results(results_dir, sequences: Sequence, known: Sequence | None = None) -> ResultFolder:
+    """The :class:`ResultFolder` of ``results_dir`` for ``sequences`` (names or ints); ``known``:
+    every sequence of the ground truth (``*.txt`` files named otherwise are unexpected), None to
+    not look for unexpected files."""
+    results_dir = Path(results_dir)
+    missing, unreadable = [], []
+    for name in (_seq_name(s) for s in sequences):
+        path = results_dir / f"{name}.txt"
+        why = result_file_problem(path)
+        if why is not None:
+            unreadable.append((str(path), why))
+        elif not path.is_file():
+            missing.append(name)
+    unexpected = ()
+    if known is not None:
+        names = {_seq_name(s) for s in known}
+        unexpected = tuple(sorted(p.name for p in results_dir.glob("*.txt") if p.stem not in names))
+    return ResultFolder(tuple(missing), tuple(unreadable), unexpected)
+
+
 def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty") -> TrackerDets:
     """Read ``results_dir/SSSS.txt`` for every sequence of ``gt`` (KITTI tracking result format).
 
-    Rows of the evaluated class (``Car``/``car_2`` for car, ``Pedestrian`` for pedestrian; any
-    case) with a non-negative id are kept; rows of other known classes are dropped. Rows with a
-    negative id are ignored entirely (as TrackEval does, before looking at class or frame). Unknown
-    class names raise :class:`KittiFormatError` (field ``type``), as do frames beyond the sequence
-    (field ``frame``) and anything :func:`read_tracking_labels` rejects (which is stricter than
-    TrackEval: e.g. frames must be sorted and ``x2 >= x1``, ``y2 >= y1``). A missing file is an empty
-    output with ``missing='empty'`` (TrackEval itself refuses to run without every file; an empty
-    file there gives the same numbers) or raises with ``missing='error'``. Returns one lane.
+    Files are read as TrackEval reads them (:mod:`dfrmot_jax.io.result_rows`: rows in any order,
+    ``x2 < x1`` allowed, frames and ids truncated toward zero, 10 or more columns); rows with a
+    negative id are skipped unread. Rows of the evaluated class (``Car``/``car_2`` for car,
+    ``Pedestrian`` for pedestrian; any case) are kept, in frame order (file order within a frame);
+    rows of other known classes are dropped. Unknown class names raise :class:`KittiFormatError`
+    (field ``type``), as do frames outside the sequence (field ``frame``) and whatever
+    :func:`~dfrmot_jax.io.result_rows.read_result_rows` refuses. A name that is no readable file
+    (a directory, a dangling symlink) always raises. A missing file is an empty output with
+    ``missing='empty'`` (TrackEval itself refuses to run without every file; an empty file there
+    gives the same numbers) or raises with ``missing='error'``. Returns one lane.
     """
+    from dfrmot_jax.io.result_rows import read_result_rows
+
     kio = _kitti_io()
     results_dir = Path(results_dir)
     if not results_dir.is_dir():
@@ -311,31 +368,29 @@ def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty") -> T
     fr, ids, bx, src, paths = [], [], [], [], []
     for s, name in enumerate(gt.sequences):
         path = results_dir / f"{name}.txt"
+        why = result_file_problem(path)
+        if why is not None:
+            raise kio.KittiFormatError(path, None, None, f"{why}, not a result file")
         if not path.is_file():
             if missing == "error":
                 raise kio.KittiFormatError(path, None, None, "result file not found")
             paths.append(None)
             continue
         paths.append(str(path))
-        lab = kio.read_tracking_labels(path)
-        if lab.frame.size == 0:
-            continue
-        # TrackEval drops negative ids first: their class and frame are never looked at
-        valid = np.flatnonzero(lab.track_id >= 0)
-        cid = np.full(len(lab.frame), -1, dtype=np.int64)
-        cid[valid] = _class_ids(lab.type[valid], path, kio, valid)
-        bad = valid[lab.frame[valid] >= gt.lengths[s]]
+        rows = read_result_rows(path)
+        cid = _class_ids(rows.type, path, kio, rows.row)
+        bad = np.flatnonzero(rows.frame >= gt.lengths[s])
         if bad.size:
-            r = int(bad[0])
+            r = int(rows.row[bad[0]])
             raise kio.KittiFormatError(path, kio.line_of_row(path, r) or r + 1, "frame",
-                                       f"frame {int(lab.frame[r])} is beyond sequence {name} "
+                                       f"frame {int(rows.frame[bad[0]])} is beyond sequence {name} "
                                        f"({int(gt.lengths[s])} frames: 0..{int(gt.lengths[s]) - 1})")
-        keep = np.flatnonzero((cid == gt.cls_id) & (lab.track_id >= 0))
-        keep = keep[np.argsort(lab.frame[keep], kind="stable")]
-        fr.append(lab.frame[keep] + gt.offsets[s])
-        ids.append(lab.track_id[keep])
-        bx.append(lab.box[keep])
-        src.append(keep)
+        keep = np.flatnonzero(cid == gt.cls_id)
+        keep = keep[np.argsort(rows.frame[keep], kind="stable")]
+        fr.append(rows.frame[keep] + gt.offsets[s])
+        ids.append(rows.track_id[keep])
+        bx.append(rows.box[keep])
+        src.append(rows.row[keep])
     if fr:
         frame = np.concatenate(fr)
         return TrackerDets(1, np.zeros(len(frame), np.int64), frame, np.concatenate(ids),

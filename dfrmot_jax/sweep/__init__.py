@@ -12,7 +12,8 @@ The pipeline::
     run ─▶ per chunk: dfrmot_jax.track (one [B] batch; distortion lanes vmapped with the parameter
         lanes, one DistortSpec per option group) ─▶ metrics on the padded arrays (prepared
         ground truth reused, identical tracker outputs scored once) ─▶ DIR/chunks/<id>.parquet
-        written atomically (tmp file + os.replace); a rerun skips chunks whose file exists
+        written atomically (tmp file + os.replace) and recorded (sha256, rows) in DIR/ledger.jsonl; a
+        rerun skips chunks whose file matches its record and recomputes the others
     table ─▶ one row per (config, sequence) + one ``COMBINED`` row per config
     several classes (data.class = ["car", "pedestrian"]) ─▶ every config run per class, each class
         on its own split (its chunks, its compilation); per-class axes ``pedestrian.a_l`` are
@@ -58,14 +59,15 @@ from .analysis import (MINIMISE, OBJECTIVES, _check_objective, _classes_of, _dir
                        _per_sequence_arrays, _rank, class_view, cross_validate, make_folds, report_class_of,
                        sensitivity, varied_axes)
 from .distortion import DISTORTION_KEYS, PROBABILITY_KINDS, DistortionAxes
-from .plan import Chunk, DataSettings, _groups, plan, resolve_data, resolve_data_all
+from .plan import MAX_MEMORY_GB, Chunk, DataSettings, _groups, check_memory, plan, resolve_data, resolve_data_all
 from .report import SweepReport, sweep_report
 from .robustness import robustness_contrast, robustness_curves, robustness_summary, setting_axes
 from .runner import TRACK_CHUNK, run_sweep, sweep
 from .spec import (AVERAGE, DISTORTION_AXES, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, Axis, Contrast, SweepConfigError,
                    SweepSpec, Variant, load_spec, parse_spec)
-from .store import HashVersionError, hash_version, load_results
-from .table import COMBINED, HASH_VERSION, RAW_COLUMN, _params_of, class_columns, config_hash, expand, n_settings
+from .store import HashVersionError, SweepDirectoryError, hash_version, load_results
+from .table import (COMBINED, HASH_VERSION, MAX_CONFIGS, RAW_COLUMN, _params_of, class_columns, config_count,
+                    config_hash, expand, n_settings)
 
 __all__ = [
     "SweepConfigError", "SweepSpec", "DataSettings", "Axis", "load_spec", "parse_spec", "expand", "config_hash",
@@ -74,6 +76,7 @@ __all__ = [
     "OBJECTIVES", "MINIMISE", "DISTORTION_AXES", "DistortionAxes", "robustness_curves", "robustness_contrast",
     "robustness_summary", "Contrast", "n_settings", "setting_axes", "resolve_data_all", "class_view",
     "class_columns", "AVERAGE", "HASH_VERSION", "HashVersionError", "hash_version",
+    "SweepDirectoryError", "MAX_CONFIGS", "MAX_MEMORY_GB", "config_count", "check_memory",
 ]
 
 

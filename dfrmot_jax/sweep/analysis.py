@@ -319,10 +319,24 @@ def class_view(df: pd.DataFrame, cls: str) -> pd.DataFrame:
         if k == cls:
             rows[p] = rows[c]
     rows = rows.drop(columns=ccols)
-    keys = list(PARAM_NAMES) + list(OPTION_NAMES) + [n for n in _extra_axes() if n in rows.columns]
+    keys = list(PARAM_NAMES) + [n for n in list(OPTION_NAMES) + list(_extra_axes()) if n in rows.columns]
     comb = rows[rows["sequence"] == COMBINED]
     keep = comb.drop_duplicates(keys, keep="first")["config"]
     if len(keep) < len(comb):
         rows = rows[rows["config"].isin(keep.to_numpy())]
     return rows.reset_index(drop=True)
 
+
+
+def pareto_front(df: pd.DataFrame, objectives: Sequence[str], directions: Sequence[str] | None = None) -> pd.DataFrame:
+    """The non-dominated rows of ``df`` under ``objectives`` (``directions``: "maximize" /
+    "minimize" each; default from the metric, :data:`MINIMISE`), one per distinct objective
+    vector, sorted best first by the first objective."""
+    objs = list(objectives)
+    if directions is None:
+        directions = ["minimize" if o in MINIMISE else "maximize" for o in objs]
+    signs = np.array([1.0 if x == "maximize" else -1.0 for x in directions])
+    v = df[objs].to_numpy(np.float64) * signs                  # larger is better in every column
+    keep = np.array([not np.any(np.all(v >= v[i], 1) & np.any(v > v[i], 1)) for i in range(len(v))], bool)
+    front = df[keep].drop_duplicates(objs) if len(df) else df
+    return front.sort_values(objs[0], ascending=bool(signs[0] < 0), kind="mergesort").reset_index(drop=True)

@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import distort
 from ..config import Options
-from .spec import GRID_KINDS, _check_keys, _clean_float, _err, _is_number, _positive_int
+from .spec import GRID_KINDS, _check_count, _check_keys, _clean_float, _err, _is_number, _positive_int
 
 DISTORTION_KEYS = ("kind", "level", "levels", "seeds", "clutter_slots", "burst_dist", "burst_max", "burst_rate",
                    "burst_len")
@@ -104,6 +104,7 @@ def _level_values(spec, key: str, source) -> list:
             if len(arg) != 3 or not all(_is_number(a) for a in arg) or not float(arg[2]).is_integer() or arg[2] < 1:
                 raise _err(key, f"expected [low, high, count >= 1], got {arg!r}", source)
             lo, hi, n = float(arg[0]), float(arg[1]), int(arg[2])
+            _check_count(n, key, source)
             if kind == "logspace" and (lo <= 0 or hi <= 0):
                 raise _err(key, f"logspace needs positive ends, got {arg!r}", source)
             raw = np.geomspace(lo, hi, n) if kind == "logspace" else np.linspace(lo, hi, n)
@@ -195,6 +196,7 @@ def _parse_distortion(d, source) -> DistortionAxes | None:
     if isinstance(seeds_doc, list):
         if not seeds_doc:
             raise _err("distortion.seeds", "empty list: give a count (seeds = 10) or a list of seeds", source)
+        _check_count(len(seeds_doc), "distortion.seeds", source)
         for i, v in enumerate(seeds_doc):
             if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < 2 ** 31:
                 raise _err(f"distortion.seeds[{i}]", f"{v!r}: a seed is an integer in [0, 2**31)", source)
@@ -205,6 +207,7 @@ def _parse_distortion(d, source) -> DistortionAxes | None:
         if seeds_doc < 1:
             raise _err("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 (seeds 0 .. n-1) or a list of seeds",
                        source)
+        _check_count(seeds_doc, "distortion.seeds", source)
         seeds = tuple(range(seeds_doc))
     else:
         raise _err("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 or a list of seeds", source)

@@ -12,9 +12,13 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
-from ..config import Options
+from ..config import MIN_CAPACITY, Options
 from .distortion import DistortionAxes
 from .spec import OPTION_NAMES, _as_spec, _err
+
+#: Default most tracker output one chunk may hold, GB (``run_sweep(max_memory=...)``, ``dfrmot sweep
+#: --max-memory``), checked before any work (:func:`check_memory`).
+MAX_MEMORY_GB = 2.0
 
 
 @dataclass(frozen=True)
@@ -124,3 +128,31 @@ def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk
             text = json.dumps(doc, sort_keys=True)
             out.append(Chunk(hashlib.sha1(text.encode()).hexdigest()[:20], g, opts, part, data.cls))
     return out
+
+
+def check_memory(chunks: Sequence[Chunk], datas: Sequence[DataSettings], distortion: DistortionAxes | None,
+                 max_memory: float | None = None, source: str | None = None) -> int:
+    """The largest tracker output of one chunk, bytes: configs x frames x track slots x (4 bytes of
+    ids, + 16 of boxes when each lane has its own: output "filtered" or a distortion). Capacity 0
+    (from the data) counts the fewest slots it can give (``config.MIN_CAPACITY``): a lower bound.
+    Above ``max_memory`` GB (default :data:`MAX_MEMORY_GB`) raises :class:`SweepConfigError` ("chunk")."""
+    frames = {d.cls: int(sum(d.lengths)) for d in datas}
+
+    def need(c: Chunk) -> tuple[int, int, int]:
+        slot = 4 + (16 if c.options.output == "filtered" or distortion is not None else 0)
+        k = c.options.capacity or MIN_CAPACITY
+        return len(c.configs) * frames[c.cls] * k * slot, k, slot
+
+    if not chunks:
+        return 0
+    worst = max(chunks, key=need)
+    n, k, slot = need(worst)
+    limit = MAX_MEMORY_GB if max_memory is None else float(max_memory)
+    if n > limit * 1e9:
+        slots = f"{k} track slots" + (" (options.capacity)" if worst.options.capacity else
+                                      " (at least: options.capacity 0 sizes them from the data)")
+        raise _err("chunk", f"a chunk of {len(worst.configs):,} configs x {frames[worst.cls]:,} frames ({worst.cls}) x "
+                            f"{slots} x {slot} bytes = {n / 1e9:.3g} GB of tracker output, above the limit of "
+                            f"{limit:g} GB: lower chunk (--chunk N){' or options.capacity' if worst.options.capacity else ''}"
+                            f", or raise the limit with --max-memory GB (run_sweep(max_memory=GB))", source)
+    return n

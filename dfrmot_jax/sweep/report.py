@@ -12,15 +12,16 @@ import numpy as np
 import pandas as pd
 
 from ..metrics.table import canonical_objective
-from .analysis import (_check_objective, _classes_of, _direction, _fmt, _json_value, _rank, class_view,
+from .analysis import (pareto_front, _check_objective, _classes_of, _direction, _fmt, _json_value, _rank, class_view,
                        cross_validate, report_class_of, sensitivity, varied_axes)
 from .robustness import _contrast_text, _robustness_text, robustness_curves
 from .spec import Contrast, _contrast_doc, _parse_contrast
 from .store import _manifest, load_results
 from .spec import AVERAGE
 from .table import COMBINED
+from .text import WIDTH, _para, _table  # noqa: F401  (WIDTH: the report's width)
 
-
+#: the widest line of the printed report, except its last (one JSON object)
 @dataclass
 class SweepReport:
     """``text`` (the printed report) and ``summary`` (the JSON-able dict of its last line)."""
@@ -64,8 +65,9 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         if cls is None:
             cls = manifest.get("report_class")
         n_expected = manifest.get("configs")
+        tune = (d, manifest) if manifest.get("kind") == "tune" else None
     else:
-        df, n_expected = results, None
+        df, n_expected, tune = results, None, None
     if isinstance(contrast, Mapping):
         contrast = _parse_contrast(dict(contrast), None)
     objective = canonical_objective(objective)
@@ -99,13 +101,12 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         on = (f"the class average ({', '.join(classes)}: ratios averaged over the classes, counts summed)"
               if cls == AVERAGE else f"class {cls}" + (f" ({len(comb):,} distinct configs for it)"
                                                         if len(comb) != n_cfg else ""))
-        lines.append(f"sweep {name}: {n_cfg:,} configs x classes "
-                     f"{', '.join(f'{k} ({n} sequences)' for k, n in per.items())}{partial}; objective "
-                     f"{objective} ({better} is better) on {on}")
+        lines.append(_para(f"sweep {name}: objective {objective} ({better} is better) on {on}; {n_cfg:,} configs "
+                           f"x classes {', '.join(f'{k} ({n} sequences)' for k, n in per.items())}{partial}"))
     else:
         seqs = df.loc[df["sequence"] != COMBINED, "sequence"].nunique()
-        lines.append(f"sweep {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
-                     f"({better} is better)" + (f"; class {cls}" if cls and cls != "car" else ""))
+        lines.append(_para(f"sweep {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
+                           f"({better} is better)" + (f"; class {cls}" if cls and cls != "car" else "")))
     lines.append("")
     lines.append(f"top {len(topdf)} configs (in-sample, COMBINED over all sequences):")
     view = topdf.copy()
@@ -113,18 +114,18 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         brow = {"rank": "base", "config": baseline["config"], "config_hash": baseline["config_hash"],
                 **{c: baseline[c] for c in show + axes + ["overflow"]}}
         view = pd.concat([view, pd.DataFrame([brow])], ignore_index=True)
-    lines.append(view.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    lines.append(_table(view, keys=("rank",), float_format=lambda v: f"{v:.3f}"))
     if baseline is not None:
         diff = [f"{a}={_fmt(best[a])} (baseline {_fmt(baseline[a])})" for a in axes if best[a] != baseline[a]]
-        lines.append(f"best vs baseline: {objective} {best[objective]:.3f} vs {baseline[objective]:.3f} "
-                     f"({best[objective] - baseline[objective]:+.3f}); changed: {', '.join(diff) or 'nothing'}")
+        lines.append(_para(f"best vs baseline: {objective} {best[objective]:.3f} vs {baseline[objective]:.3f} "
+                           f"({best[objective] - baseline[objective]:+.3f}); changed: {', '.join(diff) or 'nothing'}"))
     sens = sensitivity(df, objective) if axes else pd.DataFrame()
     if len(sens):
         lines.append("")
-        lines.append(f"sensitivity of {objective} per axis (spread_best: range over an axis' values of the best "
-                     f"config with that value; spread_mean: range of the means; corr: rank correlation; oat_range: "
-                     f"moving only this axis away from the best config):")
-        lines.append(sens.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+        lines.append(_para(f"sensitivity of {objective} per axis (spread_best: range over an axis' values of the best "
+                           f"config with that value; spread_mean: range of the means; corr: rank correlation; "
+                           f"oat_range: moving only this axis away from the best config):"))
+        lines.append(_table(sens, keys=("axis",), float_format=lambda v: f"{v:.3f}"))
     curves = answers = None
     if "distortion.kind" in df.columns and (df["distortion.kind"] != "none").any():
         rob_lines, rob_summary = _robustness_text(df, objective, top)
@@ -138,9 +139,9 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     if folds:
         cv = cross_validate(full, folds, objective, cls)
         lines.append("")
-        lines.append(f"{folds}-fold cross-validation over sequences (stratified by frame count"
-                     + ("; each class's sequences folded on their own" if cv.get("class") == AVERAGE else "")
-                     + "): best config chosen on the training folds, scored on the held-out fold")
+        lines.append(_para(f"{folds}-fold cross-validation over sequences (stratified by frame count"
+                           + ("; each class's sequences folded on their own" if cv.get("class") == AVERAGE else "")
+                           + "): best config chosen on the training folds, scored on the held-out fold"))
         fold_rows = []
         for p in cv["per_fold"]:
             row = comb[comb["config"] == p["config"]].iloc[0]
@@ -151,10 +152,15 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
             fold_rows.append({"fold": p["fold"], "held_out_sequences": held,
                               "config": p["config"], "train": p["train"], "held_out": p["held_out"],
                               "baseline_held_out": p["baseline_held_out"], "changed": changed or "(baseline)"})
-        lines.append(pd.DataFrame(fold_rows).to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-        lines.append(f"{objective}: cross-validated {cv['cross_validated']:.3f} (each sequence scored with the config "
-                     f"chosen without it) | in-sample best {best[objective]:.3f}"
-                     + (f" | baseline {baseline[objective]:.3f}" if baseline is not None else ""))
+        lines.append(_table(pd.DataFrame(fold_rows), keys=("fold",), text=("held_out_sequences", "changed"),
+                            float_format=lambda v: f"{v:.3f}"))
+        lines.append(_para(f"{objective}: cross-validated {cv['cross_validated']:.3f} (each sequence scored with the "
+                           f"config chosen without it) | in-sample best {best[objective]:.3f}"
+                           + (f" | baseline {baseline[objective]:.3f}" if baseline is not None else "")))
+    tune_summary = None
+    if tune is not None:
+        tune_lines, tune_summary = _tune_section(*tune, objective)
+        lines.extend(tune_lines)
     summary = {"objective": objective, "direction": "min" if _direction(objective) < 0 else "max",
                "configs": int(len(comb)), "sequences": int(seqs),
                **({"class": cls} if classes else {}), **({"classes": classes} if len(classes) > 1 else {}),
@@ -169,6 +175,8 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         summary["folds"] = folds
         summary["mean_held_out"] = cv["mean_held_out"]
         summary["fold_configs"] = [p["config_hash"] for p in cv["per_fold"]]
+    if tune_summary is not None:
+        summary["tune"] = tune_summary
     if curves is not None:
         summary["robustness"] = rob_summary
     if answers is not None:
@@ -176,3 +184,32 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     lines.append("")
     lines.append(json.dumps(summary))
     return SweepReport("\n".join(lines), summary, topdf, sens, cv, curves, answers)
+
+
+def _tune_section(d: Path, manifest: dict, objective: str) -> tuple[list[str], dict]:
+    """A tune directory's own figures: the search, the nested cross-validation (``nested.json``: the
+    honest figure; a flat ``--folds`` over a tune's trials would choose among configs the tuner
+    proposed after seeing every sequence) and, with two objectives, the Pareto front."""
+    t = manifest.get("tune", {})
+    lines = ["", _para(f"tune: sampler {t.get('sampler')}, budget {t.get('budget')} configs in batches of "
+                       f"{t.get('batch')}, objectives {', '.join(t.get('objectives', []))}, seed {t.get('seed')}"
+                       + ("; gradient refinement" if t.get("refine") else ""))]
+    out: dict = {"sampler": t.get("sampler"), "budget": t.get("budget")}
+    nested = d / "nested.json"
+    if nested.is_file():
+        n = json.loads(nested.read_text())
+        lines.append(_para(f"nested {n['folds']}-fold cross-validation (the tune rerun per fold on the training "
+                           f"sequences only, its choice scored on the held-out fold): {n['objective']} cross-validated "
+                           f"{n['cross_validated']:.3f} | baseline {n['baseline']:.3f} on the same sequences"))
+        out.update(cross_validated=n["cross_validated"], baseline_cross_validated=n["baseline"], folds=n["folds"])
+    elif t.get("folds"):
+        lines.append("nested cross-validation: not finished (rerun the tune to resume)")
+    objs = manifest.get("objectives", [])
+    trials = d / "trials.parquet"
+    if len(objs) == 2 and trials.is_file():
+        front = pareto_front(pd.read_parquet(trials), objs, manifest["directions"])
+        lines.append(f"Pareto front ({objs[0]} vs {objs[1]}, {len(front)} trials):")
+        lines.append(_table(front[["trial"] + objs].reset_index(drop=True), keys=("trial",),
+                            float_format=lambda x: f"{x:.3f}"))
+        out["pareto"] = front[["trial"] + objs].to_dict("records")
+    return lines, out

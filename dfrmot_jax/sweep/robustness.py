@@ -12,6 +12,7 @@ import pandas as pd
 from .analysis import _check_objective, _direction, _fmt, _json_value, varied_axes
 from .spec import DISTORTION_AXES, Contrast
 from .table import COMBINED
+from .text import _para, _table
 
 
 def _check_distorted(df: pd.DataFrame) -> None:
@@ -184,8 +185,8 @@ def _robustness_text(df: pd.DataFrame, objective: str, top: int) -> tuple[list[s
     d = _direction(objective)
     lines, summary = [], {}
     n_seeds = int(curves.loc[curves["level"] > 0, "n"].max()) if (curves["level"] > 0).any() else 1
-    lines.append(f"robustness: {objective} (COMBINED) per distortion level, mean ± SE over {n_seeds} seed(s) "
-                 f"(level 0 = undistorted); settings ranked by their mean {objective} over the kind's levels")
+    lines.append(_para(f"robustness: {objective} (COMBINED) per distortion level, mean ± SE over {n_seeds} seed(s) "
+                       f"(level 0 = undistorted); settings ranked by their mean {objective} over the kind's levels"))
     for kind, ck in curves.groupby("kind", sort=False):
         rank = ck.groupby("setting", sort=False)[objective].mean()
         order = rank.sort_values(ascending=d < 0, kind="mergesort").index[:top]
@@ -199,7 +200,7 @@ def _robustness_text(df: pd.DataFrame, objective: str, top: int) -> tuple[list[s
         view = pd.DataFrame.from_dict(table, orient="index", columns=[_fmt(v) for v in levels])
         view.index.name = f"{kind} \\ level"
         lines.append("")
-        lines.append(view.to_string())
+        lines.append(_table(view.reset_index(), keys=(view.index.name,)))
         summary[kind] = {"levels": [float(v) for v in levels],
                          "settings": {st: [float(x) for x in ck[ck["setting"] == st].set_index("level")
                                            .reindex(levels)[objective]] for st in order}}
@@ -219,20 +220,25 @@ def _contrast_text(df: pd.DataFrame, c: Contrast, objective: str) -> tuple[list[
             break
         head = f"per {', '.join(by)}" if by else "over all other settings"
         lines.append("")
-        lines.append(f"contrast {c.axis} in {list(c.high)} minus {c.axis} in {list(c.low)} ({head}): mean gap ± SE "
-                     f"over seeds, paired by seed; * = significantly better (one-sided t-test, 5 %; level 0: sign)")
+        lines.append(_para(f"contrast {c.axis} in {list(c.high)} minus {c.axis} in {list(c.low)} ({head}): mean gap "
+                           f"± SE over seeds, paired by seed; * = significantly better (one-sided t-test, 5 %; level 0: "
+                           f"sign)"))
         con = con.assign(cell=[f"{g:+.2f}" + (f"±{s:.2f}" if n > 1 else "") + ("*" if h else "")
                                for g, s, n, h in zip(con["gap"], con["se"], con["n"], con["helps"])])
         for kind, ck in con.groupby("kind", sort=False):
             view = ck.pivot_table(index=by + ["metric"], columns="level", values="cell", aggfunc="first", sort=False)
             view.columns = [_fmt(v) for v in view.columns]
             view.columns.name = f"{kind} level"
-            lines.append(view.fillna("").to_string())
+            flat = view.fillna("").reset_index()
+            flat.columns = [str(x) for x in flat.columns]
+            lines.append(f"{kind}, per level:")
+            lines.append(_table(flat, keys=tuple(by + ["metric"])))
         summ = robustness_summary(con)
-        lines.append("answer: helps_up_to = highest level up to which the gap is significantly better at every "
-                     "distorted level; stops_at = first level where it is not; crossing = first level where the "
-                     "mean gap changes sign")
-        lines.append(summ.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+        lines.append(_para("answer: helps_up_to = highest level up to which the gap is significantly better at every "
+                           "distorted level; stops_at = first level where it is not; crossing = first level where the "
+                           "mean gap changes sign"))
+        lines.append(_table(summ, keys=tuple(c for c in ("kind", *by) if c in summ.columns),
+                            float_format=lambda v: f"{v:.3g}"))
         answers.extend({k: _json_value(v) if not (isinstance(v, float) and math.isnan(v)) else None
                         for k, v in r.items()} for r in summ.to_dict("records"))
     return lines, answers

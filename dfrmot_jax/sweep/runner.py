@@ -24,9 +24,10 @@ import pandas as pd
 
 from ..config import Options
 from .distortion import DistortionAxes
-from .plan import Chunk, DataSettings, _groups, plan, resolve_data_all
+from .plan import Chunk, DataSettings, _groups, check_memory, plan, resolve_data_all
 from .spec import SweepConfigError, SweepSpec, _as_spec
-from .store import _atomic_parquet, _chunk_frame, _chunk_path, _finish, write_manifest
+from .store import (_chunk_frame, _chunk_path, _finish, finished_chunks, write_chunk, write_manifest,
+                    write_results)
 from .table import RAW_COLUMN, _params_of, expand, n_settings
 
 #: lanes per compiled tracker call (the batch is split over the host devices)
@@ -34,7 +35,9 @@ TRACK_CHUNK = 32
 
 
 def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: int | None = None,
-              progress: bool = True, workers: int | None = None, log=None, raw: bool = True) -> pd.DataFrame:
+              progress: bool = True, workers: int | None = None, log=None, raw: bool = True,
+              table: pd.DataFrame | None = None, max_configs: int | None = None, max_memory: float | None = None,
+              force: bool = False) -> pd.DataFrame:
     """Run a sweep (TOML path, dict or :class:`SweepSpec`) and return its tidy table.
 
     One row per (config, sequence) and one ``COMBINED`` row per config, with every parameter and
@@ -45,7 +48,15 @@ def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds
     the report (``sweep_report``); ``workers``: metric processes running beside the tracker
     (default: 2 for large sweeps, 0 = in-process); ``raw=False`` drops the per-alpha column
     ``_hota_alpha`` (needed for cross-validation).
-    Bad files fail before any work with a :class:`SweepConfigError` naming the key.
+    ``table``: run these configs (a config table as :func:`expand` makes, e.g. a tuner's batch)
+    instead of the file's expansion; the spec then gives the data, baseline and chunking.
+    Bad files fail before any work with a :class:`SweepConfigError` naming the key, and so do
+    sweeps of more than ``max_configs`` configs (default ``MAX_CONFIGS``) or whose chunks would hold
+    more than ``max_memory`` GB of tracker output (default ``plan.MAX_MEMORY_GB``).
+
+    ``out`` belongs to one sweep: another sweep's directory is refused (``SweepDirectoryError``)
+    unless ``force``, which deletes that sweep's files first. A chunk file whose bytes do not match
+    its ledger record (truncated, changed, never recorded) is reported through ``log`` and recomputed.
 
     Several classes (``data.class = ["car", "pedestrian"]``): every config is run for every class,
     each on its own split; rows carry their ``class``, and each config gets one more row, ``class =
@@ -60,17 +71,22 @@ def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds
     if folds is not None:
         spec = replace(spec, folds=int(folds))
     log = log if log is not None else (lambda msg: print(msg, file=sys.stderr, flush=True))
-    table = expand(spec)
+    table = expand(spec, max_configs=max_configs) if table is None else table
     datas = resolve_data_all(spec, data_root)
     n_seq = min(len(d.sequences) for d in datas)
     if spec.folds is not None and not 2 <= spec.folds <= n_seq:
         raise SweepConfigError("folds", f"{spec.folds}: expected 2 .. {n_seq} (the sequences"
                                + (" of the class with the fewest)" if len(datas) > 1 else ")"), spec.source)
     chunks = plan(table, datas, spec.chunk, spec.distortion)
+    check_memory(chunks, datas, spec.distortion, max_memory, spec.source)
     outdir = Path(out) if out is not None else None
+    done: set[str] = set()
     if outdir is not None:
-        write_manifest(outdir, spec, datas, table, chunks)
-    done = {c.id for c in chunks if outdir is not None and _chunk_path(outdir, c).is_file()}
+        legacy = write_manifest(outdir, spec, datas, table, chunks, force=force)
+        done, damaged = finished_chunks(outdir, table, chunks, datas, legacy)
+        if damaged:
+            log(f"sweep {spec.name}: {len(damaged)} chunk file(s) damaged or not recorded, recomputed: "
+                + "; ".join(damaged))
     frames_out: dict[str, pd.DataFrame] = {}
     for d in datas:
         cchunks = [c for c in chunks if c.cls == d.cls]
@@ -95,9 +111,10 @@ def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds
         df = pd.concat([frames_out[c.id] for c in chunks], ignore_index=True)
     else:
         df = pd.concat([pd.read_parquet(_chunk_path(outdir, c)) for c in chunks], ignore_index=True)
+        df["sweep"] = spec.name             # (a renamed sweep keeps its directory and chunks)
     df = _finish(df, spec.classes)
     if outdir is not None:
-        _atomic_parquet(df, outdir / "results.parquet")
+        write_results(outdir, df)
     if not raw:
         df = df.drop(columns=[RAW_COLUMN])
     return df
@@ -305,7 +322,7 @@ class _ChunkRunner:
         df = _chunk_frame(self.table, p.chunk, self.data, self.split.names, self.split.lengths, metrics, p.res,
                           self.versions, self.spec.name)
         if self.outdir is not None:
-            _atomic_parquet(df, _chunk_path(self.outdir, p.chunk))
+            write_chunk(self.outdir, p.chunk, df)
         else:
             self.tables[p.chunk.id] = df
         self.timing.write += time.perf_counter() - tw

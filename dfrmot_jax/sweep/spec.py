@@ -15,13 +15,20 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 
 from ..metrics.table import canonical_objective
-from ..config import CLASSES, INT_PARAMS, PRESETS, Options, Params, option_problem, param_problem
+from ..config import CLASSES, INHERITED_PARAMS, INT_PARAMS, PRESETS, Options, Params, option_problem, param_problem
 
 if TYPE_CHECKING:
     from .distortion import DistortionAxes
 
 PARAM_NAMES: tuple[str, ...] = Params._fields
 OPTION_NAMES: tuple[str, ...] = Options._fields
+#: Options added after config hashes were first written -> their default. At its default such an
+#: option is left out of the hash (a row without its column has the default), so every earlier
+#: config keeps its hash and chunk ids; result rows written before it existed get the default.
+LATE_OPTIONS: dict[str, Any] = {"assign": Options._field_defaults["assign"]}
+#: Parameters added after config hashes were first written -> their default, kept likewise: the
+#: 3D corners' Kalman noise, whose default 0 means "as kf_q / kf_r" (``config.INHERITED_PARAMS``).
+LATE_PARAMS: dict[str, Any] = {n: Params._field_defaults[n] for n in INHERITED_PARAMS}
 #: Further per-lane axes (columns of the config table, part of the config hash): name -> default
 #: value. A column equal to its default is left out of the hash, so adding an axis keeps existing
 #: hashes. The distortion axes are registered separately (``DISTORTION_AXES``).
@@ -35,6 +42,11 @@ CONTRAST_KEYS = ("axis", "high", "low", "by")
 
 def _extra_axes() -> dict[str, Any]:
     return {**DISTORTION_AXES, **EXTRA_AXES}
+
+#: Most values one count in a sweep file may ask for (a linspace / logspace count, distortion
+#: seeds): checked while parsing, before anything is allocated. The configs of the whole sweep are
+#: limited separately (``table.MAX_CONFIGS``, overridable).
+MAX_AXIS_VALUES = 1_000_000
 
 GRID_KINDS = ("grid", "linspace", "logspace")
 RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
@@ -145,15 +157,21 @@ class SweepSpec:
 
 def load_spec(path) -> SweepSpec:
     """Read and validate a sweep TOML file (see ``sweeps/README.md``)."""
+    return parse_spec(read_toml(path), source=str(path))
+
+
+def read_toml(path, what: str = "sweep file") -> dict:
+    """The table of a UTF-8 TOML file (a leading byte-order mark is skipped). A missing file raises
+    FileNotFoundError, text that is not UTF-8 or not TOML :class:`SweepConfigError` naming the file."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"sweep file {path} not found")
+        raise FileNotFoundError(f"{what} {path} not found")
     try:
-        with open(path, "rb") as f:
-            doc = tomllib.load(f)
+        return tomllib.loads(path.read_bytes().decode("utf-8-sig"))
+    except UnicodeDecodeError as e:
+        raise SweepConfigError("(file)", f"not UTF-8 text ({e.reason} at byte {e.start})", str(path)) from None
     except tomllib.TOMLDecodeError as e:
         raise SweepConfigError("(file)", f"not valid TOML: {e}", str(path)) from None
-    return parse_spec(doc, source=str(path))
 
 
 def _err(key, msg, source):
@@ -210,6 +228,7 @@ def _param_axis(name: str, spec, key: str, source) -> Axis:
             lo, hi, n = float(arg[0]), float(arg[1]), int(arg[2])
             if n < 1:
                 raise _err(k2, f"count {n} < 1: empty grid", source)
+            _check_count(n, k2, source)
             _check_param_value(name, lo, k2, source)
             _check_param_value(name, hi, k2, source) if name not in INT_PARAMS else None
             if kind == "logspace":
@@ -251,6 +270,13 @@ def _param_axis(name: str, spec, key: str, source) -> Axis:
         vals = tuple(_check_param_value(name, v, f"{key}[{i}]", source) for i, v in enumerate(spec))
         return Axis(name, "grid", vals, key)
     return Axis(name, "grid", (_check_param_value(name, spec, key, source),), key)
+
+
+def _check_count(n: int, key: str, source) -> None:
+    """Refuse a count above :data:`MAX_AXIS_VALUES` (before anything of that size is allocated)."""
+    if n > MAX_AXIS_VALUES:
+        raise _err(key, f"count {n:,} is above the limit of {MAX_AXIS_VALUES:,} values per axis "
+                        f"(dfrmot_jax.sweep.spec.MAX_AXIS_VALUES)", source)
 
 
 def _check_option_value(name: str, v, key: str, source):

@@ -2,30 +2,51 @@
 (``hash_version``: the scheme of the config hashes and chunk ids it was written with) and
 ``load_results``.
 
-Layout: ``manifest.json``, ``configs.parquet`` (the config table), ``chunks/<chunk id>.parquet``
-(one per finished chunk, written atomically: a rerun skips chunks whose file exists) and
-``results.parquet`` (the final table).
+Layout: ``manifest.json`` (with the sweep's ``identity``: a directory belongs to one sweep),
+``configs.parquet`` (the config table), ``chunks/<chunk id>.parquet`` (one per finished chunk,
+written atomically), ``results.parquet`` (the final table) and ``ledger.jsonl``: the sha256 and
+row count of every chunk file and of ``results.parquet``, one JSON line each, appended after the
+file is in place. A file is trusted only if its bytes match its record: a rerun recomputes (and
+``load_results`` leaves out) damaged or unrecorded chunks. Directories written before the ledger
+have their chunks checked by content once and recorded.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import re
+import sys
+import warnings
+from contextlib import contextmanager, suppress
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 import pandas as pd
 
 from ..metrics.evaluate import RAW_FIELDS, class_average_columns, class_combiner, summary_columns
 from .plan import Chunk, DataSettings
-from .spec import OPTION_NAMES, PARAM_NAMES, SweepSpec, _contrast_doc, _extra_axes
+from .spec import LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, SweepSpec, _contrast_doc, _extra_axes
 from .spec import AVERAGE
 from .table import COMBINED, HASH_VERSION, RAW_COLUMN, class_columns
 
 
-class HashVersionError(RuntimeError):
+#: The ledger of a sweep directory (module docstring).
+LEDGER = "ledger.jsonl"
+#: Temp files of the atomic writes: ``.<name>.<pid>.tmp``.
+_TMP = re.compile(r"^\..+\.(\d+)\.tmp$")
+_NO_RECORD = "no checksum record"
+
+
+class HashVersionError(ValueError):
     """A sweep directory written with another ``config_hash`` scheme than this version's."""
+
+
+class SweepDirectoryError(ValueError):
+    """The output directory cannot take this sweep: it is a file, its manifest is damaged, or it
+    belongs to another sweep (``run_sweep(force=True)`` / ``--force`` deletes that sweep's files)."""
 
 
 def _chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, metrics: dict, res, versions,
@@ -71,20 +92,149 @@ def _raw_stack(seq) -> np.ndarray:
     return np.concatenate([np.asarray(seq[f], np.float64) for f in RAW_FIELDS], axis=-1)
 
 
-def _atomic_parquet(df: pd.DataFrame, path: Path) -> None:
+@contextmanager
+def _naming(path: Path):
+    """An ``OSError`` inside that names no file (a full disk) is raised again naming ``path``."""
+    try:
+        yield
+    except OSError as e:
+        if e.filename is not None:
+            raise
+        raise OSError(e.errno, e.strerror or str(e), str(path)) from e
+
+
+def _atomic_write(path: Path, write) -> str:
+    """``write(tmp)`` to a temp file beside ``path``, then rename it to ``path``; returns the sha256
+    of the bytes written. On any error the temp file is removed."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    df.to_parquet(tmp, index=False)
-    os.replace(tmp, path)
+    try:
+        with _naming(path):
+            write(tmp)
+            digest = _sha256(tmp)
+            os.replace(tmp, path)
+    finally:
+        with suppress(OSError):
+            tmp.unlink(missing_ok=True)
+    return digest
+
+
+def _atomic_parquet(df: pd.DataFrame, path: Path) -> str:
+    return _atomic_write(path, lambda tmp: df.to_parquet(tmp, index=False))
 
 
 def _atomic_text(text: str, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    _atomic_write(path, lambda tmp: tmp.write_text(text))
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _chunk_name(chunk_id: str) -> str:
+    """A chunk file's name relative to the sweep directory (its ledger key)."""
+    return f"chunks/{chunk_id}.parquet"
 
 
 def _chunk_path(out: Path, chunk: Chunk) -> Path:
-    return out / "chunks" / f"{chunk.id}.parquet"
+    return out / _chunk_name(chunk.id)
+
+
+class _Record(NamedTuple):
+    sha256: str
+    rows: int
+
+
+def _read_ledger(out: Path) -> dict[str, _Record]:
+    """File name (relative to ``out``) -> its last record; lines that do not parse are skipped."""
+    try:
+        lines = (out / LEDGER).read_bytes().splitlines()
+    except OSError:
+        return {}
+    records = {}
+    for line in lines:
+        try:
+            doc = json.loads(line)
+            name, rec = doc["file"], _Record(doc["sha256"], doc["rows"])
+        except (ValueError, KeyError, TypeError):
+            continue
+        if isinstance(name, str) and isinstance(rec.sha256, str) and len(rec.sha256) == 64 and \
+                type(rec.rows) is int and rec.rows >= 0:
+            records[name] = rec
+    return records
+
+
+def _ledger_line(name: str, rec: _Record) -> str:
+    return json.dumps({"file": name, "sha256": rec.sha256, "rows": rec.rows}) + "\n"
+
+
+def _record(out: Path, name: str, digest: str, rows: int) -> None:
+    """Append the record of a file just put in place."""
+    path = out / LEDGER
+    with _naming(path), open(path, "a", encoding="utf-8") as f:
+        f.write(_ledger_line(name, _Record(digest, int(rows))))
+
+
+def write_chunk(out: Path, chunk: Chunk, df: pd.DataFrame) -> None:
+    """Write a chunk's table atomically, then its ledger record."""
+    _record(out, _chunk_name(chunk.id), _atomic_parquet(df, _chunk_path(out, chunk)), len(df))
+
+
+def write_results(out: Path, df: pd.DataFrame) -> None:
+    """Write ``results.parquet`` atomically, then its ledger record."""
+    _record(out, "results.parquet", _atomic_parquet(df, out / "results.parquet"), len(df))
+
+
+def _problem(path: Path, rec: _Record | None, rows: int | None = None) -> str | None:
+    """Why the file at ``path`` cannot be trusted; None if its bytes are those of its record."""
+    if rec is None:
+        return _NO_RECORD
+    if rows is not None and rec.rows != rows:
+        return f"recorded with {rec.rows} rows, expected {rows}"
+    try:
+        digest = _sha256(path)
+    except OSError as e:
+        return f"unreadable: {e.strerror or e}"
+    return None if digest == rec.sha256 else "checksum mismatch: changed or truncated"
+
+
+def finished_chunks(out: Path, table: pd.DataFrame, chunks: Sequence[Chunk], datas: Sequence[DataSettings],
+                    legacy: bool = False) -> tuple[set[str], list[str]]:
+    """(ids of the chunks whose file matches its ledger record, ``"chunks/<id>.parquet (why)"`` of
+    the chunk files that do not: to recompute). ``legacy``: a directory written before the ledger,
+    whose unrecorded chunks are checked by content instead (readable, their rows, chunk id and
+    config hashes) and recorded. The ledger is rewritten with the records of the finished chunks."""
+    sequences = {d.cls: len(d.sequences) for d in datas}
+    ledger = _read_ledger(out)
+    keep: dict[str, _Record] = {}
+    damaged = []
+    for c in chunks:
+        name, path = _chunk_name(c.id), _chunk_path(out, c)
+        if not path.is_file():
+            continue
+        rows = len(c.configs) * (sequences[c.cls] + 1)
+        problem = _problem(path, ledger.get(name), rows)
+        if problem == _NO_RECORD and legacy and _legacy_chunk_ok(path, c, table, rows):
+            ledger[name], problem = _Record(_sha256(path), rows), None
+        if problem is None:
+            keep[name] = ledger[name]
+        else:
+            damaged.append(f"{name} ({problem})")
+    _atomic_text("".join(_ledger_line(n, r) for n, r in keep.items()), out / LEDGER)
+    return {c.id for c in chunks if _chunk_name(c.id) in keep}, damaged
+
+
+def _legacy_chunk_ok(path: Path, chunk: Chunk, table: pd.DataFrame, rows: int) -> bool:
+    try:
+        df = pd.read_parquet(path, columns=["chunk", "config_hash"])
+    except Exception:           # any damage: pyarrow / pandas metadata errors of every kind
+        return False
+    want = table["config_hash"].to_numpy()[list(chunk.configs)]
+    return len(df) == rows and bool((df["chunk"] == chunk.id).all()) and \
+        list(pd.unique(df["config_hash"])) == list(want)
 
 
 
@@ -100,22 +250,42 @@ def hash_version(manifest: dict) -> int:
     return int(manifest.get("hash_version", 1))
 
 
+def sweep_identity(spec: SweepSpec, datas: Sequence[DataSettings], table: pd.DataFrame) -> str:
+    """What a sweep directory's results are of (its manifest's ``identity``): every class's data
+    settings, the configs in order (hashes, variants, baseline flags) and the distortion settings.
+    Not the sweep's name, the chunk size nor the report settings."""
+    doc = {"data": [d.identity() for d in datas],
+           "configs": {c: table[c].tolist() for c in ("config_hash", "variant", "baseline") if c in table.columns},
+           "distortion": None if spec.distortion is None else spec.distortion.identity()}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:24]
+
+
 def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings], table: pd.DataFrame,
-                   chunks: Sequence[Chunk]) -> None:
-    """Create ``outdir`` (or check an existing one's ``hash_version``) and write its manifest and config table."""
-    old = outdir / "manifest.json"
-    if old.is_file():
-        version = hash_version(json.loads(old.read_text()))
-        if version != HASH_VERSION:
-            raise HashVersionError(f"{outdir} was written with config_hash scheme {version}, this version uses "
-                                   f"{HASH_VERSION}: its chunks would not be found (use another --out)")
-    (outdir / "chunks").mkdir(parents=True, exist_ok=True)
+                   chunks: Sequence[Chunk], *, force: bool = False) -> bool:
+    """Make ``outdir`` this sweep's directory and write its manifest and config table; returns
+    whether it was written before the ledger (its chunks are then checked by content once:
+    :func:`finished_chunks`).
+
+    A directory of another sweep (another :func:`sweep_identity`) or with a damaged manifest raises
+    :class:`SweepDirectoryError`, one of another ``config_hash`` scheme :class:`HashVersionError`,
+    unless ``force``: its sweep files are then deleted first. Temp files of writes that never
+    finished (a killed run, a full disk) are removed."""
+    chunk_dir = outdir / "chunks"
+    if outdir.exists() and not outdir.is_dir():
+        raise SweepDirectoryError(f"{outdir} is a file, not a directory (the sweep's output directory)")
+    if chunk_dir.exists() and not chunk_dir.is_dir():
+        raise SweepDirectoryError(f"{chunk_dir} is a file, but the sweep keeps its chunk files in a directory of "
+                                  f"that name: move it away or use another --out")
+    identity = sweep_identity(spec, datas, table)
+    old = _claim(outdir, spec, datas, table, chunks, identity, force)
+    chunk_dir.mkdir(parents=True, exist_ok=True)
+    _remove_orphans(outdir)
     data = datas[0]
     manifest = {"name": spec.name, "description": spec.description, "source": spec.source,
                 "data": data.identity(), "lengths": list(data.lengths), "baseline": spec.baseline,
                 "chunk": spec.chunk, "objective": spec.objective, "folds": spec.folds, "top": spec.top,
                 "configs": len(table), "chunks": [c.id for c in chunks], "spec": _jsonable(spec.raw),
-                "hash_version": HASH_VERSION}
+                "hash_version": HASH_VERSION, "identity": identity, "ledger": LEDGER}
     if len(datas) > 1:
         manifest["classes"] = list(spec.classes)
         manifest["class_data"] = {d.cls: {**d.identity(), "lengths": list(d.lengths)} for d in datas}
@@ -130,12 +300,106 @@ def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings],
         manifest["contrast"] = _contrast_doc(spec.contrast)
     _atomic_text(json.dumps(manifest, indent=1), outdir / "manifest.json")
     _atomic_parquet(table, outdir / "configs.parquet")
+    return old is not None and "ledger" not in old
+
+
+def _claim(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings], table: pd.DataFrame,
+           chunks: Sequence[Chunk], identity: str, force: bool) -> dict | None:
+    """The manifest ``outdir`` holds if it is this sweep's (None: none, or deleted with ``force``)."""
+    path = outdir / "manifest.json"
+    if not path.is_file():
+        return None
+    try:
+        old = json.loads(path.read_text())
+        if not isinstance(old, dict):
+            raise ValueError("not a JSON object")
+        version = hash_version(old)
+    except ValueError as e:
+        problem = f"has a damaged manifest.json ({e})"
+    else:
+        if version != HASH_VERSION and not force:
+            raise HashVersionError(f"{outdir} was written with config_hash scheme {version}, this version uses "
+                                   f"{HASH_VERSION}: its chunks would not be found (use another --out, or --force "
+                                   f"to delete them)")
+        if version == HASH_VERSION and (old.get("identity") == identity or old.get("chunks") == [c.id for c in chunks]
+                                        and _same_configs(outdir, table)):
+            return old
+        problem = _other_sweep(old, spec, datas, table)
+    if not force:
+        raise SweepDirectoryError(f"{outdir} {problem}: its results would be replaced; use another --out, or --force "
+                                  f"to delete its chunks and results first")
+    _clear(outdir)
+    return None
+
+
+def _same_configs(outdir: Path, table: pd.DataFrame) -> bool:
+    """Whether the directory's config table has this table's configs in order (same hashes, variants,
+    baseline flags): the same sweep whatever identity scheme its manifest was written with (the
+    chunk ids already pin the data settings and the configs of every chunk)."""
+    try:
+        old = pd.read_parquet(outdir / "configs.parquet", columns=["config_hash", "variant", "baseline"])
+    except (OSError, ValueError, KeyError):
+        return False
+    return all(old[c].tolist() == table[c].tolist() for c in old.columns if c in table.columns)
+
+
+def _other_sweep(old: dict, spec: SweepSpec, datas: Sequence[DataSettings], table: pd.DataFrame) -> str:
+    """How the sweep of manifest ``old`` differs from this one (a phrase)."""
+    if old.get("kind", "sweep") != "sweep":
+        return f"holds a {old.get('kind')} ({old.get('name')!r})"
+    if (old.get("class_data") or {datas[0].cls: old.get("data")}) != \
+            {d.cls: (d.identity() if len(datas) == 1 else {**d.identity(), "lengths": list(d.lengths)}) for d in datas}:
+        what = "data"
+    else:
+        what = "configs"
+    return (f"holds another sweep ({old.get('name')!r}, {old.get('configs')} configs; this one: {spec.name!r}, "
+            f"{len(table)} configs, differs in its {what})")
+
+
+def _clear(outdir: Path) -> None:
+    """Delete the files of the sweep in ``outdir`` (and nothing else)."""
+    chunk_dir = outdir / "chunks"
+    if chunk_dir.is_dir():
+        for p in chunk_dir.iterdir():
+            if p.is_file() and (p.suffix == ".parquet" or _TMP.match(p.name)):
+                p.unlink()
+    for name in ("manifest.json", "configs.parquet", "results.parquet", LEDGER):
+        (outdir / name).unlink(missing_ok=True)
+
+
+def _remove_orphans(outdir: Path) -> None:
+    """Delete the temp files of writes that never finished: those of processes no longer running."""
+    for d in (outdir, outdir / "chunks"):
+        for p in d.iterdir():
+            m = _TMP.match(p.name)
+            if m and p.is_file() and not _running(int(m.group(1))):
+                with suppress(OSError):
+                    p.unlink()
+
+
+def _running(pid: int) -> bool:
+    if sys.platform == "win32":
+        return True             # (os.kill would end it): leave its files
+    if pid == os.getpid():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:     # another user's process
+        return True
+    except (OverflowError, OSError):
+        return False
+    return True
 
 
 def _finish(df: pd.DataFrame, classes: Sequence[str] = ()) -> pd.DataFrame:
     """Rows by config (within a config: classes in order, each its sequences then COMBINED); with
-    several classes, each config's class-average row last (:func:`_average_rows`)."""
+    several classes, each config's class-average row last (:func:`_average_rows`). Rows of chunks
+    written before an option of ``LATE_OPTIONS`` (a parameter of ``LATE_PARAMS``) existed get its default."""
     df = df[df["class"] != AVERAGE] if "class" in df.columns else df
+    late = {n: d for n, d in {**LATE_OPTIONS, **LATE_PARAMS}.items() if n in df.columns}
+    df = df.fillna(late) if late else df
     classes = list(classes) or list(pd.unique(df["class"])) if "class" in df.columns else []
     if len(classes) > 1:
         df = pd.concat([df, _average_rows(df, classes)], ignore_index=True)
@@ -182,22 +446,57 @@ def _average_rows(df: pd.DataFrame, classes: Sequence[str]) -> pd.DataFrame:
 
 
 def load_results(out, *, allow_partial: bool = False) -> pd.DataFrame:
-    """The tidy table of a sweep directory (``results.parquet``, else its finished chunks)."""
+    """The tidy table of a sweep directory (``results.parquet``, else its finished chunks).
+
+    Only files that match their ledger record are read (a directory written before the ledger:
+    files that read); damaged chunks are left out with a ``RuntimeWarning`` naming them. Chunks
+    not finished or damaged raise ``FileNotFoundError`` unless ``allow_partial``."""
     out = Path(out)
     manifest = _manifest(out)
-    paths = [out / "chunks" / f"{cid}.parquet" for cid in manifest["chunks"]]
     final = out / "results.parquet"
-    if final.is_file() and all(p.is_file() for p in paths):
-        df = pd.read_parquet(final)
-        if set(df.loc[df["chunk"] != "", "chunk"].unique()) == set(manifest["chunks"]):
+    if manifest.get("kind") == "tune":      # a tune directory (dfrmot_jax.tuning): its table is written per batch
+        if not final.is_file():
+            raise FileNotFoundError(f"{out}: the tune has not finished a batch yet (rerun it to resume)")
+        return pd.read_parquet(final)
+    ledger = _read_ledger(out) if "ledger" in manifest else None
+    names = [_chunk_name(cid) for cid in manifest["chunks"]]
+    tables, damaged = {}, []
+
+    def read(name: str) -> pd.DataFrame | None:
+        rec = ledger.get(name) if ledger is not None else None
+        problem = _problem(out / name, rec) if ledger is not None else None
+        if problem is None:
+            try:
+                df = pd.read_parquet(out / name)
+            except Exception as e:      # any damage: pyarrow / pandas metadata errors of every kind
+                problem = f"unreadable: {type(e).__name__}: {e}"
+            else:
+                if rec is None or len(df) == rec.rows:
+                    return df
+                problem = f"{len(df)} rows, recorded {rec.rows}"
+        damaged.append(f"{name} ({problem})")
+        return None
+
+    present = [n for n in names if (out / n).is_file()]
+    if len(present) == len(names) and final.is_file():
+        df = read(final.name)
+        if df is not None and set(df.loc[df["chunk"] != "", "chunk"].unique()) == set(manifest["chunks"]):
             return df
-    have = [p for p in paths if p.is_file()]
-    if len(have) < len(paths) and not allow_partial:
-        raise FileNotFoundError(f"{out}: {len(paths) - len(have)} of {len(paths)} chunks not finished "
-                                f"(rerun the sweep to resume)")
-    if not have:
+        damaged.clear()             # a damaged results.parquet: rebuilt from the chunks
+    for n in present:
+        df = read(n)
+        if df is not None:
+            tables[n] = df
+    if damaged:
+        warnings.warn(f"{out}: {len(damaged)} damaged chunk file(s) left out (rerun the sweep to recompute them): "
+                      + "; ".join(damaged), RuntimeWarning, stacklevel=2)
+    if len(tables) < len(names) and not allow_partial:
+        raise FileNotFoundError(f"{out}: {len(names) - len(present)} of {len(names)} chunks not finished"
+                                + (f", {len(present) - len(tables)} damaged" if len(present) > len(tables) else "")
+                                + " (rerun the sweep to resume)")
+    if not tables:
         raise FileNotFoundError(f"{out}: no finished chunk yet")
-    return _finish(pd.concat([pd.read_parquet(p) for p in have], ignore_index=True), manifest.get("classes", ()))
+    return _finish(pd.concat(list(tables.values()), ignore_index=True), manifest.get("classes", ()))
 
 
 def _manifest(out: Path) -> dict:

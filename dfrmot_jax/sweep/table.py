@@ -19,10 +19,14 @@ import pandas as pd
 
 from ..config import CLASSES, INT_PARAMS, PRESETS, Options, Params, as_arrays, preset
 from .distortion import DistortionAxes
-from .spec import DISTORTION_AXES, OPTION_NAMES, PARAM_NAMES, Axis, SweepSpec, _as_spec, _err, _extra_axes
+from .spec import (DISTORTION_AXES, LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, Axis, SweepSpec, _as_spec,
+                   _err, _extra_axes)
 
 #: The scheme of ``config_hash`` and chunk ids; recorded in the manifest as ``hash_version``.
 HASH_VERSION = 1
+#: Default most configs a sweep may expand to (``expand`` / ``run_sweep(max_configs=...)``, ``dfrmot
+#: sweep --max-configs``), checked before expanding: a config table takes about 3 kB and 50 us per config.
+MAX_CONFIGS = 250_000
 
 COMBINED = "COMBINED"
 RAW_COLUMN = "_hota_alpha"
@@ -75,9 +79,13 @@ def config_hash(row: Mapping[str, Any], settings: Mapping[str, Any] | None = Non
     default, such as the distortion axes; + ``settings``, sweep-wide values off their defaults that
     change this row, e.g. a distortion lane's burst start rate; + a sweep over several classes' per-class
     values, columns ``<class>.<parameter>``, where they differ from the plain column: a row without
-    such a difference hashes exactly as before)."""
-    key = {"params": {n: _canon(n, row[n]) for n in PARAM_NAMES},
-           "options": {n: _canon(n, row[n]) for n in OPTION_NAMES}}
+    such a difference hashes exactly as before; an option of ``LATE_OPTIONS`` or a parameter of
+    ``LATE_PARAMS`` only off its default)."""
+    late = {n: _canon(n, row.get(n, d)) for n, d in LATE_OPTIONS.items()}
+    key = {"params": {n: _canon(n, row[n]) for n in PARAM_NAMES
+                      if n not in LATE_PARAMS or _canon(n, row.get(n, LATE_PARAMS[n])) != _canon(n, LATE_PARAMS[n])},
+           "options": {**{n: _canon(n, row[n]) for n in OPTION_NAMES if n not in LATE_OPTIONS},
+                       **{n: v for n, v in late.items() if v != _canon(n, LATE_OPTIONS[n])}}}
     extra = {n: _canon(n, row[n]) for n, d in _extra_axes().items() if n in row and row[n] != d}
     if settings:
         extra["settings"] = dict(settings)
@@ -103,7 +111,29 @@ def _draw(axis: Axis, rng: np.random.Generator, n: int) -> list:
     raise AssertionError(axis.kind)
 
 
-def expand(spec) -> pd.DataFrame:
+def config_count(spec) -> tuple[int, str, str]:
+    """(configs, how they are made up, the key of the largest factor) of a sweep, without expanding:
+    per variant the product of its grid axes' value counts x ``samples``, plus the baseline, all x
+    the distortion lanes (an upper bound: configs that hash alike are kept once)."""
+    spec = _as_spec(spec)
+    total, parts, factors = 1, [], [(1, "params")]
+    for v in spec.variants:
+        axes = [a for a in v.params if a.is_grid] + list(v.options)
+        counts = [(len(a.values), a.key, a.name) for a in axes] + [(spec.samples, "samples", "samples")]
+        total += int(np.prod([c for c, _, _ in counts], dtype=object))
+        factors += [(c, k) for c, k, _ in counts]
+        parts.append(f"variant {v.name!r}: " + (" x ".join(f"{name} {c:,}" for c, _, name in counts
+                                                           if c > 1 or name != "samples") or "1"))
+    desc = "the baseline + " + "; ".join(parts)
+    if spec.distortion is not None:
+        lanes = spec.distortion.n_lanes
+        total = total * lanes + 1
+        desc = f"{desc}; x {lanes:,} distortion lanes"
+        factors.append((len(spec.distortion.seeds), "distortion.seeds"))
+    return total, desc, max(factors)[1]
+
+
+def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     """The config table of a sweep: one row per config, the baseline first.
 
     Columns: ``config`` (row number), ``config_hash``, ``variant``, ``baseline`` (bool), every
@@ -118,9 +148,18 @@ def expand(spec) -> pd.DataFrame:
     every kind and seed: it is one lane per config, the undistorted one (kind "none", level 0, seed
     0: the same hash as the config without distortion). Without [distortion] the table is as before
     (no distortion columns).
+
+    ``max_configs`` (default :data:`MAX_CONFIGS`): a sweep of more configs (:func:`config_count`)
+    fails before expanding, with a :class:`SweepConfigError` naming its largest factor.
     """
     spec = _as_spec(spec)
     src = spec.source
+    limit = MAX_CONFIGS if max_configs is None else int(max_configs)
+    n, desc, key = config_count(spec)
+    if n > limit:
+        raise _err(key, f"the sweep expands to up to {n:,} configs ({desc}), above the limit of {limit:,} "
+                        f"(dfrmot_jax.sweep.MAX_CONFIGS): sweep fewer values, or raise the limit with "
+                        f"--max-configs N (run_sweep(max_configs=N))", src)
     single = len(spec.classes) == 1
     base_row, class_base = _baseline_rows(spec)
     # per-class columns: class defaults off the plain baseline, and every per-class axis
@@ -158,15 +197,7 @@ def expand(spec) -> pd.DataFrame:
         k, p = _split_class_column(c)
         if c not in explicit and all(_canon(p, x) == _canon(p, y) for x, y in zip(table[c], table[p])):
             table = table.drop(columns=[c])
-    for n in list(PARAM_NAMES) + class_columns(table.columns):
-        t = _split_class_column(n)[1] if _split_class_column(n) else n
-        table[n] = table[n].astype("int64" if t in INT_PARAMS else "float64")
-    for n in OPTION_NAMES:
-        d = Options._field_defaults[n]
-        table[n] = table[n].astype(bool if isinstance(d, bool) else "int64" if isinstance(d, int) else object)
-    hashes = [config_hash(r) for r in table.to_dict("records")]
-    table.insert(0, "config_hash", hashes)
-    table = table.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
+    table = typed_table(table).drop_duplicates("config_hash", keep="first").reset_index(drop=True)
     if spec.distortion is not None:
         table = _cross_distortion(table, spec.distortion)
     table.insert(0, "config", np.arange(len(table), dtype=np.int64))
@@ -182,6 +213,26 @@ def expand(spec) -> pd.DataFrame:
                                        f"output = \"filtered\" (variant {r['variant']!r} pairs it with output = "
                                        f"\"detections\"); use [[variants]] to give keep_lost its own output", src)
     return table
+
+
+def typed_table(table: pd.DataFrame) -> pd.DataFrame:
+    """Config rows (``variant``, ``baseline``, every parameter, class column and option) with the
+    table's column types (integer parameters int64, the others float64, options as ``Options``
+    declares them) and ``config_hash`` inserted first. Duplicates are kept."""
+    table = table.copy()
+    for n in list(PARAM_NAMES) + class_columns(table.columns):
+        t = _split_class_column(n)[1] if _split_class_column(n) else n
+        table[n] = table[n].astype("int64" if t in INT_PARAMS else "float64")
+    for n in OPTION_NAMES:
+        d = Options._field_defaults[n]
+        table[n] = table[n].astype(bool if isinstance(d, bool) else "int64" if isinstance(d, int) else object)
+    table.insert(0, "config_hash", [config_hash(r) for r in table.to_dict("records")])
+    return table
+
+
+def baseline_row(spec: SweepSpec) -> dict:
+    """The baseline's parameters and options of a one-class sweep (``preset(baseline, class)``)."""
+    return _baseline_rows(spec)[0]
 
 
 def _baseline_rows(spec: SweepSpec) -> tuple[dict, dict[str, dict]]:

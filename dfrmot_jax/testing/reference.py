@@ -13,6 +13,7 @@ import functools
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from ..data import SequenceDets
 from ..geometry import box3d_extent, project_box3d_to_image, truncate_2d_box, truncate_3d_box
@@ -109,6 +110,13 @@ def _steady_cov(kf_q: float, kf_r: float, options: Options, iters: int) -> np.nd
         filter_update(f, f.p, params, options)
         filter_predict(f, params, options)
     return f.cov[:, 0]
+
+
+def params_3d(params: Params) -> Params:
+    """The parameters the 3D corners' filter runs with: kf_q, kf_r replaced by kf_q3, kf_r3 unless
+    those are 0 (the default: the same noise as the 2D corners)."""
+    return params._replace(kf_q=params.kf_q3 if params.kf_q3 != 0 else params.kf_q,
+                           kf_r=params.kf_r3 if params.kf_r3 != 0 else params.kf_r)
 
 
 def filter_init(z: np.ndarray, params: Params, options: Options) -> CoordFilter:
@@ -275,6 +283,18 @@ def greedy_match(cost: np.ndarray, track_ids: list[int], limit: F64) -> list[tup
     return pairs
 
 
+def hungarian_match(cost: np.ndarray, limit: F64) -> list[tuple[int, int]]:
+    """The matching of the largest total limit - cost over entries with cost < limit (SciPy's
+    ``linear_sum_assignment``), as (row, column) pairs in row order.
+
+    The tracker calls it with cost = -M_f and limit = -a_f: the largest total M_f - a_f. Where several
+    matchings reach the same total, SciPy's choice may differ from the tracker's solver.
+    """
+    ok = cost < limit
+    rows, cols = linear_sum_assignment(np.where(ok, limit - cost, 0.0), maximize=True)
+    return [(int(i), int(j)) for i, j in zip(rows, cols) if ok[i, j]]
+
+
 def track_sequence(seq: SequenceDets, params: Params, options: Options,
                    image_size=(1242, 375)) -> list[tuple]:
     """Run one sequence; returns output rows ``(frame, id, x1, y1, x2, y2, kind, index, row3, own3, box3)``.
@@ -293,12 +313,16 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
     next_id = 0
     rows = []
     limit = -p64(params.a_f)
+    p3 = params_3d(params)
     for t in range(seq.n_frames):
         objects = frame_objects(seq, t, params, options, image_size)
         pairs = []
         if tracks and objects:
             affinity = affinity_matrix(objects, tracks, params, options)
-            pairs = greedy_match(-affinity, [trk.id for trk in tracks], limit)
+            if options.assign == "hungarian":
+                pairs = hungarian_match(-affinity, limit)
+            else:
+                pairs = greedy_match(-affinity, [trk.id for trk in tracks], limit)
 
         # Memory: matched objects take over their track; the others are born, in row order.
         obj_track: dict[int, Track] = {}
@@ -315,15 +339,15 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
                 trk.row3 = obj.row3
                 z3 = np.concatenate([obj.lo3, obj.hi3])
                 if trk.f3 is None:
-                    trk.f3 = filter_init(z3, params, options)
+                    trk.f3 = filter_init(z3, p3, options)
                     trk.out_box3 = trk.f3.p.copy()
                 else:
-                    filter_update(trk.f3, z3, params, options)
+                    filter_update(trk.f3, z3, p3, options)
                     trk.out_box3 = trk.f3.p.copy()
-                    filter_predict(trk.f3, params, options)
+                    filter_predict(trk.f3, p3, options)
             elif trk.f3 is not None:
                 trk.out_box3 = trk.f3.p.copy()
-                filter_predict(trk.f3, params, options)
+                filter_predict(trk.f3, p3, options)
             obj_track[i] = trk
             matched_tracks.add(id(trk))
         for trk in tracks:
@@ -333,11 +357,11 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
                 filter_predict(trk.f2, params, options)
                 if trk.f3 is not None:
                     trk.out_box3 = trk.f3.p.copy()
-                    filter_predict(trk.f3, params, options)
+                    filter_predict(trk.f3, p3, options)
         for i, obj in enumerate(objects):
             if i in obj_track:
                 continue
-            f3 = filter_init(np.concatenate([obj.lo3, obj.hi3]), params, options) if obj.lo3 is not None else None
+            f3 = filter_init(np.concatenate([obj.lo3, obj.hi3]), p3, options) if obj.lo3 is not None else None
             trk = Track(id=next_id, f2=filter_init(obj.box, params, options), f3=f3,
                         row3=obj.row3, own3=f3 is not None, out_box3=None if f3 is None else f3.p.copy())
             trk.out_box = trk.f2.p.copy()

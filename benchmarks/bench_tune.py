@@ -1,0 +1,188 @@
+"""Search methods at equal budgets, judged by nested cross-validation on KITTI car (RRC + PointRCNN).
+
+For each method and each budget n (evaluated configs) the 5-fold cross-validated best HOTA: every
+held-out fold is scored with the config the method chose from its first n configs using only the
+other folds' sequences.
+
+* grid:   the 1,024-config grid (``sweeps/kitti_dfr_grid.toml``), n configs subsampled (seeded, the
+          baseline always in); selection per fold on the training sequences' rows of the one table.
+* random: n random draws from the tune space (``sweeps/kitti_tune.toml``), one table as for grid
+          (random draws do not depend on scores, so one table serves every fold honestly).
+* tpe, cmaes: batched Optuna search (batches of ``--batch``), run once per fold on the training
+          sequences only (``DIR/<method>/fold_F``, resumable); at budget n the best of the fold's
+          first n trials by the training objective is its choice.
+* tpe+refine: tpe's choice at n - R followed by gradient refinement (R evaluations: ``--refine-steps``
+          steps of 2 x ``--pairs`` samples + the centre) on the same training sequences.
+
+The chosen configs of every method, budget and fold are scored on every sequence in one batched
+call. The last line is one JSON object: ``cv_best`` (best cross-validated HOTA of any method and
+budget), ``evals_to_grid_cv_best`` (fewest evaluated configs with which tpe, cmaes or tpe+refine
+reached the full grid's cross-validated best; null if never), ``curves`` ({method: {n: cv}}),
+``seconds`` per method, machine and load.
+
+    python benchmarks/bench_tune.py [--work DIR] [--budgets 64,128,256,512,1024] [--adaptive-max 512]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from machine import machine_info
+
+HERE = Path(__file__).resolve().parent
+GRID = HERE.parent / "sweeps" / "kitti_dfr_grid.toml"
+SPACE = HERE.parent / "sweeps" / "kitti_tune.toml"
+MODEL_BASED = ("tpe", "cmaes", "tpe+refine")
+
+
+def _subsample_cv(df, n: int, folds: int, seed: int) -> tuple[float, float]:
+    """(cross-validated best, in-sample best) of n configs of a table (the baseline always in)."""
+    from dfrmot_jax.sweep import cross_validate
+
+    configs = df["config"].unique()
+    base = int(df.loc[df["baseline"], "config"].iloc[0])
+    rest = np.setdiff1d(configs, [base])
+    pick = np.concatenate([[base], np.random.default_rng(seed).permutation(rest)[:n - 1]])
+    sub = df[df["config"].isin(pick)]
+    cv = cross_validate(sub, folds, "HOTA")
+    return cv["cross_validated"], float(sub.loc[sub["sequence"] == "COMBINED", "HOTA"].max())
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--work", default=str(HERE / ".cache" / "tune"), help="resumable work directory")
+    ap.add_argument("--budgets", default="64,128,256,512,1024")
+    ap.add_argument("--adaptive-max", type=int, default=1024, help="largest budget run for tpe / cmaes")
+    ap.add_argument("--batch", type=int, default=64)
+    ap.add_argument("--folds", type=int, default=5)
+    ap.add_argument("--refine-steps", type=int, default=6)
+    ap.add_argument("--pairs", type=int, default=6)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--methods", default="grid,random,tpe,cmaes,tpe+refine")
+    args = ap.parse_args(argv)
+
+    from dfrmot_jax.paths import data_available, default_data_root
+    from dfrmot_jax.sweep import cross_validate, load_spec, make_folds, resolve_data, run_sweep
+    from dfrmot_jax.tuning import load_tune, search_space
+    from dfrmot_jax.tuning.gradient import refine
+    from dfrmot_jax.tuning.nested import held_out_scores
+    from dfrmot_jax.tuning.run import tune_once
+    from dfrmot_jax.tuning.settings import RefineSettings
+    from dfrmot_jax.tuning.study import Evaluator
+
+    machine = machine_info()
+    if not data_available(default_data_root()):
+        print(json.dumps({"skipped": "no KITTI data", **machine}))
+        return 0
+    budgets = [int(b) for b in args.budgets.split(",")]
+    methods = args.methods.split(",")
+    work = Path(args.work)
+    work.mkdir(parents=True, exist_ok=True)
+    log = lambda m: None                                                        # noqa: E731
+    load0 = os.getloadavg()[0]
+    curves: dict[str, dict[int, float]] = {}
+    in_sample: dict[str, dict[int, float]] = {}
+    seconds: dict[str, float] = {}
+
+    spec, settings = load_tune(SPACE)
+    settings = replace(settings, batch=args.batch, seed=args.seed)
+    space = search_space(spec)
+    data = resolve_data(spec)
+    folds = make_folds(list(data.sequences), list(data.lengths), args.folds)
+
+    if "grid" in methods:
+        t0 = time.perf_counter()
+        grid = run_sweep(load_spec(GRID), work / "grid", progress=False, log=log)
+        seconds["grid"] = time.perf_counter() - t0
+        curves["grid"], in_sample["grid"] = {}, {}
+        for n in budgets:
+            curves["grid"][n], in_sample["grid"][n] = _subsample_cv(grid, min(n, grid["config"].nunique()),
+                                                                    args.folds, args.seed)
+        print(f"grid: {curves['grid']}", flush=True)
+    if "random" in methods:
+        t0 = time.perf_counter()
+        doc = {k: v for k, v in spec.raw.items() if k != "tune"}
+        doc.update(name="bench_random", seed=args.seed, samples=max(budgets) // 2, chunk=64)
+        rand = run_sweep(doc, work / "random", progress=False, log=log)
+        seconds["random"] = time.perf_counter() - t0
+        curves["random"], in_sample["random"] = {}, {}
+        for n in budgets:
+            sub = rand[rand["config"] < n]
+            curves["random"][n] = cross_validate(sub, args.folds, "HOTA")["cross_validated"]
+            in_sample["random"][n] = float(sub.loc[sub["sequence"] == "COMBINED", "HOTA"].max())
+        print(f"random: {curves['random']}", flush=True)
+
+    chosen: dict[tuple[str, int], list[dict]] = {}
+    adaptive = [b for b in budgets if b <= args.adaptive_max]
+    for method in [m for m in methods if m in ("tpe", "cmaes")]:
+        t0 = time.perf_counter()
+        s = replace(settings, sampler=method, budget=max(adaptive))
+        per_fold_trials = []
+        for f, test in enumerate(folds):
+            train = [q for q in data.sequences if q not in test]
+            sub = work / method / f"fold_{f}"
+            sub.mkdir(parents=True, exist_ok=True)
+            r = tune_once(replace(spec, sequences=tuple(train)), s, space, sub, None, None, False, log)
+            per_fold_trials.append(r)
+        seconds[method] = time.perf_counter() - t0
+        for n in adaptive:
+            chosen[(method, n)] = []
+            for r in per_fold_trials:
+                t = r.trials[r.trials["trial"] < n]
+                best = t.loc[t["HOTA"].idxmax()]
+                chosen[(method, n)].append({d.name: best[d.name] for d in space.dims})
+        if method == "tpe" and "tpe+refine" in methods:
+            t0 = time.perf_counter()
+            rs = RefineSettings(steps=args.refine_steps, pairs=args.pairs, sigma=0.15, learning_rate=0.1, patience=3)
+            cost = args.refine_steps * (2 * args.pairs + 1)
+            for n in [b for b in adaptive if b > cost]:
+                chosen[("tpe+refine", n)] = []
+                for f, r in enumerate(per_fold_trials):
+                    t = r.trials[r.trials["trial"] < n - cost]
+                    best = t.loc[t["HOTA"].idxmax()]
+                    start = {d.name: best[d.name] for d in space.dims}
+                    train = [q for q in data.sequences if q not in folds[f]]
+                    ev = Evaluator(replace(spec, sequences=tuple(train)), space, s,
+                                   work / "tpe+refine" / f"n{n}_fold_{f}", None, None, log)
+
+                    def evaluate(configs, k, ev=ev):
+                        return ev.run(f"r{k:04d}", configs, [False] * len(configs), list(range(len(configs))),
+                                      "refine", k)[:, 0]
+
+                    out = refine(evaluate, start, float(best["HOTA"]), space.dims, rs, args.seed)
+                    chosen[("tpe+refine", n)].append(out.best)
+            seconds["tpe+refine"] = time.perf_counter() - t0
+    if chosen:
+        keys = list(chosen)
+        configs = [c for k in keys for c in chosen[k]] + [space.baseline_values()]
+        ev = Evaluator(spec, space, settings, work / "heldout", None, None, log)
+        ev.run("all", configs, [False] * (len(configs) - 1) + [True], list(range(len(configs))), "heldout", 0)
+        table = ev.table()
+        hashes = list(space.table([space.row(c) for c in configs], [False] * (len(configs) - 1) + [True])["config_hash"])
+        for i, (method, n) in enumerate(keys):
+            hs = hashes[i * args.folds:(i + 1) * args.folds]
+            curves.setdefault(method, {})[n] = held_out_scores(table, folds, hs, hashes[-1], "HOTA")["cross_validated"]
+    grid_best = curves.get("grid", {}).get(1024)
+    reached = [n for m in MODEL_BASED for n, v in curves.get(m, {}).items()
+               if grid_best is not None and v >= grid_best - 1e-9]
+    cv_best = max(v for c in curves.values() for v in c.values())
+    for m, c in curves.items():
+        print(f"{m:>11}: " + "  ".join(f"{n}: {v:.3f}" for n, v in sorted(c.items())), flush=True)
+    print(json.dumps({"cv_best": cv_best, "grid_cv_best": grid_best,
+                      "evals_to_grid_cv_best": min(reached) if reached else None,
+                      "curves": {m: {str(n): v for n, v in sorted(c.items())} for m, c in curves.items()},
+                      "in_sample": {m: {str(n): v for n, v in sorted(c.items())} for m, c in in_sample.items()},
+                      "seconds": seconds, "batch": args.batch, "folds": args.folds, "adaptive_max": args.adaptive_max,
+                      "load_before": load0, "load_after": os.getloadavg()[0], **machine}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

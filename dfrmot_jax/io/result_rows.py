@@ -1,0 +1,154 @@
+"""KITTI tracking result files read by TrackEval's rules: the reader behind ``dfrmot eval``.
+
+The ground truth and detection readers (:mod:`dfrmot_jax.io.kitti`) are strict. A tracker's result
+file is read as TrackEval's Kitti2DBox reads it (``_BaseDataset._load_simple_text_file`` and
+``Kitti2DBox._load_raw_file``, v1.3.0), so that every file TrackEval scores is scored, identically:
+
+* Rows come in any order (TrackEval groups them by frame, keeping file order within a frame), and
+  boxes may have ``x2 < x1`` or ``y2 < y1`` (the metrics then apply TrackEval's IoU formula to the
+  negative widths as it does).
+* Columns are separated by whitespace, or by commas when the first line has one. A row is
+  ``frame id type truncated occluded alpha x1 y1 x2 y2`` and any number of further columns (17 or
+  18 in KITTI files); rows of different frames may differ in length.
+* On every row ``frame`` and ``id`` are numbers (Python's ``float``) truncated toward zero, as
+  ``int(float(s))``: ``3.75`` is 3, ``-0.5`` is 0. A row whose id is then negative is skipped:
+  nothing else of it is looked at (it needs only a third column).
+* Of a kept row every column but the type is a number (``nan`` and ``inf`` included, except in
+  the box); the type is looked up, and the frame checked against the sequence, by
+  :func:`dfrmot_jax.metrics.kitti.read_tracker_files`.
+
+Refused with file, line and field (:class:`~dfrmot_jax.io.kitti.KittiFormatError`): what TrackEval
+cannot read (a frame or id that is no finite number, a row of fewer than 3 columns, a kept row of
+fewer than 10 or with a non-number, kept rows of one frame that differ in length, a negative
+frame) and what it reads but cannot score: a box coordinate that is not finite (TrackEval's
+assignment fails, or its scores become NaN) and an id past 2^53 - 1 (TrackEval allocates max id + 1
+entries; past 2^63 the id wraps negative). Blank lines are skipped (TrackEval refuses them).
+TrackEval's ``csv.Sniffer`` could also pick ``;`` or ``:`` as the separator: such files are refused.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from .kitti import KittiFormatError, _quoted, _read_text
+
+__all__ = ["ResultRows", "read_result_rows", "MIN_COLUMNS"]
+
+#: ``frame id type truncated occluded alpha x1 y1 x2 y2``: TrackEval's boxes are columns 6..9
+MIN_COLUMNS = 10
+_NAMES = ("frame", "track_id", "type", "truncated", "occluded", "alpha", "x1", "y1", "x2", "y2",
+          "h", "w", "l", "x", "y", "z", "rot_y", "score")
+_BOX = slice(6, 10)
+_ID_MAX = 2**53 - 1                      # ids stay exact integers through float64
+_FRAME_MAX = int(np.iinfo(np.int32).max)
+
+
+class ResultRows(NamedTuple):
+    """The rows of a result file that TrackEval keeps (id >= 0 once truncated), file order (R rows).
+
+    frame, track_id: [R] int64 (truncated toward zero); type: [R] object str as written;
+    box: [R, 4] float64 ``x1, y1, x2, y2`` as written (``x2 < x1`` allowed); row: [R] int64 the
+    row's index among the file's non-blank lines (``io.kitti.line_of_row`` gives its line).
+    """
+
+    frame: np.ndarray
+    track_id: np.ndarray
+    type: np.ndarray
+    box: np.ndarray
+    row: np.ndarray
+
+
+def _field(j: int) -> str:
+    return _NAMES[j] if j < len(_NAMES) else f"column {j + 1}"
+
+
+def _numbers(tokens: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[N] object str -> ([N] float64 as Python's ``float`` reads them, NaN where it cannot; [N] bool read)."""
+    try:
+        return tokens.astype(np.float64), np.ones(len(tokens), dtype=bool)
+    except (ValueError, TypeError):
+        out = np.full(len(tokens), np.nan)
+        ok = np.zeros(len(tokens), dtype=bool)
+        for k, tok in enumerate(tokens):
+            try:
+                out[k] = float(tok)
+                ok[k] = True
+            except (ValueError, TypeError):
+                pass
+        return out, ok
+
+
+def read_result_rows(path) -> ResultRows:
+    """Read a KITTI tracking result file by TrackEval's rules (module docstring).
+
+    Returns the kept rows (:class:`ResultRows`); raises :class:`KittiFormatError` naming file,
+    line and field for what TrackEval cannot read or score.
+    """
+    text = _read_text(path)
+    lines = text.lines
+    sep = "," if lines and "," in lines[0] else None
+    split = [s.split(sep) for s in lines]
+    if sep:   # TrackEval drops one empty field at the end of a row (a trailing separator)
+        split = [r[:-1] if len(r) > 1 and not r[-1].strip() else r for r in split]
+    count = np.fromiter(map(len, split), dtype=np.int64, count=len(split))
+    width = max(int(count.max(initial=0)), MIN_COLUMNS)
+    if count.size and np.all(count == width):
+        tok = np.array(split, dtype=object).reshape(len(split), width)
+    else:
+        tok = np.empty((len(split), width), dtype=object)
+        for k, r in enumerate(split):
+            tok[k] = r + [""] * (width - len(r))
+
+    problems: list[tuple[int, int, str, str]] = []           # (row, column, field, message)
+
+    def flag(mask: np.ndarray, rows: np.ndarray, j: int, message) -> None:
+        if mask.any():
+            r = int(rows[np.argmax(mask)])
+            problems.append((r, j, _field(j) if j >= 0 else "columns", message(r)))
+
+    every = np.arange(len(split))
+    flag(count < 3, every, -1, lambda r: f"expected at least 3 columns ({MIN_COLUMNS} on a row with an id >= 0), "
+                                         f"got {count[r]}")
+    frame, frame_ok = _numbers(tok[:, 0])
+    tid, id_ok = _numbers(tok[:, 1])
+    for j, v, ok in ((0, frame, frame_ok), (1, tid, id_ok)):
+        flag(~ok, every, j, lambda r, j=j: f"not a number: {_quoted(tok[r, j])}")
+        flag(ok & ~np.isfinite(v), every, j, lambda r, j=j: f"not finite: {_quoted(tok[r, j])}")
+    with np.errstate(invalid="ignore"):
+        frame, tid = np.trunc(frame), np.trunc(tid)
+        keep = np.flatnonzero(id_ok & np.isfinite(tid) & (tid >= 0) & (count >= 3))
+    kc = count[keep]
+    flag(kc < MIN_COLUMNS, keep, -1, lambda r: f"expected at least {MIN_COLUMNS} columns (frame id type truncated "
+                                               f"occluded alpha x1 y1 x2 y2 ...), got {count[r]}")
+    kf, kt = frame[keep], tid[keep]
+    flag(kt > _ID_MAX, keep, 1, lambda r: f"too large (at most {_ID_MAX}): {_quoted(tok[r, 1])}")
+    flag(np.isfinite(kf) & (kf < 0), keep, 0, lambda r: f"negative frame {_quoted(tok[r, 0])}")
+    flag(np.isfinite(kf) & (kf > _FRAME_MAX), keep, 0, lambda r: f"too large (at most {_FRAME_MAX}): "
+                                                                 f"{_quoted(tok[r, 0])}")
+    box = np.zeros((len(keep), 4))
+    for j in range(3, width):
+        has = kc > j
+        v, ok = _numbers(tok[keep[has], j])
+        flag(~ok, keep[has], j, lambda r, j=j: f"not a number: {_quoted(tok[r, j])}")
+        if _BOX.start <= j < _BOX.stop:
+            flag(ok & ~np.isfinite(v), keep[has], j, lambda r, j=j: f"not finite: {_quoted(tok[r, j])}")
+            box[has, j - _BOX.start] = v
+    # TrackEval stacks the kept rows of a frame into one array: they must have the same length
+    order = np.lexsort((keep, kf))
+    same = np.zeros(len(keep), dtype=bool)
+    same[1:] = kf[order][1:] == kf[order][:-1]
+    first = np.maximum.accumulate(np.where(same, 0, np.arange(len(keep))))
+    ragged = np.zeros(len(keep), dtype=bool)
+    ragged[order] = kc[order] != kc[order][first]
+    head = np.empty(len(keep), dtype=np.int64)
+    head[order] = keep[order][first]
+    flag(ragged, keep, -1, lambda r: f"{count[r]} columns, but line {text.line_numbers[head[keep == r][0]]} of the "
+                                     f"same frame has {count[head[keep == r][0]]}")
+    if problems:
+        r, _, name, message = min(problems, key=lambda p: (p[0], p[1]))
+        raise KittiFormatError(text.path, text.line_numbers[r], name, message)
+    types = np.empty(len(keep), dtype=object)
+    types[:] = [str(s).strip() for s in tok[keep, 2]]
+    return ResultRows(kf.astype(np.int64), kt.astype(np.int64), types, box, keep.astype(np.int64))

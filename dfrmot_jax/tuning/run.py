@@ -1,0 +1,209 @@
+"""``run_tune``: a tune file -> batched search (+ gradient refinement) -> tables, plots, and with
+``folds`` the nested cross-validated figure (:mod:`.nested`)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+import pandas as pd
+
+from ..sweep.spec import SweepConfigError, SweepSpec
+from ..sweep.store import _atomic_text, _jsonable
+from ..sweep.table import HASH_VERSION
+from .gradient import Refinement, refine
+from .settings import TuneSettings, load_tune, parse_tune_file
+from .space import SearchSpace, search_space
+from .study import Evaluator, search, write_tables
+
+MANIFEST = "manifest.json"
+
+
+@dataclass
+class TuneResult:
+    """A finished tune: ``table`` (tidy rows of every evaluated config, ``dfrmot report`` reads the
+    same from ``results.parquet``), ``trials`` (one row per trial), ``best`` (the chosen config's
+    dim values) and ``best_value`` (its in-sample objective), the Optuna ``study``, the
+    ``refinement`` (if any) and, with folds, ``nested`` (:func:`dfrmot_jax.tuning.nested.nested_cv`)."""
+
+    spec: SweepSpec
+    settings: TuneSettings
+    table: pd.DataFrame
+    trials: pd.DataFrame
+    best: dict
+    best_value: float
+    study: Any
+    refinement: Refinement | None = None
+    nested: dict | None = None
+    out: Path | None = None
+
+    @property
+    def pareto(self) -> pd.DataFrame:
+        """The Pareto front (two objectives): the non-dominated trials, sorted by the first objective."""
+        from .plots import pareto_front
+
+        return pareto_front(self.trials, self.settings)
+
+    def summary(self) -> dict:
+        d = {"name": self.spec.name, "sampler": self.settings.sampler, "budget": self.settings.budget,
+             "batch": self.settings.batch, "objectives": list(self.settings.objectives),
+             "evaluated_configs": int(self.table["config"].nunique()), "best": _jsonable(self.best),
+             "in_sample": self.best_value}
+        base = self.table[self.table["baseline"] & (self.table["sequence"] == "COMBINED")]
+        if len(base):
+            d["baseline"] = float(base.iloc[0][self.settings.objectives[0]])
+        if self.refinement is not None:
+            d["refined_steps"] = len(self.refinement.steps)
+        if self.nested is not None:
+            d["cross_validated"] = self.nested["cross_validated"]
+            d["baseline_cross_validated"] = self.nested.get("baseline")
+            d["folds"] = self.nested["folds"]
+        return d
+
+
+def _load(tune) -> tuple[SweepSpec, TuneSettings]:
+    if isinstance(tune, tuple):
+        return tune
+    if isinstance(tune, Mapping):
+        return parse_tune_file(tune)
+    return load_tune(tune)
+
+
+def _identity(spec: SweepSpec, settings: TuneSettings, data) -> dict:
+    return {"spec": _jsonable({k: v for k, v in (spec.raw or {}).items() if k != "tune"}),
+            "tune": settings.identity(), "data": data.identity()}
+
+
+def _claim(outdir: Path, identity: dict, force: bool) -> None:
+    """Make ``outdir`` this tune's (a different tune's directory is refused unless ``force``)."""
+    path = outdir / MANIFEST
+    if path.is_file():
+        try:
+            old = json.loads(path.read_text())
+        except (OSError, ValueError):
+            old = {}
+        if old.get("kind") != "tune" or old.get("identity") != identity:
+            what = "a sweep" if old.get("kind") != "tune" else "another tune"
+            if not force:
+                raise ValueError(f"{outdir} holds {what} ({old.get('name', '?')}): use another --out, or --force "
+                                 f"to replace it")
+            for p in ("journal.log", "batches", "results.parquet", "trials.parquet", "chunks", "plots", "nested.json"):
+                q = outdir / p
+                shutil.rmtree(q) if q.is_dir() else q.unlink(missing_ok=True)
+    elif outdir.exists() and not outdir.is_dir():
+        raise ValueError(f"--out {outdir} is a file, not a directory")
+    elif outdir.is_dir() and any(outdir.iterdir()) and not force:
+        raise ValueError(f"{outdir} is not empty and holds no tune: use another --out, or --force")
+    outdir.mkdir(parents=True, exist_ok=True)
+
+
+def _write_manifest(outdir: Path, spec: SweepSpec, settings: TuneSettings, data, identity: dict) -> None:
+    m = {"kind": "tune", "name": spec.name, "description": spec.description, "source": spec.source,
+         "data": data.identity(), "lengths": list(data.lengths), "baseline": spec.baseline, "chunk": spec.chunk,
+         "objective": settings.objectives[0], "objectives": list(settings.objectives),
+         "directions": list(settings.directions), "folds": None, "top": spec.top,
+         "tune": settings.identity(), "identity": identity, "chunks": [], "hash_version": HASH_VERSION}
+    _atomic_text(json.dumps(m, indent=1, default=str), outdir / MANIFEST)
+
+
+def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budget: int | None = None,
+             batch: int | None = None, folds: int | None = None, seed: int | None = None, refine_steps=None,
+             progress: bool = True, workers: int | None = None, log=None, force: bool = False,
+             plots: bool = True) -> TuneResult:
+    """Tune a tune file (path, dict or ``(SweepSpec, TuneSettings)``): see ``sweeps/README.md``.
+
+    The keyword arguments override the file's ``[tune]`` table (``refine_steps=0`` switches
+    refinement off). ``out``: the tune directory (resumable; without it nothing is written and a
+    killed tune starts again). With ``folds`` the tune also runs once per fold on the other folds'
+    sequences and scores each chosen config on its held-out fold (``result.nested``)."""
+    spec, settings = _load(tune)
+    over = {k: v for k, v in dict(sampler=sampler, budget=budget, batch=batch, folds=folds, seed=seed).items()
+            if v is not None}
+    settings = replace(settings, **over)
+    if batch is None and budget is not None:
+        settings = replace(settings, batch=min(settings.batch, settings.budget))
+    if refine_steps is not None:
+        from .settings import RefineSettings
+
+        settings = replace(settings, refine=None if refine_steps == 0 else
+                           replace(settings.refine or RefineSettings(), steps=int(refine_steps)))
+    log = log if log is not None else (lambda m: print(m, file=sys.stderr, flush=True))
+    from ..sweep.plan import resolve_data
+
+    data = resolve_data(spec, data_root)
+    space = search_space(spec)
+    if settings.sampler == "grid" and any(d.kind != "categorical" for d in space.dims):
+        bad = next(d for d in space.dims if d.kind != "categorical")
+        raise SweepConfigError(bad.key, "sampler \"grid\" needs lists or grids, not distributions", spec.source)
+    outdir = Path(out) if out is not None else None
+    if outdir is not None:
+        identity = _identity(spec, settings, data)
+        _claim(outdir, identity, force)
+        _write_manifest(outdir, spec, settings, data, identity)
+    result = tune_once(spec, settings, space, outdir, data_root, workers, progress, log)
+    if settings.folds:
+        from .nested import nested_cv
+
+        result.nested = nested_cv(spec, settings, space, data, outdir, data_root, workers, progress, log)
+        if outdir is not None:
+            _atomic_text(json.dumps(result.nested, indent=1, default=str), outdir / "nested.json")
+    if outdir is not None and plots:
+        from .plots import save_plots
+
+        save_plots(result, outdir / "plots")
+    return result
+
+
+def tune_once(spec: SweepSpec, settings: TuneSettings, space: SearchSpace, outdir: Path | None, data_root,
+              workers, progress: bool, log) -> TuneResult:
+    """Search (and refine) on ``spec``'s sequences; tables written to ``outdir``."""
+    ev = Evaluator(spec, space, settings, outdir, data_root, workers, log)
+    study = search(spec, settings, outdir, ev, progress, log)
+    first = settings.objectives[0]
+    maximize = settings.directions[0] == "maximize"
+    best_t = _best_trial(study, settings)
+    best, best_value = dict(best_t.params), float(best_t.values[0])
+    refinement = None
+    if settings.refine is not None:
+        refinement = _refine(study, ev, space, settings, best, best_value, maximize, log)
+        if (refinement.best_value > best_value) if maximize else (refinement.best_value < best_value):
+            best, best_value = refinement.best, refinement.best_value
+    table, trials = write_tables(outdir, ev, study, settings)
+    log(f"tune {spec.name}: {table['config'].nunique():,} configs evaluated; best {first} {best_value:.3f}")
+    return TuneResult(spec, settings, table, trials, best, best_value, study, refinement, out=outdir)
+
+
+def _best_trial(study, settings: TuneSettings):
+    """The best trial by the first objective (of the Pareto front with two)."""
+    trials = study.best_trials if len(settings.objectives) > 1 else [study.best_trial]
+    sign = -1 if settings.directions[0] == "maximize" else 1
+    return min(trials, key=lambda t: (sign * t.values[0], t.number))
+
+
+def _refine(study, ev: Evaluator, space: SearchSpace, settings: TuneSettings, start: dict, start_value: float,
+            maximize: bool, log) -> Refinement:
+    """Gradient refinement from ``start``; its evaluations become trials (phase "refine") of the study."""
+    import optuna
+    from optuna.trial import TrialState
+
+    dists = space.distributions()
+    r = settings.refine
+    size = 2 * r.pairs + 1
+    known = {(t.user_attrs.get("batch"), t.user_attrs.get("slot")) for t in study.get_trials(
+        deepcopy=False, states=(TrialState.COMPLETE,)) if t.user_attrs.get("phase") == "refine"}
+
+    def evaluate(configs, k):
+        index = [settings.budget + k * size + i for i in range(len(configs))]
+        vals = ev.run(f"r{k:04d}", configs, [False] * len(configs), index, "refine", k)
+        for i, (c, v) in enumerate(zip(configs, vals)):
+            if (k, i) not in known:
+                study.add_trial(optuna.trial.create_trial(
+                    params={d.name: c[d.name] for d in space.dims}, distributions=dists, values=list(v),
+                    user_attrs={"phase": "refine", "batch": k, "slot": i, "step_size": size}))
+        return vals[:, 0]
+
+    return refine(evaluate, start, start_value, space.dims, r, settings.seed, maximize, log)

@@ -1,0 +1,148 @@
+"""The tune file: a sweep file (``[data]``, ``[baseline]``, ``[params]``, ``[options]``) plus a
+``[tune]`` table, parsed into a :class:`~dfrmot_jax.sweep.SweepSpec` and a :class:`TuneSettings`.
+
+``[tune]`` keys (every one optional)::
+
+    sampler    = "tpe"          # tpe | cmaes | gp | nsga2 | random | grid
+    budget     = 256            # evaluated configs (trials), the baseline included
+    batch      = 128            # configs per ask: one vmapped track + score call
+    objectives = ["HOTA"]       # or ["HOTA", "IDSW"]: directions from the metric (IDSW, FP... minimised)
+    folds      = 5              # nested cross-validation over sequences (omit: in-sample only)
+    seed       = 0
+    [tune.refine]               # gradient refinement of the continuous parameters from the best trial
+    steps = 8, pairs = 8, sigma = 0.15, learning_rate = 0.1, patience = 3
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+from ..metrics.table import canonical_objective
+from ..sweep.analysis import MINIMISE
+from ..sweep.spec import SweepConfigError, SweepSpec, parse_spec, read_toml
+
+SAMPLERS = ("tpe", "cmaes", "gp", "nsga2", "random", "grid")
+TUNE_KEYS = ("sampler", "budget", "batch", "objectives", "folds", "seed", "refine")
+REFINE_KEYS = ("steps", "pairs", "sigma", "learning_rate", "patience")
+#: the most configs a tune evaluates unless ``budget`` says otherwise (and at most this many per ask)
+DEFAULT_BUDGET, DEFAULT_BATCH = 256, 128
+
+
+@dataclass(frozen=True)
+class RefineSettings:
+    """Gradient refinement (:mod:`dfrmot_jax.tuning.gradient`): ``steps`` optax steps at most, each
+    from ONE batched call of ``2 * pairs`` antithetic samples (+ the centre), perturbation scale
+    ``sigma`` in the unconstrained coordinates, adam with ``learning_rate`` (cosine decay), stop
+    after ``patience`` steps without a better centre."""
+
+    steps: int = 8
+    pairs: int = 8
+    sigma: float = 0.15
+    learning_rate: float = 0.1
+    patience: int = 3
+
+
+@dataclass(frozen=True)
+class TuneSettings:
+    sampler: str = "tpe"
+    budget: int = DEFAULT_BUDGET
+    batch: int = DEFAULT_BATCH
+    objectives: tuple[str, ...] = ("HOTA",)
+    folds: int | None = None
+    seed: int = 0
+    refine: RefineSettings | None = None
+
+    @property
+    def directions(self) -> tuple[str, ...]:
+        return tuple("minimize" if o in MINIMISE else "maximize" for o in self.objectives)
+
+    def identity(self) -> dict:
+        """What makes a tune directory this tune's: the search itself (sampler, batch, objectives,
+        seed). ``budget`` may grow (a rerun adds batches), ``refine`` and ``folds`` add to the same
+        search, so they are not part of it."""
+        return {"sampler": self.sampler, "batch": self.batch, "objectives": list(self.objectives), "seed": self.seed}
+
+
+def _int(d: Mapping, key: str, default, source, minimum: int = 1, prefix: str = "tune."):
+    v = d.get(key, default)
+    if v is None:
+        return None
+    if not isinstance(v, int) or isinstance(v, bool) or v < minimum:
+        raise SweepConfigError(prefix + key, f"{v!r}: expected an integer >= {minimum}", source)
+    return v
+
+
+def _float(d: Mapping, key: str, default, source, prefix: str = "tune.refine."):
+    v = d.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
+        raise SweepConfigError(prefix + key, f"{v!r}: expected a number > 0", source)
+    return float(v)
+
+
+def parse_tune(doc: Mapping | None, source: str | None = None) -> TuneSettings:
+    """Validate a ``[tune]`` table; raises :class:`SweepConfigError` naming the key."""
+    doc = {} if doc is None else doc
+    if not isinstance(doc, Mapping):
+        raise SweepConfigError("tune", f"expected a table, got {type(doc).__name__}", source)
+    for k in doc:
+        if k not in TUNE_KEYS:
+            raise SweepConfigError(f"tune.{k}", f"unknown key; expected one of {list(TUNE_KEYS)}", source)
+    sampler = doc.get("sampler", "tpe")
+    if sampler not in SAMPLERS:
+        raise SweepConfigError("tune.sampler", f"{sampler!r}: expected one of {list(SAMPLERS)}", source)
+    budget = _int(doc, "budget", DEFAULT_BUDGET, source, minimum=2)
+    batch = _int(doc, "batch", min(DEFAULT_BATCH, budget), source)
+    objs = doc.get("objectives", ["HOTA"])
+    objs = [objs] if isinstance(objs, str) else objs
+    if not isinstance(objs, list) or not 1 <= len(objs) <= 2:
+        raise SweepConfigError("tune.objectives", f"{objs!r}: expected one or two metric names, e.g. "
+                                                  f"[\"HOTA\"] or [\"HOTA\", \"IDSW\"]", source)
+    try:
+        objectives = tuple(canonical_objective(o) for o in objs)
+    except ValueError as e:
+        raise SweepConfigError("tune.objectives", str(e).removeprefix("objective "), source) from None
+    if len(set(objectives)) != len(objectives):
+        raise SweepConfigError("tune.objectives", "an objective is listed twice", source)
+    folds = _int(doc, "folds", None, source, minimum=2)
+    seed = _int(doc, "seed", 0, source, minimum=0)
+    refine = None
+    if "refine" in doc:
+        r = doc["refine"]
+        if r is True:
+            r = {}
+        if not isinstance(r, Mapping):
+            raise SweepConfigError("tune.refine", f"{r!r}: expected a table (or true)", source)
+        for k in r:
+            if k not in REFINE_KEYS:
+                raise SweepConfigError(f"tune.refine.{k}", f"unknown key; expected one of {list(REFINE_KEYS)}",
+                                       source)
+        if len(objectives) > 1:
+            raise SweepConfigError("tune.refine", "gradient refinement needs one objective", source)
+        d = RefineSettings()
+        refine = RefineSettings(steps=_int(r, "steps", d.steps, source, prefix="tune.refine."),
+                                pairs=_int(r, "pairs", d.pairs, source, prefix="tune.refine."),
+                                sigma=_float(r, "sigma", d.sigma, source),
+                                learning_rate=_float(r, "learning_rate", d.learning_rate, source),
+                                patience=_int(r, "patience", d.patience, source, prefix="tune.refine."))
+    return TuneSettings(sampler, budget, batch, objectives, folds, seed, refine)
+
+
+def parse_tune_file(doc: Mapping, source: str | None = None) -> tuple[SweepSpec, TuneSettings]:
+    """A tune document (the parsed TOML) -> (its sweep part, its ``[tune]`` settings)."""
+    if not isinstance(doc, Mapping):
+        raise SweepConfigError("(file)", "expected a table", source)
+    tune = parse_tune(doc.get("tune"), source)
+    rest = {k: v for k, v in doc.items() if k != "tune"}
+    if "variants" in rest:
+        raise SweepConfigError("variants", "a tune searches one space: use [params] and [options] "
+                                           "(variants are for sweeps)", source)
+    if "distortion" in rest:
+        raise SweepConfigError("distortion", "tuning under distortion is not supported: tune on clean data, "
+                                             "then sweep the chosen setting with [distortion]", source)
+    return parse_spec(rest, source=source), tune
+
+
+def load_tune(path) -> tuple[SweepSpec, TuneSettings]:
+    """Read and validate a tune file (a sweep file with a ``[tune]`` table)."""
+    return parse_tune_file(read_toml(path, "tune file"), source=str(path))

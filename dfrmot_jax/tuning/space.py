@@ -1,0 +1,137 @@
+"""The search space of a tune: the sweep file's ``[params]`` / ``[options]`` axes as Optuna
+distributions, trial values -> config tables, and the unconstrained coordinates of the continuous
+parameters (for gradient refinement).
+
+Axis kinds map to distributions: ``uniform`` -> ``FloatDistribution(low, high)``, ``loguniform``
+-> ``FloatDistribution(low, high, log=True)``, ``randint [low, high)`` -> ``IntDistribution(low,
+high - 1)``, ``choice`` / ``grid`` / ``linspace`` / ``logspace`` / a list -> ``CategoricalDistribution``
+(options too). An axis with one value is fixed, not searched.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from ..config import INT_PARAMS
+from ..sweep.spec import OPTION_NAMES, PARAM_NAMES, SweepConfigError, SweepSpec
+from ..sweep.table import baseline_row, typed_table
+
+
+@dataclass(frozen=True)
+class Dim:
+    """One searched name: ``kind`` 'float' | 'logfloat' | 'int' | 'categorical'; ``values`` (low,
+    high) inclusive for numbers, the choices for categoricals."""
+
+    name: str
+    kind: str
+    values: tuple
+    key: str
+
+    @property
+    def continuous(self) -> bool:
+        return self.kind in ("float", "logfloat")
+
+
+@dataclass(frozen=True)
+class SearchSpace:
+    """The searched dims and the fixed values (the baseline overridden by one-valued axes)."""
+
+    dims: tuple[Dim, ...]
+    fixed: Mapping[str, Any]
+
+    def distributions(self) -> dict:
+        from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
+
+        out = {}
+        for d in self.dims:
+            if d.kind == "categorical":
+                out[d.name] = CategoricalDistribution(list(d.values))
+            elif d.kind == "int":
+                out[d.name] = IntDistribution(int(d.values[0]), int(d.values[1]))
+            else:
+                out[d.name] = FloatDistribution(float(d.values[0]), float(d.values[1]), log=d.kind == "logfloat")
+        return out
+
+    def grid(self) -> dict[str, list]:
+        """The grid of an all-categorical space (``GridSampler``)."""
+        return {d.name: list(d.values) for d in self.dims}
+
+    def row(self, values: Mapping[str, Any]) -> dict:
+        """A config row: the fixed values overridden by ``values`` (names of dims)."""
+        row = dict(self.fixed)
+        for d in self.dims:
+            v = values[d.name]
+            row[d.name] = int(v) if d.name in INT_PARAMS else float(v) if d.name in PARAM_NAMES else v
+        return row
+
+    def table(self, rows: Sequence[Mapping[str, Any]], baseline: Sequence[bool] | None = None) -> pd.DataFrame:
+        """Config table (as :func:`dfrmot_jax.sweep.expand` makes: ``config``, ``config_hash``,
+        ``variant``, ``baseline``, parameters, options) of full rows, in order, duplicates kept."""
+        base = [False] * len(rows) if baseline is None else list(baseline)
+        recs = [{"variant": "baseline" if b else "tune", "baseline": bool(b), **r} for r, b in zip(rows, base)]
+        df = pd.DataFrame(recs, columns=["variant", "baseline"] + list(PARAM_NAMES) + list(OPTION_NAMES))
+        df = typed_table(df)
+        df.insert(0, "config", np.arange(len(df), dtype=np.int64))
+        return df
+
+    def baseline_values(self) -> dict:
+        """The baseline's value of every dim (for ``enqueue_trial``), or None where outside the dim."""
+        out = {}
+        for d in self.dims:
+            v = self.fixed[d.name]
+            if d.kind == "categorical":
+                out[d.name] = v if v in d.values else None
+            else:
+                out[d.name] = v if d.values[0] <= v <= d.values[1] else None
+        return out
+
+
+def search_space(spec: SweepSpec) -> SearchSpace:
+    """The space of a one-class tune file (``spec.variants`` is the single implicit variant)."""
+    if len(spec.classes) != 1:
+        raise SweepConfigError("data.class", "a tune optimises one class: run one tune per class", spec.source)
+    (variant,) = spec.variants
+    fixed = baseline_row(spec)
+    dims = []
+    for a in list(variant.params) + list(variant.options):
+        if a.cls:
+            raise SweepConfigError(a.key, "per-class axes need several classes; a tune runs one class", spec.source)
+        if a.kind in ("uniform", "loguniform", "randint"):
+            lo, hi = a.values
+            if a.kind == "randint":
+                dims.append(Dim(a.name, "int", (int(lo), int(hi) - 1), a.key))
+            else:
+                dims.append(Dim(a.name, "float" if a.kind == "uniform" else "logfloat", (float(lo), float(hi)), a.key))
+        elif len(a.values) == 1:
+            fixed[a.name] = a.values[0]
+        else:
+            dims.append(Dim(a.name, "categorical", tuple(a.values), a.key))
+    if not dims:
+        raise SweepConfigError("params", "nothing to tune: give [params] distributions or lists", spec.source)
+    return SearchSpace(tuple(dims), fixed)
+
+
+# ---------------------------------------------------------------------------------------------
+# unconstrained coordinates of the continuous dims (gradient refinement)
+
+
+def to_unconstrained(dim: Dim, x: float) -> float:
+    """log for a log-uniform dim, logit of the position in [low, high] for a uniform one."""
+    lo, hi = dim.values
+    if dim.kind == "logfloat":
+        return float(np.log(x))
+    u = np.clip((x - lo) / (hi - lo), 1e-6, 1 - 1e-6)
+    return float(np.log(u) - np.log1p(-u))
+
+
+def from_unconstrained(dim: Dim, z: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`to_unconstrained` (log dims clipped to their range)."""
+    lo, hi = dim.values
+    z = np.asarray(z, np.float64)
+    if dim.kind == "logfloat":
+        return np.clip(np.exp(z), lo, hi)
+    return lo + (hi - lo) / (1.0 + np.exp(-z))

@@ -1,0 +1,284 @@
+"""Batched ask/tell: an Optuna study whose every batch of trials is ONE vmapped track + score call.
+
+A tune directory holds::
+
+    journal.log            the Optuna study (JournalStorage): every trial, its params and values
+    batches/NNNN.json      the trials of search batch NNNN (written after they are asked)
+    batches/NNNN/          the batch's configs run as a sweep (chunk files: the resume unit)
+    batches/rNNNN/         refinement step NNNN, the same way
+    results.parquet        the tidy table of every evaluated config (per sequence + COMBINED) with
+                           ``trial``, ``phase``, ``batch``, ``sampler``; ``dfrmot report DIR`` reads it
+    trials.parquet         one row per trial (duplicates of a config included) and its objectives
+    manifest.json          kind "tune", the tune's identity (a different tune refuses the directory)
+
+Resume: a rerun loads the study. Trials left RUNNING by a kill are settled first: those of a batch
+whose record was written are evaluated (finished chunks are read back, not recomputed) and told;
+the others (a batch killed while being asked) are failed and the batch is asked again. Every batch
+asks with a sampler seeded by (seed, batch) and sees exactly the completed trials of the earlier
+batches, so an interrupted tune ends with the same table as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import warnings
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import pandas as pd
+
+from ..sweep.spec import SweepSpec
+from ..sweep.store import _atomic_parquet, _atomic_text
+from ..sweep.table import COMBINED
+from .settings import TuneSettings
+from .space import SearchSpace
+
+STUDY = "tune"
+
+
+def make_sampler(settings: TuneSettings, space: SearchSpace, batch: int):
+    """The Optuna sampler of search batch ``batch`` (seeded by (seed, batch); see the module docstring)."""
+    import optuna
+
+    seed = int(np.random.SeedSequence([settings.seed, batch]).generate_state(1)[0])
+    name = settings.sampler
+    if name == "tpe":
+        return optuna.samplers.TPESampler(seed=seed, multivariate=True, constant_liar=True,
+                                          n_startup_trials=min(settings.batch, 32))
+    if name == "cmaes":
+        return optuna.samplers.CmaEsSampler(seed=seed, popsize=settings.batch, n_startup_trials=settings.batch,
+                                            warn_independent_sampling=False,
+                                            independent_sampler=optuna.samplers.RandomSampler(seed=seed))
+    if name == "gp":
+        try:
+            import torch  # noqa: F401
+        except ImportError:
+            raise ValueError("tune.sampler = \"gp\" needs PyTorch (Optuna's GPSampler): pip install torch, or use "
+                             "\"tpe\" / \"cmaes\"") from None
+        return optuna.samplers.GPSampler(seed=seed, n_startup_trials=min(settings.batch, 32),
+                                         warn_independent_sampling=False)
+    if name == "nsga2":
+        return optuna.samplers.NSGAIISampler(seed=seed, population_size=settings.batch)
+    if name == "random":
+        return optuna.samplers.RandomSampler(seed=seed)
+    if name == "grid":
+        return optuna.samplers.GridSampler(space.grid(), seed=seed)
+    raise AssertionError(name)
+
+
+def open_study(outdir: Path | None, settings: TuneSettings):
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
+    storage = None
+    if outdir is not None:
+        from optuna.storages import JournalStorage
+        from optuna.storages.journal import JournalFileBackend
+
+        storage = JournalStorage(JournalFileBackend(str(outdir / "journal.log")))
+    return optuna.create_study(storage=storage, study_name=STUDY, directions=list(settings.directions),
+                               load_if_exists=True)
+
+
+@dataclass
+class Evaluator:
+    """Runs configs as sweeps (one call per batch) and keeps every config's rows by hash."""
+
+    spec: SweepSpec
+    space: SearchSpace
+    settings: TuneSettings
+    outdir: Path | None
+    data_root: Any = None
+    workers: int | None = None
+    log: Any = None
+
+    def __post_init__(self):
+        self.rows: dict[str, pd.DataFrame] = {}      # config_hash -> its rows (sequences + COMBINED)
+        self.order: list[tuple] = []                 # (config_hash, trial, phase, batch) first evaluations
+        self.seen: set[str] = set()
+
+    def run(self, name: str, values: Sequence[dict], baseline: Sequence[bool], trials: Sequence[int],
+            phase: str, batch: int) -> np.ndarray:
+        """Objective values [n, n_objectives] of configs (dicts of dim values), one batched call."""
+        table = self.space.table([self.space.row(v) for v in values], baseline)
+        new = table[~table["config_hash"].isin(self.rows)].drop_duplicates("config_hash")
+        if len(new):
+            from ..sweep.runner import run_sweep
+
+            new = new.assign(config=np.arange(len(new), dtype=np.int64)).reset_index(drop=True)
+            out = None if self.outdir is None else self.outdir / "batches" / name
+            df = run_sweep(self.spec, out, data_root=self.data_root, progress=False, workers=self.workers,
+                           log=lambda m: None, table=new)
+            for h, g in df.groupby("config_hash", sort=False):
+                self.rows[h] = g.reset_index(drop=True)
+        out = np.zeros((len(table), len(self.settings.objectives)))
+        for i, h in enumerate(table["config_hash"]):
+            if h not in self.seen:
+                self.seen.add(h)
+                self.order.append((h, int(trials[i]), phase, batch))
+            comb = self.rows[h]
+            comb = comb[comb["sequence"] == COMBINED].iloc[0]
+            out[i] = [float(comb[o]) for o in self.settings.objectives]
+        return out
+
+    def table(self) -> pd.DataFrame:
+        """The tidy table: every evaluated config once (in order of first evaluation), renumbered."""
+        parts = []
+        for c, (h, trial, phase, batch) in enumerate(self.order):
+            g = self.rows[h].copy()
+            g["config"] = np.int64(c)
+            g["trial"] = np.int64(trial)
+            g["phase"] = phase
+            g["batch"] = np.int64(batch)
+            g["sampler"] = self.settings.sampler if phase == "search" else "gradient"
+            g["sweep"] = self.spec.name
+            parts.append(g)
+        return pd.concat(parts, ignore_index=True)
+
+
+def _values_of(t) -> list:
+    return list(t.values) if t.values is not None else []
+
+
+def _settle(study, outdir: Path | None, ev: Evaluator, space: SearchSpace, settings: TuneSettings, log) -> None:
+    """Finish or fail the trials a killed run left RUNNING (module docstring)."""
+    from optuna.trial import TrialState
+
+    running = [t for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,))]
+    by_batch: dict[int, list] = {}
+    for t in running:
+        by_batch.setdefault(t.user_attrs.get("batch", -1), []).append(t)
+    for b, ts in sorted(by_batch.items()):
+        rec = _read_record(outdir, b) if b >= 0 else None
+        if rec is not None:                 # written once the whole batch was asked
+            log(f"tune: resuming batch {b} ({len(rec['trials'])} trials asked before the interruption)")
+            _evaluate_batch(study, ev, space, settings, b, rec)
+        else:
+            for t in ts:
+                study.tell(t.number, state=TrialState.FAIL)
+
+
+def _read_record(outdir: Path | None, b: int) -> dict | None:
+    if outdir is None:
+        return None
+    path = outdir / "batches" / f"{b:04d}.json"
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _evaluate_batch(study, ev: Evaluator, space: SearchSpace, settings: TuneSettings, b: int, rec: dict) -> None:
+    from optuna.trial import TrialState
+
+    frozen = {t.number: t for t in study.get_trials(deepcopy=False)}
+    trials = [frozen[n] for n in rec["trials"]]
+    values = [t.params for t in trials]
+    base = [bool(t.user_attrs.get("baseline", False)) for t in trials]
+    index = [b * settings.batch + i for i in range(len(trials))]
+    out = ev.run(f"{b:04d}", values, base, index, "search", b)
+    for t, v in zip(trials, out):
+        if t.state == TrialState.RUNNING:
+            study.tell(t.number, list(v) if len(v) > 1 else float(v[0]))
+
+
+def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Evaluator, progress: bool, log):
+    """The batched ask/tell loop until ``settings.budget`` search trials are complete."""
+    from optuna.trial import TrialState
+
+    space = ev.space
+    dists = space.distributions()
+    study = open_study(outdir, settings)
+    # completed batches of an earlier run first, in order: their rows are read back (finished chunks
+    # are not recomputed) and the configs are numbered as in an uninterrupted run
+    done = _search_done(study)
+    for b in sorted({t.user_attrs["batch"] for t in done}):
+        rec = _read_record(outdir, b)
+        if rec is not None:
+            _evaluate_batch(study, ev, space, settings, b, rec)
+    _settle(study, outdir, ev, space, settings, log)
+    done = _search_done(study)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=settings.budget, initial=len(done), unit="cfg", desc=f"tune {spec.name}",
+                   dynamic_ncols=True, file=sys.stderr)
+    try:
+        while len(done) < settings.budget:
+            b = max((t.user_attrs["batch"] for t in done), default=-1) + 1
+            size = min(settings.batch, settings.budget - len(done))
+            study.sampler = make_sampler(settings, space, b)
+            trials_now = study.get_trials(deepcopy=False)
+            if b == 0 and not any(t.state == TrialState.WAITING for t in trials_now):
+                base = space.baseline_values()
+                if all(v is not None for v in base.values()):
+                    study.enqueue_trial(base, user_attrs={"baseline": True})
+            asked = []
+            for i in range(size):
+                t = study.ask(dists)
+                t.set_user_attr("batch", b)
+                t.set_user_attr("slot", i)
+                t.set_user_attr("phase", "search")
+                asked.append(t)
+            rec = {"batch": b, "trials": [t.number for t in asked], "params": [t.params for t in asked]}
+            if outdir is not None:
+                (outdir / "batches").mkdir(parents=True, exist_ok=True)
+                _atomic_text(json.dumps(rec, default=str), outdir / "batches" / f"{b:04d}.json")
+            _evaluate_batch(study, ev, space, settings, b, rec)
+            done = _search_done(study)
+            if bar is not None:
+                bar.update(size)
+            best = _best_text(study, settings)
+            log(f"tune {spec.name}: batch {b} ({size} configs) done, {len(done)}/{settings.budget}; {best}")
+    finally:
+        if bar is not None:
+            bar.close()
+    return study
+
+
+def _search_done(study) -> list:
+    from optuna.trial import TrialState
+
+    return [t for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+            if t.user_attrs.get("phase") == "search"]
+
+
+def _best_text(study, settings: TuneSettings) -> str:
+    if len(settings.objectives) == 1:
+        t = study.best_trial
+        return f"best {settings.objectives[0]} {t.value:.3f} (trial {t.number})"
+    return f"Pareto front: {len(study.best_trials)} trials"
+
+
+def trials_frame(study, settings: TuneSettings) -> pd.DataFrame:
+    """One row per completed trial: trial (tune order), phase, batch, slot, config values, objectives."""
+    from optuna.trial import TrialState
+
+    rows = []
+    for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
+        a = t.user_attrs
+        phase, b, slot = a.get("phase", "search"), a.get("batch", -1), a.get("slot", 0)
+        step = settings.batch if phase == "search" else a.get("step_size", 1)
+        base = 0 if phase == "search" else settings.budget
+        rows.append({"trial": base + b * step + slot, "phase": phase, "batch": b, "slot": slot,
+                     "baseline": bool(a.get("baseline", False)), **t.params,
+                     **dict(zip(settings.objectives, _values_of(t)))})
+    return pd.DataFrame(rows).sort_values("trial", kind="mergesort").reset_index(drop=True)
+
+
+def write_tables(outdir: Path | None, ev: Evaluator, study, settings: TuneSettings) -> tuple[pd.DataFrame, pd.DataFrame]:
+    table = ev.table()
+    trials = trials_frame(study, settings)
+    if outdir is not None:
+        _atomic_parquet(table, outdir / "results.parquet")
+        _atomic_parquet(trials, outdir / "trials.parquet")
+    return table, trials
+
+
+def replace_sequences(spec: SweepSpec, sequences: Sequence[str]) -> SweepSpec:
+    return replace(spec, sequences=tuple(sequences))

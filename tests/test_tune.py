@@ -1,0 +1,222 @@
+"""``dfrmot tune``: batched ask/tell on a real Optuna study, resume after kill -9, nested
+cross-validation that never sees the held-out sequences, multi-objective Pareto fronts, the CLI."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import dfrmot_jax.sweep.runner as runner
+from dfrmot_jax.cli import main
+from dfrmot_jax.sweep import SweepConfigError, load_results, sweep_report
+from dfrmot_jax.synthetic import make_scene
+from dfrmot_jax.tuning import load_tune, run_tune
+from dfrmot_jax.tuning.plots import pareto_front
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory) -> Path:
+    return make_scene(tmp_path_factory.mktemp("tune") / "scene", n_sequences=4, n_frames=120, n_cars=6, seed=5)
+
+
+def _tune_text(root: Path, budget=12, batch=4, extra="", sampler="tpe", objectives='["HOTA"]') -> str:
+    return f"""
+name = "tune_test"
+[data]
+root = "{root}"
+det2d = "synth2d"
+det3d = "synth3d"
+[params]
+a_l = {{loguniform = [2.0, 12.0]}}
+score_2d = {{uniform = [0.2, 0.7]}}
+epsilon = {{randint = [2, 31]}}
+[options]
+output = ["detections", "filtered"]
+[tune]
+sampler = "{sampler}"
+budget = {budget}
+batch = {batch}
+seed = 3
+objectives = {objectives}
+{extra}
+"""
+
+
+def _write(tmp_path: Path, text: str, name="tune.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def _quiet(**kw):
+    return dict(progress=False, workers=0, log=lambda m: None, **kw)
+
+
+def test_each_batch_is_one_call_and_the_baseline_is_trial_0(scene, tmp_path, monkeypatch):
+    calls = []
+    real = runner.run_sweep
+
+    def counting(spec, out=None, **kw):
+        calls.append(len(kw["table"]))
+        return real(spec, out, **kw)
+
+    monkeypatch.setattr(runner, "run_sweep", counting)
+    res = run_tune(_write(tmp_path, _tune_text(scene)), tmp_path / "out", **_quiet())
+    assert calls == [4, 4, 4]                         # budget 12 in batches of 4: three batched calls
+    assert len(res.trials) == 12 and list(res.trials["batch"]) == [0] * 4 + [1] * 4 + [2] * 4
+    first = res.trials.iloc[0]
+    assert first["baseline"] and first["a_l"] == 8.0 and first["output"] == "detections"
+    comb = res.table[res.table["sequence"] == "COMBINED"]
+    assert len(comb) == comb["config_hash"].nunique() == 12
+    assert comb.iloc[0]["baseline"] and comb.iloc[0]["trial"] == 0
+    assert res.best_value == comb["HOTA"].max()
+    assert res.summary()["in_sample"] >= res.summary()["baseline"]
+    # the tidy store: per sequence + COMBINED, config and versions in every row; report reads it
+    assert set(res.table["sequence"]) == {"0000", "0001", "0002", "0003", "COMBINED"}
+    assert {"trial", "batch", "sampler", "dfrmot_jax_version", "jax_version", "a_l"} <= set(res.table.columns)
+    pd.testing.assert_frame_equal(load_results(tmp_path / "out"), pd.read_parquet(tmp_path / "out" / "results.parquet"))
+    rep = sweep_report(tmp_path / "out")
+    assert f"{res.best_value:.2f}" in rep.text
+    assert (tmp_path / "out" / "plots" / "history.png").is_file()
+
+
+def test_an_interrupted_batch_is_asked_again_and_the_table_is_unchanged(scene, tmp_path):
+    """A kill while a batch was being asked (trials RUNNING, no batch record): they are failed and the
+    batch re-asked with the same seeded sampler; the final table equals an uninterrupted run's."""
+    import optuna
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend
+
+    path = _write(tmp_path, _tune_text(scene, budget=8, batch=4))
+    clean = run_tune(path, tmp_path / "clean", **_quiet())
+    out = tmp_path / "cut"
+    run_tune(path, out, budget=4, **_quiet())              # the first batch only of the same tune
+    study = optuna.load_study(study_name="tune", storage=JournalStorage(JournalFileBackend(str(out / "journal.log"))))
+    from dfrmot_jax.tuning.space import search_space
+
+    spec, _ = load_tune(path)
+    for i in range(2):                                     # a batch killed half-asked
+        t = study.ask(search_space(spec).distributions())
+        t.set_user_attr("batch", 1)
+        t.set_user_attr("slot", i)
+        t.set_user_attr("phase", "search")
+    resumed = run_tune(path, out, **_quiet())
+    pd.testing.assert_frame_equal(resumed.table, clean.table)
+    pd.testing.assert_frame_equal(resumed.trials, clean.trials)
+    states = [t.state.name for t in resumed.study.get_trials()]
+    assert states.count("FAIL") == 2 and states.count("RUNNING") == 0
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGKILL")
+def test_kill_9_during_a_tune_then_rerun_gives_the_same_table(scene, tmp_path):
+    path = _write(tmp_path, _tune_text(scene, budget=16, batch=4))
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "dfrmot_jax.cli", "tune", str(path), "--out", str(out), "--workers", "0",
+           "--no-progress"]
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        if (out / "batches" / "0001.json").is_file():      # batch 1 asked, being evaluated
+            os.kill(proc.pid, signal.SIGKILL)
+            break
+        time.sleep(0.002)
+    proc.wait(timeout=60)
+    log = proc.stdout.read().decode()
+    assert proc.returncode == -signal.SIGKILL, f"not killed mid-run (rc {proc.returncode}):\n{log}"
+    assert not (out / "results.parquet").exists()
+    rerun = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+    assert rerun.returncode == 0, rerun.stdout + rerun.stderr
+    clean = run_tune(path, tmp_path / "clean", **_quiet())
+    pd.testing.assert_frame_equal(pd.read_parquet(out / "results.parquet"), clean.table)
+    pd.testing.assert_frame_equal(pd.read_parquet(out / "trials.parquet"), clean.trials)
+    summary = json.loads(rerun.stdout.strip().splitlines()[-1])
+    assert summary["evaluated_configs"] == clean.table["config"].nunique()
+
+
+def test_nested_cv_tunes_without_the_held_out_sequences(scene, tmp_path):
+    res = run_tune(_write(tmp_path, _tune_text(scene, budget=6, batch=3)), tmp_path / "n", folds=2, **_quiet())
+    n = res.nested
+    assert n["folds"] == 2 and sorted(s for f in n["fold_sequences"] for s in f) == ["0000", "0001", "0002", "0003"]
+    for f, test in enumerate(n["fold_sequences"]):
+        seen = set(pd.read_parquet(tmp_path / "n" / f"fold_{f}" / "results.parquet")["sequence"]) - {"COMBINED"}
+        assert seen and not seen & set(test), (f, seen, test)    # the inner tune never saw its held-out fold
+    held = pd.read_parquet(tmp_path / "n" / "heldout" / "results.parquet") if \
+        (tmp_path / "n" / "heldout" / "results.parquet").is_file() else None
+    assert held is None or set(held["sequence"]) >= {"0000", "0003"}
+    assert 0 < n["cross_validated"] <= 100 and 0 < n["baseline"] <= 100
+    assert json.loads((tmp_path / "n" / "nested.json").read_text())["cross_validated"] == n["cross_validated"]
+    # the pooled figure lies between the folds' held-out figures' extremes (it combines them)
+    lo, hi = min(p["held_out"] for p in n["per_fold"]), max(p["held_out"] for p in n["per_fold"])
+    assert lo - 1e-9 <= n["cross_validated"] <= hi + 1e-9
+
+
+def test_two_objectives_give_a_pareto_front(scene, tmp_path):
+    res = run_tune(_write(tmp_path, _tune_text(scene, budget=8, batch=4, sampler="nsga2",
+                                               objectives='["HOTA", "IDSW"]')), tmp_path / "mo", **_quiet())
+    assert res.settings.directions == ("maximize", "minimize")
+    front = res.pareto
+    v = res.trials[["HOTA", "IDSW"]].to_numpy()
+    for h, s in front[["HOTA", "IDSW"]].to_numpy():
+        assert not np.any((v[:, 0] >= h) & (v[:, 1] <= s) & ((v[:, 0] > h) | (v[:, 1] < s)))
+    dominated = res.trials[~res.trials["trial"].isin(front["trial"])]
+    for h, s in dominated[["HOTA", "IDSW"]].to_numpy():
+        assert np.any((front["HOTA"] >= h) & (front["IDSW"] <= s))
+    assert (tmp_path / "mo" / "plots" / "pareto.png").is_file()
+
+
+def test_pareto_front_unit():
+    from dfrmot_jax.tuning.settings import TuneSettings
+
+    t = pd.DataFrame({"trial": [0, 1, 2, 3], "HOTA": [80.0, 82.0, 81.0, 82.0], "IDSW": [10, 20, 30, 15]})
+    front = pareto_front(t, TuneSettings(objectives=("HOTA", "IDSW")))
+    assert list(front["trial"]) == [3, 0]
+
+
+def test_refinement_runs_as_batched_steps_and_is_recorded(scene, tmp_path):
+    extra = "[tune.refine]\nsteps = 2\npairs = 2\npatience = 2\n"
+    res = run_tune(_write(tmp_path, _tune_text(scene, budget=4, batch=4, extra=extra)), tmp_path / "r", **_quiet())
+    assert res.refinement is not None and 1 <= len(res.refinement.steps) <= 2
+    refine_rows = res.trials[res.trials["phase"] == "refine"]
+    assert len(refine_rows) == 5 * len(res.refinement.steps)      # centre + 2 x 2 samples per step
+    assert res.best_value >= res.trials.loc[res.trials["phase"] == "search", "HOTA"].max()
+
+
+@pytest.mark.parametrize("tune_table, key", [
+    ('sampler = "annealing"', "tune.sampler"),
+    ('objectives = ["HOTAA"]', "tune.objectives"),
+    ('budget = 1', "tune.budget"),
+    ('bogus = 1', "tune.bogus"),
+    ('objectives = ["HOTA", "IDSW"]\n[tune.refine]\nsteps = 2', "tune.refine"),
+])
+def test_bad_tune_tables_name_the_key(scene, tmp_path, capsys, tune_table, key):
+    text = _tune_text(scene).split("[tune]")[0] + "[tune]\n" + tune_table + "\n"
+    path = _write(tmp_path, text)
+    with pytest.raises(SweepConfigError) as e:
+        load_tune(path)
+    assert e.value.key == key
+    assert main(["tune", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert key in err and "Traceback" not in err
+
+
+def test_cli_tune_prints_the_summary_and_refuses_another_tunes_directory(scene, tmp_path, capsys):
+    path = _write(tmp_path, _tune_text(scene, budget=4, batch=4))
+    assert main(["tune", str(path), "--out", str(tmp_path / "c"), "--no-progress", "--workers", "0"]) == 0
+    out = capsys.readouterr().out
+    summary = json.loads(out.strip().splitlines()[-1])
+    assert summary["evaluated_configs"] == 4 and summary["sampler"] == "tpe"
+    other = _write(tmp_path, _tune_text(scene, budget=4, batch=2), "other.toml")
+    assert main(["tune", str(other), "--out", str(tmp_path / "c"), "--no-progress", "--workers", "0"]) == 2
+    assert "--force" in capsys.readouterr().err
+    assert main(["tune", str(other), "--out", str(tmp_path / "c"), "--no-progress", "--workers", "0",
+                 "--force"]) == 0
