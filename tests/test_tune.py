@@ -197,6 +197,8 @@ def test_refinement_runs_as_batched_steps_and_is_recorded(scene, tmp_path):
     ('budget = 1', "tune.budget"),
     ('bogus = 1', "tune.bogus"),
     ('objectives = ["HOTA", "IDSW"]\n[tune.refine]\nsteps = 2', "tune.refine"),
+    ('[tune.transfer]\nbaseline = {a_l = 4.0}', "tune.transfer"),
+    ('[tune.transfer]\ndet3d = "synth3d"\nbaseline = {a_ll = 4.0}', "tune.transfer.baseline.a_ll"),
 ])
 def test_bad_tune_tables_name_the_key(scene, tmp_path, capsys, tune_table, key):
     text = _tune_text(scene).split("[tune]")[0] + "[tune]\n" + tune_table + "\n"
@@ -220,3 +222,63 @@ def test_cli_tune_prints_the_summary_and_refuses_another_tunes_directory(scene, 
     assert "--force" in capsys.readouterr().err
     assert main(["tune", str(other), "--out", str(tmp_path / "c"), "--no-progress", "--workers", "0",
                  "--force"]) == 0
+
+
+def test_transfer_scores_the_chosen_config_unchanged_beside_the_other_baseline(scene, tmp_path):
+    extra = '[tune.transfer]\ndet3d = "synth3d"\nbaseline = {a_l = 3.0}\n'
+    res = run_tune(_write(tmp_path, _tune_text(scene, budget=4, batch=4, extra=extra)), tmp_path / "t", **_quiet())
+    tr = res.transfer
+    comb = res.table[res.table["sequence"] == "COMBINED"]
+    # the same detections here: the chosen config scores its in-sample value, and the baseline is the
+    # tune's baseline with a_l = 3 (as a sweep of that one change scores it)
+    assert tr["chosen"]["HOTA"] == res.best_value
+    assert tr["baseline_params"] == {"a_l": 3.0}
+    from dfrmot_jax import run_sweep
+
+    sw = run_sweep({"name": "a_l3", "data": {"root": str(scene), "det2d": "synth2d", "det3d": "synth3d"},
+                    "params": {"a_l": [3.0]}}, progress=False, workers=0, log=lambda m: None)
+    row = sw[(sw["sequence"] == "COMBINED") & (sw["a_l"] == 3.0)].iloc[0]
+    assert tr["baseline"]["HOTA"] == row["HOTA"] != comb.loc[comb["baseline"], "HOTA"].iloc[0]
+    assert json.loads((tmp_path / "t" / "transfer.json").read_text())["chosen"] == tr["chosen"]
+    assert "transfer: the chosen config unchanged on synth2d + synth3d" in sweep_report(tmp_path / "t").text
+
+
+def test_unstable_fixed_gains_fail_without_a_run_and_do_not_count(scene, tmp_path):
+    from dfrmot_jax.core.filters import fixed_gain_radius
+
+    text = _tune_text(scene, budget=4, batch=4).replace(
+        'score_2d = {uniform = [0.2, 0.7]}', 'gain_beta = {uniform = [0.02, 0.45]}\ngain_gamma = {uniform = [0.15, 0.4]}')
+    res = run_tune(_write(tmp_path, text), tmp_path / "u", **_quiet())
+    states = [t.state.name for t in res.study.get_trials()]
+    assert states.count("COMPLETE") == 4 and states.count("FAIL") >= 1        # most draws are unstable
+    for t in res.study.get_trials():
+        p = {**{"gain_alpha": 0.9, "gain_beta": 0.9, "gain_gamma": 0.1}, **t.params}
+        stable = fixed_gain_radius(p["gain_alpha"], p["gain_beta"], p["gain_gamma"]) <= 1 + 1e-9
+        assert stable == (t.state.name == "COMPLETE")
+    assert res.table["config"].nunique() == 4
+
+
+def test_fixed_gain_radius_says_when_errors_grow():
+    import numpy as np
+
+    from dfrmot_jax.core.filters import fixed_gain_radius
+
+    F = np.array([[1.0, 1.0, 0.5], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]])
+    for a, b, g in [(0.9, 0.9, 0.1), (1.0, 0.4, 0.03), (0.97, 0.12, 0.16), (0.55, 0.13, 0.155)]:
+        e = np.array([1.0, 0.0, 0.0])
+        for _ in range(400):                      # the predicted state's error under the filter, no noise
+            e = F @ (e - np.array([a, b, 2 * g]) * e[0])
+        grows = np.abs(e).max() > 1e3
+        assert grows == (fixed_gain_radius(a, b, g) > 1), (a, b, g)
+
+
+def test_a_sweep_writing_filtered_boxes_with_unstable_gains_is_refused(scene):
+    from dfrmot_jax.sweep import expand
+
+    spec = {"name": "u", "data": {"root": str(scene), "det2d": "synth2d", "det3d": "synth3d"},
+            "params": {"gain_beta": [0.9, 0.12], "gain_gamma": [0.1, 0.16]}, "options": {"output": "filtered"}}
+    with pytest.raises(SweepConfigError) as e:
+        expand(spec)
+    assert e.value.key == "params.gain_beta" and "stability" in str(e.value)
+    spec["options"]["output"] = "detections"           # raw boxes: finite, the score is the tracker's
+    assert len(expand(spec)) == 4

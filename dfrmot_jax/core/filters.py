@@ -92,6 +92,19 @@ def predict(s: FilterState, kind: str, kf_q=1.0) -> FilterState:
     return FilterState(p, v, s.a, cov)
 
 
+def fixed_gain_radius(alpha, beta, gamma) -> np.ndarray:
+    """Spectral radius [...] of the fixed-gain filter's error dynamics F (I - K H), K = (alpha,
+    beta, 2 gamma) (NumPy, host). At 1 or above the filter is unstable: a track's predicted and
+    filtered boxes grow without bound however good the measurements (as in the authors' code with
+    the same gains); e.g. gain_beta 0.12, gain_gamma 0.16."""
+    a, b, g = (np.asarray(x, np.float64) for x in np.broadcast_arrays(alpha, beta, gamma))
+    F = np.array([[1.0, 1.0, 0.5], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]])
+    K = np.stack([a, b, 2.0 * g], axis=-1)[..., :, None]                      # [..., 3, 1]
+    H = np.array([[1.0, 0.0, 0.0]])
+    M = F @ (np.eye(3) - K @ H)
+    return np.abs(np.linalg.eigvals(M)).max(axis=-1)
+
+
 def select(mask, a: FilterState, b: FilterState) -> FilterState:
     """Elementwise where(mask, a, b); mask broadcasts against p."""
     cov = a.cov if a.cov.size == 0 else jnp.where(mask[None], a.cov, b.cov)

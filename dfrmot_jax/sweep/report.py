@@ -204,6 +204,13 @@ def _tune_section(d: Path, manifest: dict, objective: str) -> tuple[list[str], d
         out.update(cross_validated=n["cross_validated"], baseline_cross_validated=n["baseline"], folds=n["folds"])
     elif t.get("folds"):
         lines.append("nested cross-validation: not finished (rerun the tune to resume)")
+    transfer = d / "transfer.json"
+    if transfer.is_file():
+        tr = json.loads(transfer.read_text())
+        pairs = ", ".join(f"{k} {v:.3f} (baseline {tr['baseline'][k]:.3f})" for k, v in tr["chosen"].items())
+        lines.append(_para(f"transfer: the chosen config unchanged on {tr['det2d']} + {tr['det3d']}, beside that "
+                           f"pair's baseline ({', '.join(f'{k} = {v}' for k, v in tr['baseline_params'].items()) or 'the tune baseline'}): {pairs}"))
+        out["transfer"] = tr
     objs = manifest.get("objectives", [])
     trials = d / "trials.parquet"
     if len(objs) == 2 and trials.is_file():

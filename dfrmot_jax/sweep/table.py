@@ -204,6 +204,15 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     if len(table) < 2:
         raise _err("params", "the sweep has no config besides the baseline: add parameters or options to sweep",
                    src)
+    unstable = unstable_rows(table) & (table["output"] == "filtered").to_numpy()
+    if unstable.any():
+        r = table[unstable].iloc[0]
+        raise _err("params.gain_beta", f"{int(unstable.sum())} of {len(table)} configs write filtered boxes with "
+                                       f"fixed gains outside the filter's stability region (e.g. config "
+                                       f"{int(r['config'])}: gain_alpha {r['gain_alpha']:.4g}, gain_beta "
+                                       f"{r['gain_beta']:.4g}, gain_gamma {r['gain_gamma']:.4g}): their boxes grow "
+                                       f"without bound; keep gain_gamma small against gain_beta (e.g. gamma <= "
+                                       f"beta / 4) or use [[variants]]", src)
     for kl in ["keep_lost"] + [c for c in class_columns(table.columns) if c.endswith(".keep_lost")]:
         bad = table[(table[kl] > 0) & (table["output"] == "detections")]
         if not len(bad):
@@ -213,6 +222,19 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
                                        f"output = \"filtered\" (variant {r['variant']!r} pairs it with output = "
                                        f"\"detections\"); use [[variants]] to give keep_lost its own output", src)
     return table
+
+
+def unstable_rows(table: pd.DataFrame) -> np.ndarray:
+    """[C] bool: rows with the fixed-gain filter and gains it is unstable with (spectral radius >= 1,
+    :func:`dfrmot_jax.core.filters.fixed_gain_radius`; any class's gains)."""
+    from ..core.filters import fixed_gain_radius
+
+    out = np.zeros(len(table), bool)
+    fixed = (table["filter"] == "fixed_gain").to_numpy()
+    for pre in [""] + sorted({c.split(".")[0] + "." for c in class_columns(table.columns) if "gain" in c}):
+        cols = [pre + g if pre + g in table.columns else g for g in ("gain_alpha", "gain_beta", "gain_gamma")]
+        out |= fixed & (fixed_gain_radius(*(table[c].to_numpy() for c in cols)) > 1.0 + 1e-9)
+    return out
 
 
 def typed_table(table: pd.DataFrame) -> pd.DataFrame:

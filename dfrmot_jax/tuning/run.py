@@ -40,6 +40,7 @@ class TuneResult:
     refinement: Refinement | None = None
     nested: dict | None = None
     out: Path | None = None
+    transfer: dict | None = None
 
     @property
     def pareto(self) -> pd.DataFrame:
@@ -62,6 +63,8 @@ class TuneResult:
             d["cross_validated"] = self.nested["cross_validated"]
             d["baseline_cross_validated"] = self.nested.get("baseline")
             d["folds"] = self.nested["folds"]
+        if self.transfer is not None:
+            d["transfer"] = self.transfer
         return d
 
 
@@ -151,6 +154,10 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
         result.nested = nested_cv(spec, settings, space, data, outdir, data_root, workers, progress, log)
         if outdir is not None:
             _atomic_text(json.dumps(result.nested, indent=1, default=str), outdir / "nested.json")
+    if settings.transfer is not None:
+        result.transfer = transfer(result, space, outdir, data_root, workers)
+        if outdir is not None:
+            _atomic_text(json.dumps(result.transfer, indent=1, default=str), outdir / "transfer.json")
     if outdir is not None and plots:
         from .plots import save_plots
 
@@ -207,3 +214,24 @@ def _refine(study, ev: Evaluator, space: SearchSpace, settings: TuneSettings, st
         return vals[:, 0]
 
     return refine(evaluate, start, start_value, space.dims, r, settings.seed, maximize, log)
+
+
+TRANSFER_FIELDS = ("HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW")
+
+
+def transfer(result: TuneResult, space: SearchSpace, outdir: Path | None, data_root, workers) -> dict:
+    """The chosen config applied unchanged to other detections (``[tune.transfer]``), beside their
+    baseline (the tune's baseline with the transfer's parameter values), in one call."""
+    from ..sweep.runner import run_sweep
+
+    t = result.settings.transfer
+    spec = replace(result.spec, det2d=t.det2d or result.spec.det2d, det3d=t.det3d or result.spec.det3d)
+    base = {**space.fixed, **dict(t.baseline)}
+    table = space.table([space.row(result.best), base], [False, True])
+    df = run_sweep(spec, None if outdir is None else outdir / "transfer", data_root=data_root, progress=False,
+                   workers=workers, log=lambda m: None, table=table)
+    comb = df[df["sequence"] == "COMBINED"].set_index("baseline")
+    fields = [f for f in dict.fromkeys(list(result.settings.objectives) + list(TRANSFER_FIELDS)) if f in comb.columns]
+    return {"det2d": spec.det2d, "det3d": spec.det3d, "baseline_params": dict(t.baseline),
+            "chosen": {f: float(comb.loc[False, f]) for f in fields},
+            "baseline": {f: float(comb.loc[True, f]) for f in fields}}

@@ -11,6 +11,9 @@
     seed       = 0
     [tune.refine]               # gradient refinement of the continuous parameters from the best trial
     steps = 8, pairs = 8, sigma = 0.15, learning_rate = 0.1, patience = 3
+    [tune.transfer]             # the chosen config applied unchanged to other detections, beside
+    det3d = "pointgnn"          # their own baseline (the file's baseline with these parameters)
+    baseline = {a_l = 4.0}
 """
 
 from __future__ import annotations
@@ -23,7 +26,8 @@ from ..sweep.analysis import MINIMISE
 from ..sweep.spec import SweepConfigError, SweepSpec, parse_spec, read_toml
 
 SAMPLERS = ("tpe", "cmaes", "gp", "nsga2", "random", "grid")
-TUNE_KEYS = ("sampler", "budget", "batch", "objectives", "folds", "seed", "refine")
+TUNE_KEYS = ("sampler", "budget", "batch", "objectives", "folds", "seed", "refine", "transfer")
+TRANSFER_KEYS = ("det2d", "det3d", "baseline")
 REFINE_KEYS = ("steps", "pairs", "sigma", "learning_rate", "patience")
 #: the most configs a tune evaluates unless ``budget`` says otherwise (and at most this many per ask)
 DEFAULT_BUDGET, DEFAULT_BATCH = 256, 128
@@ -44,6 +48,16 @@ class RefineSettings:
 
 
 @dataclass(frozen=True)
+class TransferSettings:
+    """Other detections to score the chosen config on (``det2d`` / ``det3d``: None = the tune's),
+    beside the baseline with ``baseline`` parameter values (e.g. PointGNN's a_l = 4)."""
+
+    det2d: str | None = None
+    det3d: str | None = None
+    baseline: tuple = ()
+
+
+@dataclass(frozen=True)
 class TuneSettings:
     sampler: str = "tpe"
     budget: int = DEFAULT_BUDGET
@@ -52,6 +66,7 @@ class TuneSettings:
     folds: int | None = None
     seed: int = 0
     refine: RefineSettings | None = None
+    transfer: TransferSettings | None = None
 
     @property
     def directions(self) -> tuple[str, ...]:
@@ -125,7 +140,34 @@ def parse_tune(doc: Mapping | None, source: str | None = None) -> TuneSettings:
                                 sigma=_float(r, "sigma", d.sigma, source),
                                 learning_rate=_float(r, "learning_rate", d.learning_rate, source),
                                 patience=_int(r, "patience", d.patience, source, prefix="tune.refine."))
-    return TuneSettings(sampler, budget, batch, objectives, folds, seed, refine)
+    return TuneSettings(sampler, budget, batch, objectives, folds, seed, refine,
+                        _parse_transfer(doc.get("transfer"), source))
+
+
+def _parse_transfer(t, source) -> TransferSettings | None:
+    from ..config import param_problem
+    from ..sweep.spec import PARAM_NAMES
+
+    if t is None:
+        return None
+    if not isinstance(t, Mapping):
+        raise SweepConfigError("tune.transfer", f"{t!r}: expected a table", source)
+    for k in t:
+        if k not in TRANSFER_KEYS:
+            raise SweepConfigError(f"tune.transfer.{k}", f"unknown key; expected one of {list(TRANSFER_KEYS)}", source)
+    for k in ("det2d", "det3d"):
+        if k in t and (not isinstance(t[k], str) or not t[k]):
+            raise SweepConfigError(f"tune.transfer.{k}", f"{t[k]!r}: expected a detector name", source)
+    if "det2d" not in t and "det3d" not in t:
+        raise SweepConfigError("tune.transfer", "name the other detections: det2d and / or det3d", source)
+    base = t.get("baseline", {})
+    if not isinstance(base, Mapping):
+        raise SweepConfigError("tune.transfer.baseline", f"{base!r}: expected a table of parameters", source)
+    for k, v in base.items():
+        problem = "unknown parameter" if k not in PARAM_NAMES else param_problem(k, v)
+        if problem:
+            raise SweepConfigError(f"tune.transfer.baseline.{k}", f"{v!r}: {problem}", source)
+    return TransferSettings(t.get("det2d"), t.get("det3d"), tuple(sorted(base.items())))
 
 
 def parse_tune_file(doc: Mapping, source: str | None = None) -> tuple[SweepSpec, TuneSettings]:

@@ -173,17 +173,31 @@ def _read_record(outdir: Path | None, b: int) -> dict | None:
 
 
 def _evaluate_batch(study, ev: Evaluator, space: SearchSpace, settings: TuneSettings, b: int, rec: dict) -> None:
+    """Evaluate batch ``b``'s trials in one call and tell them; trials whose fixed gains make the
+    filter unstable (:func:`dfrmot_jax.sweep.table.unstable_rows`: boxes grow without bound) are
+    told FAIL without being run: they do not count towards the budget (the log says how many)."""
     from optuna.trial import TrialState
+
+    from ..sweep.table import unstable_rows
 
     frozen = {t.number: t for t in study.get_trials(deepcopy=False)}
     trials = [frozen[n] for n in rec["trials"]]
     values = [t.params for t in trials]
-    base = [bool(t.user_attrs.get("baseline", False)) for t in trials]
-    index = [b * settings.batch + i for i in range(len(trials))]
-    out = ev.run(f"{b:04d}", values, base, index, "search", b)
-    for t, v in zip(trials, out):
-        if t.state == TrialState.RUNNING:
-            study.tell(t.number, list(v) if len(v) > 1 else float(v[0]))
+    bad = unstable_rows(space.table([space.row(v) for v in values]))
+    for t, u in zip(trials, bad):
+        if u and t.state == TrialState.RUNNING:
+            study.tell(t.number, state=TrialState.FAIL)
+    keep = [i for i in range(len(trials)) if not bad[i]]
+    if bad.any() and ev.log is not None:
+        ev.log(f"tune: batch {b}: {int(bad.sum())} trial(s) with unstable fixed gains failed without a run")
+    if not keep:
+        return
+    base = [bool(trials[i].user_attrs.get("baseline", False)) for i in keep]
+    index = [b * settings.batch + i for i in keep]
+    out = ev.run(f"{b:04d}", [values[i] for i in keep], base, index, "search", b)
+    for i, v in zip(keep, out):
+        if trials[i].state == TrialState.RUNNING:
+            study.tell(trials[i].number, list(v) if len(v) > 1 else float(v[0]))
 
 
 def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Evaluator, progress: bool, log):
@@ -210,7 +224,7 @@ def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Eva
                    dynamic_ncols=True, file=sys.stderr)
     try:
         while len(done) < settings.budget:
-            b = max((t.user_attrs["batch"] for t in done), default=-1) + 1
+            b = _next_batch(study, outdir)
             size = min(settings.batch, settings.budget - len(done))
             study.sampler = make_sampler(settings, space, b)
             trials_now = study.get_trials(deepcopy=False)
@@ -239,6 +253,15 @@ def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Eva
         if bar is not None:
             bar.close()
     return study
+
+
+def _next_batch(study, outdir: Path | None) -> int:
+    """The next search batch: after the last one that was asked whole (its record written; trials of a
+    batch killed while being asked were failed and that batch is asked again)."""
+    asked = {t.user_attrs["batch"] for t in study.get_trials(deepcopy=False)
+             if t.user_attrs.get("phase") == "search" and "batch" in t.user_attrs}
+    whole = [b for b in asked if outdir is None or _read_record(outdir, b) is not None]
+    return max(whole, default=-1) + 1
 
 
 def _search_done(study) -> list:
