@@ -58,6 +58,7 @@ def _subsample_cv(df, n: int, folds: int, seed: int) -> tuple[float, float]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--work", default=str(HERE / ".cache" / "tune"), help="resumable work directory")
+    ap.add_argument("--space", default=str(SPACE), help="tune file of random / tpe / cmaes (default kitti_tune.toml)")
     ap.add_argument("--budgets", default="64,128,256,512,1024")
     ap.add_argument("--adaptive-max", type=int, default=1024, help="largest budget run for tpe / cmaes")
     ap.add_argument("--batch", type=int, default=64)
@@ -91,7 +92,7 @@ def main(argv=None) -> int:
     in_sample: dict[str, dict[int, float]] = {}
     seconds: dict[str, float] = {}
 
-    spec, settings = load_tune(SPACE)
+    spec, settings = load_tune(args.space)
     settings = replace(settings, batch=args.batch, seed=args.seed)
     space = search_space(spec)
     data = resolve_data(spec)
@@ -179,7 +180,7 @@ def main(argv=None) -> int:
                       "evals_to_grid_cv_best": min(reached) if reached else None,
                       "curves": {m: {str(n): v for n, v in sorted(c.items())} for m, c in curves.items()},
                       "in_sample": {m: {str(n): v for n, v in sorted(c.items())} for m, c in in_sample.items()},
-                      "seconds": seconds, "batch": args.batch, "folds": args.folds, "adaptive_max": args.adaptive_max,
+                      "seconds": seconds, "space": Path(args.space).name, "batch": args.batch, "folds": args.folds, "adaptive_max": args.adaptive_max,
                       "load_before": load0, "load_after": os.getloadavg()[0], **machine}))
     return 0
 

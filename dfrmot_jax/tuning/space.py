@@ -79,15 +79,16 @@ class SearchSpace:
         return df
 
     def baseline_values(self) -> dict:
-        """The baseline's value of every dim (for ``enqueue_trial``), or None where outside the dim."""
-        out = {}
+        """The baseline's value of every dim (possibly outside the dim's range)."""
+        return {d.name: self.fixed[d.name] for d in self.dims}
+
+    def contains(self, values: Mapping[str, Any]) -> bool:
+        """Whether every value lies in its dim (Optuna can enqueue only such a trial)."""
         for d in self.dims:
-            v = self.fixed[d.name]
-            if d.kind == "categorical":
-                out[d.name] = v if v in d.values else None
-            else:
-                out[d.name] = v if d.values[0] <= v <= d.values[1] else None
-        return out
+            v = values[d.name]
+            if not (v in d.values if d.kind == "categorical" else d.values[0] <= v <= d.values[1]):
+                return False
+        return True
 
 
 def search_space(spec: SweepSpec) -> SearchSpace:

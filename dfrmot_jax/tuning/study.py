@@ -79,6 +79,7 @@ def open_study(outdir: Path | None, settings: TuneSettings):
         from optuna.storages import JournalStorage
         from optuna.storages.journal import JournalFileBackend
 
+        outdir.mkdir(parents=True, exist_ok=True)
         storage = JournalStorage(JournalFileBackend(str(outdir / "journal.log")))
     return optuna.create_study(storage=storage, study_name=STUDY, directions=list(settings.directions),
                                load_if_exists=True)
@@ -230,7 +231,7 @@ def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Eva
             trials_now = study.get_trials(deepcopy=False)
             if b == 0 and not any(t.state == TrialState.WAITING for t in trials_now):
                 base = space.baseline_values()
-                if all(v is not None for v in base.values()):
+                if space.contains(base):        # else the baseline is outside the space: not a trial
                     study.enqueue_trial(base, user_attrs={"baseline": True})
             asked = []
             for i in range(size):
