@@ -12,6 +12,7 @@ import dfrmot_jax
 from dfrmot_jax.cli import build_parser, main
 from dfrmot_jax.cli import track as track_cmd
 from dfrmot_jax.config import PRESETS, Options, Params
+from dfrmot_jax.testing.cli import error_line, run_cli
 
 COMMANDS = ("track", "demo", "eval", "sweep", "tune", "report")
 
@@ -23,46 +24,29 @@ def scene(tmp_path_factory):
     return make_scene(tmp_path_factory.mktemp("cli") / "scene", n_sequences=1, n_frames=30, seed=4)
 
 
-def _run(capsys, argv):
-    """main(argv) -> (status, stdout, stderr lines); argparse exits become their status."""
-    try:
-        status = main(argv)
-    except SystemExit as e:
-        status = e.code
-    out = capsys.readouterr()
-    return status, out.out, out.err.splitlines()
-
-
-def _one_error_line(err, command):
-    assert len(err) == 1, err
-    assert err[0].startswith(f"dfrmot {command}: error: "), err
-    assert "Traceback" not in err[0] and "np." not in err[0]
-    return err[0]
-
-
 # ---- help and version ---------------------------------------------------------------------------
 
 @pytest.mark.parametrize("argv", [["--help"]] + [[c, "--help"] for c in COMMANDS])
 def test_every_help_works_without_rst_markup(argv, capsys):
-    status, out, err = _run(capsys, argv)
+    status, out, err = run_cli(capsys, argv)
     assert status == 0 and not err
     assert out.startswith("usage: dfrmot") and "`" not in out
 
 
 def test_top_help_lists_commands_and_exit_statuses(capsys):
-    _, out, _ = _run(capsys, ["--help"])
+    _, out, _ = run_cli(capsys, ["--help"])
     for c in COMMANDS:
         assert f"    {c} " in out
     assert "--debug" in out and "--version" in out and "130" in out
 
 
 def test_version(capsys):
-    status, out, _ = _run(capsys, ["--version"])
+    status, out, _ = run_cli(capsys, ["--version"])
     assert status == 0 and out.strip() == f"dfrmot {dfrmot_jax.__version__}"
 
 
 def test_track_help_lists_parameters_options_presets(capsys):
-    _, out, _ = _run(capsys, ["track", "--help"])
+    _, out, _ = run_cli(capsys, ["track", "--help"])
     for name in Params._fields + Options._fields + tuple(PRESETS):
         assert f"\n  {name} " in out, name
     meanings = dict((n, m) for names, m in track_cmd.docstring_fields(Params.__doc__, Params._fields) for n in names)
@@ -77,40 +61,40 @@ def test_track_help_lists_parameters_options_presets(capsys):
 
 def test_bad_input_on_each_command_is_one_line_exit_2(scene, tmp_path, capsys):
     track = ["track", "--data", str(scene), "--det2d", "synth2d", "--det3d", "synth3d", "--out", str(tmp_path / "o")]
-    status, _, err = _run(capsys, track[:4] + ["nope"] + track[5:])
-    assert status == 2 and "unknown detector 'nope'" in _one_error_line(err, "track")
+    status, _, err = run_cli(capsys, track[:4] + ["nope"] + track[5:])
+    assert status == 2 and "unknown detector 'nope'" in error_line(err, "track", alone=True)
 
-    status, _, err = _run(capsys, ["demo", "--out", str(tmp_path / "d"), "--frames", "0"])
-    assert status == 2 and "n_frames >= 1" in _one_error_line(err, "demo")
+    status, _, err = run_cli(capsys, ["demo", "--out", str(tmp_path / "d"), "--frames", "0"])
+    assert status == 2 and "n_frames >= 1" in error_line(err, "demo", alone=True)
 
     res = tmp_path / "res"
     res.mkdir()
     (res / "0000.txt").write_text("0 1 Bus -1 -1 -10 100 100 200 200 -1 -1 -1 -1000 -1000 -1000 -10 1\n")
-    status, _, err = _run(capsys, ["eval", str(res), "--data", str(scene)])
-    line = _one_error_line(err, "eval")
+    status, _, err = run_cli(capsys, ["eval", str(res), "--data", str(scene)])
+    line = error_line(err, "eval", alone=True)
     assert status == 2 and "0000.txt:1" in line and "'Bus'" in line
-    status, _, err = _run(capsys, ["eval", str(tmp_path / "missing"), "--data", str(scene)])
-    assert status == 2 and "not a directory" in _one_error_line(err, "eval")
+    status, _, err = run_cli(capsys, ["eval", str(tmp_path / "missing"), "--data", str(scene)])
+    assert status == 2 and "not a directory" in error_line(err, "eval", alone=True)
 
-    status, _, err = _run(capsys, ["sweep", str(tmp_path / "missing.toml")])
-    assert status == 2 and "missing.toml" in _one_error_line(err, "sweep")
+    status, _, err = run_cli(capsys, ["sweep", str(tmp_path / "missing.toml")])
+    assert status == 2 and "missing.toml" in error_line(err, "sweep", alone=True)
     bad = tmp_path / "bad.toml"
     bad.write_text("this is [ not toml\n")
-    status, _, err = _run(capsys, ["sweep", str(bad), "--dry-run"])
-    assert status == 2 and "not valid TOML" in _one_error_line(err, "sweep")
+    status, _, err = run_cli(capsys, ["sweep", str(bad), "--dry-run"])
+    assert status == 2 and "not valid TOML" in error_line(err, "sweep", alone=True)
 
-    status, _, err = _run(capsys, ["report", str(tmp_path)])
-    assert status == 2 and "not a sweep directory" in _one_error_line(err, "report")
-    status, _, err = _run(capsys, ["report", str(tmp_path), "--contrast", "foo"])
-    assert status == 2 and "--contrast" in _one_error_line(err, "report")
+    status, _, err = run_cli(capsys, ["report", str(tmp_path)])
+    assert status == 2 and "not a sweep directory" in error_line(err, "report", alone=True)
+    status, _, err = run_cli(capsys, ["report", str(tmp_path), "--contrast", "foo"])
+    assert status == 2 and "--contrast" in error_line(err, "report", alone=True)
 
 
 def test_argument_errors_are_one_line_exit_2(capsys):
-    status, _, err = _run(capsys, ["track"])
-    assert status == 2 and "--out" in _one_error_line(err, "track") and "dfrmot track --help" in err[0]
-    status, _, err = _run(capsys, ["demo", "--frames", "many"])
-    assert status == 2 and "--frames" in _one_error_line(err, "demo")
-    status, _, err = _run(capsys, ["nope"])
+    status, _, err = run_cli(capsys, ["track"])
+    assert status == 2 and "--out" in error_line(err, "track", alone=True) and "dfrmot track --help" in err[0]
+    status, _, err = run_cli(capsys, ["demo", "--frames", "many"])
+    assert status == 2 and "--frames" in error_line(err, "demo", alone=True)
+    status, _, err = run_cli(capsys, ["nope"])
     assert status == 2 and len(err) == 1 and err[0].startswith("dfrmot: error:")
 
 
@@ -126,8 +110,8 @@ def test_file_errors_name_the_file(monkeypatch, capsys):
         raise PermissionError(13, "Permission denied", "/results/0000.txt")
 
     monkeypatch.setattr(track_cmd, "run", denied)
-    status, _, err = _run(capsys, ["track", "--out", "x"])
-    assert status == 2 and _one_error_line(err, "track").endswith("/results/0000.txt: Permission denied")
+    status, _, err = run_cli(capsys, ["track", "--out", "x"])
+    assert status == 2 and error_line(err, "track", alone=True).endswith("/results/0000.txt: Permission denied")
 
 
 def test_messages_carry_no_numpy_reprs(monkeypatch, capsys):
@@ -135,8 +119,9 @@ def test_messages_carry_no_numpy_reprs(monkeypatch, capsys):
         raise ValueError(f"unknown type {np.str_('Bus')!r} at {np.float64(2.5)!r}\nsecond line")
 
     monkeypatch.setattr(track_cmd, "run", bad)
-    status, _, err = _run(capsys, ["track", "--out", "x"])
-    assert status == 2 and _one_error_line(err, "track") == "dfrmot track: error: unknown type 'Bus' at 2.5; second line"
+    status, _, err = run_cli(capsys, ["track", "--out", "x"])
+    assert status == 2
+    assert error_line(err, "track", alone=True) == "dfrmot track: error: unknown type 'Bus' at 2.5; second line"
 
 
 # ---- unexpected errors: exit 1 and the --debug hint; --debug lets the traceback through -----------
@@ -146,7 +131,7 @@ def test_unexpected_error_hint_and_debug(monkeypatch, capsys):
         raise RuntimeError("boom")
 
     monkeypatch.setattr(track_cmd, "run", boom)
-    status, _, err = _run(capsys, ["track", "--out", "x"])
+    status, _, err = run_cli(capsys, ["track", "--out", "x"])
     assert status == 1 and len(err) == 1
     assert err[0] == "dfrmot track: internal error: RuntimeError: boom (rerun with --debug for the traceback)"
     with pytest.raises(RuntimeError, match="boom"):
@@ -160,7 +145,7 @@ def test_interrupt_is_130(monkeypatch, capsys):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(track_cmd, "run", interrupted)
-    status, _, err = _run(capsys, ["track", "--out", "x"])
+    status, _, err = run_cli(capsys, ["track", "--out", "x"])
     assert status == 130 and err == ["dfrmot track: interrupted"]
 
 
@@ -189,9 +174,9 @@ def test_traceback_only_with_debug_in_a_real_process():
     ("car.capacity=1e9", "--set capacity=1e9: write it without a decimal point or exponent"),
 ])
 def test_set_integer_messages(item, want, scene, tmp_path, capsys):
-    status, _, err = _run(capsys, ["track", "--data", str(scene), "--det2d", "synth2d", "--det3d", "synth3d",
+    status, _, err = run_cli(capsys, ["track", "--data", str(scene), "--det2d", "synth2d", "--det3d", "synth3d",
                                    "--set", item, "--out", str(tmp_path / "o")])
-    assert status == 2 and want in _one_error_line(err, "track")
+    assert status == 2 and want in error_line(err, "track", alone=True)
     assert "invalid literal" not in err[0]
 
 

@@ -13,6 +13,7 @@ import pytest
 
 from dfrmot_jax.cli import main
 from dfrmot_jax.config import Options, Params
+from dfrmot_jax.testing.cli import error_line, run_cli
 
 REPO = Path(__file__).resolve().parent.parent
 BOM = "\ufeff"
@@ -31,23 +32,6 @@ def copy_of(scene, tmp_path):
     root = tmp_path / "scene"
     shutil.copytree(scene, root)
     return root
-
-
-def _run(capsys, argv):
-    """main(argv) -> (status, stdout, stderr lines); argparse exits become their status."""
-    try:
-        status = main(argv)
-    except SystemExit as e:
-        status = e.code
-    out = capsys.readouterr()
-    return status, out.out, out.err.splitlines()
-
-
-def _error(err, command):
-    assert len(err) == 1, err
-    assert err[0].startswith(f"dfrmot {command}: error: "), err
-    assert "Traceback" not in err[0] and "np." not in err[0]
-    return err[0]
 
 
 def _track(root, out, *extra, det2d="synth2d", det3d="synth3d"):
@@ -88,8 +72,8 @@ def _results(d):
                                    "calib/0001.txt", "label_02/0000.txt"])
 def test_unreadable_input_of_track_is_exit_2_naming_the_file(which, scene, tmp_path, monkeypatch, capsys):
     _deny(monkeypatch, scene / which)
-    status, _, err = _run(capsys, _track(scene, tmp_path / "o"))
-    line = _error(err, "track")
+    status, _, err = run_cli(capsys, _track(scene, tmp_path / "o"))
+    line = error_line(err, "track", alone=True)
     assert status == 2 and which in line and "Permission denied" in line
 
 
@@ -99,8 +83,8 @@ def test_unreadable_input_of_eval_is_exit_2_naming_the_file(which, copy_of, tmp_
     capsys.readouterr()
     path = tmp_path / "results" / "0001.txt" if which == "results" else copy_of / which
     _deny(monkeypatch, path)
-    status, _, err = _run(capsys, ["eval", str(tmp_path / "results"), "--data", str(copy_of)])
-    line = _error(err, "eval")
+    status, _, err = run_cli(capsys, ["eval", str(tmp_path / "results"), "--data", str(copy_of)])
+    line = error_line(err, "eval", alone=True)
     assert status == 2 and str(path.relative_to(path.parent.parent)) in line and "Permission denied" in line
 
 
@@ -108,8 +92,8 @@ def test_unreadable_sweep_file_is_exit_2_naming_the_file(scene, tmp_path, monkey
     f = tmp_path / "s.toml"
     f.write_text('name = "x"\n')
     _deny(monkeypatch, f)
-    status, _, err = _run(capsys, ["sweep", str(f), "--dry-run"])
-    line = _error(err, "sweep")
+    status, _, err = run_cli(capsys, ["sweep", str(f), "--dry-run"])
+    line = error_line(err, "sweep", alone=True)
     assert status == 2 and str(f) in line and "Permission denied" in line
 
 
@@ -136,22 +120,22 @@ def test_a_byte_order_mark_is_accepted_by_every_reader(copy_of, scene, tmp_path,
     f = tmp_path / "s.toml"
     f.write_text(BOM + f'name = "bom"\n[data]\nroot = "{scene}"\ndet2d = "synth2d"\ndet3d = "synth3d"\n'
                  f'[params]\na_l = [4.0, 8.0]\n', encoding="utf-8")
-    status, out, err = _run(capsys, ["sweep", str(f), "--dry-run"])
+    status, out, err = run_cli(capsys, ["sweep", str(f), "--dry-run"])
     assert status == 0 and not err and "bom" in out
 
 
 def test_a_calib_file_with_a_bom_still_reports_what_is_missing(copy_of, tmp_path, capsys):
     _p2_first(copy_of / "calib" / "0000.txt", BOM, drop="R0_rect")
-    status, _, err = _run(capsys, _track(copy_of, tmp_path / "o"))
-    line = _error(err, "track")
+    status, _, err = run_cli(capsys, _track(copy_of, tmp_path / "o"))
+    line = error_line(err, "track", alone=True)
     assert status == 2 and "0000.txt: field 'R0_rect': missing" in line and "P2" not in line
 
 
 def test_a_non_utf8_sweep_file_names_the_file(tmp_path, capsys):
     f = tmp_path / "latin1.toml"
     f.write_bytes('name = "café"\n'.encode("latin-1"))
-    status, _, err = _run(capsys, ["sweep", str(f), "--dry-run"])
-    line = _error(err, "sweep")
+    status, _, err = run_cli(capsys, ["sweep", str(f), "--dry-run"])
+    line = error_line(err, "sweep", alone=True)
     assert status == 2 and str(f) in line and "UTF-8" in line
 
 
@@ -162,8 +146,8 @@ def test_unknown_3d_type_is_exit_2_at_its_line(copy_of, tmp_path, capsys):
     lines = p.read_text().splitlines(True)
     lines[2] = re.sub(r"^(\d+),2,", r"\g<1>,7,", lines[2])
     p.write_text("".join(lines))
-    status, _, err = _run(capsys, _track(copy_of, tmp_path / "o"))
-    line = _error(err, "track")
+    status, _, err = run_cli(capsys, _track(copy_of, tmp_path / "o"))
+    line = error_line(err, "track", alone=True)
     assert status == 2 and "0001.txt:3: field 'type': unknown 3D detection type '7'" in line
 
 
@@ -189,11 +173,11 @@ def test_a_wrong_data_root_is_named_as_such(scene, tmp_path, capsys):
     for argv in (_track(wrong, tmp_path / "o"), _track(wrong, tmp_path / "o", det2d="rrc", det3d="pointrcnn"),
                  _track(wrong, tmp_path / "o", det2d=scene / "detections" / "synth2d",
                         det3d=scene / "detections" / "synth3d")):
-        status, _, err = _run(capsys, argv)
-        line = _error(err, "track")
+        status, _, err = run_cli(capsys, argv)
+        line = error_line(err, "track", alone=True)
         assert status == 2 and f"no label_02/ or detections/ under {wrong}" in line and "unknown detector" not in line
-    status, _, err = _run(capsys, _track(no_detections, tmp_path / "o", det2d="rrc"))
-    line = _error(err, "track")
+    status, _, err = run_cli(capsys, _track(no_detections, tmp_path / "o", det2d="rrc"))
+    line = error_line(err, "track", alone=True)
     assert status == 2 and f"rrc: not a directory, and no label_02/ or detections/ under {no_detections}" in line
     assert main(_track(no_detections, tmp_path / "o", det2d=scene / "detections" / "synth2d",
                        det3d=scene / "detections" / "synth3d")) == 0       # detectors by path need no detections/
@@ -202,7 +186,7 @@ def test_a_wrong_data_root_is_named_as_such(scene, tmp_path, capsys):
 # ---- item 18: report width, README options table, the demo's directory ----------------------------
 
 def _report_lines(capsys, argv):
-    status, out, err = _run(capsys, argv)
+    status, out, err = run_cli(capsys, argv)
     assert status == 0 and not err
     lines = out.rstrip("\n").splitlines()
     return lines[:-1], lines[-1]            # the last line is one JSON object, kept whole
@@ -256,10 +240,10 @@ def test_demo_writes_to_out_or_removes_its_temporary_directory(tmp_path, monkeyp
     scratch.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(scratch))
     args = ["demo", "--sequences", "1", "--frames", "40"]
-    status, kept, err = _run(capsys, args + ["--out", str(tmp_path / "demo")])
+    status, kept, err = run_cli(capsys, args + ["--out", str(tmp_path / "demo")])
     assert status == 0 and not err and (tmp_path / "demo" / "results" / "0000.txt").is_file()
     assert list(scratch.iterdir()) == []
-    status, temp, err = _run(capsys, args)
+    status, temp, err = run_cli(capsys, args)
     assert status == 0 and not err
     assert list(scratch.iterdir()) == [], "the demo left its temporary directory behind"
     assert "COMBINED" in temp and temp.splitlines()[-2:] == kept.splitlines()[-2:]     # the same scores

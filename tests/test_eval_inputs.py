@@ -22,32 +22,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dfrmot_jax.cli import main
 from dfrmot_jax.io.kitti import KittiFormatError
 from dfrmot_jax.metrics import evaluate_files, prepare_gt
+from dfrmot_jax.testing.cli import error_line, run_cli
 
 REF = Path("reference") / "dfr_fastmot_rrc_pointrcnn"
 INT_FIELDS = {"CLR_TP", "CLR_FN", "CLR_FP", "IDSW", "MT", "PT", "ML", "Frag", "CLR_Frames", "IDTP", "IDFN", "IDFP",
               "Dets", "GT_Dets", "IDs", "GT_IDs", "HOTA_TP", "HOTA_FN", "HOTA_FP"}
-
-
-def _run(capsys, argv):
-    """main(argv) -> (status, stdout, stderr lines); argparse exits become their status."""
-    try:
-        status = main(argv)
-    except SystemExit as e:
-        status = e.code
-    out = capsys.readouterr()
-    for text in (out.out, out.err):
-        assert "Traceback" not in text
-    return status, out.out, out.err.splitlines()
-
-
-def _error(err, command="eval"):
-    errors = [s for s in err if ": error: " in s]
-    assert len(errors) == 1 and errors[0].startswith(f"dfrmot {command}: error: "), err
-    assert "np." not in errors[0]
-    return errors[0]
 
 
 def _copy_ref(kitti_root, dst: Path, seqs) -> Path:
@@ -63,7 +44,7 @@ def _csv_rows(path):
 
 def _eval_csv(capsys, argv, tmp_path, name="m.csv"):
     out = tmp_path / name
-    status, stdout, err = _run(capsys, argv + ["--csv", str(out)])
+    status, stdout, err = run_cli(capsys, argv + ["--csv", str(out)])
     assert status == 0, err
     return _csv_rows(out), stdout, err
 
@@ -100,8 +81,8 @@ def _trackeval(kitti_root, tmp: Path, files: dict, cls="car"):
 def test_missing_result_files_are_refused_and_listed(kitti_root, tmp_path, capsys):
     """``track --seqs 0001,0002`` then a plain ``eval``: 18 of the 20 car sequences have no file."""
     res = _copy_ref(kitti_root, tmp_path / "r", ["0001", "0002"])
-    status, out, err = _run(capsys, ["eval", str(res), "--data", str(kitti_root)])
-    line = _error(err)
+    status, out, err = run_cli(capsys, ["eval", str(res), "--data", str(kitti_root)])
+    line = error_line(err, "eval")
     assert status == 2 and not out
     assert str(res) in line and "18 of 20" in line and "0000" in line and "0020" in line and "0001," not in line
     assert "--allow-missing" in line and "--seqs" in line
@@ -131,8 +112,8 @@ def test_a_result_file_that_is_no_file_is_refused_by_name(kind, allow, kitti_roo
     else:
         os.symlink(tmp_path / "gone.txt", bad)
     argv = ["eval", str(res), "--data", str(kitti_root), "--seqs", "1,2"] + (["--allow-missing"] if allow else [])
-    status, out, err = _run(capsys, argv)
-    line = _error(err)
+    status, out, err = run_cli(capsys, argv)
+    line = error_line(err, "eval")
     assert status == 2 and str(bad) in line and kind in line
 
 
@@ -154,8 +135,8 @@ def test_unexpected_files_are_refused_unless_seqs_restricts_them(kitti_root, tmp
     shutil.copy(res / "0001.txt", res / "0099.txt")
     (res / "foo.txt").write_text("")
     for extra in ([], ["--allow-missing"]):
-        status, out, err = _run(capsys, ["eval", str(res), "--data", str(kitti_root)] + extra)
-        line = _error(err)
+        status, out, err = run_cli(capsys, ["eval", str(res), "--data", str(kitti_root)] + extra)
+        line = error_line(err, "eval")
         assert status == 2 and "0099.txt" in line and "foo.txt" in line and "0017" not in line
     some, _, err = _eval_csv(capsys, ["eval", str(res), "--data", str(kitti_root), "--seqs", "0001,0002"], tmp_path)
     assert not err and {s for _, s in some} == {"0001", "0002", "COMBINED"}
@@ -165,11 +146,11 @@ def test_results_without_a_row_of_the_class_are_refused(kitti_root, tmp_path, ca
     """Car results scored with ``--class pedestrian`` (the ground truth of 0001, 0002 has pedestrians)."""
     res = _copy_ref(kitti_root, tmp_path / "r", ["0001", "0002"])
     argv = ["eval", str(res), "--data", str(kitti_root), "--seqs", "1,2", "--class", "pedestrian"]
-    status, out, err = _run(capsys, argv)
-    line = _error(err)
+    status, out, err = run_cli(capsys, argv)
+    line = error_line(err, "eval")
     assert status == 2 and "pedestrian" in line and "--class car" in line and str(res) in line
-    status, out, err = _run(capsys, argv[:-1] + ["car,pedestrian"])
-    assert status == 2 and "pedestrian" in _error(err)
+    status, out, err = run_cli(capsys, argv[:-1] + ["car,pedestrian"])
+    assert status == 2 and "pedestrian" in error_line(err, "eval")
     rows, _, err = _eval_csv(capsys, argv + ["--allow-missing"], tmp_path)
     assert len(err) == 1 and err[0].startswith("dfrmot eval: warning: ") and "pedestrian" in err[0]
     assert int(rows["pedestrian", "COMBINED"]["Dets"]) == 0
@@ -182,7 +163,7 @@ def test_results_without_a_row_of_the_class_are_refused(kitti_root, tmp_path, ca
 def test_per_seq_marks_sequences_without_ground_truth_of_the_class(kitti_root, tmp_path, capsys):
     res = _copy_ref(kitti_root, tmp_path / "r", ["0016"])
     (res / "0017.txt").write_text("0 1 Car -1 -1 -10 100 100 200 200 -1 -1 -1 -1000 -1000 -1000 -10 1\n")
-    status, out, err = _run(capsys, ["eval", str(res), "--data", str(kitti_root), "--seqs", "16,17", "--per-seq"])
+    status, out, err = run_cli(capsys, ["eval", str(res), "--data", str(kitti_root), "--seqs", "16,17", "--per-seq"])
     assert status == 0 and not err
     lines = out.splitlines()
     row16 = [s for s in lines if s.startswith("0016")]
@@ -209,8 +190,8 @@ def test_track_refuses_a_non_empty_out(scene, tmp_path, capsys):
     out = tmp_path / "o"
     out.mkdir()
     (out / "0005.txt").write_text("stale\n")
-    status, stdout, err = _run(capsys, _track(scene, out))
-    line = _error(err, "track")
+    status, stdout, err = run_cli(capsys, _track(scene, out))
+    line = error_line(err, "track")
     assert status == 2 and str(out) in line and "--overwrite" in line and "tracked" not in stdout
     assert sorted(p.name for p in out.iterdir()) == ["0005.txt"]
 
@@ -218,7 +199,7 @@ def test_track_refuses_a_non_empty_out(scene, tmp_path, capsys):
 def test_track_overwrite_removes_old_result_files_only(scene, tmp_path, capsys):
     out = tmp_path / "o"
     out.mkdir()                                               # empty: fine without --overwrite
-    status, _, err = _run(capsys, _track(scene, out))
+    status, _, err = run_cli(capsys, _track(scene, out))
     assert status == 0 and sorted(p.name for p in out.iterdir()) == ["0000.txt", "0001.txt"]
     first = {p.name: p.read_text() for p in out.iterdir()}
     (out / "0000.txt").write_text("stale\n")
@@ -226,7 +207,7 @@ def test_track_overwrite_removes_old_result_files_only(scene, tmp_path, capsys):
         (out / name).write_text("stale\n")
     for name in ("notes.txt", "0000.csv", "run.log"):           # the user's own files
         (out / name).write_text("mine\n")
-    status, _, err = _run(capsys, _track(scene, out, "--overwrite"))
+    status, _, err = run_cli(capsys, _track(scene, out, "--overwrite"))
     assert status == 0 and not err
     assert sorted(p.name for p in out.iterdir()) == ["0000.csv", "0000.txt", "0001.txt", "notes.txt", "run.log"]
     assert {n: (out / n).read_text() for n in first} == first and (out / "notes.txt").read_text() == "mine\n"
@@ -293,7 +274,7 @@ def test_other_files_trackeval_reads_score_like_trackeval(kitti_root, tmp_path, 
     capsys.readouterr()
     assert isinstance(te, dict), te
     assert_same(te, evaluate_files(res, kitti_root, "car", ["0001", "0002"]), "lenient rows")
-    status, _, err = _run(capsys, ["eval", str(res), "--data", str(kitti_root), "--seqs", "1,2"])
+    status, _, err = run_cli(capsys, ["eval", str(res), "--data", str(kitti_root), "--seqs", "1,2"])
     assert status == 0 and not err
 
 
@@ -348,8 +329,8 @@ def test_we_read_exactly_what_trackeval_reads(kitti_root, tmp_path, capsys):
             continue
         if te is not None and not isinstance(te, Exception):
             problems.append(f"{rows!r}: TrackEval reads it")
-        status, _, err = _run(capsys, ["eval", str(res), "--data", str(kitti_root), "--seqs", "0"])
-        line = _error(err) if status == 2 else f"exit {status}"
+        status, _, err = run_cli(capsys, ["eval", str(res), "--data", str(kitti_root), "--seqs", "0"])
+        line = error_line(err, "eval") if status == 2 else f"exit {status}"
         if f"0000.txt:2: field '{want.lstrip('!')}'" not in line:
             problems.append(f"{rows!r}: {line}")
     assert not problems, "\n".join(problems)

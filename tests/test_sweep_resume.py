@@ -10,7 +10,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pandas as pd
@@ -19,6 +18,7 @@ import pytest
 from dfrmot_jax.sweep import (COMBINED, HASH_VERSION, HashVersionError, expand, hash_version, load_results, run_sweep,
                               sweep_report)
 from dfrmot_jax.synthetic import make_scene
+from dfrmot_jax.testing.cli import kill_when
 
 N_CHUNKS = 8
 
@@ -52,14 +52,7 @@ def test_killed_sweep_resumes_to_the_same_table(tmp_path):
 
     proc = subprocess.Popen(_cmd(toml, out), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     chunks = out / "chunks"
-    done_at_kill = 0
-    deadline = time.monotonic() + 240
-    while time.monotonic() < deadline and proc.poll() is None:
-        done_at_kill = len(list(chunks.glob("*.parquet"))) if chunks.is_dir() else 0
-        if done_at_kill >= 1:
-            os.kill(proc.pid, signal.SIGKILL)
-            break
-        time.sleep(0.005)
+    kill_when(proc, lambda: chunks.is_dir() and any(chunks.glob("*.parquet")), timeout=240, poll=0.005)
     proc.wait(timeout=60)
     log = proc.stdout.read().decode()
     assert proc.returncode == -signal.SIGKILL, f"the sweep was not killed mid-run (rc {proc.returncode}):\n{log}"

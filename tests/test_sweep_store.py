@@ -13,9 +13,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from dfrmot_jax.cli import main
 from dfrmot_jax.sweep import SweepConfigError, load_results, run_sweep
 from dfrmot_jax.synthetic import make_scene
+from dfrmot_jax.testing.cli import error_line, run_cli
 
 QUIET = ["--no-progress", "--workers", "0"]
 
@@ -30,24 +30,6 @@ def _toml(path: Path, root: Path, name: str = "store", params: str = "a_l = [4.0
     path.write_text(f'name = "{name}"\nchunk = 2\n{top}\n[data]\nroot = "{root}"\ndet2d = "synth2d"\n'
                     f'det3d = "synth3d"\n[params]\n{params}\n{tail}\n')
     return path
-
-
-def _run(capsys, argv):
-    """main(argv) -> (status, stdout, stderr lines); argparse exits become their status."""
-    try:
-        status = main([str(a) for a in argv])
-    except SystemExit as e:
-        status = e.code
-    out = capsys.readouterr()
-    return status, out.out, out.err.splitlines()
-
-
-def _error_line(err) -> str:
-    """The one error line of ``dfrmot sweep`` (no traceback)."""
-    lines = [line for line in err if line.startswith("dfrmot sweep: error: ")]
-    assert len(lines) == 1, err
-    assert not any("Traceback" in line for line in err), err
-    return lines[0]
 
 
 @pytest.fixture(scope="module")
@@ -129,19 +111,19 @@ def test_another_sweep_is_refused_unless_forced(root, tmp_path, capsys):
     a = _toml(tmp_path / "a.toml", root, name="a")
     b = _toml(tmp_path / "b.toml", root, name="b", params="a_l = [5.0, 7.0]")
     out = tmp_path / "out"
-    assert _run(capsys, ["sweep", a, "--out", out] + QUIET)[0] == 0
+    assert run_cli(capsys, ["sweep", a, "--out", out] + QUIET)[0] == 0
     first = (out / "results.parquet").read_bytes()
 
-    status, _, err = _run(capsys, ["sweep", b, "--out", out] + QUIET)
-    line = _error_line(err)
+    status, _, err = run_cli(capsys, ["sweep", b, "--out", out] + QUIET)
+    line = error_line(err, "sweep")
     assert status == 2 and "another sweep ('a'" in line and "--force" in line, line
     assert (out / "results.parquet").read_bytes() == first
 
-    status, _, err = _run(capsys, ["sweep", a, "--out", out] + QUIET)       # the same sweep: resumed
+    status, _, err = run_cli(capsys, ["sweep", a, "--out", out] + QUIET)       # the same sweep: resumed
     n = len(json.loads((out / "manifest.json").read_text())["chunks"])
     assert status == 0 and f"{n} done" in "\n".join(err)
 
-    status, _, err = _run(capsys, ["sweep", b, "--out", out, "--force"] + QUIET)
+    status, _, err = run_cli(capsys, ["sweep", b, "--out", out, "--force"] + QUIET)
     assert status == 0, err
     df = pd.read_parquet(out / "results.parquet")
     assert set(df["sweep"]) == {"b"} and {5.0, 7.0} <= set(df["a_l"])
@@ -156,13 +138,13 @@ def test_out_or_chunks_being_a_file_is_a_clear_error(root, tmp_path, capsys):
     toml = _toml(tmp_path / "s.toml", root)
     afile = tmp_path / "afile"
     afile.write_text("not a directory")
-    status, _, err = _run(capsys, ["sweep", toml, "--out", afile] + QUIET)
-    assert status == 2 and f"{afile} is a file, not a directory" in _error_line(err)
+    status, _, err = run_cli(capsys, ["sweep", toml, "--out", afile] + QUIET)
+    assert status == 2 and f"{afile} is a file, not a directory" in error_line(err, "sweep")
     d = tmp_path / "d"
     d.mkdir()
     (d / "chunks").write_text("not a directory")
-    status, _, err = _run(capsys, ["sweep", toml, "--out", d] + QUIET)
-    assert status == 2 and f"{d / 'chunks'} is a file" in _error_line(err)
+    status, _, err = run_cli(capsys, ["sweep", toml, "--out", d] + QUIET)
+    assert status == 2 and f"{d / 'chunks'} is a file" in error_line(err, "sweep")
 
 
 def test_full_disk_is_a_clear_error_and_leaves_no_temp_file(root, tmp_path, capsys, monkeypatch):
@@ -177,12 +159,12 @@ def test_full_disk_is_a_clear_error_and_leaves_no_temp_file(root, tmp_path, caps
         return real(self, path, *args, **kwargs)
 
     monkeypatch.setattr(pd.DataFrame, "to_parquet", full)
-    status, _, err = _run(capsys, ["sweep", toml, "--out", out] + QUIET)
-    line = _error_line(err)
+    status, _, err = run_cli(capsys, ["sweep", toml, "--out", out] + QUIET)
+    line = error_line(err, "sweep")
     assert status == 2 and "No space left on device" in line and str(out / "chunks") in line, line
     assert not list(out.rglob("*.tmp"))
     monkeypatch.undo()
-    assert _run(capsys, ["sweep", toml, "--out", out] + QUIET)[0] == 0
+    assert run_cli(capsys, ["sweep", toml, "--out", out] + QUIET)[0] == 0
 
 
 def test_temp_files_of_killed_runs_are_removed(clean, tmp_path):
@@ -209,19 +191,19 @@ def test_temp_files_of_killed_runs_are_removed(clean, tmp_path):
 ], ids=["linspace", "samples", "grid", "seeds"])
 def test_oversized_sweeps_are_refused_before_allocating(root, tmp_path, capsys, params, top, tail, key, number):
     toml = _toml(tmp_path / "big.toml", root, params=params, top=top, tail=tail)
-    status, _, err = _run(capsys, ["sweep", toml, "--dry-run"])
-    line = _error_line(err)
+    status, _, err = run_cli(capsys, ["sweep", toml, "--dry-run"])
+    line = error_line(err, "sweep")
     assert status == 2 and f": {key}: " in line and number in line and "limit" in line, line
 
 
 def test_size_limits_can_be_raised_or_lowered(root, tmp_path, capsys):
     toml = _toml(tmp_path / "s.toml", root)
-    assert _run(capsys, ["sweep", toml, "--dry-run"])[0] == 0
-    status, _, err = _run(capsys, ["sweep", toml, "--dry-run", "--max-configs", "3"])
-    line = _error_line(err)
+    assert run_cli(capsys, ["sweep", toml, "--dry-run"])[0] == 0
+    status, _, err = run_cli(capsys, ["sweep", toml, "--dry-run", "--max-configs", "3"])
+    line = error_line(err, "sweep")
     assert status == 2 and "above the limit of 3" in line and "--max-configs" in line, line
-    status, _, err = _run(capsys, ["sweep", toml, "--dry-run", "--max-memory", "0.000001"])
-    line = _error_line(err)
+    status, _, err = run_cli(capsys, ["sweep", toml, "--dry-run", "--max-memory", "0.000001"])
+    line = error_line(err, "sweep")
     assert status == 2 and ": chunk: " in line and "GB of tracker output" in line and "--max-memory" in line, line
     with pytest.raises(SweepConfigError, match="above the limit of 3"):
         run_sweep(toml, max_configs=3, progress=False, log=lambda m: None)
@@ -234,8 +216,8 @@ def test_chunk_memory_is_estimated_before_tracking(root, tmp_path, capsys, monke
     toml = _toml(tmp_path / "mem.toml", root, params="a_l = {linspace = [1, 64, 64]}\nscore_2d = "
                  "{linspace = [0.1, 0.8, 8]}", tail='[options]\ncapacity = 4096\noutput = "filtered"')
     toml.write_text(toml.read_text().replace("chunk = 2", "chunk = 1000"))
-    status, _, err = _run(capsys, ["sweep", toml, "--dry-run"])
-    line = _error_line(err)
+    status, _, err = run_cli(capsys, ["sweep", toml, "--dry-run"])
+    line = error_line(err, "sweep")
     assert status == 2 and "512 configs x 60 frames (car) x 4096 track slots (options.capacity) x 20 bytes = 2.52 GB" \
         in line and "above the limit of 2 GB" in line, line
 

@@ -8,7 +8,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ import dfrmot_jax.sweep.runner as runner
 from dfrmot_jax.cli import main
 from dfrmot_jax.sweep import SweepConfigError, load_results, sweep_report
 from dfrmot_jax.synthetic import make_scene
+from dfrmot_jax.testing.cli import kill_when
 from dfrmot_jax.tuning import load_tune, run_tune
 from dfrmot_jax.tuning.plots import pareto_front
 
@@ -124,12 +124,7 @@ def test_kill_9_during_a_tune_then_rerun_gives_the_same_table(scene, tmp_path):
            "--no-progress"]
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and proc.poll() is None:
-        if (out / "batches" / "0001.json").is_file():      # batch 1 asked, being evaluated
-            os.kill(proc.pid, signal.SIGKILL)
-            break
-        time.sleep(0.002)
+    kill_when(proc, (out / "batches" / "0001.json").is_file, timeout=300)    # batch 1 asked, being evaluated
     proc.wait(timeout=60)
     log = proc.stdout.read().decode()
     assert proc.returncode == -signal.SIGKILL, f"not killed mid-run (rc {proc.returncode}):\n{log}"
