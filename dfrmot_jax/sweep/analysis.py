@@ -182,6 +182,17 @@ def _objective_on(arrays: dict, cols: Sequence[int], objective: str, rows=None) 
     return summary_columns(combine_sequences(sub))[objective]
 
 
+def _pooled(arrays: dict, rows: Sequence[int], cols: Sequence[int]) -> dict:
+    """Per-sequence fields [1, S'] of sequences ``cols``, sequence ``cols[j]`` from config row ``rows[j]``."""
+    return {f: np.stack([v[r, s] for r, s in zip(rows, cols)])[None] for f, v in arrays.items()}
+
+
+def pooled_objective(arrays: dict, rows: Sequence[int], cols: Sequence[int], objective: str) -> float:
+    """The objective over sequences ``cols``, each tracked by config row ``rows[j]`` (TrackEval's
+    combination of sequences): a cross-validated figure when each row was chosen without its sequence."""
+    return float(summary_columns(combine_sequences(_pooled(arrays, rows, cols)))[objective][0])
+
+
 def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA", cls: str | None = None) -> dict:
     """k-fold cross-validation over sequences (:func:`make_folds`, stratified by frame count).
 
@@ -225,8 +236,7 @@ def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA", cl
                          "config_hash": comb.at[best, "config_hash"], "train": float(train_score[best]),
                          "held_out": float(test_score[best]),
                          "baseline_held_out": None if b is None else float(test_score[b])})
-    pooled = {fname: np.stack([v[chosen[s], s] for s in range(len(names))])[None] for fname, v in arrays.items()}
-    cv = float(summary_columns(combine_sequences(pooled))[objective][0])
+    cv = pooled_objective(arrays, chosen, range(len(names)), objective)
     return {"objective": objective, "folds": folds, "cross_validated": cv,
             "mean_held_out": float(np.mean([p["held_out"] for p in per_fold])),
             "baseline": None if b is None else float(comb.at[b, objective]), "per_fold": per_fold,
@@ -267,7 +277,7 @@ def _cross_validate_average(df: pd.DataFrame, classes: Sequence[str], folds: int
                          "baseline_held_out": None if b is None else float(test_score[b])})
     pooled = []
     for i, (_, names, _, arrays, _) in enumerate(per):
-        sub = {fname: np.stack([v[chosen[i][s], s] for s in range(len(names))])[None] for fname, v in arrays.items()}
+        sub = _pooled(arrays, chosen[i], range(len(names)))
         pooled.append({objective: summary_columns(combine_sequences(sub))[objective]})
     cv = float(class_average_columns(pooled)[objective][0])
     return {"objective": objective, "folds": folds, "class": AVERAGE, "classes": list(classes),

@@ -15,8 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..metrics.evaluate import combine_sequences, summary_columns
-from ..sweep.analysis import _per_sequence_arrays, make_folds
+from ..sweep.analysis import _per_sequence_arrays, make_folds, pooled_objective
 from .space import SearchSpace
 from .study import Evaluator
 
@@ -64,8 +63,7 @@ def held_out_scores(df, folds, chosen: list[str], baseline: str | None, objectiv
     row_of = {h: i for i, h in enumerate(comb["config_hash"])}
 
     def score(cfg_of_seq, cols) -> float:
-        pooled = {n: np.stack([v[cfg_of_seq[j], s] for j, s in enumerate(cols)])[None] for n, v in arrays.items()}
-        return float(summary_columns(combine_sequences(pooled))[objective][0])
+        return pooled_objective(arrays, cfg_of_seq, cols, objective)
 
     assign = np.zeros(len(seq_names), np.int64)
     per_fold = []

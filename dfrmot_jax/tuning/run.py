@@ -18,7 +18,7 @@ from ..sweep.table import HASH_VERSION
 from .gradient import Refinement, refine
 from .settings import TuneSettings, load_tune, parse_tune_file
 from .space import SearchSpace, search_space
-from .study import Evaluator, search, write_tables
+from .study import Evaluator, search, trial_index, write_tables
 
 MANIFEST = "manifest.json"
 
@@ -204,7 +204,7 @@ def _refine(study, ev: Evaluator, space: SearchSpace, settings: TuneSettings, st
         deepcopy=False, states=(TrialState.COMPLETE,)) if t.user_attrs.get("phase") == "refine"}
 
     def evaluate(configs, k):
-        index = [settings.budget + k * size + i for i in range(len(configs))]
+        index = [trial_index(settings, "refine", k, i, size) for i in range(len(configs))]
         vals = ev.run(f"r{k:04d}", configs, [False] * len(configs), index, "refine", k)
         for i, (c, v) in enumerate(zip(configs, vals)):
             if (k, i) not in known:

@@ -19,11 +19,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Mapping
 
 from ..metrics.table import canonical_objective
 from ..sweep.analysis import MINIMISE
-from ..sweep.spec import SweepConfigError, SweepSpec, parse_spec, read_toml
+from ..sweep.spec import SweepConfigError, SweepSpec, _positive_int, parse_spec, read_toml
 
 SAMPLERS = ("tpe", "cmaes", "gp", "nsga2", "random", "grid")
 TUNE_KEYS = ("sampler", "budget", "batch", "objectives", "folds", "seed", "refine", "transfer")
@@ -79,13 +80,8 @@ class TuneSettings:
         return {"sampler": self.sampler, "batch": self.batch, "objectives": list(self.objectives), "seed": self.seed}
 
 
-def _int(d: Mapping, key: str, default, source, minimum: int = 1, prefix: str = "tune."):
-    v = d.get(key, default)
-    if v is None:
-        return None
-    if not isinstance(v, int) or isinstance(v, bool) or v < minimum:
-        raise SweepConfigError(prefix + key, f"{v!r}: expected an integer >= {minimum}", source)
-    return v
+#: an integer key of [tune] (the sweep file's check, keys named ``tune.<key>``)
+_int = partial(_positive_int, prefix="tune.")
 
 
 def _float(d: Mapping, key: str, default, source, prefix: str = "tune.refine."):

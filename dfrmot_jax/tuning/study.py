@@ -69,6 +69,14 @@ def make_sampler(settings: TuneSettings, space: SearchSpace, batch: int):
     raise AssertionError(name)
 
 
+def trial_index(settings: TuneSettings, phase: str, batch: int, slot: int, step_size: int = 1) -> int:
+    """A trial's place in the tune (the ``trial`` column): search batch b's slot i is b * batch + i;
+    refinement step k's slot i comes after the budget, at budget + k * step_size + i."""
+    if phase == "search":
+        return batch * settings.batch + slot
+    return settings.budget + batch * step_size + slot
+
+
 def open_study(outdir: Path | None, settings: TuneSettings):
     import optuna
 
@@ -99,8 +107,7 @@ class Evaluator:
 
     def __post_init__(self):
         self.rows: dict[str, pd.DataFrame] = {}      # config_hash -> its rows (sequences + COMBINED)
-        self.order: list[tuple] = []                 # (config_hash, trial, phase, batch) first evaluations
-        self.seen: set[str] = set()
+        self.first: dict[str, tuple] = {}            # config_hash -> (trial, phase, batch) of its first evaluation
 
     def run(self, name: str, values: Sequence[dict], baseline: Sequence[bool], trials: Sequence[int],
             phase: str, batch: int) -> np.ndarray:
@@ -118,9 +125,7 @@ class Evaluator:
                 self.rows[h] = g.reset_index(drop=True)
         out = np.zeros((len(table), len(self.settings.objectives)))
         for i, h in enumerate(table["config_hash"]):
-            if h not in self.seen:
-                self.seen.add(h)
-                self.order.append((h, int(trials[i]), phase, batch))
+            self.first.setdefault(h, (int(trials[i]), phase, batch))
             comb = self.rows[h]
             comb = comb[comb["sequence"] == COMBINED].iloc[0]
             out[i] = [float(comb[o]) for o in self.settings.objectives]
@@ -129,7 +134,7 @@ class Evaluator:
     def table(self) -> pd.DataFrame:
         """The tidy table: every evaluated config once (in order of first evaluation), renumbered."""
         parts = []
-        for c, (h, trial, phase, batch) in enumerate(self.order):
+        for c, (h, (trial, phase, batch)) in enumerate(self.first.items()):
             g = self.rows[h].copy()
             g["config"] = np.int64(c)
             g["trial"] = np.int64(trial)
@@ -194,7 +199,7 @@ def _evaluate_batch(study, ev: Evaluator, space: SearchSpace, settings: TuneSett
     if not keep:
         return
     base = [bool(trials[i].user_attrs.get("baseline", False)) for i in keep]
-    index = [b * settings.batch + i for i in keep]
+    index = [trial_index(settings, "search", b, i) for i in keep]
     out = ev.run(f"{b:04d}", [values[i] for i in keep], base, index, "search", b)
     for i, v in zip(keep, out):
         if trials[i].state == TrialState.RUNNING:
@@ -287,9 +292,8 @@ def trials_frame(study, settings: TuneSettings) -> pd.DataFrame:
     for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
         a = t.user_attrs
         phase, b, slot = a.get("phase", "search"), a.get("batch", -1), a.get("slot", 0)
-        step = settings.batch if phase == "search" else a.get("step_size", 1)
-        base = 0 if phase == "search" else settings.budget
-        rows.append({"trial": base + b * step + slot, "phase": phase, "batch": b, "slot": slot,
+        rows.append({"trial": trial_index(settings, phase, b, slot, a.get("step_size", 1)), "phase": phase,
+                     "batch": b, "slot": slot,
                      "baseline": bool(a.get("baseline", False)), **t.params,
                      **dict(zip(settings.objectives, _values_of(t)))})
     return pd.DataFrame(rows).sort_values("trial", kind="mergesort").reset_index(drop=True)
