@@ -215,8 +215,12 @@ def test_cli_tune_prints_the_summary_and_refuses_another_tunes_directory(scene, 
     other = _write(tmp_path, _tune_text(scene, budget=4, batch=2), "other.toml")
     assert main(["tune", str(other), "--out", str(tmp_path / "c"), "--no-progress", "--workers", "0"]) == 2
     assert "--force" in capsys.readouterr().err
+    stale = tmp_path / "c" / "fold_0" / "journal.log"         # an old nested fold's study must not be resumed
+    stale.parent.mkdir()
+    stale.write_text("")
     assert main(["tune", str(other), "--out", str(tmp_path / "c"), "--no-progress", "--workers", "0",
                  "--force"]) == 0
+    assert not stale.parent.exists()
 
 
 def test_transfer_scores_the_chosen_config_unchanged_beside_the_other_baseline(scene, tmp_path):

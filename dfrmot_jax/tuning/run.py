@@ -13,7 +13,7 @@ from typing import Any, Mapping
 import pandas as pd
 
 from ..sweep.spec import SweepConfigError, SweepSpec
-from ..sweep.store import _atomic_text, _jsonable
+from ..sweep.store import SweepDirectoryError, _atomic_text, _jsonable
 from ..sweep.table import HASH_VERSION
 from .gradient import Refinement, refine
 from .settings import TuneSettings, load_tune, parse_tune_file
@@ -21,6 +21,10 @@ from .space import SearchSpace, search_space
 from .study import Evaluator, search, trial_index, write_tables
 
 MANIFEST = "manifest.json"
+#: what a tune writes in its directory besides the manifest and the nested folds' fold_F/ (all of it
+#: goes with --force: a study left behind would be resumed as the new tune's)
+TUNE_FILES = ("journal.log", "batches", "results.parquet", "trials.parquet", "chunks", "plots", "nested.json",
+              "heldout", "transfer", "transfer.json", "ledger.jsonl", "configs.parquet")
 
 
 @dataclass
@@ -92,15 +96,14 @@ def _claim(outdir: Path, identity: dict, force: bool) -> None:
         if old.get("kind") != "tune" or old.get("identity") != identity:
             what = "a sweep" if old.get("kind") != "tune" else "another tune"
             if not force:
-                raise ValueError(f"{outdir} holds {what} ({old.get('name', '?')}): use another --out, or --force "
-                                 f"to replace it")
-            for p in ("journal.log", "batches", "results.parquet", "trials.parquet", "chunks", "plots", "nested.json"):
-                q = outdir / p
+                raise SweepDirectoryError(f"{outdir} holds {what} ({old.get('name', '?')}): use another --out, or "
+                                          f"--force to replace it")
+            for q in [outdir / n for n in TUNE_FILES] + list(outdir.glob("fold_*")):
                 shutil.rmtree(q) if q.is_dir() else q.unlink(missing_ok=True)
     elif outdir.exists() and not outdir.is_dir():
-        raise ValueError(f"--out {outdir} is a file, not a directory")
+        raise SweepDirectoryError(f"--out {outdir} is a file, not a directory")
     elif outdir.is_dir() and any(outdir.iterdir()) and not force:
-        raise ValueError(f"{outdir} is not empty and holds no tune: use another --out, or --force")
+        raise SweepDirectoryError(f"{outdir} is not empty and holds no tune: use another --out, or --force")
     outdir.mkdir(parents=True, exist_ok=True)
 
 
