@@ -219,6 +219,18 @@ def _rows(kitti_root, seq):
     return [s.split() for s in (kitti_root / REF / f"{seq}.txt").read_text().splitlines() if s.strip()]
 
 
+def _written_and_trackeval(kitti_root, tmp_path, capsys, files: dict):
+    """Write ``files`` ({sequence: text}) as a result folder; (the folder, TrackEval's scores of them)."""
+    res = tmp_path / "r"
+    res.mkdir()
+    for seq, text in files.items():
+        (res / f"{seq}.txt").write_text(text)
+    te = _trackeval(kitti_root, tmp_path / "te", files)
+    capsys.readouterr()
+    assert isinstance(te, dict), te
+    return res, te
+
+
 def test_rows_sorted_by_id_and_swapped_corners_score_like_trackeval(kitti_root, tmp_path, capsys):
     files = {}
     for seq in ("0001", "0002"):
@@ -229,13 +241,7 @@ def test_rows_sorted_by_id_and_swapped_corners_score_like_trackeval(kitti_root, 
             if k % 5 == 0:
                 r[7], r[9] = r[9], r[7]                          # y2 < y1
         files[seq] = "".join(" ".join(r) + "\n" for r in rows)
-    res = tmp_path / "r"
-    res.mkdir()
-    for seq, text in files.items():
-        (res / f"{seq}.txt").write_text(text)
-    te = _trackeval(kitti_root, tmp_path / "te", files)
-    capsys.readouterr()
-    assert isinstance(te, dict), te
+    res, te = _written_and_trackeval(kitti_root, tmp_path, capsys, files)
     ours = evaluate_files(res, kitti_root, "car", ["0001", "0002"])
     assert_same(te, ours, "sorted by id, swapped corners")
     assert te["COMBINED"]["CLR_FP"] > 300 and te["COMBINED"]["CLR_TP"] > 1000     # the edits matter
@@ -266,13 +272,7 @@ def test_other_files_trackeval_reads_score_like_trackeval(kitti_root, tmp_path, 
             out.append(f"-{k} -{k % 3 + 1}.5 Bogus x y z" + " ?" * 12)     # skipped unread: any frame, any junk
     files = {"0001": "\n".join(out) + "\n",
              "0002": "".join(",".join(r[:10]) + "\n" for r in _rows(kitti_root, "0002"))}
-    res = tmp_path / "r"
-    res.mkdir()
-    for seq, text in files.items():
-        (res / f"{seq}.txt").write_text(text)
-    te = _trackeval(kitti_root, tmp_path / "te", files)
-    capsys.readouterr()
-    assert isinstance(te, dict), te
+    res, te = _written_and_trackeval(kitti_root, tmp_path, capsys, files)
     assert_same(te, evaluate_files(res, kitti_root, "car", ["0001", "0002"]), "lenient rows")
     status, _, err = run_cli(capsys, ["eval", str(res), "--data", str(kitti_root), "--seqs", "1,2"])
     assert status == 0 and not err
