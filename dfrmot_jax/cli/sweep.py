@@ -21,6 +21,7 @@ __all__ = ["add_parser", "run"]
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``sweep`` on an argparse ``subparsers`` object; returns its parser."""
     from . import guarded
+    from .backend import add_backend_arguments
 
     p = sub.add_parser(
         "sweep", help="run a sweep file (tracking + metrics for every config), resumable",
@@ -41,7 +42,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--class", dest="cls", metavar="CLASS",
                    help="report on one class of the sweep, or 'average' (default for several classes: the "
                         "class average; else the file's report.class)")
-    p.add_argument("--workers", type=int, help="metric processes beside the tracker (default: 2 for large sweeps)")
+    add_backend_arguments(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--dry-run", action="store_true", help="check the file and data, print the plan, run nothing")
     p.add_argument("--force", action="store_true",
@@ -57,6 +58,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
+    from .backend import backend_from
     from ..sweep import (OPTION_NAMES, check_memory, class_columns, expand, load_spec, n_settings, plan,
                          resolve_data_all, run_sweep, sweep_report)
 
@@ -70,6 +72,7 @@ def run(args) -> int:
         raise ValueError(f"--max-configs {args.max_configs}: expected a whole number >= 1")
     if args.max_memory is not None and not args.max_memory > 0:
         raise ValueError(f"--max-memory {args.max_memory:g}: expected a number of GB > 0")
+    backend = backend_from(args)
     spec = load_spec(args.file)
     out = Path(args.out) if args.out else Path("results") / "sweeps" / spec.name
     if args.dry_run:
@@ -96,7 +99,7 @@ def run(args) -> int:
                   + "; ".join(f"{k} {', '.join(f'{v:g}' for v in lv)}" for k, lv in d.kinds))
         return 0
     df = run_sweep(spec, out, data_root=args.data, chunk=args.chunk, folds=args.folds,
-                   progress=not args.no_progress, workers=args.workers, max_configs=args.max_configs,
+                   progress=not args.no_progress, backend=backend, max_configs=args.max_configs,
                    max_memory=args.max_memory, force=args.force)
     print(f"{df['config'].nunique():,} configs x {df['sequence'].nunique() - 1} sequences -> "
           f"{out / 'results.parquet'}")

@@ -23,6 +23,7 @@ __all__ = ["add_parser", "run"]
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``tune`` on an argparse ``subparsers`` object; returns its parser."""
     from . import guarded
+    from .backend import add_backend_arguments
 
     p = sub.add_parser(
         "tune", help="tune a sweep file's parameters with batched Optuna search (+ gradient refinement)",
@@ -39,7 +40,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--folds", type=int, help="nested cross-validation over sequences (overrides tune.folds)")
     p.add_argument("--seed", type=int, help="overrides tune.seed")
     p.add_argument("--refine-steps", type=int, metavar="N", help="gradient refinement steps (0: none)")
-    p.add_argument("--workers", type=int, help="metric processes beside the tracker")
+    add_backend_arguments(p)
     p.add_argument("--force", action="store_true", help="replace a different tune's (or a sweep's) --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=guarded(run))
@@ -52,6 +53,7 @@ def _positive(name: str, v, minimum: int = 1):
 
 
 def run(args) -> int:
+    from .backend import backend_from
     from ..tuning import load_tune, run_tune
 
     for name, minimum in (("budget", 2), ("batch", 1), ("folds", 2), ("seed", 0), ("refine_steps", 0)):
@@ -60,7 +62,7 @@ def run(args) -> int:
     out = Path(args.out) if args.out else Path("results") / "tunes" / spec.name
     res = run_tune((spec, settings), out, data_root=args.data, sampler=args.sampler, budget=args.budget,
                    batch=args.batch, folds=args.folds, seed=args.seed, refine_steps=args.refine_steps,
-                   progress=not args.no_progress, workers=args.workers, force=args.force)
+                   progress=not args.no_progress, backend=backend_from(args), force=args.force)
     s = res.summary()
     obj = res.settings.objectives[0]
     print(f"tune {spec.name}: {s['evaluated_configs']:,} configs ({res.settings.sampler}, batches of "

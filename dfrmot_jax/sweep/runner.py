@@ -23,11 +23,19 @@ import numpy as np
 import pandas as pd
 
 from ..config import Options
+from .backend import LocalBackend, RayBackend, make_backend
 from .distortion import DistortionAxes
 from .plan import Chunk, DataSettings, _groups, check_memory, plan, resolve_data_all
 from .spec import SweepConfigError, SweepSpec, _as_spec
-from .store import (_chunk_frame, _chunk_path, _finish, finished_chunks, write_chunk, write_manifest,
-                    write_results)
+from .store import (
+    _chunk_frame,
+    _chunk_path,
+    _finish,
+    finished_chunks,
+    write_chunk,
+    write_manifest,
+    write_results,
+)
 from .table import RAW_COLUMN, _params_of, expand, n_settings
 
 #: lanes per compiled tracker call (the batch is split over the host devices)
@@ -37,7 +45,8 @@ TRACK_CHUNK = 32
 def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: int | None = None,
               progress: bool = True, workers: int | None = None, log=None, raw: bool = True,
               table: pd.DataFrame | None = None, max_configs: int | None = None, max_memory: float | None = None,
-              force: bool = False) -> pd.DataFrame:
+              force: bool = False, backend="local", address: str | None = None,
+              worker_cpus: int | None = None) -> pd.DataFrame:
     """Run a sweep (TOML path, dict or :class:`SweepSpec`) and return its tidy table.
 
     One row per (config, sequence) and one ``COMBINED`` row per config, with every parameter and
@@ -58,12 +67,19 @@ def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds
     unless ``force``, which deletes that sweep's files first. A chunk file whose bytes do not match
     its ledger record (truncated, changed, never recorded) is reported through ``log`` and recomputed.
 
+    ``backend``: ``"local"`` (this process) or ``"ray"`` (a Ray cluster at ``address``, default a
+    local instance; one worker per ``worker_cpus`` CPUs of a node, default one per node), or a
+    :mod:`~dfrmot_jax.sweep.backend` object. Tables and store are the same either way.
+
     Several classes (``data.class = ["car", "pedestrian"]``): every config is run for every class,
     each on its own split; rows carry their ``class``, and each config gets one more row, ``class =
     "average"``, ``sequence = COMBINED``: the class average (TrackEval's / KITTI's: ratios averaged
     over the classes, counts summed; :func:`dfrmot_jax.metrics.evaluate.class_average`).
     """
     spec = _as_spec(spec)
+    backend = make_backend(backend, workers=workers, address=address, worker_cpus=worker_cpus)
+    if isinstance(backend, LocalBackend) and workers is None:
+        workers = backend.workers
     if chunk is not None:
         if chunk < 1:
             raise SweepConfigError("chunk", f"{chunk}: expected an integer >= 1", spec.source)
@@ -79,6 +95,10 @@ def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds
                                + (" of the class with the fewest)" if len(datas) > 1 else ")"), spec.source)
     chunks = plan(table, datas, spec.chunk, spec.distortion)
     check_memory(chunks, datas, spec.distortion, max_memory, spec.source)
+    if isinstance(backend, RayBackend):         # an unreachable cluster is refused before anything is written
+        from .ray_backend import connect
+
+        connect(backend)
     outdir = Path(out) if out is not None else None
     done: set[str] = set()
     if outdir is not None:
@@ -103,7 +123,22 @@ def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds
         log(f"sweep {name}: {len(table):,} configs{lanes} ({n_groups} option group(s), {len(cchunks)} chunks of <= "
             f"{spec.chunk}; {sum(c.id in done for c in cchunks)} done) x {len(d.sequences)} sequences / "
             f"{sum(d.lengths):,} frames = {total_cf / 1e6:.1f} M config-frames" + (f" -> {outdir}" if outdir else ""))
-        if todo:
+        if todo and isinstance(backend, RayBackend):
+            from .ray_backend import run_chunks
+
+            def keep(c: Chunk, df: pd.DataFrame) -> None:
+                if outdir is not None:
+                    write_chunk(outdir, c, df)
+                else:
+                    frames_out[c.id] = df
+
+            bar = _progress_bar(progress, len(table), n_done, name)
+            try:
+                run_chunks(backend, spec, table, d, todo, keep, bar, log)
+            finally:
+                if bar is not None:
+                    bar.close()
+        elif todo:
             runner = _ChunkRunner(spec, table, d, outdir, workers)
             runner.run(todo, n_done, len(table), progress, log)
             frames_out.update(runner.tables)
@@ -134,6 +169,26 @@ def _versions() -> tuple[str, str]:
     from .. import __version__
 
     return __version__, jax.__version__
+
+
+def _progress_bar(progress: bool, total: int, done: int, label: str):
+    if not progress:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=done, unit="cfg", desc=label, dynamic_ncols=True, smoothing=0.05, file=sys.stderr)
+
+
+def load_data(d: DataSettings):
+    """The packed split and the prepared ground truth of one class's data settings, checked to agree."""
+    from ..data import load_split
+    from ..metrics import cached_gt
+
+    split = load_split(d.root, d.det2d, d.det3d, d.cls, list(d.sequences))
+    gt = cached_gt(d.root, d.cls, list(d.sequences))
+    if tuple(gt.sequences) != tuple(split.names) or not np.array_equal(gt.lengths, split.lengths):
+        raise RuntimeError("ground truth and detections disagree on the sequences or their lengths")
+    return split, gt
 
 
 @dataclass
@@ -193,17 +248,14 @@ class _ChunkRunner:
     inflight: deque = field(default_factory=deque)
     timing: _Timing = field(default_factory=_Timing)
 
-    def setup(self, todo: Sequence[Chunk]) -> None:
-        from ..data import load_split
-        from ..metrics import cached_gt
+    def setup(self, todo: Sequence[Chunk], split=None, gt=None) -> None:
+        """Load (or take) the class's split and prepared ground truth; ``todo``: the chunks to run."""
         from ..metrics.evaluate import LaneScorer
 
-        d = self.data
-        self.split = load_split(d.root, d.det2d, d.det3d, d.cls, list(d.sequences))
-        self.gt = cached_gt(d.root, d.cls, list(d.sequences))
-        if tuple(self.gt.sequences) != tuple(self.split.names) or \
-                not np.array_equal(self.gt.lengths, self.split.lengths):
-            raise RuntimeError("ground truth and detections disagree on the sequences or their lengths")
+        if split is None:
+            split, gt = load_data(self.data)
+        self.split, self.gt = split, gt
+        self.frames: tuple | None = None        # (options, prepared frames) of the last option group
         self.todo = list(todo)
         self.versions = _versions()
         self.scorer = LaneScorer(self.gt, self.split.offsets)
@@ -214,7 +266,6 @@ class _ChunkRunner:
         self.groups = _groups(self.table) if self.spec.distortion is not None else {}
 
     def run(self, todo: Sequence[Chunk], n_done: int, n_total: int, progress: bool, log) -> None:
-        from ..data import prepare_frames
         from ..metrics.evaluate import worker_pool
 
         t0 = time.perf_counter()
@@ -222,18 +273,10 @@ class _ChunkRunner:
         self.setup(todo)
         self.timing.setup = time.perf_counter() - t0
         pool = worker_pool(self.gt, self.workers) if self.workers > 0 else None
-        bar = None
-        if progress:
-            from tqdm import tqdm
-
-            bar = tqdm(total=n_total, initial=n_done, unit="cfg", desc=label, dynamic_ncols=True, smoothing=0.05,
-                       file=sys.stderr)
+        bar = _progress_bar(progress, n_total, n_done, label)
         try:
-            frames_cache: tuple | None = None
             for c in todo:
-                if frames_cache is None or frames_cache[0] != c.options:
-                    frames_cache = (c.options, prepare_frames(self.split, c.options))
-                self.inflight.append(self.start(c, frames_cache[1], pool))
+                self.inflight.append(self.start(c, self.frames_of(c.options), pool))
                 # complete in submission order (a chunk may rely on an earlier one's scores)
                 while self.inflight and (self.inflight[0].future is None or self.inflight[0].future.done()):
                     self.complete(self.inflight.popleft(), bar)
@@ -253,6 +296,18 @@ class _ChunkRunner:
             f"{n * self.split.n_frames / dt / 1e3:.0f} k config-frames/s; setup {tm.setup:.1f} s, tracking "
             f"{tm.track:.1f} s, metrics {tm.metrics:.1f} s in-process + {tm.wait:.1f} s waiting "
             f"for workers, tables {tm.write:.1f} s; {len(self.scorer):,} distinct outputs scored)")
+
+    def frames_of(self, options: Options):
+        """The split prepared for ``options`` (kept while consecutive chunks share them)."""
+        from ..data import prepare_frames
+
+        if self.frames is None or self.frames[0] != options:
+            self.frames = (options, prepare_frames(self.split, options))
+        return self.frames[1]
+
+    def compute(self, c: Chunk) -> pd.DataFrame:
+        """Chunk ``c``'s table, tracked and scored here (a Ray worker's unit of work)."""
+        return self.chunk_table(self.start(c, self.frames_of(c.options), None))
 
     def start(self, c: Chunk, frames, pool) -> _Pending:
         """Track chunk ``c`` and start scoring its new outputs (in the pool, or here)."""
@@ -309,18 +364,21 @@ class _ChunkRunner:
         return _params_of(self.table, [i for c in self.todo if c.options == options for i in c.configs],
                           self.data.cls)
 
-    def complete(self, p: _Pending, bar) -> None:
-        """Store a chunk's scores and write its table."""
+    def chunk_table(self, p: _Pending) -> pd.DataFrame:
+        """A tracked chunk's table, once its scores are in."""
         tw = time.perf_counter()
         if p.future is not None:
             p.result = p.future.result()
         self.timing.wait += time.perf_counter() - tw
-        tw = time.perf_counter()
         if p.todo:
             self.scorer.store(p.digests, p.todo, p.result)
-        metrics = self.scorer.gather(p.digests)
-        df = _chunk_frame(self.table, p.chunk, self.data, self.split.names, self.split.lengths, metrics, p.res,
-                          self.versions, self.spec.name)
+        return _chunk_frame(self.table, p.chunk, self.data, self.split.names, self.split.lengths,
+                            self.scorer.gather(p.digests), p.res, self.versions, self.spec.name)
+
+    def complete(self, p: _Pending, bar) -> None:
+        """Store a chunk's scores and write its table."""
+        df = self.chunk_table(p)
+        tw = time.perf_counter()
         if self.outdir is not None:
             write_chunk(self.outdir, p.chunk, df)
         else:

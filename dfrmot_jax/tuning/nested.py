@@ -20,7 +20,7 @@ from .space import SearchSpace
 from .study import Evaluator
 
 
-def nested_cv(spec, settings, space: SearchSpace, data, outdir: Path | None, data_root, workers, progress,
+def nested_cv(spec, settings, space: SearchSpace, data, outdir: Path | None, data_root, backend, progress,
               log) -> dict:
     """Run the k inner tunes and the held-out scoring; returns the figures and per-fold details."""
     from .run import tune_once
@@ -38,10 +38,10 @@ def nested_cv(spec, settings, space: SearchSpace, data, outdir: Path | None, dat
         sub = None if outdir is None else outdir / f"fold_{f}"
         if sub is not None:
             sub.mkdir(parents=True, exist_ok=True)
-        r = tune_once(replace(spec, sequences=tuple(train)), inner, space, sub, data_root, workers, progress, log)
+        r = tune_once(replace(spec, sequences=tuple(train)), inner, space, sub, data_root, backend, progress, log)
         chosen.append(r.best)
         per_fold.append({"fold": f, "test_sequences": test, "train": r.best_value, "config": r.best})
-    ev = Evaluator(spec, space, inner, None if outdir is None else outdir / "heldout", data_root, workers, log)
+    ev = Evaluator(spec, space, inner, None if outdir is None else outdir / "heldout", data_root, backend, log)
     base = space.baseline_values()
     configs = chosen + [base]
     ev.run("all", configs, [False] * k + [True], list(range(k + 1)), "heldout", 0)

@@ -119,13 +119,20 @@ def _write_manifest(outdir: Path, spec: SweepSpec, settings: TuneSettings, data,
 def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budget: int | None = None,
              batch: int | None = None, folds: int | None = None, seed: int | None = None, refine_steps=None,
              progress: bool = True, workers: int | None = None, log=None, force: bool = False,
-             plots: bool = True) -> TuneResult:
+             plots: bool = True, backend="local", address: str | None = None,
+             worker_cpus: int | None = None) -> TuneResult:
     """Tune a tune file (path, dict or ``(SweepSpec, TuneSettings)``): see ``sweeps/README.md``.
 
     The keyword arguments override the file's ``[tune]`` table (``refine_steps=0`` switches
     refinement off). ``out``: the tune directory (resumable; without it nothing is written and a
     killed tune starts again). With ``folds`` the tune also runs once per fold on the other folds'
-    sequences and scores each chosen config on its held-out fold (``result.nested``)."""
+    sequences and scores each chosen config on its held-out fold (``result.nested``).
+    ``backend`` / ``address`` / ``worker_cpus`` / ``workers``: where each batch runs, as
+    :func:`~dfrmot_jax.sweep.run_sweep`'s (``backend="ray"``: every batch on the cluster's workers,
+    which keep their compilations from batch to batch)."""
+    from ..sweep.backend import make_backend
+
+    backend = make_backend(backend, workers=workers, address=address, worker_cpus=worker_cpus)
     spec, settings = _load(tune)
     over = {k: v for k, v in dict(sampler=sampler, budget=budget, batch=batch, folds=folds, seed=seed).items()
             if v is not None}
@@ -150,15 +157,15 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
         identity = _identity(spec, settings, data)
         _claim(outdir, identity, force)
         _write_manifest(outdir, spec, settings, data, identity)
-    result = tune_once(spec, settings, space, outdir, data_root, workers, progress, log)
+    result = tune_once(spec, settings, space, outdir, data_root, backend, progress, log)
     if settings.folds:
         from .nested import nested_cv
 
-        result.nested = nested_cv(spec, settings, space, data, outdir, data_root, workers, progress, log)
+        result.nested = nested_cv(spec, settings, space, data, outdir, data_root, backend, progress, log)
         if outdir is not None:
             _atomic_text(json.dumps(result.nested, indent=1, default=str), outdir / "nested.json")
     if settings.transfer is not None:
-        result.transfer = transfer(result, space, outdir, data_root, workers)
+        result.transfer = transfer(result, space, outdir, data_root, backend)
         if outdir is not None:
             _atomic_text(json.dumps(result.transfer, indent=1, default=str), outdir / "transfer.json")
     if outdir is not None and plots:
@@ -169,9 +176,9 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
 
 
 def tune_once(spec: SweepSpec, settings: TuneSettings, space: SearchSpace, outdir: Path | None, data_root,
-              workers, progress: bool, log) -> TuneResult:
+              backend, progress: bool, log) -> TuneResult:
     """Search (and refine) on ``spec``'s sequences; tables written to ``outdir``."""
-    ev = Evaluator(spec, space, settings, outdir, data_root, workers, log)
+    ev = Evaluator(spec, space, settings, outdir, data_root, backend, log)
     study = search(spec, settings, outdir, ev, progress, log)
     first = settings.objectives[0]
     maximize = settings.directions[0] == "maximize"
@@ -222,7 +229,7 @@ def _refine(study, ev: Evaluator, space: SearchSpace, settings: TuneSettings, st
 TRANSFER_FIELDS = ("HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW")
 
 
-def transfer(result: TuneResult, space: SearchSpace, outdir: Path | None, data_root, workers) -> dict:
+def transfer(result: TuneResult, space: SearchSpace, outdir: Path | None, data_root, backend) -> dict:
     """The chosen config applied unchanged to other detections (``[tune.transfer]``), beside their
     baseline (the tune's baseline with the transfer's parameter values), in one call."""
     from ..sweep.runner import run_sweep
@@ -232,7 +239,7 @@ def transfer(result: TuneResult, space: SearchSpace, outdir: Path | None, data_r
     base = {**space.fixed, **dict(t.baseline)}
     table = space.table([space.row(result.best), base], [False, True])
     df = run_sweep(spec, None if outdir is None else outdir / "transfer", data_root=data_root, progress=False,
-                   workers=workers, log=lambda m: None, table=table)
+                   backend=backend, log=lambda m: None, table=table)
     comb = df[df["sequence"] == "COMBINED"].set_index("baseline")
     fields = [f for f in dict.fromkeys(list(result.settings.objectives) + list(TRANSFER_FIELDS)) if f in comb.columns]
     return {"det2d": spec.det2d, "det3d": spec.det3d, "baseline_params": dict(t.baseline),

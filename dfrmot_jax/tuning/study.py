@@ -102,7 +102,7 @@ class Evaluator:
     settings: TuneSettings
     outdir: Path | None
     data_root: Any = None
-    workers: int | None = None
+    backend: Any = None                          # sweep.backend object (None: local)
     log: Any = None
 
     def __post_init__(self):
@@ -119,7 +119,7 @@ class Evaluator:
 
             new = new.assign(config=np.arange(len(new), dtype=np.int64)).reset_index(drop=True)
             out = None if self.outdir is None else self.outdir / "batches" / name
-            df = run_sweep(self.spec, out, data_root=self.data_root, progress=False, workers=self.workers,
+            df = run_sweep(self.spec, out, data_root=self.data_root, progress=False, backend=self.backend or "local",
                            log=lambda m: None, table=new)
             for h, g in df.groupby("config_hash", sort=False):
                 self.rows[h] = g.reset_index(drop=True)
