@@ -51,13 +51,14 @@ def run_mode(mode: str, sweep: str, out: Path) -> dict:
 
     runner.write_chunk = timed_write
     kw: dict = {}
+    cluster = None
     if mode != "local":
         import ray
 
         os.environ.setdefault("RAY_AUTH_MODE", "disabled")
         t = time.perf_counter()
         if mode == "ray1":
-            ray.init(num_cpus=cpus, include_dashboard=False, logging_level="WARNING")
+            ray.init(address="local", num_cpus=cpus, include_dashboard=False, logging_level="WARNING")
         else:
             from ray.cluster_utils import Cluster
 
@@ -96,6 +97,12 @@ def run_mode(mode: str, sweep: str, out: Path) -> dict:
         chunk = plan(expand(sweep), [resolve_data(sweep)], 64)[0]
         info["bytes_out_per_chunk"] = len(pickle.dumps(("run-key-" + "0" * 24, chunk), protocol=5))
         info["bytes_once_per_worker"] = len(pickle.dumps((split, gt), protocol=5))
+        from dfrmot_jax.sweep.ray_backend import release
+
+        release()
+        ray.shutdown()
+        if cluster is not None:
+            cluster.shutdown()
     return info
 
 

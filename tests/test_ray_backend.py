@@ -1,5 +1,5 @@
-"""The Ray backend on a real two-node Ray cluster on this machine (``ray start --head`` + ``ray start
---address``, 1 CPU each): the same tables as the local backend, from the CLI and the API; a worker node
+"""The Ray backend on a real two-node Ray cluster on this machine (``ray start --head`` with 2 CPUs +
+``ray start --address`` with 1): the same tables as the local backend, from the CLI and the API; a worker node
 killed mid-run; a sweep interrupted on one backend and finished on the other; a tune on the cluster."""
 
 from __future__ import annotations
@@ -9,6 +9,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -62,13 +63,18 @@ class LocalCluster:
         self.address = f"127.0.0.1:{self.port}"
         self.env = {**os.environ, **RAY_ENV}
         self.logs = tmp
-        self.head = self._start(["--head", f"--port={self.port}", "--include-dashboard=false"], "head")
+        # the head's worker gets 2 CPUs (its chunks scored in metric processes beside the tracker),
+        # the worker node's 1 (scored in the worker itself)
+        self.head = self._start(["--head", f"--port={self.port}", "--include-dashboard=false", "--num-cpus=2"],
+                                "head")
         self.workers = [self.add_worker()]
 
     def _start(self, args, name):
         log = open(self.logs / f"{name}-{time.monotonic_ns()}.log", "w")
         exe = Path(sys.executable).parent / "ray"           # the ray CLI of this interpreter's environment
-        return subprocess.Popen([str(exe) if exe.exists() else "ray", "start", *args, "--num-cpus=1", "--block"],
+        if not any(a.startswith("--num-cpus") for a in args):
+            args = [*args, "--num-cpus=1"]
+        return subprocess.Popen([str(exe) if exe.exists() else "ray", "start", *args, "--block"],
                                 env=self.env,
                                 stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
 
@@ -116,6 +122,14 @@ class LocalCluster:
 
     def shutdown(self) -> None:
         self.stop(*self.workers, self.head)
+        # a head stopped the hard way leaves its address as the machine's "current cluster", which a
+        # bare ray.init() would then try to join
+        current = Path(tempfile.gettempdir()) / "ray" / "ray_current_cluster"
+        try:
+            if current.read_text().strip().endswith(f":{self.port}"):
+                current.unlink()
+        except OSError:
+            pass
 
 
 @pytest.fixture(scope="module")
@@ -172,6 +186,7 @@ def test_cli_sweep_on_a_two_node_cluster_equals_the_local_table(cluster, scene, 
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "Traceback" not in proc.stderr
     assert proc.stderr.count("ray: worker on node") == 2, proc.stderr      # one worker per node
+    assert "2 CPU(s), 2 JAX device(s)" in proc.stderr and "1 CPU(s), 1 JAX device(s)" in proc.stderr
     assert "by 2 worker(s)" in proc.stderr
     pd.testing.assert_frame_equal(pd.read_parquet(out / "results.parquet"), local_table)
 

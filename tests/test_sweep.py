@@ -299,6 +299,35 @@ def test_metric_worker_processes_give_the_same_table(small_table, scene):
     assert all(np.array_equal(x, y) for x, y in zip(df[RAW_COLUMN], small_table[RAW_COLUMN]))
 
 
+def test_a_split_is_read_once_until_its_files_change(small_table, scene, tmp_path, monkeypatch):
+    """Sweeps on the same data (a tune's batches) read the files once; an edited file is read again."""
+    import shutil
+
+    import dfrmot_jax.data as data
+
+    root = tmp_path / "scene"
+    shutil.copytree(scene, root)
+    reads = []
+    real = data.load_split
+
+    def counted(*a, **k):
+        reads.append(a)
+        return real(*a, **k)
+
+    monkeypatch.setattr(data, "load_split", counted)
+    for _ in range(2):
+        df = run_sweep(small_spec(root), progress=False, log=lambda m: None)
+    assert len(reads) == 1
+    cols = [c for c in small_table.columns if c not in ("chunk", RAW_COLUMN)]
+    pd.testing.assert_frame_equal(df[cols].drop(columns=["sweep"]), small_table[cols].drop(columns=["sweep"]))
+    det = next((root / "detections").rglob("0001.txt"))
+    lines = det.read_text().splitlines(keepends=True)
+    det.write_text("".join(lines[: len(lines) // 2]))          # half of one sequence's detections
+    df2 = run_sweep(small_spec(root), progress=False, log=lambda m: None)
+    assert len(reads) == 2
+    assert not df2["HOTA"].equals(df["HOTA"])
+
+
 def test_duplicate_outputs_scored_once_same_result(scene):
     """kf_q does not matter to the fixed-gain filter: identical outputs, identical rows."""
     spec = small_spec(scene, params={"kf_q": [0.5, 1.0, 2.0]}, options={})

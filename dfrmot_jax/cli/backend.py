@@ -9,7 +9,7 @@ def add_backend_arguments(p) -> None:
     p.add_argument("--backend", choices=("local", "ray"), default="local",
                    help="where chunks run: this process (default) or a Ray cluster (pip install \"dfrmot_jax[ray]\")")
     p.add_argument("--address", metavar="ADDR",
-                   help="Ray cluster address (HOST:PORT of `ray start --head`, 'auto', ray://HOST:10001); "
+                   help="Ray cluster address (HOST:PORT of 'ray start --head', 'auto', ray://HOST:10001); "
                         "default: a local Ray instance")
     p.add_argument("--worker-cpus", type=int, metavar="N",
                    help="Ray: one worker per N CPUs of a node (default: one worker per node, all its CPUs)")

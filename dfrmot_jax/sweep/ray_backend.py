@@ -45,15 +45,28 @@ START_TIMEOUT = float(os.environ.get("DFRMOT_RAY_START_TIMEOUT", "120"))
 
 
 class _ChunkWorker:
-    """A Ray actor: the data of each class it was given, the run it is part of, chunk tables."""
+    """A Ray actor: the data of each class it was given, the run it is part of, chunk tables.
 
-    def __init__(self):
+    Two ``compute`` calls run at once (its "compute" concurrency group; one chunk running, one
+    queued): while one chunk's outputs are scored, in metric processes beside it when the worker
+    has 2 or more CPUs (as the local backend's), the next chunk is tracked. Tracking and the
+    runner's state are taken one call at a time (``lock``). ``info`` / ``load`` / ``begin`` run in
+    their own group ("control"), in the order sent; a ``compute`` waits for its run's ``begin``."""
+
+    def __init__(self, cpus: int = 1):
+        import threading
+
         from ..core.devices import setup_host_devices
 
         self.devices = setup_host_devices()
+        self.cpus = cpus
         self.data: dict[str, tuple] = {}
+        self.pools: dict[str, Any] = {}          # data key -> metric process pool (cpus >= 2)
         self.run_key = None
         self.runner = None
+        self.pool = None
+        self.lock = threading.Lock()
+        self.begun = threading.Condition(self.lock)
 
     def info(self) -> dict:
         import jax
@@ -63,21 +76,34 @@ class _ChunkWorker:
                 "jax_devices": jax.local_device_count()}
 
     def load(self, key: str, split, gt) -> None:
-        self.data[key] = (split, gt)
+        with self.lock:
+            self.data[key] = (split, gt)
+            if self.cpus >= 2 and key not in self.pools:
+                from ..metrics.evaluate import worker_pool
+
+                self.pools[key] = worker_pool(gt, min(2, self.cpus))
 
     def begin(self, run_key: str, key: str, spec, table: pd.DataFrame, data: DataSettings,
               todo: Sequence[Chunk]) -> None:
         from .runner import _ChunkRunner
 
-        split, gt = self.data[key]
-        self.runner = _ChunkRunner(spec, table, data, None, 0)
-        self.runner.setup(todo, split=split, gt=gt)
-        self.run_key = run_key
+        with self.lock:
+            split, gt = self.data[key]
+            runner = _ChunkRunner(spec, table, data, None, 0)
+            runner.setup(todo, split=split, gt=gt)
+            self.runner, self.run_key, self.pool = runner, run_key, self.pools.get(key)
+            self.begun.notify_all()
 
     def compute(self, run_key: str, chunk: Chunk) -> pd.DataFrame:
-        if run_key != self.run_key:
-            raise RuntimeError("a chunk of another run reached this worker")
-        return self.runner.compute(chunk)
+        with self.lock:
+            if not self.begun.wait_for(lambda: self.run_key == run_key, timeout=START_TIMEOUT):
+                raise RuntimeError("a chunk reached this worker before its run began")
+            runner, pool = self.runner, self.pool
+            p = runner.start(chunk, runner.frames_of(chunk.options), pool)
+        if p.future is not None:
+            p.future.result()                    # scored in the pool while the other call tracks
+        with self.lock:
+            return runner.chunk_table(p)
 
 
 @dataclass
@@ -100,7 +126,12 @@ class _Pool:
     lost: set = field(default_factory=set)       # nodes a worker was lost on: none placed there again
 
     def fill(self, log) -> None:
-        """Place workers on every alive node's free CPUs (one per ``worker_cpus``, or one per node)."""
+        """Place workers on every alive node's free CPUs (one per ``worker_cpus``, or one per node)
+        and wait for them to start."""
+        self.wait_started(self.spawn(), log)
+
+    def spawn(self) -> list:
+        """Ask Ray for the missing workers (they start in the background)."""
         import ray
         from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
@@ -113,15 +144,22 @@ class _Pool:
             per = min(self.worker_cpus or cpus, cpus)
             have = sum(w.node == node["NodeID"] for w in self.workers)
             for _ in range(cpus // per - have):
-                actor = ray.remote(_ChunkWorker).options(
-                    num_cpus=per, max_restarts=0, max_task_retries=0, runtime_env={"env_vars": env(per)},
-                    scheduling_strategy=NodeAffinitySchedulingStrategy(node["NodeID"], soft=False)).remote()
+                cls = ray.remote(concurrency_groups={"control": 1, "compute": QUEUE_PER_WORKER})(_ChunkWorker)
+                actor = cls.options(
+                    num_cpus=per, max_restarts=0, max_task_retries=0,
+                    runtime_env={"env_vars": env(per)},
+                    scheduling_strategy=NodeAffinitySchedulingStrategy(node["NodeID"], soft=False)).remote(per)
                 new.append(_Worker(actor, node["NodeID"], cpus=per))
+        return new
+
+    def wait_started(self, new: list, log) -> None:
+        import ray
+
         if not new and not self.workers:
             raise SweepConfigError("backend", "the Ray cluster has no alive node with a CPU to run workers on")
         # Wait for the new workers: one that cannot be placed (its node's CPUs held by another job)
         # would hold its chunks forever.
-        infos = {w.handle.info.remote(): w for w in new}
+        infos = {_call(w, "info"): w for w in new}
         ready, late = ray.wait(list(infos), num_returns=len(infos), timeout=START_TIMEOUT)
         for ref in ready:
             try:
@@ -191,7 +229,9 @@ def connect(backend: RayBackend) -> _Pool:
 
         _check_reachable(backend.address)
         try:
-            ray.init(address=backend.address, logging_level=logging.WARNING, configure_logging=True,
+            # "local": a new instance on this machine (a bare ray.init() would join the last cluster
+            # `ray start` made here, even one that is gone since; $RAY_ADDRESS still wins)
+            ray.init(address=backend.address or "local", logging_level=logging.WARNING, configure_logging=True,
                      include_dashboard=False if backend.address is None else None)
         except (ConnectionError, RuntimeError, ValueError) as e:
             where = backend.address or "a local instance"
@@ -231,9 +271,12 @@ def run_chunks(backend: RayBackend, spec, table: pd.DataFrame, data: DataSetting
 
     pool = connect(backend)
     key = _data_key(data)
+    starting = pool.spawn() if not pool.workers else []      # workers start while the data load
     if key not in pool.refs:
         split, gt = load_data(data)
         pool.refs[key] = (ray.put(split), ray.put(gt))
+    if starting:
+        pool.wait_started(starting, log)
     run_key = uuid.uuid4().hex
     table_ref = ray.put(table)
     queue = deque(todo)
@@ -248,13 +291,13 @@ def run_chunks(backend: RayBackend, spec, table: pd.DataFrame, data: DataSetting
         for w in list(pool.workers):
             if queue and w.run != run_key:
                 if key not in w.loaded:
-                    w.handle.load.remote(key, *pool.refs[key])
+                    _call(w, "load", key, *pool.refs[key])
                     w.loaded.add(key)
-                w.handle.begin.remote(run_key, key, spec, table_ref, data, list(todo))
+                _call(w, "begin", run_key, key, spec, table_ref, data, list(todo))
                 w.run = run_key
             while queue and w.busy < QUEUE_PER_WORKER:
                 c = queue.popleft()
-                inflight[w.handle.compute.remote(run_key, c)] = (w, c)
+                inflight[_call(w, "compute", run_key, c)] = (w, c)
                 w.busy += 1
         n_workers = max(n_workers, len(pool.workers))
         ready, _ = ray.wait(list(inflight), num_returns=1)
@@ -287,6 +330,12 @@ def run_chunks(backend: RayBackend, spec, table: pd.DataFrame, data: DataSetting
     dt = time.perf_counter() - t0
     if n:
         log(f"ray: {n:,} configs tracked and scored by {n_workers} worker(s) in {dt:.1f} s ({n / dt:.1f} configs/s)")
+
+
+def _call(w: _Worker, method: str, *args):
+    """``w.method.remote(*args)`` in the method's concurrency group."""
+    group = "compute" if method == "compute" else "control"
+    return getattr(w.handle, method).options(concurrency_group=group).remote(*args)
 
 
 def _data_key(data: DataSettings) -> str:
