@@ -328,6 +328,23 @@ def test_a_split_is_read_once_until_its_files_change(small_table, scene, tmp_pat
     assert not df2["HOTA"].equals(df["HOTA"])
 
 
+def test_compacted_detection_slots_change_nothing(small_table, scene, monkeypatch):
+    """The split compacted to the table's loosest thresholds (the default) gives every column of
+    every row as the full split does; the compaction really drops slots here."""
+    from dfrmot_jax.data import compact_split, load_split
+    from dfrmot_jax.sweep import runner
+
+    spec = small_spec(scene, params={"a_l": [4.0, 8.0], "score_2d": [0.5, 0.8], "score_3d": [0.5, 0.9]})
+    compact = run_sweep(spec, progress=False, log=lambda m: None)
+    monkeypatch.setattr(runner, "COMPACT", False)
+    full = run_sweep(spec, progress=False, log=lambda m: None)
+    pd.testing.assert_frame_equal(compact, full)
+    split = load_split(scene, "synth2d", "synth3d")
+    packed = compact_split(split, 0.5, 0.5)
+    assert packed.valid2d.shape[1] + packed.valid3d.shape[1] < split.valid2d.shape[1] + split.valid3d.shape[1]
+    assert packed.valid2d.sum() < split.valid2d.sum()
+
+
 def test_duplicate_outputs_scored_once_same_result(scene):
     """kf_q does not matter to the fixed-gain filter: identical outputs, identical rows."""
     spec = small_spec(scene, params={"kf_q": [0.5, 1.0, 2.0]}, options={})

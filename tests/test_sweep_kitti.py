@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pandas as pd
 import pytest
 
 from dfrmot_jax.sweep import COMBINED, run_sweep, sweep_report
@@ -23,3 +24,24 @@ def test_baseline_row_reproduces_dfr2023(kitti_root):
         assert round(float(base[k]), 2) == v, k
     assert base["overflow"] == 0
     assert sweep_report(df).summary["baseline"] == pytest.approx(82.786, abs=5e-4)
+
+
+
+def test_compacted_detection_slots_change_nothing(kitti_root, monkeypatch):
+    """Sweeps track each class on its split compacted to the table's loosest score thresholds
+    (``data.compact_split``: 14 + 19 detection slots -> fewer): every column of every row equals the
+    uncompacted run, for both output modes, on the two car sequences with the most detections per
+    frame, with the projected 3D boxes (some not finite); ``test_sweep`` covers the detector's boxes."""
+    from dfrmot_jax.sweep import runner
+
+    spec = {"name": "compact", "chunk": 8,
+            "data": {"root": str(kitti_root), "det2d": "rrc", "det3d": "pointrcnn", "class": "car",
+                     "sequences": ["0001", "0020"]},
+            "baseline": {"preset": "dfr2023"},
+            "params": {"score_2d": [0.3, 0.6], "score_3d": [4.0, 6.0], "merge_iou": [0.25, 0.5]},
+            "options": {"output": ["detections", "filtered"], "merge": ["calib_projection"]}}
+    compact = run_sweep(spec, progress=False, log=lambda m: None)
+    monkeypatch.setattr(runner, "COMPACT", False)
+    full = run_sweep(spec, progress=False, log=lambda m: None)
+    pd.testing.assert_frame_equal(compact, full)
+    assert compact["peak_tracks"].max() > 0

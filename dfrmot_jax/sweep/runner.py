@@ -40,6 +40,9 @@ from .table import RAW_COLUMN, _params_of, expand, n_settings
 
 #: lanes per compiled tracker call (the batch is split over the host devices)
 TRACK_CHUNK = 32
+#: track each class on its split compacted to the table's loosest score thresholds
+#: (:func:`dfrmot_jax.data.compact_split`: the same results, fewer dead detection slots)
+COMPACT = True
 
 
 def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds: int | None = None,
@@ -287,6 +290,11 @@ class _ChunkRunner:
 
         if split is None:
             split, gt = load_data(self.data)
+        if COMPACT and self.spec.distortion is None:     # (distortion draws are keyed by slot)
+            from ..data import compact_split
+
+            every = _params_of(self.table, range(len(self.table)), self.data.cls)
+            split = compact_split(split, float(np.min(every.score_2d)), float(np.min(every.score_3d)))
         self.split, self.gt = split, gt
         self.frames: tuple | None = None        # (options, prepared frames) of the last option group
         self.todo = list(todo)
