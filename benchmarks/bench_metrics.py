@@ -41,7 +41,7 @@ def main() -> None:
     from dfrmot_jax.io.kitti import read_tracking_labels, sequence_lengths
     from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, prepare_gt
     from dfrmot_jax.testing.metric_edits import load_results, pack_arrays, stress_edit
-    from dfrmot_jax.metrics.evaluate import _GT_CACHE
+    from dfrmot_jax.metrics.evaluate import _GT_CACHE, _SEQ_CACHE
     from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, make_tracker_folder, run_trackeval
     from dfrmot_jax.paths import default_data_root
 
@@ -66,11 +66,31 @@ def main() -> None:
     rows.append(("TrackEval (files, 1 config)", te_s, 1))
 
     # --- ours, files
-    _GT_CACHE.clear()
-    t = time.perf_counter()
-    ours = evaluate_files(refdir, root, "car", seqs)
-    cold_s = time.perf_counter() - t
+    def cold():
+        _GT_CACHE.clear()
+        _SEQ_CACHE.clear()
+        return evaluate_files(refdir, root, "car", seqs)
+
+    cold_s, ours = _best(cold, 3)
     rows.append(("evaluate_files cold (incl. GT prep)", cold_s, 1))
+
+    # --- motrics (Rust), the same files, cold: its KITTI readers and TrackEval-like preprocessing
+    mo_s, mo = None, None
+    try:
+        import motrics
+    except ImportError:
+        print("motrics not installed (pip install -e '.[dev]'): its row is skipped")
+    else:
+        def run_motrics():
+            per = {}
+            for sq in seqs:
+                g, ign = motrics.load_kitti_gt(root / "label_02" / f"{sq}.txt")
+                a = motrics.preprocess_kitti(g, motrics.load_kitti(refdir / f"{sq}.txt"), "car", ignore_regions=ign)
+                per[sq] = motrics.evaluate(motrics.Frames(ids=a[0], boxes=a[1]), motrics.Frames(ids=a[2], boxes=a[3]))
+            return per
+
+        mo_s, mo = _best(run_motrics, 3)
+        rows.append(("motrics cold (per sequence, no COMBINED)", mo_s, 1))
     ours_s, ours = _best(lambda: evaluate_files(refdir, root, "car", seqs), 5)
     rows.append(("evaluate_files (GT cached)", ours_s, 1))
     parity = all(np.allclose(np.asarray(ours["COMBINED"][f], float), np.asarray(v, float), atol=1e-9, rtol=0)
@@ -108,9 +128,18 @@ def main() -> None:
     c = ours["COMBINED"]
     print(f"parity with TrackEval (COMBINED, all fields): {'ok' if parity else 'MISMATCH'}; "
           f"HOTA {100 * np.mean(c['HOTA']):.2f} MOTA {100 * c['MOTA']:.2f} IDSW {c['IDSW']} IDF1 {100 * c['IDF1']:.2f}")
+    mo_diff = None
+    if mo is not None:       # per-sequence HOTA, motrics against ours (which equals TrackEval's)
+        mo_diff = max(abs(100 * float(mo[sq].hota.hota) - 100 * float(np.mean(ours[sq]["HOTA"]))) for sq in seqs)
+        print(f"motrics: {te_s / mo_s:.1f}x TrackEval; ours cold {mo_s / cold_s:.2f}x motrics; largest per-sequence "
+              f"HOTA difference from TrackEval {mo_diff:.4f} points")
     out = {
         "ours_s": round(ours_s, 4),
         "ours_cold_s": round(cold_s, 4),
+        "motrics_cold_s": None if mo_s is None else round(mo_s, 4),
+        "cold_vs_trackeval": round(te_s / cold_s, 1),
+        "cold_vs_motrics": None if mo_s is None else round(mo_s / cold_s, 2),
+        "motrics_max_seq_hota_diff": None if mo_diff is None else round(mo_diff, 4),
         "trackeval_s": round(te_s, 4),
         "speedup": round(te_s / ours_s, 1),
         "b1_s": round(timings[1], 4),

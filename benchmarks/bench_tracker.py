@@ -1,7 +1,9 @@
 """Tracker speed on the whole KITTI training split (21 sequences, 8,008 frames; car; RRC + PointRCNN).
 
 In one run: the NumPy reference (frames/s), then the JAX tracker at B = 1, 8, 64, 256, 1024
-settings around the dfr2023 preset (config-frames/s after compile, compile time, peak RSS).
+settings around the dfr2023 preset (config-frames/s after compile, compile time, peak RSS), then
+the same batches on the split compacted to the batch's loosest score thresholds, as sweeps track
+(``data.compact_split``; JSON keys ``compact_b*``; ``--no-compact`` skips them).
 Batches larger than ``--chunk`` run chunk by chunk (each chunk split over the host's devices).
 The last line is one JSON object.
 
@@ -25,7 +27,7 @@ dfrmot_jax.setup_host_devices()   # one XLA device per core, before any JAX oper
 
 from dfrmot_jax.core import run as tracker
 from dfrmot_jax.api import default_capacity
-from dfrmot_jax.data import load_sequences, pack, prepare_frames
+from dfrmot_jax.data import compact_split, load_sequences, pack, prepare_frames
 from dfrmot_jax.config import Params, preset, stack_params
 from dfrmot_jax.paths import default_data_root
 from dfrmot_jax.testing.reference import track_sequence
@@ -50,6 +52,7 @@ def main() -> int:
     ap.add_argument("--sizes", default="1,8,64,256,1024")
     ap.add_argument("--chunk", type=int, default=16, help="lanes per compiled call for large batches")
     ap.add_argument("--reference-seqs", type=int, default=21, help="sequences the reference runs (frames/s)")
+    ap.add_argument("--no-compact", action="store_true", help="skip the compacted-split runs")
     args = ap.parse_args()
     root = default_data_root()
     if not (root / "label_02").is_dir():
@@ -77,27 +80,31 @@ def main() -> int:
 
     out = {"frames": T, "capacity": cap, "chunk": args.chunk, "reference_frames_per_s": round(ref_fps, 1)}
     compile_s = {}
-    for b in sizes:
-        p = Params(*(np.asarray(v)[:b] for v in big))
-        width = min(b, args.chunk)
-        lanes = [Params(*(np.asarray(v)[i:i + width] for v in p)) for i in range(0, b, width)]
-        t0 = time.perf_counter()
-        first = tracker.run_batch(lanes[0], frames, options, cap)
-        compile_s[b] = time.perf_counter() - t0
-        if len(lanes) == 1:
+    runs = [("", frames)]
+    if not args.no_compact:
+        packed = compact_split(split, float(np.min(big.score_2d)), float(np.min(big.score_3d)))
+        out["compact_slots"] = [int(packed.valid2d.shape[1]), int(packed.valid3d.shape[1])]
+        out["slots"] = [int(split.valid2d.shape[1]), int(split.valid3d.shape[1])]
+        runs.append(("compact_", prepare_frames(packed, options)))
+    for prefix, fr in runs:
+        for b in sizes:
+            p = Params(*(np.asarray(v)[:b] for v in big))
+            width = min(b, args.chunk)
+            lanes = [Params(*(np.asarray(v)[i:i + width] for v in p)) for i in range(0, b, width)]
             t0 = time.perf_counter()
-            res = [tracker.run_batch(lanes[0], frames, options, cap)]
-        else:
+            first = tracker.run_batch(lanes[0], fr, options, cap)
+            if not prefix:
+                compile_s[b] = time.perf_counter() - t0
             t0 = time.perf_counter()
-            res = [tracker.run_batch(lane, frames, options, cap) for lane in lanes]
-        dt = time.perf_counter() - t0
-        overflow = int(sum(int(r.overflow.sum()) for r in res))
-        rate = b * T / dt
-        print(f"B={b:5d}: {rate:12,.0f} config-frames/s  ({dt:7.2f} s; first call incl. compile "
-              f"{compile_s[b]:5.2f} s; overflow {overflow}; peak RSS {rss_mb():,.0f} MB)", flush=True)
-        key = "b1_frames_per_s" if b == 1 else f"b{b}_config_frames_per_s"
-        out[key] = round(rate, 1)
-        del first, res
+            res = [tracker.run_batch(lane, fr, options, cap) for lane in lanes]
+            dt = time.perf_counter() - t0
+            overflow = int(sum(int(r.overflow.sum()) for r in res))
+            rate = b * T / dt
+            print(f"{prefix or 'full '}B={b:5d}: {rate:12,.0f} config-frames/s  ({dt:7.2f} s; overflow {overflow}; "
+                  f"peak RSS {rss_mb():,.0f} MB)", flush=True)
+            key = f"{prefix}b1_frames_per_s" if b == 1 else f"{prefix}b{b}_config_frames_per_s"
+            out[key] = round(rate, 1)
+            del first, res
     if 1 in sizes:
         out["b1_vs_reference"] = round(out["b1_frames_per_s"] / ref_fps, 2)
         for b in sizes:
