@@ -44,6 +44,29 @@ def test_random_settings_match_reference(scene):
         _assert_parity(split, seqs, params, options)
 
 
+def test_small_frames_track_like_the_oracle_and_like_one_size(scene, monkeypatch):
+    """Frames with few detections run on a smaller copy of the step (``core.run.small_frames``, on
+    for long splits; forced here): the oracle's tracks id for id, and the same arrays as one size,
+    for random settings (the KITTI parity tests run it on all 21 sequences, where it is on)."""
+    _, seqs, split = scene
+    monkeypatch.setattr(tracker, "SMALL_FRAMES_MIN_T", 0)
+    frames = prepare_frames(split, Options())
+    found = tracker.small_frames(frames, Options())
+    assert found is not None and 0 < found[1].mean() < 1, "the scene has no small frames to run"
+    rng = np.random.default_rng(31)
+    for params, options in random_settings(rng, 2):
+        batch = stack_params([params, random_params(rng, options.output)])
+        small = track(split, batch, options)
+        mm = lane_mismatches(split, small, 0, reference_rows(seqs, params, options))
+        assert (mm["missing"], mm["extra"], mm["id"], mm["box"]) == (0, 0, 0, 0), (options, params, mm)
+        monkeypatch.setattr(tracker, "SMALL_FRAMES", False)
+        one = track(split, batch, options)
+        monkeypatch.setattr(tracker, "SMALL_FRAMES", True)
+        for a, b in zip(small, one):
+            if isinstance(a, np.ndarray):
+                np.testing.assert_array_equal(a, b)
+
+
 def test_vmap_batch_equals_loop_of_single_runs(scene):
     _, _, split = scene
     rng = np.random.default_rng(5)
@@ -64,7 +87,9 @@ def test_second_call_with_new_values_does_not_recompile(scene):
     frames = prepare_frames(split, Options())
     cap = default_capacity(frames, Params(), Options())
     tracker.run_batch(stack_params([Params(), Params(a_l=5.0)]), frames, Options(), cap)
-    fn = tracker.compiled(Options(), cap, min(2, tracker.device_count()), None, False)
+    small = tracker.small_frames(frames, Options())
+    fn = tracker.compiled(Options(), cap, min(2, tracker.device_count()), None, False,
+                          None if small is None else small[0])
     with no_recompile():
         out = tracker.run_batch(stack_params([Params(a_l=3.0, epsilon=5), Params(score_2d=0.7)]), frames, Options(),
                                 cap)

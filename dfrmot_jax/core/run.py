@@ -1,6 +1,13 @@
 """The tracker over a split: ``run`` scans ``step`` over the frames of one lane; ``run_batch`` vmaps
 it over a ``Params`` batch ``[B]`` and shards the batch over the host's devices, one compilation
-per static setting (``Options``, capacity, devices, hook, detail).
+per static setting (``Options``, capacity, devices, hook, detail, small-frame sizes).
+
+Small frames: most frames hold few detections, but every step pays for the [objects, tracks]
+work of the largest frame. Frames whose valid detections all sit in the first ``m2`` 2D and ``m3``
+3D slots (a per-frame flag, the same for every lane) run a second copy of the step on those
+slots only (``lax.cond`` on an unbatched flag keeps its branches under ``vmap``); its output slots
+are padded back to the full layout. The result is the same: the slots left out hold no valid
+detection, and every order (greedy ties, births) follows the slot order, which is kept.
 """
 
 from __future__ import annotations
@@ -29,27 +36,108 @@ class FrameHook(NamedTuple):
     xs: Any = None
 
 
+#: run frames with few detections on a smaller copy of the step (``small_frames``); off: one size
+SMALL_FRAMES = True
+#: ... on splits of at least this many frames (the second copy of the step costs its compilation)
+SMALL_FRAMES_MIN_T = 2000
+
+
+def small_frames(frames: Frames, options: Options, detail: bool = False):
+    """((m2, m3), flags [T] bool) for the small-frame step, or None when it would not pay (fewer
+    than ``SMALL_FRAMES_MIN_T`` frames, or less than 15 % fewer slots per step).
+
+    ``flags[t]``: frame t's valid detections all sit in the first m2 2D / m3 3D slots. (m2, m3) is
+    chosen among quantiles of the frames' last valid slots to minimise the expected slots per step;
+    it depends on the data only (``valid2``, ``valid3``), so every batch on the same frames shares
+    one compilation. Not with the Hungarian assignment (its choice among equal optima depends on
+    the matrix size) nor with ``detail`` (its 3D sources are indices into the full slot layout).
+    """
+    v2, v3 = np.asarray(frames.valid2), np.asarray(frames.valid3)
+    if not SMALL_FRAMES or detail or options.assign == "hungarian" or v2.shape[0] < SMALL_FRAMES_MIN_T:
+        return None
+    big2, big3 = v2.shape[1], v3.shape[1]
+
+    def last(v):
+        return np.where(v.any(axis=1), v.shape[1] - np.argmax(v[:, ::-1], axis=1), 0)
+
+    l2, l3 = last(v2), last(v3)
+    full = big2 + big3
+    best = (float(full), None)
+    for q in (50, 60, 70, 80, 90, 95):
+        m2 = max(1, int(np.ceil(np.percentile(l2, q))))
+        m3 = max(1, int(np.ceil(np.percentile(l3, q))))
+        if m2 >= big2 and m3 >= big3:
+            continue
+        small = (l2 <= m2) & (l3 <= m3)
+        cost = small.mean() * (m2 + m3) + (1 - small.mean()) * full
+        if cost < best[0]:
+            best = (cost, ((min(m2, big2), min(m3, big3)), small))
+    if best[1] is None or best[0] > 0.85 * full:      # a second program must buy at least 15 %
+        return None
+    return best[1]
+
+
+def _slots(frame: Frames, m2: int, m3: int) -> Frames:
+    """The frame's first m2 2D and m3 3D detection slots."""
+    return Frames(frame.reset, frame.box2[:m2], frame.score2[:m2], frame.valid2[:m2], frame.box3[:m3],
+                  frame.score3[:m3], frame.valid3[:m3], frame.lo3[:m3], frame.hi3[:m3])
+
+
+def _padded(out, options: Options, m2: int, m3: int, big2: int, big3: int):
+    """A small frame's output in the full object-slot layout (output "detections"; the padding is
+    what an empty slot writes: no id, no 3D source)."""
+    if options.output != "detections":
+        return out
+
+    def pad(x, fill):
+        if x.shape[0] == 0:
+            return x
+        gap = lambda n: jnp.full((n,) + x.shape[1:], fill, x.dtype)   # noqa: E731
+        if options.modality == "2d":
+            return jnp.concatenate([x, gap(big2 - m2)])
+        if options.modality == "3d":
+            return jnp.concatenate([x, gap(big3 - m3)])
+        return jnp.concatenate([x[:m2], gap(big2 - m2), x[m2:], gap(big3 - m3)])
+
+    return out._replace(ids=pad(out.ids, -1), boxes=pad(out.boxes, 0), src3=pad(out.src3, -1),
+                        own3=pad(out.own3, False))
+
+
 def run(params: Params, frames: Frames, options: Options, capacity: int, hook: FrameHook | None = None,
-        detail: bool = False):
+        detail: bool = False, small=None, small_flags=None):
     """One lane over all frames: (final Memory, StepOutput stacked [T, ...]).
 
     hook: each frame is first transformed by ``hook.fn``; the written boxes are then the lane's own
     (``StepOutput.boxes`` [K, 4]), else [K, 0] (output "detections": the data's, ``data.object_boxes``).
-    detail: see ``step``.
+    detail: see ``step``. small: (m2, m3) static and small_flags [T] bool (``small_frames``; not
+    with a hook nor ``detail``): flagged frames run on their first m2 / m3 detection slots.
     """
     t = jnp.arange(frames.reset.shape[0], dtype=jnp.int32)
     xs = None if hook is None else hook.xs
+    big2, big3 = frames.valid2.shape[1], frames.valid3.shape[1]
 
-    def body(m, inputs):
-        frame, x, ti = inputs
-        if hook is not None:
-            frame = hook.fn(frame, hook.lane, x, ti)
+    def one(m, frame, ti):
         m, out = step(params, m, frame, options, detail=detail, t=ti)
         if hook is None and options.output == "detections":
             out = out._replace(boxes=out.boxes[:, :0])    # the data's boxes: not computed per lane
         return m, out
 
-    return jax.lax.scan(body, init(options, capacity, params), (frames, xs, t))
+    def body(m, inputs):
+        frame, x, ti, flag = inputs
+        if hook is not None:
+            frame = hook.fn(frame, hook.lane, x, ti)
+        if small is None:
+            return one(m, frame, ti)
+        m2, m3 = small
+
+        def on_first_slots(mm):
+            mm, out = one(mm, _slots(frame, m2, m3), ti)
+            return mm, _padded(out, options, m2, m3, big2, big3)
+
+        return jax.lax.cond(flag, on_first_slots, lambda mm: one(mm, frame, ti), m)
+
+    flags = small_flags if small is not None else None
+    return jax.lax.scan(body, init(options, capacity, params), (frames, xs, t, flags))
 
 
 class BatchOutput(NamedTuple):
@@ -71,12 +159,13 @@ class BatchOutput(NamedTuple):
 _PROGRAMS: dict[tuple, Any] = {}
 
 
-def compiled(options: Options, capacity: int, n_devices: int, hook_fn=None, detail: bool = False):
+def compiled(options: Options, capacity: int, n_devices: int, hook_fn=None, detail: bool = False, small=None):
     """The jitted batch program of one static setting, built once and kept (``_PROGRAMS``).
 
-    Called with (params [B], frames, hook lanes [B] or None, hook xs or None).
+    Called with (params [B], frames, hook lanes [B] or None, hook xs or None, small-frame flags [T]
+    or None).
     """
-    key = (options, capacity, n_devices, hook_fn, detail)
+    key = (options, capacity, n_devices, hook_fn, detail, small)
     if key not in _PROGRAMS:
         _PROGRAMS[key] = _build(*key)
     return _PROGRAMS[key]
@@ -88,19 +177,19 @@ def compilations() -> int:
     return sum(max(1, fn._cache_size()) for fn in _PROGRAMS.values())
 
 
-def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: bool):
-    def lane(params, frames, hook_lane, hook_xs):
+def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: bool, small):
+    def lane(params, frames, hook_lane, hook_xs, flags):
         hook = None if hook_fn is None else FrameHook(hook_fn, hook_lane, hook_xs)
-        mem, out = run(params, frames, options, capacity, hook, detail)
+        mem, out = run(params, frames, options, capacity, hook, detail, small, flags)
         return out, mem.overflow, mem.peak
 
-    batched = jax.vmap(lane, in_axes=(0, None, 0, None))
+    batched = jax.vmap(lane, in_axes=(0, None, 0, None, None))
     if n_devices == 1:
         return jax.jit(batched)
     from jax.sharding import Mesh, PartitionSpec as P
 
     mesh = Mesh(np.array(jax.devices()[:n_devices]), ("b",))
-    sharded = jax.shard_map(batched, mesh=mesh, in_specs=(P("b"), P(), P("b"), P()), out_specs=P("b"),
+    sharded = jax.shard_map(batched, mesh=mesh, in_specs=(P("b"), P(), P("b"), P(), P()), out_specs=P("b"),
                             check_vma=False)
     return jax.jit(sharded)
 
@@ -135,12 +224,16 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
     pad = (-b) % n_dev
     with jax.enable_x64(True):
         p = _lanes(params, b, pad, jnp.float64)
+        small = flags = None
         if hook is None:
             fn, lanes, xs = None, jnp.zeros(b + pad, jnp.int32), None
+            found = small_frames(frames, options, detail)
+            if found is not None:
+                small, flags = found[0], jnp.asarray(found[1])
         else:
             fn, lanes, xs = hook.fn, _lanes(hook.lane, b, pad, jnp.float32), jax.tree.map(jnp.asarray, hook.xs)
-        program = compiled(options, capacity, n_dev, fn, detail)
-        out, overflow, peak = program(p, Frames(*(jnp.asarray(x) for x in frames)), lanes, xs)
+        program = compiled(options, capacity, n_dev, fn, detail, small)
+        out, overflow, peak = program(p, Frames(*(jnp.asarray(x) for x in frames)), lanes, xs, flags)
     out = jax.tree.map(lambda x: np.asarray(x)[:b], out)
     return BatchOutput(out.ids, out.boxes, out.dropped, np.asarray(overflow)[:b], np.asarray(peak)[:b],
                        out.src3, out.own3, out.box3)
