@@ -321,13 +321,18 @@ def _run_chunk(dets: TrackerDets) -> dict:
     return evaluate_batch(_WORKER_GT, dets)
 
 
-def _run_lanes(dets: TrackerDets, lanes_per_batch: int) -> dict:
-    return evaluate_lanes(_WORKER_GT, dets, lanes_per_batch)
+class _Parts(list):
+    """Futures of consecutive lane ranges of one batch, read as one future."""
+
+    def done(self) -> bool:
+        return all(f.done() for f in self)
+
+    def result(self) -> dict:
+        return _concat([f.result() for f in self])
 
 
 def worker_pool(gt: PreparedGT, workers: int, start_method: str | None = None) -> ProcessPoolExecutor:
-    """A process pool whose workers hold ``gt`` (sent once): submit ``_run_chunk(dets)`` /
-    ``_run_lanes(dets, lanes_per_batch)``. ``start_method`` default ``'forkserver'`` where available,
+    """A process pool whose workers hold ``gt`` (sent once): submit ``_run_chunk(dets)``. ``start_method`` default ``'forkserver'`` where available,
     else ``'spawn'`` (both safe in a process running JAX threads).
 
     The forkserver is told not to preload ``__main__``: the workers need only this package, and
@@ -434,8 +439,12 @@ class LaneScorer:
     def evaluate(self, dets: TrackerDets) -> dict:
         return evaluate_lanes(self.gt, dets, self.lanes_per_batch)
 
-    def submit(self, pool: ProcessPoolExecutor, dets: TrackerDets):
-        return pool.submit(_run_lanes, dets, self.lanes_per_batch)
+    def submit(self, pool: ProcessPoolExecutor, dets: TrackerDets) -> "_Parts":
+        """Score ``dets`` in the pool, ``lanes_per_batch`` lanes per task (one chunk's lanes spread over
+        every process): a future-like ``_Parts`` whose ``result()`` equals :meth:`evaluate`'s."""
+        n = self.lanes_per_batch
+        return _Parts(pool.submit(_run_chunk, lane_slice(dets, a, min(a + n, dets.n_lanes)))
+                      for a in range(0, dets.n_lanes, n))
 
     def store(self, digests: Sequence[bytes], lanes: Sequence[int], result: dict) -> None:
         """Keep the scores ``result`` (:func:`evaluate_lanes` of ``lanes``, in order) under their digests."""
