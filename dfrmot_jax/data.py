@@ -19,6 +19,7 @@ from .io.kitti import (
     Detections2D,
     Detections3D,
     KittiFormatError,
+    file_stamps,
     line_of_row,
     read_calib,
     read_detections_2d,
@@ -203,6 +204,12 @@ def _rows_by_frame(frames: np.ndarray, n_frames: int) -> tuple[np.ndarray, np.nd
     return slot, counts
 
 
+#: what an empty detection slot holds, per Split field (``pack``, ``compact_split``)
+_PAD_2D = {"box2d": 0.0, "score2d": 0.0, "row2d": -1}
+_PAD_3D = {"box3d": 0.0, "proj3d": 0.0, "score3d": 0.0, "dims3d": 1.0, "loc3d": (0.0, 0.0, 10.0), "rot_y3d": 0.0,
+           "alpha3d": 0.0, "row3d": -1}
+
+
 def pack(seqs: list[SequenceDets], cls: str = "car", image_size=DEFAULT_IMAGE_SIZE,
          min_slots: int = 1) -> Split:
     """Pack sequences into a ``Split`` (M2, M3 = the largest detection counts of any frame)."""
@@ -216,12 +223,16 @@ def pack(seqs: list[SequenceDets], cls: str = "car", image_size=DEFAULT_IMAGE_SI
     m2 = max([min_slots] + [int(c.max(initial=0)) for _, c in per2])
     m3 = max([min_slots] + [int(c.max(initial=0)) for _, c in per3])
 
-    box2d = np.zeros((T, m2, 4)); score2d = np.zeros((T, m2)); valid2d = np.zeros((T, m2), bool)
-    row2d = np.full((T, m2), -1, np.int32)
-    box3d = np.zeros((T, m3, 4)); proj3d = np.zeros((T, m3, 4)); score3d = np.zeros((T, m3))
-    dims3d = np.ones((T, m3, 3)); loc3d = np.zeros((T, m3, 3)); loc3d[..., 2] = 10.0
-    rot_y3d = np.zeros((T, m3)); alpha3d = np.zeros((T, m3)); valid3d = np.zeros((T, m3), bool)
-    row3d = np.full((T, m3), -1, np.int32)
+    pads = {**_PAD_2D, **_PAD_3D}
+
+    def empty(field: str, m: int, *width: int, dtype=np.float64) -> np.ndarray:
+        return np.full((T, m, *width), pads[field], dtype)
+
+    box2d, score2d, row2d = empty("box2d", m2, 4), empty("score2d", m2), empty("row2d", m2, dtype=np.int32)
+    box3d, proj3d, score3d = empty("box3d", m3, 4), empty("proj3d", m3, 4), empty("score3d", m3)
+    dims3d, loc3d = empty("dims3d", m3, 3), empty("loc3d", m3, 3)
+    rot_y3d, alpha3d, row3d = empty("rot_y3d", m3), empty("alpha3d", m3), empty("row3d", m3, dtype=np.int32)
+    valid2d, valid3d = np.zeros((T, m2), bool), np.zeros((T, m3), bool)
     reset = np.zeros(T, bool); seq = np.zeros(T, np.int32); frame = np.zeros(T, np.int32)
     for k, s in enumerate(seqs):
         o = int(offsets[k])
@@ -253,10 +264,30 @@ def load_split(root, det2d="rrc", det3d="pointrcnn", cls: str = "car", sequences
         root=str(root))
 
 
-#: padding of an empty detection slot, per Split field (as ``pack`` pads)
-_PAD_2D = {"box2d": 0.0, "score2d": 0.0, "row2d": -1}
-_PAD_3D = {"box3d": 0.0, "proj3d": 0.0, "score3d": 0.0, "dims3d": 1.0, "loc3d": (0.0, 0.0, 10.0), "rot_y3d": 0.0,
-           "alpha3d": 0.0, "row3d": -1}
+_SPLITS: dict = {}
+
+
+def cached_split(root, det2d, det3d, cls: str, sequences) -> Split:
+    """:func:`load_split` memoised on its arguments and the size and mtime of every file it reads
+    (labels for the lengths, calibrations, both detectors' files): sweeps on the same data, such as
+    a tune's batches, read it once."""
+    root = Path(root)
+    sequences = tuple(sequences)
+    files = [root / sub / f"{s}.txt" for sub in ("label_02", "calib") for s in sequences]
+    for det in (det2d, det3d):
+        folder = detection_dir(root, det, cls)
+        files += [folder / f"{s}.txt" for s in sequences]
+    key, stamp = (str(root.resolve()), str(det2d), str(det3d), cls, sequences), file_stamps(files)
+    hit = _SPLITS.get(key)
+    if hit is not None and hit[0] == stamp:
+        return hit[1]
+    split = load_split(root, det2d, det3d, cls, list(sequences))
+    if len(_SPLITS) >= 4:
+        _SPLITS.clear()
+    _SPLITS[key] = (stamp, split)
+    return split
+
+
 
 
 def compact_split(split: Split, score_2d: float, score_3d: float) -> Split:

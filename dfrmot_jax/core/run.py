@@ -136,8 +136,7 @@ def run(params: Params, frames: Frames, options: Options, capacity: int, hook: F
 
         return jax.lax.cond(flag, on_first_slots, lambda mm: one(mm, frame, ti), m)
 
-    flags = small_flags if small is not None else None
-    return jax.lax.scan(body, init(options, capacity, params), (frames, xs, t, flags))
+    return jax.lax.scan(body, init(options, capacity, params), (frames, xs, t, small_flags))
 
 
 class BatchOutput(NamedTuple):

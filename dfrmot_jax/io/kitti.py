@@ -615,6 +615,18 @@ def write_text_atomic(path, text: str) -> None:
             tmp.unlink()
 
 
+def file_stamps(paths) -> tuple:
+    """(mtime in ns, size) of each file, None where there is none: what the readers' memos key on."""
+    out = []
+    for path in paths:
+        try:
+            st = os.stat(path)
+            out.append((st.st_mtime_ns, st.st_size))
+        except OSError:
+            out.append(None)
+    return tuple(out)
+
+
 def sequence_lengths(root, sequences=None) -> dict[str, int]:
     """Frames per sequence of a KITTI tracking root: ``max frame in label_02/SSSS.txt + 1``.
 

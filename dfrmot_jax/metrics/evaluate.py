@@ -43,6 +43,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from dfrmot_jax.io.kitti import file_stamps
 from dfrmot_jax.metrics import clear, hota, identity
 from dfrmot_jax.metrics.kitti import (PreparedGT, TrackerDets, class_sequences, prepare_gt, preprocess,
                                       read_tracker_files, tracker_dets_from_arrays)
@@ -72,13 +73,7 @@ def cached_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Prep
         names = tuple(sorted(p.stem for p in label_dir.glob("*.txt")))
     else:
         names = tuple(f"{s:04d}" if isinstance(s, (int, np.integer)) else str(s) for s in sequences)
-    stamp = []
-    for n in names:
-        try:
-            st = os.stat(label_dir / f"{n}.txt")
-            stamp.append((st.st_mtime_ns, st.st_size))
-        except FileNotFoundError:
-            stamp.append(None)
+    stamp = file_stamps(label_dir / f"{n}.txt" for n in names)
     key = (str(Path(root).resolve()), cls.lower(), names)
     hit = _GT_CACHE.get(key)
     if hit is not None and hit[0] == stamp:
@@ -332,8 +327,9 @@ class _Parts(list):
 
 
 def worker_pool(gt: PreparedGT, workers: int, start_method: str | None = None) -> ProcessPoolExecutor:
-    """A process pool whose workers hold ``gt`` (sent once): submit ``_run_chunk(dets)``. ``start_method`` default ``'forkserver'`` where available,
-    else ``'spawn'`` (both safe in a process running JAX threads).
+    """A process pool whose workers hold ``gt`` (sent once): submit ``_run_chunk(dets)``.
+    ``start_method`` default ``'forkserver'`` where available, else ``'spawn'`` (both safe in a
+    process running JAX threads).
 
     The forkserver is told not to preload ``__main__``: the workers need only this package, and
     re-running the caller's script in them would start the sweep again there (a plain script

@@ -60,8 +60,8 @@ class _ChunkWorker:
 
         self.devices = setup_host_devices()
         self.cpus = cpus
-        self.data: dict[str, tuple] = {}
-        self.pools: dict[str, Any] = {}          # data key -> metric process pool (cpus >= 2)
+        self.data: dict[DataSettings, tuple] = {}
+        self.pools: dict[DataSettings, Any] = {}   # data -> metric process pool (cpus >= 2)
         self.run_key = None
         self.runner = None
         self.pool = None
@@ -75,23 +75,22 @@ class _ChunkWorker:
         return {"node": ray.get_runtime_context().get_node_id(), "pid": os.getpid(), "devices": self.devices,
                 "jax_devices": jax.local_device_count()}
 
-    def load(self, key: str, split, gt) -> None:
+    def load(self, data: DataSettings, split, gt) -> None:
         with self.lock:
-            self.data[key] = (split, gt)
-            if self.cpus >= 2 and key not in self.pools:
+            self.data[data] = (split, gt)
+            if self.cpus >= 2 and data not in self.pools:
                 from ..metrics.evaluate import worker_pool
 
-                self.pools[key] = worker_pool(gt, min(2, self.cpus))
+                self.pools[data] = worker_pool(gt, min(2, self.cpus))
 
-    def begin(self, run_key: str, key: str, spec, table: pd.DataFrame, data: DataSettings,
-              todo: Sequence[Chunk]) -> None:
+    def begin(self, run_key: str, spec, table: pd.DataFrame, data: DataSettings, todo: Sequence[Chunk]) -> None:
         from .runner import _ChunkRunner
 
         with self.lock:
-            split, gt = self.data[key]
+            split, gt = self.data[data]
             runner = _ChunkRunner(spec, table, data, None, 0)
             runner.setup(todo, split=split, gt=gt)
-            self.runner, self.run_key, self.pool = runner, run_key, self.pools.get(key)
+            self.runner, self.run_key, self.pool = runner, run_key, self.pools.get(data)
             self.begun.notify_all()
 
     def compute(self, run_key: str, chunk: Chunk) -> pd.DataFrame:
@@ -111,7 +110,7 @@ class _Worker:
     handle: Any
     node: str
     cpus: int = 1
-    loaded: set = field(default_factory=set)     # data keys it holds
+    loaded: set = field(default_factory=set)     # the DataSettings it holds
     run: str | None = None                       # run key it has begun
     busy: int = 0
 
@@ -122,7 +121,7 @@ class _Pool:
 
     worker_cpus: int | None
     workers: list = field(default_factory=list)
-    refs: dict = field(default_factory=dict)     # data key -> (split ref, gt ref)
+    refs: dict = field(default_factory=dict)     # DataSettings -> (split ref, gt ref)
     lost: set = field(default_factory=set)       # nodes a worker was lost on: none placed there again
 
     def fill(self, log) -> None:
@@ -135,7 +134,6 @@ class _Pool:
         import ray
         from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
-        env = _worker_env
         new = []
         for node in ray.nodes():
             cpus = int(node.get("Resources", {}).get("CPU", 0))
@@ -147,7 +145,7 @@ class _Pool:
                 cls = ray.remote(concurrency_groups={"control": 1, "compute": QUEUE_PER_WORKER})(_ChunkWorker)
                 actor = cls.options(
                     num_cpus=per, max_restarts=0, max_task_retries=0,
-                    runtime_env={"env_vars": env(per)},
+                    runtime_env={"env_vars": _worker_env(per)},
                     scheduling_strategy=NodeAffinitySchedulingStrategy(node["NodeID"], soft=False)).remote(per)
                 new.append(_Worker(actor, node["NodeID"], cpus=per))
         return new
@@ -270,11 +268,10 @@ def run_chunks(backend: RayBackend, spec, table: pd.DataFrame, data: DataSetting
     from .runner import load_data
 
     pool = connect(backend)
-    key = _data_key(data)
     starting = pool.spawn() if not pool.workers else []      # workers start while the data load
-    if key not in pool.refs:
+    if data not in pool.refs:
         split, gt = load_data(data)
-        pool.refs[key] = (ray.put(split), ray.put(gt))
+        pool.refs[data] = (ray.put(split), ray.put(gt))
     if starting:
         pool.wait_started(starting, log)
     run_key = uuid.uuid4().hex
@@ -285,15 +282,13 @@ def run_chunks(backend: RayBackend, spec, table: pd.DataFrame, data: DataSetting
         w.busy = 0
     t0 = time.perf_counter()
     n_workers = 0
-    while queue or inflight:
-        if queue and not pool.workers:
-            pool.fill(log)
+    while queue or inflight:        # (``fill`` raises when no worker is left, so there always is one here)
         for w in list(pool.workers):
             if queue and w.run != run_key:
-                if key not in w.loaded:
-                    _call(w, "load", key, *pool.refs[key])
-                    w.loaded.add(key)
-                _call(w, "begin", run_key, key, spec, table_ref, data, list(todo))
+                if data not in w.loaded:
+                    _call(w, "load", data, *pool.refs[data])
+                    w.loaded.add(data)
+                _call(w, "begin", run_key, spec, table_ref, data, list(todo))
                 w.run = run_key
             while queue and w.busy < QUEUE_PER_WORKER:
                 c = queue.popleft()
@@ -337,6 +332,3 @@ def _call(w: _Worker, method: str, *args):
     group = "compute" if method == "compute" else "control"
     return getattr(w.handle, method).options(concurrency_group=group).remote(*args)
 
-
-def _data_key(data: DataSettings) -> str:
-    return repr(data.identity())

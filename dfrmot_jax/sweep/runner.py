@@ -182,45 +182,13 @@ def _progress_bar(progress: bool, total: int, done: int, label: str):
     return tqdm(total=total, initial=done, unit="cfg", desc=label, dynamic_ncols=True, smoothing=0.05, file=sys.stderr)
 
 
-#: packed splits by data settings, with the size and mtime of every file read (a tune runs one
-#: sweep per batch on the same data: read once)
-_SPLITS: dict = {}
-
-
-def _split_stamp(d: DataSettings) -> tuple:
-    from ..data import detection_dir
-
-    root = Path(d.root)
-    files = [root / "label_02" / f"{s}.txt" for s in d.sequences]
-    files += [root / "calib" / f"{s}.txt" for s in d.sequences]
-    for det in (d.det2d, d.det3d):
-        folder = detection_dir(root, det, d.cls)
-        files += [folder / f"{s}.txt" for s in d.sequences]
-    out = []
-    for f in files:
-        try:
-            st = os.stat(f)
-            out.append((st.st_mtime_ns, st.st_size))
-        except OSError:
-            out.append(None)
-    return tuple(out)
-
-
 def load_data(d: DataSettings):
     """The packed split and the prepared ground truth of one class's data settings, checked to agree
     (both memoised on the settings and their files' sizes and mtimes)."""
-    from ..data import load_split
+    from ..data import cached_split
     from ..metrics import cached_gt
 
-    stamp = _split_stamp(d)
-    hit = _SPLITS.get(d)
-    if hit is not None and hit[0] == stamp:
-        split = hit[1]
-    else:
-        split = load_split(d.root, d.det2d, d.det3d, d.cls, list(d.sequences))
-        if len(_SPLITS) >= 4:
-            _SPLITS.clear()
-        _SPLITS[d] = (stamp, split)
+    split = cached_split(d.root, d.det2d, d.det3d, d.cls, d.sequences)
     gt = cached_gt(d.root, d.cls, list(d.sequences))
     if tuple(gt.sequences) != tuple(split.names) or not np.array_equal(gt.lengths, split.lengths):
         raise RuntimeError("ground truth and detections disagree on the sequences or their lengths")
