@@ -281,3 +281,106 @@ def test_a_sweep_writing_filtered_boxes_with_unstable_gains_is_refused(scene):
     assert e.value.key == "params.gain_beta" and "stability" in str(e.value)
     spec["options"]["output"] = "detections"           # raw boxes: finite, the score is the tracker's
     assert len(expand(spec)) == 4
+
+
+def _variants_text(root: Path, budget: int, batch: int, sampler: str, gamma2="") -> str:
+    return f"""
+name = "tune_variants"
+[data]
+root = "{root}"
+det2d = "synth2d"
+det3d = "synth3d"
+[params]
+a_l = [8.0, 4.0, 2.0]
+[options]
+output = ["detections", "filtered"]
+[[variants]]
+name = "code"
+params.gain_alpha = 0.9
+params.gain_beta = 0.9
+params.gain_gamma = 0.1
+[[variants]]
+name = "low_accel"
+params.gain_alpha = 1.0
+params.gain_beta = 0.4
+params.gain_gamma = [0.03{gamma2}]
+[tune]
+sampler = "{sampler}"
+budget = {budget}
+batch = {batch}
+seed = 1
+"""
+
+
+def test_a_tune_over_variants_and_a_finite_space_spends_its_budget_on_distinct_configs(scene, tmp_path):
+    """[[variants]] are one ``variant`` dim (each sets its one-valued gains); the space has 3 x 2 x 2 =
+    12 points and random draws repeat them: repeats are refused (FAIL, phase "repeat") and the budget of
+    10 buys 10 distinct configs; a budget beyond the space ends with repeats kept after REPEAT_ASKS."""
+    from dfrmot_jax.tuning.space import search_space
+
+    spec, _ = load_tune(_write(tmp_path, _variants_text(scene, 10, 10, "random")))
+    space = search_space(spec)
+    assert space.dims[-1].name == "variant" and space.dims[-1].values == ("code", "low_accel")
+    assert space.baseline_values()["variant"] == "code"           # dfr2023's gains are the "code" variant's
+    res = run_tune(tmp_path / "tune.toml", tmp_path / "v", **_quiet())
+    assert len(res.trials) == 10 and res.table["config_hash"].nunique() == 10
+    assert res.trials.iloc[0]["baseline"] and res.trials.iloc[0]["variant"] == "code"
+    comb = res.table[res.table["sequence"] == "COMBINED"]
+    low = comb[comb["variant"] == "low_accel"]
+    assert len(low) and (low[["gain_alpha", "gain_beta", "gain_gamma"]].to_numpy() == [1.0, 0.4, 0.03]).all()
+    assert np.allclose(comb.loc[comb["variant"] == "code", "gain_beta"], 0.9)
+    repeats = [t for t in res.study.get_trials() if t.user_attrs.get("phase") == "repeat"]
+    assert repeats and all(t.state.name == "FAIL" for t in repeats)
+    # more budget than points: the 12 points once each, then repeats are kept (looked up, not run)
+    over = run_tune(_write(tmp_path, _variants_text(scene, 13, 13, "random"), "over.toml"), tmp_path / "o", **_quiet())
+    assert len(over.trials) == 13 and over.table["config_hash"].nunique() == 12
+
+
+def test_variants_must_search_the_same_axes(scene, tmp_path, capsys):
+    path = _write(tmp_path, _variants_text(scene, 4, 4, "tpe", gamma2=", 0.05"))
+    assert main(["tune", str(path), "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert "variants.low_accel" in err and "same axes" in err and "Traceback" not in err
+
+
+def test_pairwise_sampler_finds_the_optimum_of_an_interacting_objective():
+    """A real Optuna study, batched ask / tell: 8 settings (two of three levels), an objective with
+    main effects and two interactions whose optimum is not the best of each setting on its own; the
+    first batch is random, then each batch is the best predicted unasked points: the optimum of the
+    2 ** 6 x 3 ** 2 = 576 points is found within 96 trials, the model never asks a point twice."""
+    import optuna
+    from optuna.distributions import CategoricalDistribution
+
+    from dfrmot_jax.tuning.pairwise import pairwise_sampler
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    levels = [2, 2, 3, 2, 2, 3, 2, 2]
+    dists = {f"x{i}": CategoricalDistribution(list(range(k))) for i, k in enumerate(levels)}
+    rng = np.random.default_rng(0)
+    main_eff = [rng.normal(size=k) for k in levels]
+
+    def f(p):
+        v = [p[f"x{i}"] for i in range(len(levels))]
+        return sum(m[x] for m, x in zip(main_eff, v)) + 3.0 * (v[0] == 1) * (v[2] == 2) - 2.5 * (v[1] == v[3])
+
+    import itertools
+    best = max(f({f"x{i}": x for i, x in enumerate(c)}) for c in itertools.product(*[range(k) for k in levels]))
+    study = optuna.create_study(direction="maximize")
+    seen = []
+    for b in range(6):
+        study.sampler = pairwise_sampler(dists, seed=b, n_startup=16)
+        ts = [study.ask(dists) for _ in range(16)]
+        for t in ts:
+            seen.append(tuple(t.params.values()))
+            study.tell(t.number, f(t.params))
+    assert len(set(seen)) == len(set(seen[:16])) + 80       # the model's 80 asks: each a new point
+    assert study.best_value == best
+    with pytest.raises(ValueError, match="lists, grids or integer ranges"):
+        pairwise_sampler({"a": optuna.distributions.FloatDistribution(0, 1)}, 0, 4)
+
+
+def test_pairwise_sampler_refuses_a_continuous_dim_naming_its_key(scene, tmp_path, capsys):
+    path = _write(tmp_path, _tune_text(scene, sampler="pairwise"))
+    assert main(["tune", str(path), "--out", str(tmp_path / "p")]) == 2
+    err = capsys.readouterr().err
+    assert "params.a_l" in err and "pairwise" in err and "Traceback" not in err

@@ -22,6 +22,7 @@ __all__ = ["add_parser", "run"]
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``tune`` on an argparse ``subparsers`` object; returns its parser."""
+    from ..tuning.settings import SAMPLERS
     from . import guarded
     from .backend import add_backend_arguments
 
@@ -34,7 +35,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("file", metavar="FILE", help="tune file (TOML: a sweep file with a [tune] table; sweeps/README.md)")
     p.add_argument("--out", metavar="DIR", help="tune directory (default: results/tunes/<name>)")
     p.add_argument("--data", metavar="ROOT", help="KITTI tracking training root (overrides the file and $DFRMOT_DATA)")
-    p.add_argument("--sampler", choices=("tpe", "cmaes", "gp", "nsga2", "random", "grid"), help="overrides tune.sampler")
+    p.add_argument("--sampler", choices=SAMPLERS, help="overrides tune.sampler")
     p.add_argument("--budget", type=int, help="configs evaluated (overrides tune.budget)")
     p.add_argument("--batch", type=int, help="configs per ask, one batched call (overrides tune.batch)")
     p.add_argument("--folds", type=int, help="nested cross-validation over sequences (overrides tune.folds)")

@@ -149,9 +149,12 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
 
     data = resolve_data(spec, data_root)
     space = search_space(spec)
-    if settings.sampler == "grid" and any(d.kind != "categorical" for d in space.dims):
-        bad = next(d for d in space.dims if d.kind != "categorical")
-        raise SweepConfigError(bad.key, "sampler \"grid\" needs lists or grids, not distributions", spec.source)
+    finite = {"grid": ("categorical",), "pairwise": ("categorical", "int")}.get(settings.sampler)
+    bad = next((d for d in space.dims if finite and d.kind not in finite), None)
+    if bad is not None:
+        raise SweepConfigError(bad.key, f"sampler \"{settings.sampler}\" needs lists or grids"
+                               f"{' (or randint)' if settings.sampler == 'pairwise' else ''}, not distributions",
+                               spec.source)
     outdir = Path(out) if out is not None else None
     if outdir is not None:
         identity = _identity(spec, settings, data)

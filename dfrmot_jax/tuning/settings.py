@@ -3,7 +3,7 @@
 
 ``[tune]`` keys (every one optional)::
 
-    sampler    = "tpe"          # tpe | cmaes | gp | nsga2 | random | grid
+    sampler    = "tpe"          # tpe | cmaes | gp | pairwise | nsga2 | random | grid
     budget     = 256            # evaluated configs (trials), the baseline included
     batch      = 128            # configs per ask: one vmapped track + score call
     objectives = ["HOTA"]       # or ["HOTA", "IDSW"]: directions from the metric (IDSW, FP... minimised)
@@ -26,7 +26,7 @@ from ..metrics.table import canonical_objective
 from ..sweep.analysis import MINIMISE
 from ..sweep.spec import SweepConfigError, SweepSpec, _positive_int, parse_spec, read_toml
 
-SAMPLERS = ("tpe", "cmaes", "gp", "nsga2", "random", "grid")
+SAMPLERS = ("tpe", "cmaes", "gp", "pairwise", "nsga2", "random", "grid")
 TUNE_KEYS = ("sampler", "budget", "batch", "objectives", "folds", "seed", "refine", "transfer")
 TRANSFER_KEYS = ("det2d", "det3d", "baseline")
 REFINE_KEYS = ("steps", "pairs", "sigma", "learning_rate", "patience")
@@ -172,9 +172,6 @@ def parse_tune_file(doc: Mapping, source: str | None = None) -> tuple[SweepSpec,
         raise SweepConfigError("(file)", "expected a table", source)
     tune = parse_tune(doc.get("tune"), source)
     rest = {k: v for k, v in doc.items() if k != "tune"}
-    if "variants" in rest:
-        raise SweepConfigError("variants", "a tune searches one space: use [params] and [options] "
-                                           "(variants are for sweeps)", source)
     if "distortion" in rest:
         raise SweepConfigError("distortion", "tuning under distortion is not supported: tune on clean data, "
                                              "then sweep the chosen setting with [distortion]", source)

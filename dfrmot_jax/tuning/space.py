@@ -6,11 +6,15 @@ Axis kinds map to distributions: ``uniform`` -> ``FloatDistribution(low, high)``
 -> ``FloatDistribution(low, high, log=True)``, ``randint [low, high)`` -> ``IntDistribution(low,
 high - 1)``, ``choice`` / ``grid`` / ``linspace`` / ``logspace`` / a list -> ``CategoricalDistribution``
 (options too). An axis with one value is fixed, not searched.
+
+``[[variants]]`` (as in a sweep file) become one more categorical dim, ``variant``: the variants
+search the same axes and differ only in one-valued settings (e.g. the fixed-filter gains moving
+together as one two-level axis), which the chosen variant sets.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -18,7 +22,10 @@ import pandas as pd
 
 from ..config import INT_PARAMS
 from ..sweep.spec import OPTION_NAMES, PARAM_NAMES, SweepConfigError, SweepSpec
-from ..sweep.table import baseline_row, typed_table
+from ..sweep.table import _canon, baseline_row, config_hash, typed_table
+
+#: the dim of a tune over ``[[variants]]`` (its values are the variants' names)
+VARIANT = "variant"
 
 
 @dataclass(frozen=True)
@@ -38,10 +45,12 @@ class Dim:
 
 @dataclass(frozen=True)
 class SearchSpace:
-    """The searched dims and the fixed values (the baseline overridden by one-valued axes)."""
+    """The searched dims and the fixed values (the baseline overridden by one-valued axes);
+    ``variants``: {name: the values that variant fixes} of a tune over ``[[variants]]``."""
 
     dims: tuple[Dim, ...]
     fixed: Mapping[str, Any]
+    variants: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def distributions(self) -> dict:
         from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
@@ -61,26 +70,38 @@ class SearchSpace:
         return {d.name: list(d.values) for d in self.dims}
 
     def row(self, values: Mapping[str, Any]) -> dict:
-        """A config row: the fixed values overridden by ``values`` (names of dims)."""
+        """A config row: the fixed values overridden by ``values`` (names of dims; the ``variant``
+        dim by the values its variant fixes)."""
         row = dict(self.fixed)
+        row.update(self.variants.get(values.get(VARIANT), {}))
         for d in self.dims:
             v = values[d.name]
             row[d.name] = int(v) if d.name in INT_PARAMS else float(v) if d.name in PARAM_NAMES else v
         return row
 
+    def config_hash(self, values: Mapping[str, Any]) -> str:
+        """The ``config_hash`` of the config of ``values`` (as :meth:`table` computes it)."""
+        return config_hash(self.row(values))
+
     def table(self, rows: Sequence[Mapping[str, Any]], baseline: Sequence[bool] | None = None) -> pd.DataFrame:
         """Config table (as :func:`dfrmot_jax.sweep.expand` makes: ``config``, ``config_hash``,
         ``variant``, ``baseline``, parameters, options) of full rows, in order, duplicates kept."""
         base = [False] * len(rows) if baseline is None else list(baseline)
-        recs = [{"variant": "baseline" if b else "tune", "baseline": bool(b), **r} for r, b in zip(rows, base)]
+        recs = [{**r, "variant": "baseline" if b else r.get(VARIANT, "tune"), "baseline": bool(b)}
+                for r, b in zip(rows, base)]
         df = pd.DataFrame(recs, columns=["variant", "baseline"] + list(PARAM_NAMES) + list(OPTION_NAMES))
         df = typed_table(df)
         df.insert(0, "config", np.arange(len(df), dtype=np.int64))
         return df
 
     def baseline_values(self) -> dict:
-        """The baseline's value of every dim (possibly outside the dim's range)."""
-        return {d.name: self.fixed[d.name] for d in self.dims}
+        """The baseline's value of every dim (possibly outside the dim's range; ``variant``: the
+        variant fixing the baseline's values, None if there is none)."""
+        out = {d.name: self.fixed[d.name] for d in self.dims if d.name != VARIANT}
+        if self.variants:
+            out[VARIANT] = next((n for n, v in self.variants.items()
+                                 if all(_canon(k, self.fixed[k]) == _canon(k, x) for k, x in v.items())), None)
+        return out
 
     def contains(self, values: Mapping[str, Any]) -> bool:
         """Whether every value lies in its dim (Optuna can enqueue only such a trial)."""
@@ -92,10 +113,26 @@ class SearchSpace:
 
 
 def search_space(spec: SweepSpec) -> SearchSpace:
-    """The space of a one-class tune file (``spec.variants`` is the single implicit variant)."""
+    """The space of a one-class tune file: its axes, and with several ``[[variants]]`` a ``variant``
+    dim choosing among the values they fix (module docstring)."""
     if len(spec.classes) != 1:
         raise SweepConfigError("data.class", "a tune optimises one class: run one tune per class", spec.source)
-    (variant,) = spec.variants
+    spaces = [_variant_space(spec, v) for v in spec.variants]
+    if len(spaces) == 1:
+        return spaces[0]
+    first = spaces[0]
+    for v, s in zip(spec.variants, spaces):
+        if s.dims != first.dims:
+            raise SweepConfigError(f"variants.{v.name}", "the variants of a tune must search the same axes "
+                                   "(they may differ only in one-valued settings)", spec.source)
+    base = baseline_row(spec)
+    variants = {v.name: {k: x for k, x in s.fixed.items() if _canon(k, x) != _canon(k, base[k])}
+                for v, s in zip(spec.variants, spaces)}
+    dim = Dim(VARIANT, "categorical", tuple(variants), "variants")
+    return SearchSpace(first.dims + (dim,), base, variants)
+
+
+def _variant_space(spec: SweepSpec, variant) -> SearchSpace:
     fixed = baseline_row(spec)
     dims = []
     for a in list(variant.params) + list(variant.options):

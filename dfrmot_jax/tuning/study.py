@@ -16,6 +16,12 @@ whose record was written are evaluated (finished chunks are read back, not recom
 the others (a batch killed while being asked) are failed and the batch is asked again. Every batch
 asks with a sampler seeded by (seed, batch) and sees exactly the completed trials of the earlier
 batches, so an interrupted tune ends with the same table as an uninterrupted one.
+
+Repeats: a proposal whose config was evaluated already (or was asked earlier in its batch) is told
+FAIL at once (user attribute ``phase`` "repeat": samplers ignore failed trials) and the sampler asks
+again, so the budget buys distinct configs (samplers re-propose points of discrete spaces: batched
+TPE over a 1,024-point grid re-proposed about half of its trials). After ``REPEAT_ASKS`` x batch
+repeats in one batch the repeats are kept (their rows are looked up, not run).
 """
 
 from __future__ import annotations
@@ -37,6 +43,8 @@ from .settings import TuneSettings
 from .space import SearchSpace
 
 STUDY = "tune"
+#: repeats refused per batch (times its size) before re-proposals are accepted (module docstring)
+REPEAT_ASKS = 10
 
 
 def make_sampler(settings: TuneSettings, space: SearchSpace, batch: int):
@@ -60,6 +68,10 @@ def make_sampler(settings: TuneSettings, space: SearchSpace, batch: int):
                              "\"tpe\" / \"cmaes\"") from None
         return optuna.samplers.GPSampler(seed=seed, n_startup_trials=min(settings.batch, 32),
                                          warn_independent_sampling=False)
+    if name == "pairwise":
+        from .pairwise import pairwise_sampler
+
+        return pairwise_sampler(space.distributions(), seed, n_startup=settings.batch)
     if name == "nsga2":
         return optuna.samplers.NSGAIISampler(seed=seed, population_size=settings.batch)
     if name == "random":
@@ -238,13 +250,7 @@ def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Eva
                 base = space.baseline_values()
                 if space.contains(base):        # else the baseline is outside the space: not a trial
                     study.enqueue_trial(base, user_attrs={"baseline": True})
-            asked = []
-            for i in range(size):
-                t = study.ask(dists)
-                t.set_user_attr("batch", b)
-                t.set_user_attr("slot", i)
-                t.set_user_attr("phase", "search")
-                asked.append(t)
+            asked = _ask_batch(study, dists, space, set(ev.rows), b, size)
             rec = {"batch": b, "trials": [t.number for t in asked], "params": [t.params for t in asked]}
             if outdir is not None:
                 (outdir / "batches").mkdir(parents=True, exist_ok=True)
@@ -259,6 +265,28 @@ def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Eva
         if bar is not None:
             bar.close()
     return study
+
+
+def _ask_batch(study, dists: dict, space: SearchSpace, evaluated: set, b: int, size: int) -> list:
+    """``size`` trials of search batch ``b``, repeats of evaluated or already asked configs refused
+    (module docstring)."""
+    from optuna.trial import TrialState
+
+    asked, refused = [], 0
+    while len(asked) < size:
+        t = study.ask(dists)
+        h = space.config_hash(t.params)
+        if h in evaluated and refused < REPEAT_ASKS * size:
+            refused += 1
+            t.set_user_attr("phase", "repeat")
+            study.tell(t.number, state=TrialState.FAIL)
+            continue
+        evaluated.add(h)
+        t.set_user_attr("batch", b)
+        t.set_user_attr("slot", len(asked))
+        t.set_user_attr("phase", "search")
+        asked.append(t)
+    return asked
 
 
 def _next_batch(study, outdir: Path | None) -> int:
