@@ -85,11 +85,11 @@ def test_presets_match_the_reference_on_all_21_sequences(all21, pool, name):
 
 
 def test_random_settings_match_the_reference_on_all_21_sequences(all21, pool):
-    """20 random settings: 5 random static option sets x 4 random parameter draws (one batch each)."""
+    """16 random settings: 4 random static option sets x 4 random parameter draws (one batch each)."""
     seqs, split = all21
     rng = np.random.default_rng(2023)
     checked = 0
-    for _ in range(5):
+    for _ in range(4):
         options = random_options(rng)
         settings = [random_params(rng, options.output) for _ in range(4)]
         res = track(split, stack_params(settings), options)
@@ -97,7 +97,7 @@ def test_random_settings_match_the_reference_on_all_21_sequences(all21, pool):
             mm = lane_mismatches(split, res, b, reference_rows(seqs, params, options, pool))
             assert (mm["missing"], mm["extra"], mm["id"], mm["box"]) == (0, 0, 0, 0), (options, params, mm)
             checked += 1
-    assert checked >= 20
+    assert checked >= 16
 
 
 def _links(split, ids):

@@ -57,7 +57,7 @@ def test_random_settings_rows_carry_the_oracles_3d_detections(kitti_car):
     split = pack(seqs, "car")
     rng = np.random.default_rng(7)
     checked = {"detections": 0, "filtered": 0}
-    for params, options in random_settings(rng, 6):
+    for params, options in random_settings(rng, 4):
         res = track(split, stack_params([params]), options, detail=True)
         rows, _ = _compare(split, seqs, params, options, res, 0)
         checked[options.output] += rows
