@@ -35,6 +35,7 @@ never), ``curves`` ({method: {n: cv}}), ``grid_space_replay`` (every replayed se
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import time
@@ -219,10 +220,10 @@ def main(argv=None) -> int:
     # chosen configs as full rows from here on (tpe-grid searches another space)
     chosen = {k: [space.row(c) for c in v] for k, v in chosen.items()}
     replay: dict = {}
+    gspec, _ = load_tune(GRID)                   # the grid file as a tune space (its variants: one dim)
+    gspace = search_space(gspec)
     for sampler in [m.removesuffix("-grid") for m in methods if m.endswith("-grid")]:
         method = f"{sampler}-grid"
-        gspec, _ = load_tune(GRID)
-        gspace = search_space(gspec)
         gs = replace(settings, sampler=sampler, batch=args.grid_batch, budget=args.grid_budget)
         t0 = time.perf_counter()
         runs = []
@@ -256,7 +257,10 @@ def main(argv=None) -> int:
         hashes = list(need["config_hash"])
         need = need.drop_duplicates("config_hash").reset_index(drop=True)
         need["config"] = np.arange(len(need), dtype=np.int64)
-        table = run_sweep(spec, work / "heldout_rows", table=need, progress=False, log=log)
+        # one directory per set of chosen configs: a rerun with other methods or budgets does not meet
+        # another set's store (which would refuse it), an identical rerun reads its chunks back
+        key = hashlib.sha1(" ".join(need["config_hash"]).encode()).hexdigest()[:12]
+        table = run_sweep(spec, work / "heldout_rows" / key, table=need, progress=False, log=log)
         for i, (method, n) in enumerate(keys):
             hs = hashes[i * args.folds:(i + 1) * args.folds]
             curves.setdefault(method, {})[n] = held_out_scores(table, folds, hs, hashes[-1], "HOTA")["cross_validated"]

@@ -288,8 +288,6 @@ def cached_split(root, det2d, det3d, cls: str, sequences) -> Split:
     return split
 
 
-
-
 def compact_split(split: Split, score_2d: float, score_3d: float) -> Split:
     """The split without the detections that no setting with thresholds >= ``score_2d`` / ``score_3d``
     keeps (below them, or invalid), each frame's remaining detections packed to the front in their

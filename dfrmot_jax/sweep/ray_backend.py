@@ -331,4 +331,3 @@ def _call(w: _Worker, method: str, *args):
     """``w.method.remote(*args)`` in the method's concurrency group."""
     group = "compute" if method == "compute" else "control"
     return getattr(w.handle, method).options(concurrency_group=group).remote(*args)
-
