@@ -41,7 +41,7 @@ def main() -> None:
     from dfrmot_jax.io.kitti import read_tracking_labels, sequence_lengths
     from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, prepare_gt
     from dfrmot_jax.testing.metric_edits import load_results, pack_arrays, stress_edit
-    from dfrmot_jax.metrics.evaluate import _GT_CACHE, _SEQ_CACHE
+    from dfrmot_jax.metrics.evaluate import clear_caches
     from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, make_tracker_folder, run_trackeval
     from dfrmot_jax.paths import default_data_root
 
@@ -67,8 +67,7 @@ def main() -> None:
 
     # --- ours, files
     def cold():
-        _GT_CACHE.clear()
-        _SEQ_CACHE.clear()
+        clear_caches()
         return evaluate_files(refdir, root, "car", seqs)
 
     cold_s, ours = _best(cold, 3)

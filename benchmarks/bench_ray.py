@@ -83,7 +83,7 @@ def run_mode(mode: str, sweep: str, out: Path) -> dict:
     info["chunks"] = len(writes)
     if mode != "local":
         from dfrmot_jax.sweep.plan import resolve_data
-        from dfrmot_jax.sweep.runner import load_data
+        from dfrmot_jax.sweep.chunks import load_data
 
         split, gt = load_data(resolve_data(sweep))
         tables = [p for p in (out / "chunks").glob("*.parquet")]

@@ -77,11 +77,11 @@ def _replay_on_grid(grid, spec, space, folds, sampler: str, batch: int, seed: in
     the training objective read from the scored grid table instead of tracking; returns the trials'
     params per fold, the cross-validated best at each budget and the distinct configs each fold
     needed to reach its training optimum (None: not within ``budget``)."""
-    from dfrmot_jax.sweep.analysis import _objective_on, _per_sequence_arrays, pooled_objective
+    from dfrmot_jax.sweep.analysis import objective_on, per_sequence_arrays, pooled_objective
     from dfrmot_jax.tuning.settings import TuneSettings
     from dfrmot_jax.tuning.study import Evaluator, search, trials_frame
 
-    comb, names, _, arrays = _per_sequence_arrays(grid)
+    comb, names, _, arrays = per_sequence_arrays(grid)
     row_of = {h: i for i, h in enumerate(comb["config_hash"])}
 
     class Lookup(Evaluator):
@@ -95,7 +95,7 @@ def _replay_on_grid(grid, spec, space, folds, sampler: str, batch: int, seed: in
     for test in folds:
         te = [names.index(q) for q in test]
         ev = Lookup(spec, space, settings, None)
-        ev.score = _objective_on(arrays, [i for i in range(len(names)) if i not in te], "HOTA")
+        ev.score = objective_on(arrays, [i for i in range(len(names)) if i not in te], "HOTA")
         t = trials_frame(search(spec, settings, None, ev, False, lambda m: None), settings)
         params = [{d.name: p[d.name] for d in space.dims} for p in t.to_dict("records")]
         rows = np.array([row_of[space.config_hash(p)] for p in params])

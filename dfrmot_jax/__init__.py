@@ -7,7 +7,7 @@ first JAX operation, so call ``dfrmot_jax.setup_host_devices()`` right after imp
 code runs JAX first (it warns when JAX already runs on fewer devices).
 """
 
-__version__ = "0.1.0"
+from .version import __version__
 
 from .api import TrackResult, default_capacity, track
 from .core.devices import setup_host_devices

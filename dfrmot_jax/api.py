@@ -9,7 +9,7 @@ reported in ``TrackResult.overflow`` and with a warning.
 from __future__ import annotations
 
 import warnings
-from typing import NamedTuple
+from collections import namedtuple
 
 import numpy as np
 
@@ -19,36 +19,33 @@ from .data import Frames, Split, object_slots, prepare_frames
 from .config import MAX_CAPACITY, MIN_CAPACITY, Options, Params, as_arrays, batch_size, validate_params
 from .results import output_boxes
 from .core.associate import MAX_ROWS
-from .core.run import FrameHook, run_batch
+from .core.run import SMALL_FRAMES_MIN_T, BatchOutput, FrameHook, run_batch
 
 #: objects (detection slots) per frame the greedy order keys can tell apart (core.associate.MAX_ROWS)
 MAX_OBJECTS = MAX_ROWS
 
 
-class TrackResult(NamedTuple):
-    """Outputs of a batch of B lanes over a split of T frames.
+#: a TrackResult's fields: the tracker's own output (``core.run.BatchOutput``, gathered over the
+#: lanes' calls) and what ``track`` adds: the capacity each lane ran with, the frames, the options
+TRACK_RESULT_FIELDS = BatchOutput._fields + ("capacity", "frames", "options")
+
+
+class TrackResult(namedtuple("TrackResult", TRACK_RESULT_FIELDS)):
+    """Outputs of a batch of B lanes over a split of T frames: the fields of
+    :class:`dfrmot_jax.core.run.BatchOutput`, then ``capacity``, ``frames``, ``options``.
 
     ids [B, T, K] int32 (-1 = nothing written); boxes [T, K, 4] (output "detections": the same for
     every lane) or [B, T, K, 4] (output "filtered", or any output with a distortion: each lane's
     own boxes); dropped [B, T] births lost per frame;
     overflow [B] births lost in total (0 unless a lane overflowed at the largest capacity tried);
-    peak [B] most live tracks; capacity [B] the capacity each lane ran with.
-    With ``track(detail=True)`` (result files), else None: src3 [B, T, K] int32, own3 [B, T, K]
-    bool and, output "filtered", box3 [B, T, K, 6] float32: the 3D detection each row carries and
-    the tracks' filtered 3D corners (``tracker.StepOutput``).
+    peak [B] most live tracks. With ``track(detail=True)`` (result files), else None: src3
+    [B, T, K] int32, own3 [B, T, K] bool and, output "filtered", box3 [B, T, K, 6] float32: the 3D
+    detection each row carries and the tracks' filtered 3D corners (``core.step.StepOutput``).
+    capacity [B] the capacity each lane ran with; frames: the ``Frames`` tracked; options: the
+    validated ``Options``.
     """
 
-    ids: np.ndarray
-    boxes: np.ndarray
-    dropped: np.ndarray
-    overflow: np.ndarray
-    peak: np.ndarray
-    capacity: np.ndarray
-    frames: Frames
-    options: Options
-    src3: np.ndarray | None = None
-    own3: np.ndarray | None = None
-    box3: np.ndarray | None = None
+    __slots__ = ()
 
     def lane_boxes(self, b: int) -> np.ndarray:
         return self.boxes if self.boxes.ndim == 3 else self.boxes[b]
@@ -99,7 +96,8 @@ def prepare_distortion(split: Split, frames: Frames, options: Options, dps: dist
 
 def track(split: Split | Frames, params: Params, options: Options = Options(), *, chunk: int = 64,
           grow: bool = True, progress=None, distortion: distort.DistortParams | None = None,
-          spec: distort.DistortSpec | None = None, clutter_slots: int = 0, detail: bool = False) -> TrackResult:
+          spec: distort.DistortSpec | None = None, clutter_slots: int = 0, detail: bool = False,
+          small_frames_min: int | None = SMALL_FRAMES_MIN_T) -> TrackResult:
     """Track every lane of ``params`` (leaves scalar or [B]) over the split.
 
     chunk: lanes per compiled call (memory: chunk x T x K int32 ids); progress: a callable(n) told
@@ -109,6 +107,8 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     spec / clutter_slots: the static ``DistortSpec`` (default from the data and the levels used).
     detail: also return the 3D detection each written row carries (``TrackResult.src3``), for
     result files with 3D fields; costs memory per lane, so sweeps leave it off.
+    small_frames_min: frames with few detections run on a smaller copy of the step on splits of at
+    least this many frames (None: one size); the results are the same, only the speed differs.
     """
     setup_host_devices()          # before this call's first JAX operation
     options = options.validate()
@@ -147,7 +147,8 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
             lanes = todo[start:start + chunk]
             hook = None if extra is None else FrameHook(distort.FrameDistortion(extra[0]), _take(distortion, lanes),
                                                         extra[1:])
-            out = run_batch(_take(params, lanes), frames, options, cap, hook=hook, detail=detail)
+            out = run_batch(_take(params, lanes), frames, options, cap, hook=hook, detail=detail,
+                            small_frames_min=small_frames_min)
             if dropped is None:
                 dropped = np.empty((b,) + out.dropped.shape[1:], np.int32)
             for name in per_slot:
@@ -171,8 +172,9 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
         warnings.warn(f"track memory overflow in {bad.size} lane(s) (e.g. lane {bad[0]}: {overflow[bad[0]]} births "
                       f"dropped at capacity {capacity[bad[0]]}); raise Options.capacity", RuntimeWarning, stacklevel=2)
     boxes = got["boxes"] if per_lane_boxes else output_boxes(frames, options)
-    return TrackResult(got["ids"], boxes, dropped, overflow, peak, capacity, frames, options,
-                       got.get("src3"), got.get("own3"), got.get("box3"))
+    return TrackResult(ids=got["ids"], boxes=boxes, dropped=dropped, overflow=overflow, peak=peak,
+                       src3=got.get("src3"), own3=got.get("own3"), box3=got.get("box3"), capacity=capacity,
+                       frames=frames, options=options)
 
 
 def _widen(a: np.ndarray, k: int, fill=0) -> np.ndarray:

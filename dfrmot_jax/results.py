@@ -16,10 +16,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .data import CLASS_NAMES, Frames, Split, object_boxes, object_slots
-from .io.columns import COLUMN_SETS
-from .io.kitti import tracking_lines, write_text_atomic
 from .config import Options
+from .data import CLASS_NAMES, Frames, Split, object_boxes, object_slots
+from .io.atomic import write_text_atomic
+from .io.columns import COLUMN_SETS
+from .io.kitti import tracking_lines
 
 
 class LaneRows(NamedTuple):
@@ -152,7 +153,7 @@ def write_lane(out_dir, split: Split, frames: Frames, options: Options, ids: np.
 
 
 #: the files ``write_runs`` writes (``SSSS.txt``) or leaves when killed mid-write (``.SSSS.txt.PID.tmp``,
-#: the temporaries of ``io.kitti.write_text_atomic``)
+#: the temporaries of ``io.atomic.write_text_atomic``)
 _RESULT_FILE = re.compile(r"\d{4}\.txt|\.\d{4}\.txt\.\d+\.tmp")
 
 

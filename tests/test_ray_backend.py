@@ -262,7 +262,7 @@ def test_a_tune_runs_its_batches_on_the_cluster(cluster, scene, tmp_path, monkey
     real = ray_backend.run_chunks
 
     def spy(*a, **k):                      # (runs the real thing; counts the batches sent to the cluster)
-        calls.append(len(a[4]))
+        calls.append(len(a[5]))     # (address, worker_cpus, spec, table, data, todo, ...)
         return real(*a, **k)
 
     monkeypatch.setattr(ray_backend, "run_chunks", spy)

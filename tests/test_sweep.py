@@ -256,9 +256,9 @@ def test_rows_equal_direct_track_and_eval(small_table, scene):
 
 
 def test_recombining_all_sequences_gives_combined(small_table):
-    from dfrmot_jax.sweep import _per_sequence_arrays
+    from dfrmot_jax.sweep import per_sequence_arrays
 
-    comb, names, lengths, arrays = _per_sequence_arrays(small_table)
+    comb, names, lengths, arrays = per_sequence_arrays(small_table)
     out = summary_columns(combine_sequences(arrays))
     for f in ("HOTA", "DetA", "AssA", "LocA", "MOTA", "MOTP", "IDF1", "IDSW", "Frag", "MT"):
         np.testing.assert_array_equal(out[f], comb[f].to_numpy(), err_msg=f)
@@ -332,12 +332,10 @@ def test_compacted_detection_slots_change_nothing(small_table, scene, monkeypatc
     """The split compacted to the table's loosest thresholds (the default) gives every column of
     every row as the full split does; the compaction really drops slots here."""
     from dfrmot_jax.data import compact_split, load_split
-    from dfrmot_jax.sweep import runner
 
     spec = small_spec(scene, params={"a_l": [4.0, 8.0], "score_2d": [0.5, 0.8], "score_3d": [0.5, 0.9]})
     compact = run_sweep(spec, progress=False, log=lambda m: None)
-    monkeypatch.setattr(runner, "COMPACT", False)
-    full = run_sweep(spec, progress=False, log=lambda m: None)
+    full = run_sweep(spec, progress=False, log=lambda m: None, compact=False)
     pd.testing.assert_frame_equal(compact, full)
     split = load_split(scene, "synth2d", "synth3d")
     packed = compact_split(split, 0.5, 0.5)
@@ -393,9 +391,9 @@ def test_subset_combination_equals_direct_evaluation(small_table, scene):
     """COMBINED over a subset of sequences (what CV uses) equals evaluating that subset directly."""
     import dfrmot_jax as dm
     from dfrmot_jax.metrics import evaluate_arrays, metrics_table, prepare_gt
-    from dfrmot_jax.sweep import _objective_on, _per_sequence_arrays
+    from dfrmot_jax.sweep import objective_on, per_sequence_arrays
 
-    comb, names, lengths, arrays = _per_sequence_arrays(small_table)
+    comb, names, lengths, arrays = per_sequence_arrays(small_table)
     split = dm.load_split(scene, "synth2d", "synth3d", "car")
     i = int(np.flatnonzero(comb["output"].to_numpy() == "filtered")[-1])
     row = comb.iloc[i]
@@ -408,24 +406,24 @@ def test_subset_combination_equals_direct_evaluation(small_table, scene):
         direct = metrics_table(evaluate_arrays(gt, res.ids, res.boxes, offs)[0]).loc["COMBINED"]
         cols = [names.index(s) for s in subset]
         for f in ("HOTA", "AssA", "MOTA", "IDF1"):
-            got = _objective_on(arrays, cols, f)[i]
+            got = objective_on(arrays, cols, f)[i]
             assert got == pytest.approx(direct[f], abs=1e-9), f
 
 
 def test_cross_validation_picks_on_training_folds(small_table):
-    from dfrmot_jax.sweep import _objective_on, _per_sequence_arrays
+    from dfrmot_jax.sweep import objective_on, per_sequence_arrays
 
-    comb, names, lengths, arrays = _per_sequence_arrays(small_table)
+    comb, names, lengths, arrays = per_sequence_arrays(small_table)
     cv = cross_validate(small_table, folds=3, objective="HOTA")
     assert len(cv["per_fold"]) == 3
     chosen = {}
     for p in cv["per_fold"]:
         tr = [names.index(s) for s in names if s not in p["test_sequences"]]
         te = [names.index(s) for s in p["test_sequences"]]
-        train = _objective_on(arrays, tr, "HOTA")
+        train = objective_on(arrays, tr, "HOTA")
         best = int(np.flatnonzero(train == train.max())[0])          # ties: first config
         assert p["config"] == comb.at[best, "config"] and p["train"] == train[best]
-        assert p["held_out"] == _objective_on(arrays, te, "HOTA")[best]
+        assert p["held_out"] == objective_on(arrays, te, "HOTA")[best]
         for s in p["test_sequences"]:
             chosen[s] = best
     # the cross-validated figure: every sequence scored with the config chosen without it

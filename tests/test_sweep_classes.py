@@ -204,10 +204,10 @@ def test_class_defaults_baseline_and_precedence(ped_defaults):
     assert not class_columns(same.columns)
     pd.testing.assert_frame_equal(same, expand({"params": {"a_l": [1.0, 8.0], "min_hits": [1, 2]}}))
     # what each class is tracked with: its columns where the table has them
-    from dfrmot_jax.sweep import _params_of
+    from dfrmot_jax.sweep import params_of
 
     for cls in ("car", "pedestrian"):
-        got = _params_of(multi, [0], cls)
+        got = params_of(multi, [0], cls)
         for k, v in preset("dfr2023", cls)[0]._asdict().items():
             assert float(getattr(got, k)[0]) == pytest.approx(v, abs=0), (cls, k)
 
@@ -345,22 +345,22 @@ def test_resume_and_directory(run, root):
 
 
 def test_cv_on_the_average_folds_each_class(run):
-    from dfrmot_jax.sweep import _objective_on, _per_sequence_arrays, combine_sequences, summary_columns
+    from dfrmot_jax.sweep import objective_on, per_sequence_arrays, combine_sequences, summary_columns
 
     df, _ = run
     cv = cross_validate(df, folds=2, objective="HOTA")            # several classes: the average by default
     assert cv["class"] == AVERAGE and len(cv["per_fold"]) == 2
     per = {}
     for k in ("car", "pedestrian"):
-        comb, names, lengths, arrays = _per_sequence_arrays(df[df["class"] == k])
+        comb, names, lengths, arrays = per_sequence_arrays(df[df["class"] == k])
         per[k] = (names, arrays, make_folds(names, lengths, 2))
     avg = df[df["class"] == AVERAGE].reset_index(drop=True)
     chosen = {k: {} for k in per}
     for f, p in enumerate(cv["per_fold"]):
         assert p["test_sequences"] == {k: per[k][2][f] for k in per}
-        train = np.mean([_objective_on(a, [names.index(s) for s in names if s not in fs[f]], "HOTA")
+        train = np.mean([objective_on(a, [names.index(s) for s in names if s not in fs[f]], "HOTA")
                          for names, a, fs in per.values()], axis=0)
-        test = np.mean([_objective_on(a, [names.index(s) for s in fs[f]], "HOTA") for names, a, fs in per.values()],
+        test = np.mean([objective_on(a, [names.index(s) for s in fs[f]], "HOTA") for names, a, fs in per.values()],
                        axis=0)
         best = int(np.flatnonzero(train == train.max())[0])
         assert p["config"] == avg.at[best, "config"] and p["train"] == pytest.approx(train[best])

@@ -32,7 +32,6 @@ def test_compacted_detection_slots_change_nothing(kitti_root, monkeypatch):
     (``data.compact_split``: 14 + 19 detection slots -> fewer): every column of every row equals the
     uncompacted run, for both output modes, on the car sequence with the most detections per
     frame, with the projected 3D boxes (some not finite); ``test_sweep`` covers the detector's boxes."""
-    from dfrmot_jax.sweep import runner
 
     spec = {"name": "compact", "chunk": 8,
             "data": {"root": str(kitti_root), "det2d": "rrc", "det3d": "pointrcnn", "class": "car",
@@ -41,7 +40,6 @@ def test_compacted_detection_slots_change_nothing(kitti_root, monkeypatch):
             "params": {"score_2d": [0.3, 0.6], "score_3d": [4.0, 6.0], "merge_iou": [0.25, 0.5]},
             "options": {"output": ["detections", "filtered"], "merge": ["calib_projection"]}}
     compact = run_sweep(spec, progress=False, log=lambda m: None)
-    monkeypatch.setattr(runner, "COMPACT", False)
-    full = run_sweep(spec, progress=False, log=lambda m: None)
+    full = run_sweep(spec, progress=False, log=lambda m: None, compact=False)
     pd.testing.assert_frame_equal(compact, full)
     assert compact["peak_tracks"].max() > 0

@@ -97,7 +97,7 @@ def _v1_spec() -> dict:
 def test_v1_directory_resumes_without_recomputation(tmp_path, monkeypatch):
     import dfrmot_jax
     import dfrmot_jax.api
-    import dfrmot_jax.sweep.runner
+    import dfrmot_jax.sweep.backend
 
     spec = _v1_spec()
     out = tmp_path / "sweep_v1"
@@ -110,7 +110,7 @@ def test_v1_directory_resumes_without_recomputation(tmp_path, monkeypatch):
         raise AssertionError("a chunk of the v1 directory was recomputed")
 
     monkeypatch.setattr(dfrmot_jax.api, "track", boom)
-    monkeypatch.setattr(dfrmot_jax.sweep.runner, "_ChunkRunner", boom)
+    monkeypatch.setattr(dfrmot_jax.sweep.backend, "ChunkRunner", boom)
     logs: list[str] = []
     df = run_sweep(spec, out=out, progress=False, workers=0, log=logs.append)
     assert len(logs) == 1 and "1 chunks of <= 4; 1 done" in logs[0]
@@ -127,12 +127,11 @@ def test_v1_directory_resumes_without_recomputation(tmp_path, monkeypatch):
     assert rep.summary["configs"] == 4 and rep.summary["folds"] == 2
     assert rep.text.startswith("sweep v1_fixture: 4 configs x 2 sequences")
 
-    # the deprecated spellings still run (and resume) a sweep, with a DeprecationWarning
+    # the deprecated spelling still runs (and resumes) a sweep, with a DeprecationWarning
     with pytest.warns(DeprecationWarning, match="run_sweep"):
-        again = dfrmot_jax.sweep(spec, out=out, progress=False, workers=0, log=logs.append)
-    with pytest.warns(DeprecationWarning, match="run_sweep"):
-        dfrmot_jax.sweep.sweep(spec, out=out, progress=False, workers=0, log=logs.append)
+        again = dfrmot_jax.sweep.sweep(spec, out=out, progress=False, workers=0, log=logs.append)
     pd.testing.assert_frame_equal(again, df)
+    assert not callable(dfrmot_jax.sweep)           # the package is a plain module
 
 
 def test_directory_of_another_hash_scheme_is_refused(tmp_path):

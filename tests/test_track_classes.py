@@ -64,10 +64,10 @@ def test_eval_of_the_two_class_files_scores_each_class_as_alone(runs, kitti_root
 def test_per_class_settings_reach_only_their_class(kitti_root, tmp_path, capsys):
     from argparse import Namespace
 
-    from dfrmot_jax.cli.track import _settings
+    from dfrmot_jax.cli.track import class_settings
 
     args = Namespace(preset="dfr2023", set=["pedestrian.a_l=2", "car.score_2d=0.3", "epsilon=20"])
-    car, ped = _settings(args, "car")[0], _settings(args, "pedestrian")[0]
+    car, ped = class_settings(args, "car")[0], class_settings(args, "pedestrian")[0]
     assert (car.a_l, car.score_2d, car.epsilon) == (preset("dfr2023")[0].a_l, 0.3, 20)
     assert (ped.a_l, ped.score_2d, ped.epsilon) == (2.0, preset("dfr2023", "pedestrian")[0].score_2d, 20)
     assert main(["track", "--data", str(kitti_root), "--class", "car", "--set", "bus.a_l=2",

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import dfrmot_jax.sweep.runner as runner
+import dfrmot_jax.tuning.study as study
 from dfrmot_jax.cli import main
 from dfrmot_jax.sweep import SweepConfigError, load_results, sweep_report
 from dfrmot_jax.synthetic import make_scene
@@ -63,13 +63,13 @@ def _quiet(**kw):
 
 def test_each_batch_is_one_call_and_the_baseline_is_trial_0(scene, tmp_path, monkeypatch):
     calls = []
-    real = runner.run_sweep
+    real = study.run_sweep
 
     def counting(spec, out=None, **kw):
         calls.append(len(kw["table"]))
         return real(spec, out, **kw)
 
-    monkeypatch.setattr(runner, "run_sweep", counting)
+    monkeypatch.setattr(study, "run_sweep", counting)          # the tune's one call per batch
     res = run_tune(_write(tmp_path, _tune_text(scene)), tmp_path / "out", **_quiet())
     assert calls == [4, 4, 4]                         # budget 12 in batches of 4: three batched calls
     assert len(res.trials) == 12 and list(res.trials["batch"]) == [0] * 4 + [1] * 4 + [2] * 4

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ..sweep.backend import make_backend
+
 
 def add_backend_arguments(p) -> None:
     p.add_argument("--workers", type=int, help="local backend: metric processes beside the tracker (default: 2 for "
@@ -17,8 +19,6 @@ def add_backend_arguments(p) -> None:
 
 def backend_from(args):
     """The backend object the options name (bad combinations: ``SweepConfigError``, exit 2)."""
-    from ..sweep.backend import make_backend
-
     if args.workers is not None and args.workers < 0:
         raise ValueError(f"--workers {args.workers}: expected a whole number >= 0")
     if args.backend == "ray" and args.workers is not None:

@@ -31,7 +31,28 @@ COMBINED counts as TrackEval does for the same sequence list.
 from __future__ import annotations
 
 import argparse
+import sys
+from collections import Counter
 from pathlib import Path
+
+import pandas as pd
+
+from ..io.kitti import KittiFormatError
+from ..io.result_rows import read_result_rows
+from ..metrics.evaluate import (
+    AVERAGE,
+    EVAL_CLASSES,
+    cached_class_sequences,
+    cached_gt,
+    class_average,
+    evaluate_dets,
+    parse_classes,
+)
+from ..metrics.kitti import CLASS_NAME_TO_ID, inspect_results, read_tracker_files
+from ..metrics.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
+from ..paths import default_data_root
+from .errors import guarded
+from .track import parse_seqs
 
 __all__ = ["add_parser", "run"]
 
@@ -42,8 +63,6 @@ def _tracker_name(d: Path) -> str:
 
 
 def _classes_arg(text: str) -> tuple:
-    from ..metrics.evaluate import parse_classes
-
     try:
         return parse_classes(text)
     except ValueError as e:
@@ -52,9 +71,6 @@ def _classes_arg(text: str) -> tuple:
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``eval`` on an argparse ``subparsers`` object; returns its parser."""
-    from . import guarded
-    from ..paths import default_data_root
-
     p = sub.add_parser(
         "eval",
         help="evaluate KITTI tracking result folders (TrackEval's KITTI 2D box HOTA/CLEAR/Identity)",
@@ -86,8 +102,6 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 
 def _fmt_table(df) -> str:
-    from ..metrics.table import COMPACT_FIELDS, COUNT_FIELDS
-
     cols = [c for c in COMPACT_FIELDS if c in df.columns]
     keys = [c for c in ("tracker", "class") if c in df.columns]
     out = df.set_index("seq")[keys + cols] if "seq" in df.columns else df[keys + cols]
@@ -101,8 +115,6 @@ def _names(items, most: int = 30) -> str:
 
 
 def _warn(message: str) -> None:
-    import sys
-
     print(f"dfrmot eval: warning: {message}", file=sys.stderr)
 
 
@@ -125,11 +137,7 @@ def _check_folder(d: Path, found, n_seqs: int, label_dir: Path, allow_missing: b
 
 def _class_hint(d: Path, sequences, cls: str) -> str:
     """What the result files of ``sequences`` in ``d`` hold instead of ``cls``, and the --class to try."""
-    from collections import Counter
 
-    from ..io.result_rows import read_result_rows
-    from ..metrics.evaluate import EVAL_CLASSES
-    from ..metrics.kitti import CLASS_NAME_TO_ID
 
     held = Counter()
     for name in sequences:
@@ -159,20 +167,12 @@ def _mark_empty_gt(shown):
 
 def run(args) -> int:
     """Run ``eval`` for parsed ``args``: 0, or raises (bad ground truth, results or arguments)."""
-    import pandas as pd
 
-    from ..io.kitti import KittiFormatError
-    from ..metrics.evaluate import (AVERAGE, cached_class_sequences, cached_gt, class_average, evaluate_dets,
-                                    parse_classes)
-    from ..metrics.kitti import inspect_results, read_tracker_files
-    from ..metrics.table import classes_table
-    from ..paths import default_data_root
 
     root = Path(args.data) if args.data else default_data_root()
     label_dir = root / "label_02"
     if not label_dir.is_dir():
         raise ValueError(f"no ground truth at {label_dir} (use --data or set DFRMOT_DATA)")
-    from .track import parse_seqs
 
     seqs = parse_seqs(args.seqs)
     try:

@@ -12,15 +12,17 @@ The report's last line is one JSON object.
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
+
+from ..sweep import RAW_COLUMN, load_results, sweep_report
+from .errors import guarded
 
 __all__ = ["add_parser", "run", "parse_contrast"]
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``report`` on an argparse ``subparsers`` object; returns its parser."""
-    from . import guarded
-
     p = sub.add_parser(
         "report", help="best configs, baseline, sensitivity and cross-validation of a sweep directory",
         description="Print the best configs of a sweep (by --objective), the baseline row beside them, how "
@@ -66,8 +68,6 @@ def parse_contrast(text: str) -> dict:
 
 
 def run(args) -> int:
-    from ..sweep import RAW_COLUMN, load_results, sweep_report
-
     contrast = parse_contrast(args.contrast) if getattr(args, "contrast", None) else None
     rep = sweep_report(Path(args.dir), objective=args.objective or _manifest_objective(args.dir),
                        folds=args.folds, top=10 if args.top is None else args.top, contrast=contrast,
@@ -80,8 +80,6 @@ def run(args) -> int:
 
 
 def _manifest_objective(d) -> str:
-    import json
-
     path = Path(d) / "manifest.json"
     try:
         return json.loads(path.read_text()).get("objective") or "HOTA"

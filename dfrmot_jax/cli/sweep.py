@@ -15,14 +15,16 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..metrics.table import canonical_objective
+from ..sweep import OPTION_NAMES, class_columns, load_spec, n_settings, prepare_sweep, run_sweep, sweep_report
+from .backend import add_backend_arguments, backend_from
+from .errors import guarded
+
 __all__ = ["add_parser", "run"]
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``sweep`` on an argparse ``subparsers`` object; returns its parser."""
-    from . import guarded
-    from .backend import add_backend_arguments
-
     p = sub.add_parser(
         "sweep", help="run a sweep file (tracking + metrics for every config), resumable",
         description="Expand a sweep file (sweeps/*.toml) into configs, track and score them in chunks "
@@ -58,12 +60,6 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from .backend import backend_from
-    from ..sweep import (OPTION_NAMES, check_memory, class_columns, expand, load_spec, n_settings, plan,
-                         resolve_data_all, run_sweep, sweep_report)
-
-    from ..metrics.table import canonical_objective
-
     if args.objective is not None:                  # before any work, not after the sweep
         args.objective = canonical_objective(args.objective)
     if args.top is not None and args.top < 1:
@@ -75,11 +71,10 @@ def run(args) -> int:
     backend = backend_from(args)
     spec = load_spec(args.file)
     out = Path(args.out) if args.out else Path("results") / "sweeps" / spec.name
-    if args.dry_run:
-        table = expand(spec, max_configs=args.max_configs)
-        datas = resolve_data_all(spec, args.data)
-        chunks = plan(table, datas, args.chunk or spec.chunk, spec.distortion)
-        check_memory(chunks, datas, spec.distortion, args.max_memory, spec.source)
+    if args.dry_run:        # everything run_sweep does before any work, and what it would run
+        prep = prepare_sweep(spec, data_root=args.data, chunk=args.chunk, folds=args.folds,
+                             max_configs=args.max_configs, max_memory=args.max_memory)
+        table, datas, chunks = prep.table, prep.datas, prep.chunks
         groups = table.groupby(list(OPTION_NAMES), sort=False).size().rename("configs")
         frames = sum(sum(d.lengths) for d in datas)
         if len(datas) == 1:

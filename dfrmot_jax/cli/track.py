@@ -9,10 +9,29 @@ from __future__ import annotations
 
 import argparse
 import re
+import shutil
+import textwrap
 import time
 from pathlib import Path
 
-from ..paths import ENV_VAR
+from ..api import track
+from ..config import (
+    CLASS_DEFAULTS,
+    CLASSES,
+    INT_PARAMS,
+    MAX_CAPACITY,
+    OPTION_CHOICES,
+    PARAM_RANGES,
+    PRESETS,
+    Options,
+    Params,
+    parse_assignment,
+    preset,
+)
+from ..data import load_split
+from ..paths import ENV_VAR, default_data_root
+from ..results import ClassRun, result_files, write_runs
+from .errors import guarded
 
 __all__ = ["add_parser", "run", "config_help"]
 
@@ -25,8 +44,6 @@ def parse_seqs(text: str | None) -> list[str] | None:
 
 
 def _classes(text: str) -> list[str]:
-    from ..config import CLASSES
-
     classes = [c.strip() for c in text.split(",") if c.strip()]
     bad = [c for c in classes if c not in CLASSES]
     if bad or not classes or len(set(classes)) != len(classes):
@@ -34,10 +51,8 @@ def _classes(text: str) -> list[str]:
     return classes
 
 
-def _settings(args, cls: str = "car"):
+def class_settings(args, cls: str = "car"):
     """The preset for the class, then every ``--set NAME=VALUE`` and ``--set CLASS.NAME=VALUE`` of it."""
-    from ..config import CLASSES, parse_assignment, preset
-
     params, options = preset(args.preset, cls)
     for item in args.set or []:
         lhs, eq, rhs = item.partition("=")
@@ -111,11 +126,7 @@ def config_help(width: int | None = None) -> str:
     """The ``track --help`` epilog: every parameter, option and preset with its meaning, generated
     from :mod:`dfrmot_jax.config` (Params / Options docstrings, PARAM_RANGES, OPTION_CHOICES,
     PRESETS, CLASS_DEFAULTS)."""
-    import shutil
-    import textwrap
 
-    from ..config import (CLASS_DEFAULTS, INT_PARAMS, MAX_CAPACITY, OPTION_CHOICES, PARAM_RANGES, PRESETS, Options,
-                          Params)
 
     width = width or max(60, min(120, shutil.get_terminal_size().columns) - 2)
 
@@ -157,11 +168,7 @@ def config_help(width: int | None = None) -> str:
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``track`` on an argparse ``subparsers`` object; returns its parser."""
-    from . import guarded
-    import shutil
-    import textwrap
 
-    from ..config import PRESETS
 
     width = max(60, min(120, shutil.get_terminal_size().columns) - 2)
     t = sub.add_parser("track", help="track a KITTI split and write one result file per sequence",
@@ -198,8 +205,6 @@ def add_parser(sub) -> argparse.ArgumentParser:
 def _old_results(out: Path, overwrite: bool) -> list[Path]:
     """The result files to remove from ``out`` before writing; ValueError when ``out`` is not a
     directory, or is not empty and not to be overwritten."""
-    from ..results import result_files
-
     if not out.exists() and not out.is_symlink():
         return []
     if not out.is_dir():
@@ -216,15 +221,10 @@ def _old_results(out: Path, overwrite: bool) -> list[Path]:
 
 
 def run(args) -> int:
-    from ..api import track
-    from ..data import load_split
-    from ..paths import default_data_root
-    from ..results import ClassRun, write_runs
-
     old = _old_results(Path(args.out), args.overwrite)
     root = Path(args.data) if args.data else default_data_root()
     classes = _classes(args.cls)
-    settings = {cls: _settings(args, cls) for cls in classes}
+    settings = {cls: class_settings(args, cls) for cls in classes}
     t0 = time.perf_counter()
     runs, status = [], 0
     for cls in classes:

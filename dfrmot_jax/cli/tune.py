@@ -17,15 +17,16 @@ import json
 import sys
 from pathlib import Path
 
+from ..tuning import load_tune, run_tune
+from ..tuning.settings import SAMPLERS
+from .backend import add_backend_arguments, backend_from
+from .errors import guarded
+
 __all__ = ["add_parser", "run"]
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``tune`` on an argparse ``subparsers`` object; returns its parser."""
-    from ..tuning.settings import SAMPLERS
-    from . import guarded
-    from .backend import add_backend_arguments
-
     p = sub.add_parser(
         "tune", help="tune a sweep file's parameters with batched Optuna search (+ gradient refinement)",
         description="Search the [params] / [options] of a tune file (a sweep file with a [tune] table) with an "
@@ -54,9 +55,6 @@ def _positive(name: str, v, minimum: int = 1):
 
 
 def run(args) -> int:
-    from .backend import backend_from
-    from ..tuning import load_tune, run_tune
-
     for name, minimum in (("budget", 2), ("batch", 1), ("folds", 2), ("seed", 0), ("refine_steps", 0)):
         _positive(name.replace("_", "-"), getattr(args, name), minimum)
     spec, settings = load_tune(args.file)

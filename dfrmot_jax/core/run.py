@@ -17,6 +17,8 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.sharding import Mesh
+from jax.sharding import PartitionSpec as P
 
 from ..config import Options, Params
 from .devices import setup_host_devices
@@ -30,21 +32,20 @@ class FrameHook(NamedTuple):
     lane: this lane's own values (a pytree, batched [B] in ``run_batch`` like the params);
     xs: per-frame values shared by every lane (a pytree with leading axis T).
     """
-
     fn: Any
     lane: Any = None
     xs: Any = None
 
 
-#: run frames with few detections on a smaller copy of the step (``small_frames``); off: one size
-SMALL_FRAMES = True
-#: ... on splits of at least this many frames (the second copy of the step costs its compilation)
+#: run frames with few detections on a smaller copy of the step (``small_frames``) on splits of at
+#: least this many frames (the second copy of the step costs its compilation); the default of
+#: ``run_batch(small_frames_min=...)`` and ``track(small_frames_min=...)``, where None turns it off
 SMALL_FRAMES_MIN_T = 2000
 
 
-def small_frames(frames: Frames, options: Options, detail: bool = False):
+def small_frames(frames: Frames, options: Options, detail: bool = False, min_frames: int | None = SMALL_FRAMES_MIN_T):
     """((m2, m3), flags [T] bool) for the small-frame step, or None when it would not pay (fewer
-    than ``SMALL_FRAMES_MIN_T`` frames, or less than 15 % fewer slots per step).
+    than ``min_frames`` frames (None: never), or less than 15 % fewer slots per step).
 
     ``flags[t]``: frame t's valid detections all sit in the first m2 2D / m3 3D slots. (m2, m3) is
     chosen among quantiles of the frames' last valid slots to minimise the expected slots per step;
@@ -53,7 +54,7 @@ def small_frames(frames: Frames, options: Options, detail: bool = False):
     the matrix size) nor with ``detail`` (its 3D sources are indices into the full slot layout).
     """
     v2, v3 = np.asarray(frames.valid2), np.asarray(frames.valid3)
-    if not SMALL_FRAMES or detail or options.assign == "hungarian" or v2.shape[0] < SMALL_FRAMES_MIN_T:
+    if min_frames is None or detail or options.assign == "hungarian" or v2.shape[0] < min_frames:
         return None
     big2, big3 = v2.shape[1], v3.shape[1]
 
@@ -144,7 +145,6 @@ class BatchOutput(NamedTuple):
     dropped [B, T] int32; overflow [B] int32 (births dropped in total); peak [B] int32 (most live
     tracks); with ``detail``: src3 [B, T, K] int32, own3 [B, T, K] bool, box3 [B, T, K, 6] float32
     (output "filtered"), else their K axis is empty."""
-
     ids: np.ndarray
     boxes: np.ndarray
     dropped: np.ndarray
@@ -185,7 +185,6 @@ def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: boo
     batched = jax.vmap(lane, in_axes=(0, None, 0, None, None))
     if n_devices == 1:
         return jax.jit(batched)
-    from jax.sharding import Mesh, PartitionSpec as P
 
     mesh = Mesh(np.array(jax.devices()[:n_devices]), ("b",))
     sharded = jax.shard_map(batched, mesh=mesh, in_specs=(P("b"), P(), P("b"), P(), P()), out_specs=P("b"),
@@ -210,11 +209,14 @@ def _lanes(tree, b: int, pad: int, float_dtype):
 
 
 def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n_devices: int | None = None,
-              hook: FrameHook | None = None, detail: bool = False) -> BatchOutput:
+              hook: FrameHook | None = None, detail: bool = False,
+              small_frames_min: int | None = SMALL_FRAMES_MIN_T) -> BatchOutput:
     """All lanes of a ``Params`` batch [B] over the split; the batch is split over ``n_devices``.
 
     hook: a ``FrameHook`` whose ``lane`` leaves are [B] (float leaves as float32) and ``xs`` leaves
     [T, ...]; detail: also the rows' 3D detections (``StepOutput.src3``; for result files).
+    small_frames_min: run frames with few detections on a smaller copy of the step on splits of at
+    least this many frames (``small_frames``; None: one size; the results are the same).
     Returns BatchOutput (numpy). Lanes are padded to a multiple of the device count and trimmed.
     """
     b = max(np.atleast_1d(np.asarray(v)).shape[0] for v in params)
@@ -226,7 +228,7 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
         small = flags = None
         if hook is None:
             fn, lanes, xs = None, jnp.zeros(b + pad, jnp.int32), None
-            found = small_frames(frames, options, detail)
+            found = small_frames(frames, options, detail, small_frames_min)
             if found is not None:
                 small, flags = found[0], jnp.asarray(found[1])
         else:

@@ -14,6 +14,9 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from .atomic import write_text_atomic
+from .columns import format_lines
+
 __all__ = [
     "KittiFormatError",
     "Detections2D",
@@ -36,7 +39,6 @@ class KittiFormatError(ValueError):
     file), ``field`` (column or matrix name, or None) and ``message``.
     ``str(e)`` is ``"{path}:{line}: field '{field}': {message}"`` with the None parts left out.
     """
-
     def __init__(self, path, line: int | None = None, field: str | None = None, message: str = ""):
         self.path = str(path)
         self.line = None if line is None else int(line)
@@ -58,7 +60,6 @@ class Detections2D(NamedTuple):
 
     frame: [R] int64; box: [R, 4] float64 ``x1, y1, x2, y2`` in pixels; score: [R] float64.
     """
-
     frame: np.ndarray
     box: np.ndarray
     score: np.ndarray
@@ -72,7 +73,6 @@ class Detections3D(NamedTuple):
     dims: [R, 3] float64 ``h, w, l`` (metres); loc: [R, 3] float64 ``x, y, z`` (camera
     coordinates, bottom centre); rot_y: [R] float64; alpha: [R] float64.
     """
-
     frame: np.ndarray
     type: np.ndarray
     box: np.ndarray
@@ -91,7 +91,6 @@ class TrackingLabels(NamedTuple):
     dims: [R, 3] float64 ``h, w, l``; loc: [R, 3] float64 ``x, y, z``; rot_y: [R] float64;
     score: [R] float64, NaN when the file has no score column (17 columns).
     """
-
     frame: np.ndarray
     track_id: np.ndarray
     type: np.ndarray
@@ -111,7 +110,6 @@ class Calib(NamedTuple):
     P2: [3, 4]; R0_rect: [3, 3]; Tr_velo_to_cam: [3, 4]; P: [4, 3, 4] ``P0..P3`` (a missing
     ``P0``, ``P1`` or ``P3`` is zeros); Tr_imu_to_velo: [3, 4] (zeros if absent).
     """
-
     P2: np.ndarray
     R0_rect: np.ndarray
     Tr_velo_to_cam: np.ndarray
@@ -144,7 +142,7 @@ class _Text(NamedTuple):
     line_numbers: list[int]
 
 
-def _read_text(path) -> _Text:
+def read_text_file(path) -> _Text:
     p = str(path)
     try:
         with open(path, encoding="utf-8-sig") as f:
@@ -175,7 +173,7 @@ def line_of_row(path, row: int) -> int | None:
     return None
 
 
-def _quoted(token: str) -> str:
+def quoted(token: str) -> str:
     return repr(token.strip())
 
 
@@ -201,7 +199,7 @@ def _parse_table(path, layouts: dict, check_dims: bool) -> tuple[tuple[str, ...]
     to the field names of that layout. Returns the field names of the layout found and a dict
     field -> array ([R] float64, [R] int64 for frame/track_id, [R] object for string fields).
     """
-    text = _read_text(path)
+    text = read_text_file(path)
     lines = text.lines
     if not lines:
         fields = next(iter(layouts.values()))
@@ -288,7 +286,7 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
         r, j = divmod(int(np.argmax(nonfinite)), values.shape[1])
         name = fields[numeric[j]]
         what = "not a number" if unparsable is not None and unparsable[r, j] else "not finite"
-        problems.append((r, 0, name, f"{what}: {_quoted(token(r, name))}"))
+        problems.append((r, 0, name, f"{what}: {quoted(token(r, name))}"))
 
     col = {name: values[:, j] for j, name in ((j, fields[i]) for j, i in enumerate(numeric))}
 
@@ -298,11 +296,11 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
     if too_big.any():
         r, j = divmod(int(np.argmax(too_big)), values.shape[1])
         name = fields[numeric[j]]
-        problems.append((r, 0, name, f"outside the float32 range: {_quoted(token(r, name))}"))
+        problems.append((r, 0, name, f"outside the float32 range: {quoted(token(r, name))}"))
     for name, most in _INT_MAX.items():
         if name in col and np.any(np.abs(col[name]) > most):
             r = int(np.argmax(np.abs(col[name]) > most))
-            problems.append((r, 1, name, f"too large (at most {most}): {_quoted(token(r, name))}"))
+            problems.append((r, 1, name, f"too large (at most {most}): {quoted(token(r, name))}"))
 
     def first(mask: np.ndarray) -> int | None:
         if mask.any():
@@ -314,12 +312,12 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
             v = col[name]
             r = first(np.isfinite(v) & (v != np.floor(v)))
             if r is not None:
-                problems.append((r, 1, name, f"not an integer: {_quoted(token(r, name))}"))
+                problems.append((r, 1, name, f"not an integer: {quoted(token(r, name))}"))
 
     frame = col["frame"]
     r = first(frame < 0)
     if r is not None:
-        problems.append((r, 2, "frame", f"negative frame {_quoted(token(r, 'frame'))}"))
+        problems.append((r, 2, "frame", f"negative frame {quoted(token(r, 'frame'))}"))
     r = first(frame[1:] < frame[:-1])
     if r is not None:
         r += 1
@@ -340,7 +338,7 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
         if neg.any():
             r, j = divmod(int(np.argmax(neg)), 3)
             name = _DIM_FIELDS[j]
-            problems.append((r, 6, name, f"negative 3D size {name} = {_quoted(token(r, name))}"))
+            problems.append((r, 6, name, f"negative 3D size {name} = {quoted(token(r, name))}"))
 
     strings = {}
     for i, name in enumerate(fields):
@@ -461,7 +459,7 @@ def read_calib(path) -> Calib:
     Unknown names are ignored. Returns P2 [3, 4], R0_rect [3, 3], Tr_velo_to_cam [3, 4],
     P [4, 3, 4], Tr_imu_to_velo [3, 4].
     """
-    text = _read_text(path)
+    text = read_text_file(path)
     found: dict[str, tuple[int, np.ndarray]] = {}
     for line_no, s in zip(text.line_numbers, text.lines):
         if ":" in s:
@@ -562,8 +560,6 @@ def tracking_lines(frame, track_id, box, type_name="Car", alpha=None, dims=None,
                    *, columns: str = "kitti", centroid: str = "legacy", has3=None, own3=None, score2=None,
                    box3=None) -> list[str]:
     """The lines :func:`write_tracking_results` writes (same arguments, same checks), each ending in "\\n"."""
-    from .columns import format_lines
-
     box_arr = np.asarray(box, dtype=np.float64)
     if box_arr.ndim != 2 or box_arr.shape[1] != 4:
         if not (box_arr.size == 0 and box_arr.ndim <= 2):
@@ -599,20 +595,6 @@ def tracking_lines(frame, track_id, box, type_name="Car", alpha=None, dims=None,
         message = str(e).removeprefix("format_lines: ").replace("score3", "score")  # this function's name for it
         raise ValueError(f"write_tracking_results: {message}") from None
     return lines
-
-
-def write_text_atomic(path, text: str) -> None:
-    """Replace ``path`` with ``text`` atomically: written next to it, then renamed (parents created)."""
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def file_stamps(paths) -> tuple:

@@ -32,7 +32,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .kitti import KittiFormatError, _quoted, _read_text
+from .kitti import KittiFormatError, quoted, read_text_file
 
 __all__ = ["ResultRows", "read_result_rows", "MIN_COLUMNS"]
 
@@ -86,7 +86,7 @@ def read_result_rows(path) -> ResultRows:
     Returns the kept rows (:class:`ResultRows`); raises :class:`KittiFormatError` naming file,
     line and field for what TrackEval cannot read or score.
     """
-    text = _read_text(path)
+    text = read_text_file(path)
     lines = text.lines
     sep = "," if lines and "," in lines[0] else None
     split = [s.split(sep) for s in lines]
@@ -114,8 +114,8 @@ def read_result_rows(path) -> ResultRows:
     frame, frame_ok = _numbers(tok[:, 0])
     tid, id_ok = _numbers(tok[:, 1])
     for j, v, ok in ((0, frame, frame_ok), (1, tid, id_ok)):
-        flag(~ok, every, j, lambda r, j=j: f"not a number: {_quoted(tok[r, j])}")
-        flag(ok & ~np.isfinite(v), every, j, lambda r, j=j: f"not finite: {_quoted(tok[r, j])}")
+        flag(~ok, every, j, lambda r, j=j: f"not a number: {quoted(tok[r, j])}")
+        flag(ok & ~np.isfinite(v), every, j, lambda r, j=j: f"not finite: {quoted(tok[r, j])}")
     with np.errstate(invalid="ignore"):
         frame, tid = np.trunc(frame), np.trunc(tid)
         keep = np.flatnonzero(id_ok & np.isfinite(tid) & (tid >= 0) & (count >= 3))
@@ -123,17 +123,17 @@ def read_result_rows(path) -> ResultRows:
     flag(kc < MIN_COLUMNS, keep, -1, lambda r: f"expected at least {MIN_COLUMNS} columns (frame id type truncated "
                                                f"occluded alpha x1 y1 x2 y2 ...), got {count[r]}")
     kf, kt = frame[keep], tid[keep]
-    flag(kt > _ID_MAX, keep, 1, lambda r: f"too large (at most {_ID_MAX}): {_quoted(tok[r, 1])}")
-    flag(np.isfinite(kf) & (kf < 0), keep, 0, lambda r: f"negative frame {_quoted(tok[r, 0])}")
+    flag(kt > _ID_MAX, keep, 1, lambda r: f"too large (at most {_ID_MAX}): {quoted(tok[r, 1])}")
+    flag(np.isfinite(kf) & (kf < 0), keep, 0, lambda r: f"negative frame {quoted(tok[r, 0])}")
     flag(np.isfinite(kf) & (kf > _FRAME_MAX), keep, 0, lambda r: f"too large (at most {_FRAME_MAX}): "
-                                                                 f"{_quoted(tok[r, 0])}")
+                                                                 f"{quoted(tok[r, 0])}")
     box = np.zeros((len(keep), 4))
     for j in range(3, width):
         has = kc > j
         v, ok = _numbers(tok[keep[has], j])
-        flag(~ok, keep[has], j, lambda r, j=j: f"not a number: {_quoted(tok[r, j])}")
+        flag(~ok, keep[has], j, lambda r, j=j: f"not a number: {quoted(tok[r, j])}")
         if _BOX.start <= j < _BOX.stop:
-            flag(ok & ~np.isfinite(v), keep[has], j, lambda r, j=j: f"not finite: {_quoted(tok[r, j])}")
+            flag(ok & ~np.isfinite(v), keep[has], j, lambda r, j=j: f"not finite: {quoted(tok[r, j])}")
             box[has, j - _BOX.start] = v
     # TrackEval stacks the kept rows of a frame into one array: they must have the same length
     order = np.lexsort((keep, kf))

@@ -44,9 +44,18 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from dfrmot_jax.io.kitti import file_stamps
-from dfrmot_jax.metrics import clear, hota, identity
-from dfrmot_jax.metrics.kitti import (PreparedGT, TrackerDets, class_sequences, prepare_gt, preprocess,
-                                      read_tracker_files, tracker_dets_from_arrays)
+from dfrmot_jax.metrics import clear, hota, identity, table
+from dfrmot_jax.metrics.kitti import (
+    PreparedGT,
+    TrackerDets,
+    class_sequences,
+    prepare_gt,
+    preprocess,
+    read_tracker_files,
+    tracker_dets_from_arrays,
+)
+from dfrmot_jax.metrics.table import classes_table
+from dfrmot_jax.paths import default_data_root
 
 COUNT_FIELDS = ("Dets", "GT_Dets", "IDs", "GT_IDs")
 INTEGER_FIELDS = frozenset(clear.INTEGER_FIELDS + identity.INTEGER_FIELDS + COUNT_FIELDS)
@@ -110,6 +119,13 @@ def cached_class_sequences(root, cls: str = "car") -> tuple:
         _SEQ_CACHE.clear()
     _SEQ_CACHE[key] = (stamp, seqs)
     return seqs
+
+
+def clear_caches() -> None:
+    """Forget the memoised ground truth and class sequences (``cached_gt``, ``cached_class_sequences``):
+    the next call reads the files again, as a cold start does."""
+    _GT_CACHE.clear()
+    _SEQ_CACHE.clear()
 
 
 def parse_classes(classes) -> tuple:
@@ -231,7 +247,6 @@ def evaluate_files(results_dir, root=None, cls: str = "car", sequences: Sequence
     unknown class names or an id repeated within a frame.
     """
     if root is None:
-        from dfrmot_jax.paths import default_data_root
         root = default_data_root()
     gt = cached_gt(root, cls, sequences)
     return evaluate_dets(gt, read_tracker_files(results_dir, gt, missing=missing))
@@ -258,7 +273,6 @@ def evaluate_files_classes(results_dir, root=None, classes: Sequence[str] | str 
     classes, ``'average': {'COMBINED': class_average(each class's COMBINED)}`` (:func:`class_average`).
     """
     if root is None:
-        from dfrmot_jax.paths import default_data_root
         root = default_data_root()
     out: dict[str, dict] = {}
     for c in parse_classes(classes):
@@ -279,8 +293,6 @@ def evaluate_classes(results_dir, root=None, classes: Sequence[str] | str = EVAL
     row per (class, sequence), each class's ``COMBINED``, and with two or more classes a last row
     ``class = 'average', seq = 'COMBINED'`` (ratio columns the mean over the classes, counts summed).
     """
-    from dfrmot_jax.metrics.table import classes_table
-
     return classes_table(evaluate_files_classes(results_dir, root, classes, sequences, missing), tracker=tracker)
 
 
@@ -318,7 +330,6 @@ def _run_chunk(dets: TrackerDets) -> dict:
 
 class _Parts(list):
     """Futures of consecutive lane ranges of one batch, read as one future."""
-
     def done(self) -> bool:
         return all(f.done() for f in self)
 
@@ -359,7 +370,6 @@ def _main_hidden():
 
 class _StartWithoutMain:
     """Mixin of a process class: ``start`` with ``__main__`` hidden (module level: picklable)."""
-
     def start(self):
         with _main_hidden():
             super().start()
@@ -396,7 +406,6 @@ class LaneScorer:
     A lane's output is identified by a digest of its ids (and its own boxes, when boxes are per
     lane); :meth:`new_lanes` picks the lanes whose output is not scored yet, :meth:`store` keeps
     their scores and :meth:`gather` returns the scores of every lane of a batch."""
-
     def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16):
         self.gt = gt
         self.offsets = np.asarray(offsets, np.int64)
@@ -499,8 +508,6 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, chunk: int 
 def summary_columns(seq: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """TrackEval fields (arrays [..., 19] or [...]) -> the summary columns of ``metrics_table``
     (HOTA family: mean over alphas x100; other ratios x100; counts int64), vectorised."""
-    from dfrmot_jax.metrics import table
-
     out = {}
     for f in table.TABLE_FIELDS:
         if f not in seq:

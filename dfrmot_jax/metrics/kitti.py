@@ -39,6 +39,8 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
+from dfrmot_jax.io.result_rows import read_result_rows
 from dfrmot_jax.metrics.boxes import EPS, columns, gather_iou, pair_ioa
 from dfrmot_jax.metrics.pairs import assign_frames, enumerate_pairs, nontrivial_segments, segment_starts
 
@@ -71,7 +73,6 @@ class DuplicateIdError(ValueError):
 
 
 def _kitti_io():
-    from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
     return kio
 
 
@@ -118,7 +119,6 @@ class PreparedGT:
       ``n_gt_dets`` [S].
     * DontCare regions: ``dc_box`` [D, 4], ``dc_start`` [F+1].
     """
-
     cls: str
     cls_id: int
     sequences: tuple
@@ -288,7 +288,6 @@ class TrackerDets(NamedTuple):
     source: [M] int64 row in the source file (files) or slot index (arrays), for error messages;
     paths: per lane, per sequence the source file (or None).
     """
-
     n_lanes: int
     lane: np.ndarray
     frame: np.ndarray
@@ -319,7 +318,6 @@ class ResultFolder(NamedTuple):
     are no readable file (:func:`result_file_problem`); unexpected: ``*.txt`` file names that are
     no sequence of the ground truth (stale or foreign files), sorted.
     """
-
     missing: tuple
     unreadable: tuple
     unexpected: tuple
@@ -359,8 +357,6 @@ def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty") -> T
     ``missing='empty'`` (TrackEval itself refuses to run without every file; an empty file there
     gives the same numbers) or raises with ``missing='error'``. Returns one lane.
     """
-    from dfrmot_jax.io.result_rows import read_result_rows
-
     kio = _kitti_io()
     results_dir = Path(results_dir)
     if not results_dir.is_dir():
@@ -451,7 +447,6 @@ class EvalBatch:
     ``p_lf``, ``p_e`` (eval GT row), ``p_k`` (kept det) [P] int64, ``sim`` [P] float64 (IoU);
     ``pair_start`` [L*F+1]. Per (lane, seq): ``n_tr_dets``, ``n_tr_ids`` [L, S].
     """
-
     gt: PreparedGT
     n_lanes: int
     det_lf: np.ndarray

@@ -24,17 +24,17 @@ The pipeline::
         with distortion: the objective per level and kind (mean ± SE over seeds) per setting, and
         an optional contrast of two groups of an axis (e.g. long vs short memory) paired by seed
 
-Modules: :mod:`.spec` (the file: dataclasses, parsing, validation), :mod:`.distortion` (the
-[distortion] table), :mod:`.table` (``expand``, ``config_hash``, ``HASH_VERSION``), :mod:`.plan`
-(data settings, option groups, chunks), :mod:`.runner` (``run_sweep``, the run loop), :mod:`.store`
-(the directory: chunk files, manifest, ``load_results``), :mod:`.analysis` (ranking, sensitivity,
-folds, cross-validation), :mod:`.robustness`, :mod:`.report` (``sweep_report``). The metrics
+Modules: :mod:`.checks` (``SweepConfigError`` and the value checks every table shares), :mod:`.spec`
+(the file: dataclasses, parsing, validation), :mod:`.distortion` (the [distortion] table),
+:mod:`.table` (``expand``, ``config_hash``, ``HASH_VERSION``), :mod:`.plan` (data settings, option
+groups, chunks), :mod:`.chunks` (``ChunkRunner``: one class's chunks tracked and scored, the unit
+every backend runs), :mod:`.backend` (local or Ray: ``check()`` and ``run_chunks(...)``),
+:mod:`.ray_backend`, :mod:`.runner` (``prepare_sweep``, ``run_sweep``), :mod:`.store` (the directory:
+chunk files, manifest, ``load_results``), :mod:`.analysis` (ranking, sensitivity, folds,
+cross-validation), :mod:`.robustness`, :mod:`.text`, :mod:`.report` (``sweep_report``). The metrics
 (summary columns, sequence re-combination, lane scoring, worker pools) are
-:mod:`dfrmot_jax.metrics.evaluate`'s.
-
-``run_sweep`` is the function; ``dfrmot_jax.sweep`` is this package. For one release calling the
-package (``dm.sweep(...)``) or ``dfrmot_jax.sweep.sweep(...)`` still runs a sweep, with a
-``DeprecationWarning``.
+:mod:`dfrmot_jax.metrics.evaluate`'s. ``dfrmot_jax.sweep.sweep(...)`` is a deprecated alias of
+``run_sweep`` (one release, with a ``DeprecationWarning``).
 
 See ``sweeps/README.md`` for the file format. Python use::
 
@@ -50,43 +50,30 @@ See ``sweeps/README.md`` for the file format. Python use::
 
 from __future__ import annotations
 
-import sys
-import types
-import warnings
-
-from ..metrics.evaluate import RAW_FIELDS, combine_sequences, summary_columns
-from .analysis import (MINIMISE, OBJECTIVES, _check_objective, _classes_of, _direction, _objective_on,
-                       _per_sequence_arrays, _rank, class_view, cross_validate, make_folds, report_class_of,
-                       sensitivity, varied_axes)
-from .distortion import DISTORTION_KEYS, PROBABILITY_KINDS, DistortionAxes
-from .plan import MAX_MEMORY_GB, Chunk, DataSettings, _groups, check_memory, plan, resolve_data, resolve_data_all
+from ..metrics.evaluate import combine_sequences, summary_columns
+from .analysis import (MINIMISE, OBJECTIVES, class_view, cross_validate, make_folds, objective_on, per_sequence_arrays,
+                       sensitivity)
+from .backend import LocalBackend, RayBackend, make_backend
+from .checks import SweepConfigError
+from .distortion import DistortionAxes
+from .plan import MAX_MEMORY_GB, DataSettings, check_memory, plan, resolve_data, resolve_data_all
 from .report import SweepReport, sweep_report
 from .robustness import robustness_contrast, robustness_curves, robustness_summary, setting_axes
-from .runner import TRACK_CHUNK, run_sweep, sweep
-from .spec import (AVERAGE, DISTORTION_AXES, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, Axis, Contrast, SweepConfigError,
-                   SweepSpec, Variant, load_spec, parse_spec)
+from .runner import PreparedSweep, prepare_sweep, run_sweep, sweep
+from .spec import (AVERAGE, DISTORTION_AXES, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, Axis, Contrast, SweepSpec, load_spec,
+                   parse_spec)
 from .store import HashVersionError, SweepDirectoryError, hash_version, load_results
-from .table import (COMBINED, HASH_VERSION, MAX_CONFIGS, RAW_COLUMN, _params_of, class_columns, config_count,
-                    config_hash, expand, n_settings)
+from .table import (COMBINED, HASH_VERSION, MAX_CONFIGS, RAW_COLUMN, class_columns, config_count, config_hash, expand,
+                    n_settings, params_of)
 
 __all__ = [
     "SweepConfigError", "SweepSpec", "DataSettings", "Axis", "load_spec", "parse_spec", "expand", "config_hash",
-    "resolve_data", "plan", "run_sweep", "sweep", "load_results", "sweep_report", "SweepReport", "cross_validate",
-    "make_folds", "sensitivity", "combine_sequences", "PARAM_NAMES", "OPTION_NAMES", "EXTRA_AXES",
-    "OBJECTIVES", "MINIMISE", "DISTORTION_AXES", "DistortionAxes", "robustness_curves", "robustness_contrast",
-    "robustness_summary", "Contrast", "n_settings", "setting_axes", "resolve_data_all", "class_view",
-    "class_columns", "AVERAGE", "HASH_VERSION", "HashVersionError", "hash_version",
-    "SweepDirectoryError", "MAX_CONFIGS", "MAX_MEMORY_GB", "config_count", "check_memory",
+    "resolve_data", "plan", "prepare_sweep", "PreparedSweep", "run_sweep", "sweep", "load_results", "sweep_report",
+    "SweepReport", "cross_validate", "make_folds", "sensitivity", "combine_sequences", "summary_columns",
+    "PARAM_NAMES", "OPTION_NAMES", "EXTRA_AXES", "OBJECTIVES", "MINIMISE", "DISTORTION_AXES", "DistortionAxes",
+    "robustness_curves", "robustness_contrast", "robustness_summary", "Contrast", "n_settings", "setting_axes",
+    "resolve_data_all", "class_view", "class_columns", "AVERAGE", "HASH_VERSION", "HashVersionError",
+    "hash_version", "SweepDirectoryError", "MAX_CONFIGS", "MAX_MEMORY_GB", "config_count", "check_memory",
+    "COMBINED", "RAW_COLUMN", "params_of", "per_sequence_arrays", "objective_on", "LocalBackend", "RayBackend",
+    "make_backend",
 ]
-
-
-class _SweepPackage(types.ModuleType):
-    """``dfrmot_jax.sweep`` is this package; calling it is the deprecated spelling of :func:`run_sweep`."""
-
-    def __call__(self, *args, **kwargs):
-        warnings.warn("calling dfrmot_jax.sweep(...) is deprecated: use dfrmot_jax.run_sweep(...) "
-                      "(dfrmot_jax.sweep is the sweep package)", DeprecationWarning, stacklevel=2)
-        return run_sweep(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _SweepPackage

@@ -11,34 +11,33 @@ import pandas as pd
 from ..metrics import clear, identity
 from ..metrics.evaluate import RAW_FIELDS, class_average_columns, combine_sequences, summary_columns
 from ..metrics.table import TABLE_FIELDS, canonical_objective  # noqa: F401  (re-exported)
-from .spec import OPTION_NAMES, PARAM_NAMES, _extra_axes
-from .spec import AVERAGE
-from .table import COMBINED, RAW_COLUMN, _split_class_column, class_columns
+from .spec import AVERAGE, OPTION_NAMES, PARAM_NAMES, extra_axes
+from .table import COMBINED, RAW_COLUMN, class_columns, split_class_column
 
 #: Objectives the report knows by name (any metric column works); these are minimised.
 MINIMISE = frozenset({"IDSW", "Frag", "ML", "CLR_FN", "CLR_FP", "IDFN", "IDFP", "PT", "MLR", "FP_per_frame"})
 OBJECTIVES = ("HOTA", "MOTA", "IDF1", "AssA", "DetA", "IDSW")
 
 
-def _direction(objective: str) -> int:
+def objective_direction(objective: str) -> int:
     return -1 if objective in MINIMISE else 1
 
 
-def _check_objective(df: pd.DataFrame, objective: str) -> None:
+def check_objective(df: pd.DataFrame, objective: str) -> None:
     if objective not in df.columns or objective in PARAM_NAMES or objective in OPTION_NAMES:
         known = [c for c in df.columns if c in TABLE_FIELDS]
         raise ValueError(f"objective {objective!r}: not a metric column; expected one of {known}")
 
 
-def _rank(values: np.ndarray, objective: str) -> np.ndarray:
+def rank_configs(values: np.ndarray, objective: str) -> np.ndarray:
     """Order of configs best first; ties by position (config order)."""
-    key = -_direction(objective) * np.asarray(values, np.float64)
+    key = -objective_direction(objective) * np.asarray(values, np.float64)
     return np.lexsort((np.arange(len(key)), key))
 
 
 def varied_axes(df: pd.DataFrame) -> list[str]:
     comb = df[df["sequence"] == COMBINED]
-    return [c for c in list(PARAM_NAMES) + class_columns(comb.columns) + list(OPTION_NAMES) + list(_extra_axes())
+    return [c for c in list(PARAM_NAMES) + class_columns(comb.columns) + list(OPTION_NAMES) + list(extra_axes())
             if c in comb.columns and comb[c].nunique() > 1]
 
 
@@ -65,8 +64,8 @@ def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.
     """
     comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
     y = comb[objective].to_numpy(np.float64)
-    d = _direction(objective)
-    best = int(_rank(y, objective)[0])
+    d = objective_direction(objective)
+    best = int(rank_configs(y, objective)[0])
     rows = []
     for group in _axis_groups(comb, varied_axes(df)):
         a = group[0]
@@ -88,7 +87,7 @@ def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.
         rows.append({"axis": "+".join(group), "values": int(g.ngroups),
                      "spread_best": float(by_best.max() - by_best.min()),
                      "spread_mean": float(by_mean.max() - by_mean.min()), "corr": corr,
-                     "best_value": "/".join(_fmt(comb.at[best, o]) for o in group) if len(group) > 1
+                     "best_value": "/".join(fmt_value(comb.at[best, o]) for o in group) if len(group) > 1
                      else comb.at[best, a],
                      "oat_range": float(oat.max() - oat.min()) if oat.size > 1 else float("nan")})
     cols = ["axis", "values", "spread_best", "spread_mean", "corr", "best_value", "oat_range"]
@@ -97,13 +96,13 @@ def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.
 
 
 
-def _fmt(v) -> str:
+def fmt_value(v) -> str:
     if isinstance(v, (float, np.floating)):
         return f"{v:.4g}" if abs(v) < 1e4 else f"{v:.6g}"
     return str(v)
 
 
-def _json_value(v):
+def json_value(v):
     if isinstance(v, (np.integer,)):
         return int(v)
     if isinstance(v, (np.floating,)):
@@ -155,7 +154,7 @@ def make_folds(names: Sequence[str], lengths: Sequence[int], k: int) -> list[lis
     return [sorted(f) for f in folds]
 
 
-def _per_sequence_arrays(df: pd.DataFrame):
+def per_sequence_arrays(df: pd.DataFrame):
     """Per-sequence fields as arrays [C, S(, 19)] in config order; returns (comb rows, names, lengths, arrays)."""
     if RAW_COLUMN not in df.columns:
         raise ValueError(f"cross-validation needs the {RAW_COLUMN!r} column (sweep(..., raw=True))")
@@ -177,7 +176,7 @@ def _per_sequence_arrays(df: pd.DataFrame):
     return comb, names, lengths, arrays
 
 
-def _objective_on(arrays: dict, cols: Sequence[int], objective: str, rows=None) -> np.ndarray:
+def objective_on(arrays: dict, cols: Sequence[int], objective: str, rows=None) -> np.ndarray:
     sub = {f: (v[:, cols] if rows is None else v[rows][:, cols]) for f, v in arrays.items()}
     return summary_columns(combine_sequences(sub))[objective]
 
@@ -212,14 +211,14 @@ def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA", cl
     folds of another (the classes' ground truth is disjoint). ``test_sequences`` of a fold (and
     ``fold_sequences``) are then ``{class: [sequences]}``.
     """
-    _check_objective(df, objective)
-    classes = _classes_of(df)
+    check_objective(df, objective)
+    classes = classes_of(df)
     cls = report_class_of(df, cls)
     if cls == AVERAGE:
         return _cross_validate_average(df, classes, folds, objective)
     if classes:
         df = class_view(df, cls)
-    comb, names, lengths, arrays = _per_sequence_arrays(df)
+    comb, names, lengths, arrays = per_sequence_arrays(df)
     fold_names = make_folds(names, lengths, folds)
     base = np.flatnonzero(comb["baseline"].to_numpy())
     b = int(base[0]) if base.size else None
@@ -228,9 +227,9 @@ def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA", cl
     for f, test in enumerate(fold_names):
         te = [names.index(s) for s in test]
         tr = [i for i in range(len(names)) if i not in te]
-        train_score = _objective_on(arrays, tr, objective)
-        best = int(_rank(train_score, objective)[0])
-        test_score = _objective_on(arrays, te, objective)
+        train_score = objective_on(arrays, tr, objective)
+        best = int(rank_configs(train_score, objective)[0])
+        test_score = objective_on(arrays, te, objective)
         chosen[te] = best
         per_fold.append({"fold": f, "test_sequences": test, "config": int(comb.at[best, "config"]),
                          "config_hash": comb.at[best, "config_hash"], "train": float(train_score[best]),
@@ -251,13 +250,13 @@ def _cross_validate_average(df: pd.DataFrame, classes: Sequence[str], folds: int
     per = []
     for k in classes:
         rows = df[(df["class"] == k) & df["config"].isin(configs)]
-        ck, names, lengths, arrays = _per_sequence_arrays(rows)
+        ck, names, lengths, arrays = per_sequence_arrays(rows)
         if not np.array_equal(ck["config"].to_numpy(), configs):
             raise ValueError(f"class {k!r} does not hold the configs of the class-average rows")
         per.append((k, names, lengths, arrays, make_folds(names, lengths, folds)))
 
     def score(cols_of) -> np.ndarray:
-        return class_average_columns([{objective: _objective_on(arrays, cols_of(i, names), objective)}
+        return class_average_columns([{objective: objective_on(arrays, cols_of(i, names), objective)}
                                        for i, (_, names, _, arrays, _) in enumerate(per)])[objective]
 
     base = np.flatnonzero(comb["baseline"].to_numpy())
@@ -268,7 +267,7 @@ def _cross_validate_average(df: pd.DataFrame, classes: Sequence[str], folds: int
         test = {k: fs[f] for k, _, _, _, fs in per}
         train_score = score(lambda i, names: [j for j, s in enumerate(names) if s not in test[per[i][0]]])
         test_score = score(lambda i, names: [names.index(s) for s in test[per[i][0]]])
-        best = int(_rank(train_score, objective)[0])
+        best = int(rank_configs(train_score, objective)[0])
         for i, (k, names, _, _, _) in enumerate(per):
             chosen[i][[names.index(s) for s in test[k]]] = best
         per_fold.append({"fold": f, "test_sequences": test, "config": int(comb.at[best, "config"]),
@@ -286,7 +285,7 @@ def _cross_validate_average(df: pd.DataFrame, classes: Sequence[str], folds: int
             "fold_sequences": [{k: fs[f] for k, _, _, _, fs in per} for f in range(folds)]}
 
 
-def _classes_of(df: pd.DataFrame) -> list[str]:
+def classes_of(df: pd.DataFrame) -> list[str]:
     """The classes of a table (``class`` column, in order; the class average left out)."""
     if "class" not in df.columns:
         return []
@@ -296,7 +295,7 @@ def _classes_of(df: pd.DataFrame) -> list[str]:
 def report_class_of(df: pd.DataFrame, cls: str | None = None) -> str | None:
     """The class a report ranks on: ``cls`` checked against the table, by default ``"average"``
     for a sweep over several classes, else its class. ``"average"`` of one class is that class."""
-    classes = _classes_of(df)
+    classes = classes_of(df)
     if cls is None or cls == AVERAGE:
         if len(classes) > 1:
             return AVERAGE
@@ -316,7 +315,7 @@ def class_view(df: pd.DataFrame, cls: str) -> pd.DataFrame:
     single-class table without per-class columns is returned as it is. ``cls = "average"``: the
     class-average rows (one per config, ``sequence = COMBINED``), all columns kept.
     """
-    classes = _classes_of(df)
+    classes = classes_of(df)
     cls = report_class_of(df, cls)
     ccols = class_columns(df.columns)
     if cls == AVERAGE:
@@ -325,11 +324,11 @@ def class_view(df: pd.DataFrame, cls: str) -> pd.DataFrame:
         return df
     rows = df[df["class"] == cls].copy()
     for c in ccols:
-        k, p = _split_class_column(c)
+        k, p = split_class_column(c)
         if k == cls:
             rows[p] = rows[c]
     rows = rows.drop(columns=ccols)
-    keys = list(PARAM_NAMES) + [n for n in list(OPTION_NAMES) + list(_extra_axes()) if n in rows.columns]
+    keys = list(PARAM_NAMES) + [n for n in list(OPTION_NAMES) + list(extra_axes()) if n in rows.columns]
     comb = rows[rows["sequence"] == COMBINED]
     keep = comb.drop_duplicates(keys, keep="first")["config"]
     if len(keep) < len(comb):

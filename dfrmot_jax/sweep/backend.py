@@ -1,16 +1,27 @@
 """Where a sweep's chunks run: this process (:class:`LocalBackend`, the default) or a Ray cluster
 (:class:`RayBackend`, implemented in :mod:`dfrmot_jax.sweep.ray_backend`).
 
-Either way the driver plans the chunks, skips finished ones and is the only writer of the store, and
-a chunk's table is computed by the same code (``runner._ChunkRunner``): the store does not care which
-backend wrote a chunk, so a sweep started on one backend can be finished on the other.
+Both have the same two calls, so the run loop (:func:`dfrmot_jax.sweep.runner.run_sweep`) names no
+backend: ``check()`` before anything is written (an unreachable cluster is refused there), and
+``run_chunks(spec, table, data, todo, keep, bar, log, compact=...)``, which computes the chunks'
+tables and hands each to ``keep(chunk, table)``. Either way the driver plans the chunks, skips finished
+ones and is the only writer of the store, and a chunk's table is computed by the same code
+(:class:`dfrmot_jax.sweep.chunks.ChunkRunner`): the store does not care which backend wrote a chunk,
+so a sweep started on one backend can be finished on the other.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Sequence
 
-from .spec import SweepConfigError
+import pandas as pd
+
+from . import ray_backend
+from .checks import SweepConfigError
+from .chunks import ChunkRunner, Keep
+from .plan import Chunk, DataSettings
+from .spec import SweepSpec
 
 BACKENDS = ("local", "ray")
 
@@ -22,6 +33,14 @@ class LocalBackend:
 
     workers: int | None = None
     name: str = "local"
+
+    def check(self) -> None:
+        """Nothing to check: this process is there."""
+
+    def run_chunks(self, spec: SweepSpec, table: pd.DataFrame, data: DataSettings, todo: Sequence[Chunk],
+                   keep: Keep, bar, log, *, compact: bool = True) -> None:
+        """Track and score ``todo`` here; ``keep(chunk, table)`` each in order."""
+        ChunkRunner(spec, table, data, self.workers, compact).run(todo, keep, bar, log)
 
 
 @dataclass(frozen=True)
@@ -36,11 +55,24 @@ class RayBackend:
     worker_cpus: int | None = None
     name: str = "ray"
 
+    def check(self) -> None:
+        """Connect now: an unreachable cluster is refused before anything is written."""
+        ray_backend.connect(self.address, self.worker_cpus)
+
+    def run_chunks(self, spec: SweepSpec, table: pd.DataFrame, data: DataSettings, todo: Sequence[Chunk],
+                   keep: Keep, bar, log, *, compact: bool = True) -> None:
+        """Compute ``todo``'s tables on the cluster; ``keep(chunk, table)`` each as it arrives."""
+        ray_backend.run_chunks(self.address, self.worker_cpus, spec, table, data, todo, keep, bar, log,
+                               compact=compact)
+
 
 def make_backend(backend="local", *, workers: int | None = None, address: str | None = None,
                  worker_cpus: int | None = None):
-    """A backend from its name (``"local"`` | ``"ray"``) and settings, or the backend object itself."""
-    if isinstance(backend, (LocalBackend, RayBackend)):
+    """A backend from its name (``"local"`` | ``"ray"``) and settings, or the backend object itself
+    (a :class:`LocalBackend` given with ``workers`` takes that number of metric processes)."""
+    if isinstance(backend, LocalBackend):
+        return backend if workers is None else replace(backend, workers=workers)
+    if isinstance(backend, RayBackend):
         return backend
     if backend == "local":
         if address is not None or worker_cpus is not None:

@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import distort
 from ..config import Options
-from .spec import GRID_KINDS, _check_count, _check_keys, _clean_float, _err, _is_number, _positive_int
+from .checks import GRID_KINDS, check_count, check_keys, clean_float, config_error, is_number, positive_int
 
 DISTORTION_KEYS = ("kind", "level", "levels", "seeds", "clutter_slots", "burst_dist", "burst_max", "burst_rate",
                    "burst_len")
@@ -92,60 +92,60 @@ def _level_values(spec, key: str, source) -> list:
     """Levels given as a number, a list, or {grid | linspace | logspace = [...]} (unchecked numbers)."""
     if isinstance(spec, Mapping):
         if len(spec) != 1 or next(iter(spec)) not in GRID_KINDS:
-            raise _err(key, f"levels are a number, a list or one of {{{', '.join(GRID_KINDS)} = [...]}}, got "
+            raise config_error(key, f"levels are a number, a list or one of {{{', '.join(GRID_KINDS)} = [...]}}, got "
                             f"{dict(spec)!r}", source)
         kind, arg = next(iter(spec.items()))
         key = f"{key}.{kind}"
         if not isinstance(arg, list):
-            raise _err(key, f"expected a list, got {arg!r}", source)
+            raise config_error(key, f"expected a list, got {arg!r}", source)
         if kind == "grid":
             spec = arg
         else:
-            if len(arg) != 3 or not all(_is_number(a) for a in arg) or not float(arg[2]).is_integer() or arg[2] < 1:
-                raise _err(key, f"expected [low, high, count >= 1], got {arg!r}", source)
+            if len(arg) != 3 or not all(is_number(a) for a in arg) or not float(arg[2]).is_integer() or arg[2] < 1:
+                raise config_error(key, f"expected [low, high, count >= 1], got {arg!r}", source)
             lo, hi, n = float(arg[0]), float(arg[1]), int(arg[2])
-            _check_count(n, key, source)
+            check_count(n, key, source)
             if kind == "logspace" and (lo <= 0 or hi <= 0):
-                raise _err(key, f"logspace needs positive ends, got {arg!r}", source)
+                raise config_error(key, f"logspace needs positive ends, got {arg!r}", source)
             raw = np.geomspace(lo, hi, n) if kind == "logspace" else np.linspace(lo, hi, n)
-            return [(key, _clean_float(v)) for v in raw]
+            return [(key, clean_float(v)) for v in raw]
     if isinstance(spec, list):
         if not spec:
-            raise _err(key, "empty list: nothing to sweep", source)
+            raise config_error(key, "empty list: nothing to sweep", source)
         return [(f"{key}[{i}]", v) for i, v in enumerate(spec)]
     return [(key, spec)]
 
 
 def _check_level(kind: str, v, key: str, source, clutter_slots: int, burst_max: int) -> float:
-    if not _is_number(v):
-        raise _err(key, f"{v!r} is not a number", source)
+    if not is_number(v):
+        raise config_error(key, f"{v!r} is not a number", source)
     v = float(v)
     if not math.isfinite(v):
-        raise _err(key, f"{v!r} is not finite", source)
+        raise config_error(key, f"{v!r} is not finite", source)
     if v < 0:
-        raise _err(key, f"level {v:g} < 0: levels are >= 0 (0 = undistorted)", source)
+        raise config_error(key, f"level {v:g} < 0: levels are >= 0 (0 = undistorted)", source)
     if kind in PROBABILITY_KINDS and v > 1:
-        raise _err(key, f"level {v:g} of kind {kind!r} is a probability: expected <= 1", source)
+        raise config_error(key, f"level {v:g} of kind {kind!r} is a probability: expected <= 1", source)
     if kind == "burst" and v > burst_max:
-        raise _err(key, f"mean burst length {v:g} > burst_max = {burst_max} (lengths are capped at burst_max; "
+        raise config_error(key, f"mean burst length {v:g} > burst_max = {burst_max} (lengths are capped at burst_max; "
                         f"raise distortion.burst_max)", source)
     if kind.startswith("clutter") and v > 0 and v > clutter_slots:
-        raise _err(key, f"{v:g} false positives per frame need distortion.clutter_slots >= {math.ceil(v)} "
+        raise config_error(key, f"{v:g} false positives per frame need distortion.clutter_slots >= {math.ceil(v)} "
                         f"(clutter_slots = {clutter_slots})", source)
     return v
 
 
-def _parse_distortion(d, source) -> DistortionAxes | None:
+def parse_distortion(d, source) -> DistortionAxes | None:
     if d is None:
         return None
-    _check_keys(d, DISTORTION_KEYS, "distortion.", source)
+    check_keys(d, DISTORTION_KEYS, "distortion.", source)
     kinds_doc = d.get("kind")
     levels_doc = d.get("levels")
     if levels_doc is not None and not isinstance(levels_doc, Mapping):
-        raise _err("distortion.levels", f"expected a table kind = [levels], got {levels_doc!r}", source)
+        raise config_error("distortion.levels", f"expected a table kind = [levels], got {levels_doc!r}", source)
     if kinds_doc is None:
         if not levels_doc:
-            raise _err("distortion.kind", "missing: the distortion kind(s) to sweep, e.g. kind = [\"drop\", "
+            raise config_error("distortion.kind", "missing: the distortion kind(s) to sweep, e.g. kind = [\"drop\", "
                                           "\"burst\"]", source)
         kinds = [(f"distortion.levels.{k}", k) for k in levels_doc]
     else:
@@ -154,32 +154,32 @@ def _parse_distortion(d, source) -> DistortionAxes | None:
         elif isinstance(kinds_doc, list) and kinds_doc:
             kinds = [(f"distortion.kind[{i}]", k) for i, k in enumerate(kinds_doc)]
         else:
-            raise _err("distortion.kind", f"{kinds_doc!r}: expected a kind or a non-empty list of kinds", source)
+            raise config_error("distortion.kind", f"{kinds_doc!r}: expected a kind or a non-empty list of kinds", source)
     known = tuple(k for k in distort.KINDS if k != "none")
     for key, k in kinds:
         if not isinstance(k, str) or k not in known:
             hint = " (level 0 of every kind is the undistorted run: add 0 to the levels)" if k == "none" else ""
-            raise _err(key, f"unknown distortion kind {k!r}{hint}; expected one of {list(known)}", source)
+            raise config_error(key, f"unknown distortion kind {k!r}{hint}; expected one of {list(known)}", source)
     if len({k for _, k in kinds}) != len(kinds):
-        raise _err("distortion.kind", "a kind is listed twice", source)
+        raise config_error("distortion.kind", "a kind is listed twice", source)
     if levels_doc:
         for k in levels_doc:
             if k not in {kk for _, kk in kinds}:
-                raise _err(f"distortion.levels.{k}", f"kind {k!r} is not in distortion.kind "
+                raise config_error(f"distortion.levels.{k}", f"kind {k!r} is not in distortion.kind "
                                                      f"{[kk for _, kk in kinds]}", source)
-    clutter_slots = _positive_int(d, "clutter_slots", 0, source, minimum=0, prefix="distortion.")
-    burst_max = _positive_int(d, "burst_max", 30, source, prefix="distortion.")
+    clutter_slots = positive_int(d, "clutter_slots", 0, source, minimum=0, prefix="distortion.")
+    burst_max = positive_int(d, "burst_max", 30, source, prefix="distortion.")
     burst_dist = d.get("burst_dist", "fixed")
     if burst_dist not in distort.BURST_DISTS:
-        raise _err("distortion.burst_dist", f"{burst_dist!r}: expected one of {list(distort.BURST_DISTS)}", source)
+        raise config_error("distortion.burst_dist", f"{burst_dist!r}: expected one of {list(distort.BURST_DISTS)}", source)
     burst_rate = d.get("burst_rate", distort.BURST_RATE)
-    if not _is_number(burst_rate) or not 0 < float(burst_rate) <= 1:
-        raise _err("distortion.burst_rate", f"{burst_rate!r}: the burst start rate of kind \"burst\" is a "
+    if not is_number(burst_rate) or not 0 < float(burst_rate) <= 1:
+        raise config_error("distortion.burst_rate", f"{burst_rate!r}: the burst start rate of kind \"burst\" is a "
                                             f"probability in (0, 1]", source)
     burst_len = d.get("burst_len", distort.BURST_LEN)
-    if not _is_number(burst_len) or not 0 < float(burst_len) <= (burst_max if any(k == "burst_rate" for _, k in kinds)
+    if not is_number(burst_len) or not 0 < float(burst_len) <= (burst_max if any(k == "burst_rate" for _, k in kinds)
                                                                  else math.inf):
-        raise _err("distortion.burst_len", f"{burst_len!r}: the mean burst length of kind \"burst_rate\" is in "
+        raise config_error("distortion.burst_len", f"{burst_len!r}: the mean burst length of kind \"burst_rate\" is in "
                                            f"(0, burst_max = {burst_max}]", source)
     out = []
     for _, k in kinds:
@@ -188,36 +188,36 @@ def _parse_distortion(d, source) -> DistortionAxes | None:
         elif "level" in d:
             raw = _level_values(d["level"], "distortion.level", source)
         else:
-            raise _err("distortion.levels", f"no levels for kind {k!r}: give distortion.level = [...] or "
+            raise config_error("distortion.levels", f"no levels for kind {k!r}: give distortion.level = [...] or "
                                             f"distortion.levels.{k} = [...]", source)
         vals = [_check_level(k, v, key, source, clutter_slots, burst_max) for key, v in raw]
         out.append((k, tuple(sorted(dict.fromkeys(vals)))))
     seeds_doc = d.get("seeds", 1)
     if isinstance(seeds_doc, list):
         if not seeds_doc:
-            raise _err("distortion.seeds", "empty list: give a count (seeds = 10) or a list of seeds", source)
-        _check_count(len(seeds_doc), "distortion.seeds", source)
+            raise config_error("distortion.seeds", "empty list: give a count (seeds = 10) or a list of seeds", source)
+        check_count(len(seeds_doc), "distortion.seeds", source)
         for i, v in enumerate(seeds_doc):
             if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < 2 ** 31:
-                raise _err(f"distortion.seeds[{i}]", f"{v!r}: a seed is an integer in [0, 2**31)", source)
+                raise config_error(f"distortion.seeds[{i}]", f"{v!r}: a seed is an integer in [0, 2**31)", source)
         if len(set(seeds_doc)) != len(seeds_doc):
-            raise _err("distortion.seeds", "a seed is listed twice", source)
+            raise config_error("distortion.seeds", "a seed is listed twice", source)
         seeds = tuple(int(v) for v in seeds_doc)
     elif isinstance(seeds_doc, int) and not isinstance(seeds_doc, bool):
         if seeds_doc < 1:
-            raise _err("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 (seeds 0 .. n-1) or a list of seeds",
+            raise config_error("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 (seeds 0 .. n-1) or a list of seeds",
                        source)
-        _check_count(seeds_doc, "distortion.seeds", source)
+        check_count(seeds_doc, "distortion.seeds", source)
         seeds = tuple(range(seeds_doc))
     else:
-        raise _err("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 or a list of seeds", source)
+        raise config_error("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 or a list of seeds", source)
     axes = DistortionAxes(tuple(out), seeds, clutter_slots=int(clutter_slots), burst_dist=burst_dist,
                           burst_max=int(burst_max), burst_rate=float(burst_rate), burst_len=float(burst_len))
     try:        # the distortion module's own checks on every lane (belt and braces)
         dps = distort.stack_distort([axes.lane(k, v, s) for k, lv in axes.kinds for v in lv for s in seeds[:1]])
         distort.check_params(dps, axes.make_spec(Options(), dps=dps))
     except ValueError as e:
-        raise _err("distortion", str(e), source) from None
+        raise config_error("distortion", str(e), source) from None
     return axes
 
 

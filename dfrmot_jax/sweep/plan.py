@@ -13,8 +13,12 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from ..config import MIN_CAPACITY, Options
+from ..data import detection_dir, sequences_with_class
+from ..io.kitti import KittiFormatError, sequence_lengths
+from ..paths import default_data_root
+from .checks import config_error
 from .distortion import DistortionAxes
-from .spec import OPTION_NAMES, _as_spec, _err
+from .spec import OPTION_NAMES, as_spec
 
 #: Default most tracker output one chunk may hold, GB (``run_sweep(max_memory=...)``, ``dfrmot sweep
 #: --max-memory``), checked before any work (:func:`check_memory`).
@@ -24,7 +28,6 @@ MAX_MEMORY_GB = 2.0
 @dataclass(frozen=True)
 class DataSettings:
     """Resolved data settings of a sweep (part of every chunk's identity)."""
-
     root: str
     det2d: str
     det3d: str
@@ -41,7 +44,7 @@ def resolve_data_all(spec, data_root=None) -> tuple[DataSettings, ...]:
     """The data settings of every class of the sweep (``data.class`` order), each checked before any
     work: each class has its own split (the sequences whose ground truth has the class, or
     ``data.sequences``)."""
-    spec = _as_spec(spec)
+    spec = as_spec(spec)
     return tuple(resolve_data(spec, data_root, cls=c) for c in spec.classes)
 
 
@@ -49,11 +52,7 @@ def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
     """Resolve and check the data settings (root, detectors, class, sequences) before any work.
 
     ``cls``: which of the sweep's classes (default: the first; :func:`resolve_data_all` gives all)."""
-    from ..data import detection_dir, sequences_with_class
-    from ..io.kitti import KittiFormatError, sequence_lengths
-    from ..paths import default_data_root
-
-    spec = _as_spec(spec)
+    spec = as_spec(spec)
     if cls is not None:
         if cls not in spec.classes:
             raise ValueError(f"class {cls!r} is not one of the sweep's classes {list(spec.classes)}")
@@ -61,22 +60,22 @@ def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
     src = spec.source
     root = Path(data_root if data_root is not None else (spec.data_root or default_data_root())).expanduser()
     if not (root / "label_02").is_dir():
-        raise _err("data.root", f"{root} has no label_02/ (the KITTI tracking training root; set it in the "
+        raise config_error("data.root", f"{root} has no label_02/ (the KITTI tracking training root; set it in the "
                                 f"sweep file, with --data, or with $DFRMOT_DATA)", src)
     root = root.resolve()
     for key, det in (("data.det2d", spec.det2d), ("data.det3d", spec.det3d)):
         try:
             detection_dir(root, det, spec.cls)
         except KittiFormatError as e:
-            raise _err(key, e.message, src) from None
+            raise config_error(key, e.message, src) from None
     if spec.sequences is None:
         seqs = tuple(sequences_with_class(root, spec.cls))
         if not seqs:
-            raise _err("data.sequences", f"no sequence under {root / 'label_02'} has class {spec.cls}", src)
+            raise config_error("data.sequences", f"no sequence under {root / 'label_02'} has class {spec.cls}", src)
     else:
         missing = [s for s in spec.sequences if not (root / "label_02" / f"{s}.txt").is_file()]
         if missing:
-            raise _err("data.sequences", f"no ground truth for {missing} under {root / 'label_02'}", src)
+            raise config_error("data.sequences", f"no ground truth for {missing} under {root / 'label_02'}", src)
         seqs = spec.sequences
     lengths = sequence_lengths(root, list(seqs))
     return DataSettings(str(root), str(spec.det2d), str(spec.det3d), spec.cls, tuple(seqs),
@@ -97,7 +96,7 @@ def _row_options(row: Mapping) -> Options:
     return Options(**{n: type(Options._field_defaults[n])(row[n]) for n in OPTION_NAMES})
 
 
-def _groups(table: pd.DataFrame) -> dict[Options, list[int]]:
+def option_groups(table: pd.DataFrame) -> dict[Options, list[int]]:
     """Config rows by static options, in first-appearance order."""
     groups: dict[Options, list[int]] = {}
     for row in table[["config"] + list(OPTION_NAMES)].to_dict("records"):
@@ -115,7 +114,7 @@ def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk
     in turn, every config in every class."""
     if not isinstance(data, DataSettings):
         return [c for d in data for c in plan(table, d, chunk, distortion)]
-    groups = _groups(table)
+    groups = option_groups(table)
     hashes = table["config_hash"].to_numpy()
     ident = data.identity()
     out = []
@@ -151,7 +150,7 @@ def check_memory(chunks: Sequence[Chunk], datas: Sequence[DataSettings], distort
     if n > limit * 1e9:
         slots = f"{k} track slots" + (" (options.capacity)" if worst.options.capacity else
                                       " (at least: options.capacity 0 sizes them from the data)")
-        raise _err("chunk", f"a chunk of {len(worst.configs):,} configs x {frames[worst.cls]:,} frames ({worst.cls}) x "
+        raise config_error("chunk", f"a chunk of {len(worst.configs):,} configs x {frames[worst.cls]:,} frames ({worst.cls}) x "
                             f"{slots} x {slot} bytes = {n / 1e9:.3g} GB of tracker output, above the limit of "
                             f"{limit:g} GB: lower chunk (--chunk N){' or options.capacity' if worst.options.capacity else ''}"
                             f", or raise the limit with --max-memory GB (run_sweep(max_memory=GB))", source)

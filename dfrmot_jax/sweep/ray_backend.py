@@ -6,7 +6,7 @@ its CPUs (``worker_cpus``: one per that many CPUs). Each holds, per class's data
 split and the prepared ground truth, put in the object store once by the driver as NumPy arrays (so
 the nodes need no copy of the KITTI files, except for distortion studies, which read the ground-truth
 labels at the split's root), and computes chunk tables with the local backend's code
-(``runner._ChunkRunner.compute``): one compilation per option group and worker, reused across chunks,
+(:class:`dfrmot_jax.sweep.chunks.ChunkRunner`): one compilation per option group and worker, reused across chunks,
 sweeps and tune batches; the same tables to the bit.
 
 JAX in a worker: the actor's process starts with environment variables set by its ``runtime_env``
@@ -25,18 +25,26 @@ arrives whole, so nothing is lost or written twice; a killed driver resumes from
 
 from __future__ import annotations
 
+import logging
 import os
+import socket
+import threading
 import time
 import uuid
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
+import jax
 import pandas as pd
 
-from .backend import RayBackend
+from ..core.devices import setup_host_devices
+from ..metrics.evaluate import worker_pool
+from .checks import SweepConfigError
+from .chunks import ChunkRunner, Keep, load_data
 from .plan import Chunk, DataSettings
-from .spec import SweepConfigError
+
+# Ray is an optional dependency (``pip install "dfrmot_jax[ray]"``): imported where it is used.
 
 #: chunks queued per worker (one running, one waiting: the worker never idles on the driver)
 QUEUE_PER_WORKER = 2
@@ -52,12 +60,7 @@ class _ChunkWorker:
     has 2 or more CPUs (as the local backend's), the next chunk is tracked. Tracking and the
     runner's state are taken one call at a time (``lock``). ``info`` / ``load`` / ``begin`` run in
     their own group ("control"), in the order sent; a ``compute`` waits for its run's ``begin``."""
-
     def __init__(self, cpus: int = 1):
-        import threading
-
-        from ..core.devices import setup_host_devices
-
         self.devices = setup_host_devices()
         self.cpus = cpus
         self.data: dict[DataSettings, tuple] = {}
@@ -69,7 +72,6 @@ class _ChunkWorker:
         self.begun = threading.Condition(self.lock)
 
     def info(self) -> dict:
-        import jax
         import ray
 
         return {"node": ray.get_runtime_context().get_node_id(), "pid": os.getpid(), "devices": self.devices,
@@ -79,16 +81,13 @@ class _ChunkWorker:
         with self.lock:
             self.data[data] = (split, gt)
             if self.cpus >= 2 and data not in self.pools:
-                from ..metrics.evaluate import worker_pool
-
                 self.pools[data] = worker_pool(gt, min(2, self.cpus))
 
-    def begin(self, run_key: str, spec, table: pd.DataFrame, data: DataSettings, todo: Sequence[Chunk]) -> None:
-        from .runner import _ChunkRunner
-
+    def begin(self, run_key: str, spec, table: pd.DataFrame, data: DataSettings, todo: Sequence[Chunk],
+              compact: bool) -> None:
         with self.lock:
             split, gt = self.data[data]
-            runner = _ChunkRunner(spec, table, data, None, 0)
+            runner = ChunkRunner(spec, table, data, workers=0, compact=compact)
             runner.setup(todo, split=split, gt=gt)
             self.runner, self.run_key, self.pool = runner, run_key, self.pools.get(data)
             self.begun.notify_all()
@@ -118,7 +117,6 @@ class _Worker:
 @dataclass
 class _Pool:
     """The workers of one (cluster, worker_cpus), kept for the life of the driver process."""
-
     worker_cpus: int | None
     workers: list = field(default_factory=list)
     refs: dict = field(default_factory=dict)     # DataSettings -> (split ref, gt ref)
@@ -216,36 +214,33 @@ def _worker_env(cpus: int) -> dict[str, str]:
     return env
 
 
-def connect(backend: RayBackend) -> _Pool:
-    """Connect to the backend's cluster (or start a local instance) and return its worker pool."""
+def connect(address: str | None, worker_cpus: int | None) -> _Pool:
+    """Connect to the cluster at ``address`` (None: start a local instance, or keep the one this
+    process is connected to) and return the worker pool of (that cluster, ``worker_cpus``)."""
     try:
         import ray
     except ImportError:
         raise SweepConfigError("backend", "the Ray backend needs Ray: pip install \"dfrmot_jax[ray]\"") from None
     if not ray.is_initialized():
-        import logging
-
-        _check_reachable(backend.address)
+        _check_reachable(address)
         try:
             # "local": a new instance on this machine (a bare ray.init() would join the last cluster
             # `ray start` made here, even one that is gone since; $RAY_ADDRESS still wins)
-            ray.init(address=backend.address or "local", logging_level=logging.WARNING, configure_logging=True,
-                     include_dashboard=False if backend.address is None else None)
+            ray.init(address=address or "local", logging_level=logging.WARNING, configure_logging=True,
+                     include_dashboard=False if address is None else None)
         except (ConnectionError, RuntimeError, ValueError) as e:
-            where = backend.address or "a local instance"
+            where = address or "a local instance"
             raise SweepConfigError("address", f"{where}: cannot connect to a Ray cluster: {e}") from None
     gcs = ray.get_runtime_context().gcs_address
-    if backend.address not in (None, "auto") and backend.address.rpartition(":")[2] != gcs.rpartition(":")[2]:
-        raise SweepConfigError("address", f"{backend.address}: this process is connected to the Ray cluster at "
+    if address not in (None, "auto") and address.rpartition(":")[2] != gcs.rpartition(":")[2]:
+        raise SweepConfigError("address", f"{address}: this process is connected to the Ray cluster at "
                                           f"{gcs} already (one cluster per process)")
-    key = (gcs, backend.worker_cpus)
-    return _POOLS.setdefault(key, _Pool(backend.worker_cpus))
+    key = (gcs, worker_cpus)
+    return _POOLS.setdefault(key, _Pool(worker_cpus))
 
 
 def _check_reachable(address: str | None, timeout: float = 5.0) -> None:
     """A HOST:PORT (or ray://HOST:PORT) nobody listens on is an error now (Ray itself retries forever)."""
-    import socket
-
     if address is None or address == "auto":
         return
     hostport = address.split("://", 1)[-1]
@@ -259,15 +254,14 @@ def _check_reachable(address: str | None, timeout: float = 5.0) -> None:
                                           f"with `ray start --head --port={port}`") from None
 
 
-def run_chunks(backend: RayBackend, spec, table: pd.DataFrame, data: DataSettings, todo: Sequence[Chunk],
-               write, progress_bar, log) -> None:
-    """Compute ``todo``'s chunk tables on the cluster; ``write(chunk, table)`` each as it arrives."""
+def run_chunks(address: str | None, worker_cpus: int | None, spec, table: pd.DataFrame, data: DataSettings,
+               todo: Sequence[Chunk], keep: Keep, bar, log, *, compact: bool = True) -> None:
+    """Compute ``todo``'s chunk tables on the cluster at ``address`` (workers of ``worker_cpus``
+    CPUs); ``keep(chunk, table)`` each as it arrives; ``bar``: a progress bar or None."""
     import ray
     from ray.exceptions import ObjectLostError, RayActorError, RayTaskError
 
-    from .runner import load_data
-
-    pool = connect(backend)
+    pool = connect(address, worker_cpus)
     starting = pool.spawn() if not pool.workers else []      # workers start while the data load
     if data not in pool.refs:
         split, gt = load_data(data)
@@ -288,7 +282,7 @@ def run_chunks(backend: RayBackend, spec, table: pd.DataFrame, data: DataSetting
                 if data not in w.loaded:
                     _call(w, "load", data, *pool.refs[data])
                     w.loaded.add(data)
-                _call(w, "begin", run_key, spec, table_ref, data, list(todo))
+                _call(w, "begin", run_key, spec, table_ref, data, list(todo), compact)
                 w.run = run_key
             while queue and w.busy < QUEUE_PER_WORKER:
                 c = queue.popleft()
@@ -318,9 +312,9 @@ def run_chunks(backend: RayBackend, spec, table: pd.DataFrame, data: DataSetting
             if isinstance(cause, Exception):
                 raise cause from None
             raise
-        write(c, df)
-        if progress_bar is not None:
-            progress_bar.update(len(c.configs))
+        keep(c, df)
+        if bar is not None:
+            bar.update(len(c.configs))
     n = sum(len(c.configs) for c in todo)
     dt = time.perf_counter() - t0
     if n:

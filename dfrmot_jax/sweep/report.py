@@ -12,14 +12,26 @@ import numpy as np
 import pandas as pd
 
 from ..metrics.table import canonical_objective
-from .analysis import (pareto_front, _check_objective, _classes_of, _direction, _fmt, _json_value, _rank, class_view,
-                       cross_validate, report_class_of, sensitivity, varied_axes)
-from .robustness import _contrast_text, _robustness_text, robustness_curves
-from .spec import Contrast, _contrast_doc, _parse_contrast
-from .store import _manifest, load_results
-from .spec import AVERAGE
+from .analysis import (
+    check_objective,
+    class_view,
+    classes_of,
+    cross_validate,
+    fmt_value,
+    json_value,
+    objective_direction,
+    pareto_front,
+    rank_configs,
+    report_class_of,
+    sensitivity,
+    varied_axes,
+)
+from .robustness import contrast_text, robustness_curves, robustness_text
+from .spec import AVERAGE, Contrast, contrast_doc, parse_contrast
+from .store import load_results, read_manifest
 from .table import COMBINED
-from .text import WIDTH, _para, _table  # noqa: F401  (WIDTH: the report's width)
+from .text import WIDTH, paragraph, text_table  # noqa: F401  (WIDTH: the report's width)
+
 
 #: the widest line of the printed report, except its last (one JSON object)
 @dataclass
@@ -56,7 +68,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     class's sequences folded on their own (:func:`cross_validate`)."""
     if not isinstance(results, pd.DataFrame):
         d = Path(results)
-        manifest = _manifest(d)
+        manifest = read_manifest(d)
         df = load_results(d, allow_partial=True)
         if folds is None:
             folds = manifest.get("folds")
@@ -69,19 +81,19 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     else:
         df, n_expected, tune = results, None, None
     if isinstance(contrast, Mapping):
-        contrast = _parse_contrast(dict(contrast), None)
+        contrast = parse_contrast(dict(contrast), None)
     objective = canonical_objective(objective)
     if not isinstance(top, (int, np.integer)) or isinstance(top, bool) or top < 1:
         raise ValueError(f"top={top!r}: expected a whole number >= 1 (configs listed)")
-    _check_objective(df, objective)
+    check_objective(df, objective)
     full = df
-    classes = _classes_of(full)
+    classes = classes_of(full)
     cls = report_class_of(full, cls)
     if classes:
         df = class_view(full, cls)
     comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
     axes = varied_axes(df)
-    order = _rank(comb[objective].to_numpy(), objective)
+    order = rank_configs(comb[objective].to_numpy(), objective)
     best = comb.iloc[int(order[0])]
     base_rows = comb[comb["baseline"]]
     baseline = base_rows.iloc[0] if len(base_rows) else None
@@ -93,7 +105,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     name = df["sweep"].iloc[0] if "sweep" in df.columns else "sweep"
     n_cfg = int(full["config"].nunique())
     partial = f" (partial: {n_cfg} of {n_expected} configs)" if n_expected and n_expected != n_cfg else ""
-    better = "lower" if _direction(objective) < 0 else "higher"
+    better = "lower" if objective_direction(objective) < 0 else "higher"
     if len(classes) > 1:
         per = {k: full.loc[(full["class"] == k) & (full["sequence"] != COMBINED), "sequence"].nunique()
                for k in classes}
@@ -101,11 +113,11 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         on = (f"the class average ({', '.join(classes)}: ratios averaged over the classes, counts summed)"
               if cls == AVERAGE else f"class {cls}" + (f" ({len(comb):,} distinct configs for it)"
                                                         if len(comb) != n_cfg else ""))
-        lines.append(_para(f"sweep {name}: objective {objective} ({better} is better) on {on}; {n_cfg:,} configs "
+        lines.append(paragraph(f"sweep {name}: objective {objective} ({better} is better) on {on}; {n_cfg:,} configs "
                            f"x classes {', '.join(f'{k} ({n} sequences)' for k, n in per.items())}{partial}"))
     else:
         seqs = df.loc[df["sequence"] != COMBINED, "sequence"].nunique()
-        lines.append(_para(f"sweep {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
+        lines.append(paragraph(f"sweep {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
                            f"({better} is better)" + (f"; class {cls}" if cls and cls != "car" else "")))
     lines.append("")
     lines.append(f"top {len(topdf)} configs (in-sample, COMBINED over all sequences):")
@@ -114,60 +126,60 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         brow = {"rank": "base", "config": baseline["config"], "config_hash": baseline["config_hash"],
                 **{c: baseline[c] for c in show + axes + ["overflow"]}}
         view = pd.concat([view, pd.DataFrame([brow])], ignore_index=True)
-    lines.append(_table(view, keys=("rank",), float_format=lambda v: f"{v:.3f}"))
+    lines.append(text_table(view, keys=("rank",), float_format=lambda v: f"{v:.3f}"))
     if baseline is not None:
-        diff = [f"{a}={_fmt(best[a])} (baseline {_fmt(baseline[a])})" for a in axes if best[a] != baseline[a]]
-        lines.append(_para(f"best vs baseline: {objective} {best[objective]:.3f} vs {baseline[objective]:.3f} "
+        diff = [f"{a}={fmt_value(best[a])} (baseline {fmt_value(baseline[a])})" for a in axes if best[a] != baseline[a]]
+        lines.append(paragraph(f"best vs baseline: {objective} {best[objective]:.3f} vs {baseline[objective]:.3f} "
                            f"({best[objective] - baseline[objective]:+.3f}); changed: {', '.join(diff) or 'nothing'}"))
     sens = sensitivity(df, objective) if axes else pd.DataFrame()
     if len(sens):
         lines.append("")
-        lines.append(_para(f"sensitivity of {objective} per axis (spread_best: range over an axis' values of the best "
+        lines.append(paragraph(f"sensitivity of {objective} per axis (spread_best: range over an axis' values of the best "
                            f"config with that value; spread_mean: range of the means; corr: rank correlation; "
                            f"oat_range: moving only this axis away from the best config):"))
-        lines.append(_table(sens, keys=("axis",), float_format=lambda v: f"{v:.3f}"))
+        lines.append(text_table(sens, keys=("axis",), float_format=lambda v: f"{v:.3f}"))
     curves = answers = None
     if "distortion.kind" in df.columns and (df["distortion.kind"] != "none").any():
-        rob_lines, rob_summary = _robustness_text(df, objective, top)
+        rob_lines, rob_summary = robustness_text(df, objective, top)
         lines.append("")
         lines.extend(rob_lines)
         curves = robustness_curves(df, [objective])
         if contrast is not None:
-            con_lines, answers = _contrast_text(df, contrast, objective)
+            con_lines, answers = contrast_text(df, contrast, objective)
             lines.extend(con_lines)
     cv = None
     if folds:
         cv = cross_validate(full, folds, objective, cls)
         lines.append("")
-        lines.append(_para(f"{folds}-fold cross-validation over sequences (stratified by frame count"
+        lines.append(paragraph(f"{folds}-fold cross-validation over sequences (stratified by frame count"
                            + ("; each class's sequences folded on their own" if cv.get("class") == AVERAGE else "")
                            + "): best config chosen on the training folds, scored on the held-out fold"))
         fold_rows = []
         for p in cv["per_fold"]:
             row = comb[comb["config"] == p["config"]].iloc[0]
-            changed = ", ".join(f"{a}={_fmt(row[a])}" for a in axes if baseline is None or row[a] != baseline[a])
+            changed = ", ".join(f"{a}={fmt_value(row[a])}" for a in axes if baseline is None or row[a] != baseline[a])
             test = p["test_sequences"]
             held = (" ".join(f"{k}:{','.join(v)}" for k, v in test.items()) if isinstance(test, Mapping)
                     else ",".join(test))
             fold_rows.append({"fold": p["fold"], "held_out_sequences": held,
                               "config": p["config"], "train": p["train"], "held_out": p["held_out"],
                               "baseline_held_out": p["baseline_held_out"], "changed": changed or "(baseline)"})
-        lines.append(_table(pd.DataFrame(fold_rows), keys=("fold",), text=("held_out_sequences", "changed"),
+        lines.append(text_table(pd.DataFrame(fold_rows), keys=("fold",), text=("held_out_sequences", "changed"),
                             float_format=lambda v: f"{v:.3f}"))
-        lines.append(_para(f"{objective}: cross-validated {cv['cross_validated']:.3f} (each sequence scored with the "
+        lines.append(paragraph(f"{objective}: cross-validated {cv['cross_validated']:.3f} (each sequence scored with the "
                            f"config chosen without it) | in-sample best {best[objective]:.3f}"
                            + (f" | baseline {baseline[objective]:.3f}" if baseline is not None else "")))
     tune_summary = None
     if tune is not None:
         tune_lines, tune_summary = _tune_section(*tune, objective)
         lines.extend(tune_lines)
-    summary = {"objective": objective, "direction": "min" if _direction(objective) < 0 else "max",
+    summary = {"objective": objective, "direction": "min" if objective_direction(objective) < 0 else "max",
                "configs": int(len(comb)), "sequences": int(seqs),
                **({"class": cls} if classes else {}), **({"classes": classes} if len(classes) > 1 else {}),
                "baseline": None if baseline is None else float(baseline[objective]),
                "best_in_sample": float(best[objective]),
                "best_config": {"config": int(best["config"]), "config_hash": best["config_hash"],
-                               **{a: _json_value(best[a]) for a in axes}}}
+                               **{a: json_value(best[a]) for a in axes}}}
     if baseline is not None:
         summary["baseline_config_hash"] = baseline["config_hash"]
     if cv is not None:
@@ -180,7 +192,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     if curves is not None:
         summary["robustness"] = rob_summary
     if answers is not None:
-        summary["contrast"] = {**_contrast_doc(contrast), "answer": answers}
+        summary["contrast"] = {**contrast_doc(contrast), "answer": answers}
     lines.append("")
     lines.append(json.dumps(summary))
     return SweepReport("\n".join(lines), summary, topdf, sens, cv, curves, answers)
@@ -191,14 +203,14 @@ def _tune_section(d: Path, manifest: dict, objective: str) -> tuple[list[str], d
     honest figure; a flat ``--folds`` over a tune's trials would choose among configs the tuner
     proposed after seeing every sequence) and, with two objectives, the Pareto front."""
     t = manifest.get("tune", {})
-    lines = ["", _para(f"tune: sampler {t.get('sampler')}, budget {t.get('budget')} configs in batches of "
+    lines = ["", paragraph(f"tune: sampler {t.get('sampler')}, budget {t.get('budget')} configs in batches of "
                        f"{t.get('batch')}, objectives {', '.join(t.get('objectives', []))}, seed {t.get('seed')}"
                        + ("; gradient refinement" if t.get("refine") else ""))]
     out: dict = {"sampler": t.get("sampler"), "budget": t.get("budget")}
     nested = d / "nested.json"
     if nested.is_file():
         n = json.loads(nested.read_text())
-        lines.append(_para(f"nested {n['folds']}-fold cross-validation (the tune rerun per fold on the training "
+        lines.append(paragraph(f"nested {n['folds']}-fold cross-validation (the tune rerun per fold on the training "
                            f"sequences only, its choice scored on the held-out fold): {n['objective']} cross-validated "
                            f"{n['cross_validated']:.3f} | baseline {n['baseline']:.3f} on the same sequences"))
         out.update(cross_validated=n["cross_validated"], baseline_cross_validated=n["baseline"], folds=n["folds"])
@@ -208,7 +220,7 @@ def _tune_section(d: Path, manifest: dict, objective: str) -> tuple[list[str], d
     if transfer.is_file():
         tr = json.loads(transfer.read_text())
         pairs = ", ".join(f"{k} {v:.3f} (baseline {tr['baseline'][k]:.3f})" for k, v in tr["chosen"].items())
-        lines.append(_para(f"transfer: the chosen config unchanged on {tr['det2d']} + {tr['det3d']}, beside that "
+        lines.append(paragraph(f"transfer: the chosen config unchanged on {tr['det2d']} + {tr['det3d']}, beside that "
                            f"pair's baseline ({', '.join(f'{k} = {v}' for k, v in tr['baseline_params'].items()) or 'the tune baseline'}): {pairs}"))
         out["transfer"] = tr
     objs = manifest.get("objectives", [])
@@ -216,7 +228,7 @@ def _tune_section(d: Path, manifest: dict, objective: str) -> tuple[list[str], d
     if len(objs) == 2 and trials.is_file():
         front = pareto_front(pd.read_parquet(trials), objs, manifest["directions"])
         lines.append(f"Pareto front ({objs[0]} vs {objs[1]}, {len(front)} trials):")
-        lines.append(_table(front[["trial"] + objs].reset_index(drop=True), keys=("trial",),
+        lines.append(text_table(front[["trial"] + objs].reset_index(drop=True), keys=("trial",),
                             float_format=lambda x: f"{x:.3f}"))
         out["pareto"] = front[["trial"] + objs].to_dict("records")
     return lines, out

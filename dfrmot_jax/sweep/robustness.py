@@ -8,11 +8,12 @@ from typing import Sequence
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
-from .analysis import _check_objective, _direction, _fmt, _json_value, varied_axes
+from .analysis import check_objective, fmt_value, json_value, objective_direction, varied_axes
 from .spec import DISTORTION_AXES, Contrast
 from .table import COMBINED
-from .text import _para, _table
+from .text import paragraph, text_table
 
 
 def _check_distorted(df: pd.DataFrame) -> None:
@@ -43,7 +44,7 @@ def _level0_per_kind(rows: pd.DataFrame) -> pd.DataFrame:
 def _setting_labels(rows: pd.DataFrame, axes: Sequence[str]) -> pd.Series:
     if not axes:
         return pd.Series("all", index=rows.index, dtype=object)
-    return rows[list(axes)].apply(lambda r: " ".join(f"{a}={_fmt(r[a])}" for a in axes), axis=1).astype(object)
+    return rows[list(axes)].apply(lambda r: " ".join(f"{a}={fmt_value(r[a])}" for a in axes), axis=1).astype(object)
 
 
 def _se(x: pd.Series) -> float:
@@ -64,7 +65,7 @@ def robustness_curves(df: pd.DataFrame, metrics: Sequence[str] = ("HOTA", "AssA"
     _check_distorted(df)
     metrics = [metrics] if isinstance(metrics, str) else list(metrics)
     for m in metrics:
-        _check_objective(df, m)
+        check_objective(df, m)
     axes = setting_axes(df)
     rows = _level0_per_kind(df[df["sequence"] == sequence].reset_index(drop=True))
     rows = rows.assign(setting=_setting_labels(rows, axes))
@@ -98,13 +99,11 @@ def robustness_contrast(df: pd.DataFrame, axis: str, high: Sequence, low: Sequen
     for IDSW etc.) and significantly so (one-sided paired t-test at ``alpha``; ``p``); at level 0
     (deterministic, one row) it is the sign. One row per (by..., kind, level, metric).
     """
-    from scipy import stats
-
     _check_distorted(df)
     metrics = [metrics] if isinstance(metrics, str) else list(metrics)
     by = [by] if isinstance(by, str) else list(by)
     for m in metrics:
-        _check_objective(df, m)
+        check_objective(df, m)
     for a in [axis] + by:
         if a not in df.columns:
             raise ValueError(f"contrast: {a!r} is not a column of the table")
@@ -125,7 +124,7 @@ def robustness_contrast(df: pd.DataFrame, axis: str, high: Sequence, low: Sequen
             n = x.size
             gap = float(x.mean())
             se = float(x.std(ddof=1) / math.sqrt(n)) if n > 1 else 0.0
-            sign = _direction(m)
+            sign = objective_direction(m)
             if n > 1 and se > 0:
                 t = sign * gap / se
                 pval = float(stats.t.sf(t, n - 1))
@@ -161,7 +160,7 @@ def robustness_summary(contrast: pd.DataFrame) -> pd.DataFrame:
     for key, d in contrast.groupby(by + ["kind", "metric"], sort=False):
         key = key if isinstance(key, tuple) else (key,)
         d = d.sort_values("level")
-        sign = _direction(str(key[-1]))
+        sign = objective_direction(str(key[-1]))
         dist = d[d["level"] > 0]
         bad = dist[~dist["helps"]]
         stops = float(bad["level"].iloc[0]) if len(bad) else float("nan")
@@ -179,13 +178,13 @@ def robustness_summary(contrast: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def _robustness_text(df: pd.DataFrame, objective: str, top: int) -> tuple[list[str], dict]:
+def robustness_text(df: pd.DataFrame, objective: str, top: int) -> tuple[list[str], dict]:
     """Report lines: the objective per level (mean ± SE over seeds) per kind, for the best settings."""
     curves = robustness_curves(df, [objective])
-    d = _direction(objective)
+    d = objective_direction(objective)
     lines, summary = [], {}
     n_seeds = int(curves.loc[curves["level"] > 0, "n"].max()) if (curves["level"] > 0).any() else 1
-    lines.append(_para(f"robustness: {objective} (COMBINED) per distortion level, mean ± SE over {n_seeds} seed(s) "
+    lines.append(paragraph(f"robustness: {objective} (COMBINED) per distortion level, mean ± SE over {n_seeds} seed(s) "
                        f"(level 0 = undistorted); settings ranked by their mean {objective} over the kind's levels"))
     for kind, ck in curves.groupby("kind", sort=False):
         rank = ck.groupby("setting", sort=False)[objective].mean()
@@ -197,17 +196,17 @@ def _robustness_text(df: pd.DataFrame, objective: str, top: int) -> tuple[list[s
             table[st] = [f"{cs.at[v, objective]:.2f}" + (f"±{cs.at[v, f'{objective}_se']:.2f}"
                                                           if cs.at[v, "n"] > 1 else "")
                          if v in cs.index else "" for v in levels]
-        view = pd.DataFrame.from_dict(table, orient="index", columns=[_fmt(v) for v in levels])
+        view = pd.DataFrame.from_dict(table, orient="index", columns=[fmt_value(v) for v in levels])
         view.index.name = f"{kind} \\ level"
         lines.append("")
-        lines.append(_table(view.reset_index(), keys=(view.index.name,)))
+        lines.append(text_table(view.reset_index(), keys=(view.index.name,)))
         summary[kind] = {"levels": [float(v) for v in levels],
                          "settings": {st: [float(x) for x in ck[ck["setting"] == st].set_index("level")
                                            .reindex(levels)[objective]] for st in order}}
     return lines, summary
 
 
-def _contrast_text(df: pd.DataFrame, c: Contrast, objective: str) -> tuple[list[str], list[dict]]:
+def contrast_text(df: pd.DataFrame, c: Contrast, objective: str) -> tuple[list[str], list[dict]]:
     metrics = list(dict.fromkeys([objective, "HOTA", "AssA", "IDSW"]))
     metrics = [m for m in metrics if m in df.columns]
     lines = []
@@ -220,26 +219,26 @@ def _contrast_text(df: pd.DataFrame, c: Contrast, objective: str) -> tuple[list[
             break
         head = f"per {', '.join(by)}" if by else "over all other settings"
         lines.append("")
-        lines.append(_para(f"contrast {c.axis} in {list(c.high)} minus {c.axis} in {list(c.low)} ({head}): mean gap "
+        lines.append(paragraph(f"contrast {c.axis} in {list(c.high)} minus {c.axis} in {list(c.low)} ({head}): mean gap "
                            f"± SE over seeds, paired by seed; * = significantly better (one-sided t-test, 5 %; level 0: "
                            f"sign)"))
         con = con.assign(cell=[f"{g:+.2f}" + (f"±{s:.2f}" if n > 1 else "") + ("*" if h else "")
                                for g, s, n, h in zip(con["gap"], con["se"], con["n"], con["helps"])])
         for kind, ck in con.groupby("kind", sort=False):
             view = ck.pivot_table(index=by + ["metric"], columns="level", values="cell", aggfunc="first", sort=False)
-            view.columns = [_fmt(v) for v in view.columns]
+            view.columns = [fmt_value(v) for v in view.columns]
             view.columns.name = f"{kind} level"
             flat = view.fillna("").reset_index()
             flat.columns = [str(x) for x in flat.columns]
             lines.append(f"{kind}, per level:")
-            lines.append(_table(flat, keys=tuple(by + ["metric"])))
+            lines.append(text_table(flat, keys=tuple(by + ["metric"])))
         summ = robustness_summary(con)
-        lines.append(_para("answer: helps_up_to = highest level up to which the gap is significantly better at every "
+        lines.append(paragraph("answer: helps_up_to = highest level up to which the gap is significantly better at every "
                            "distorted level; stops_at = first level where it is not; crossing = first level where the "
                            "mean gap changes sign"))
-        lines.append(_table(summ, keys=tuple(c for c in ("kind", *by) if c in summ.columns),
+        lines.append(text_table(summ, keys=tuple(c for c in ("kind", *by) if c in summ.columns),
                             float_format=lambda v: f"{v:.3g}"))
-        answers.extend({k: _json_value(v) if not (isinstance(v, float) and math.isnan(v)) else None
+        answers.extend({k: json_value(v) if not (isinstance(v, float) and math.isnan(v)) else None
                         for k, v in r.items()} for r in summ.to_dict("records"))
     return lines, answers
 

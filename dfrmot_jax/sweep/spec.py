@@ -10,15 +10,23 @@ from __future__ import annotations
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..metrics.table import canonical_objective
 from ..config import CLASSES, INHERITED_PARAMS, INT_PARAMS, PRESETS, Options, Params, option_problem, param_problem
-
-if TYPE_CHECKING:
-    from .distortion import DistortionAxes
+from ..metrics.table import canonical_objective
+from .checks import (
+    GRID_KINDS,
+    SweepConfigError,
+    check_count,
+    check_keys,
+    clean_float,
+    config_error,
+    is_number,
+    positive_int,
+)
+from .distortion import DistortionAxes, parse_distortion
 
 PARAM_NAMES: tuple[str, ...] = Params._fields
 OPTION_NAMES: tuple[str, ...] = Options._fields
@@ -40,15 +48,9 @@ DISTORTION_AXES: dict[str, Any] = {"distortion.kind": "none", "distortion.level"
 CONTRAST_KEYS = ("axis", "high", "low", "by")
 
 
-def _extra_axes() -> dict[str, Any]:
+def extra_axes() -> dict[str, Any]:
     return {**DISTORTION_AXES, **EXTRA_AXES}
 
-#: Most values one count in a sweep file may ask for (a linspace / logspace count, distortion
-#: seeds): checked while parsing, before anything is allocated. The configs of the whole sweep are
-#: limited separately (``table.MAX_CONFIGS``, overridable).
-MAX_AXIS_VALUES = 1_000_000
-
-GRID_KINDS = ("grid", "linspace", "logspace")
 RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
 
 TOP_KEYS = ("name", "description", "chunk", "seed", "samples", "data", "baseline", "params", "options", "variants",
@@ -62,14 +64,6 @@ VARIANT_KEYS = ("name", "params", "options")
 AVERAGE = "average"
 
 
-class SweepConfigError(ValueError):
-    """A bad sweep file: ``key`` is the offending key path (``params.a_c``, ``data.det2d``, ...)."""
-
-    def __init__(self, key: str, message: str, source: str | None = None):
-        self.key = key
-        self.message = message
-        self.source = source
-        super().__init__(f"{source + ': ' if source else ''}{key}: {message}")
 
 
 
@@ -174,131 +168,103 @@ def read_toml(path, what: str = "sweep file") -> dict:
         raise SweepConfigError("(file)", f"not valid TOML: {e}", str(path)) from None
 
 
-def _err(key, msg, source):
-    return SweepConfigError(key, msg, source)
-
-
-def _check_keys(d: Mapping, allowed: Sequence[str], prefix: str, source) -> None:
-    if not isinstance(d, Mapping):
-        raise _err(prefix.rstrip("."), f"expected a table, got {type(d).__name__}", source)
-    for k in d:
-        if k not in allowed:
-            raise _err(f"{prefix}{k}", f"unknown key; expected one of {list(allowed)}", source)
-
-
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
-
-
-def _clean_float(v: float) -> float:
-    """Round a computed grid value to 12 significant digits (0.6000000000000001 -> 0.6)."""
-    return float(f"{float(v):.12g}")
-
-
 def _check_param_value(name: str, v, key: str, source) -> int | float:
     problem = param_problem(name, v)
     if problem:
-        raise _err(key, f"{v!r}: parameter {name}: {problem}", source)
+        raise config_error(key, f"{v!r}: parameter {name}: {problem}", source)
     return int(round(float(v))) if name in INT_PARAMS else float(v)
 
 
 def _param_axis(name: str, spec, key: str, source) -> Axis:
     if name not in PARAM_NAMES:
         hint = " (a static option: put it under [options])" if name in OPTION_NAMES else ""
-        raise _err(key, f"unknown parameter{hint}; parameters are {list(PARAM_NAMES)}", source)
+        raise config_error(key, f"unknown parameter{hint}; parameters are {list(PARAM_NAMES)}", source)
     if isinstance(spec, Mapping):
         if len(spec) != 1:
-            raise _err(key, f"a distribution table has exactly one key among {list(GRID_KINDS + RANDOM_KINDS)}, "
+            raise config_error(key, f"a distribution table has exactly one key among {list(GRID_KINDS + RANDOM_KINDS)}, "
                             f"got {sorted(spec)}", source)
         kind, arg = next(iter(spec.items()))
         k2 = f"{key}.{kind}"
         if kind not in GRID_KINDS + RANDOM_KINDS:
-            raise _err(k2, f"unknown distribution; expected one of {list(GRID_KINDS + RANDOM_KINDS)}", source)
+            raise config_error(k2, f"unknown distribution; expected one of {list(GRID_KINDS + RANDOM_KINDS)}", source)
         if not isinstance(arg, list):
-            raise _err(k2, f"expected a list, got {arg!r}", source)
+            raise config_error(k2, f"expected a list, got {arg!r}", source)
         if kind in ("grid", "choice"):
             if not arg:
-                raise _err(k2, "empty list: nothing to sweep", source)
+                raise config_error(k2, "empty list: nothing to sweep", source)
             vals = tuple(_check_param_value(name, v, f"{k2}[{i}]", source) for i, v in enumerate(arg))
             return Axis(name, "grid" if kind == "grid" else "choice", vals, key)
         if kind in ("linspace", "logspace"):
-            if len(arg) != 3 or not all(_is_number(a) for a in arg) or isinstance(arg[2], float) and \
+            if len(arg) != 3 or not all(is_number(a) for a in arg) or isinstance(arg[2], float) and \
                     not float(arg[2]).is_integer():
-                raise _err(k2, f"expected [low, high, count], got {arg!r}", source)
+                raise config_error(k2, f"expected [low, high, count], got {arg!r}", source)
             lo, hi, n = float(arg[0]), float(arg[1]), int(arg[2])
             if n < 1:
-                raise _err(k2, f"count {n} < 1: empty grid", source)
-            _check_count(n, k2, source)
+                raise config_error(k2, f"count {n} < 1: empty grid", source)
+            check_count(n, k2, source)
             _check_param_value(name, lo, k2, source)
             _check_param_value(name, hi, k2, source) if name not in INT_PARAMS else None
             if kind == "logspace":
                 if lo <= 0 or hi <= 0:
-                    raise _err(k2, f"logspace needs positive ends, got {arg!r}", source)
+                    raise config_error(k2, f"logspace needs positive ends, got {arg!r}", source)
                 raw = np.geomspace(lo, hi, n)
             else:
                 raw = np.linspace(lo, hi, n)
             if name in INT_PARAMS:
                 rounded = np.round(raw)
                 if np.any(np.abs(raw - rounded) > 1e-9):
-                    raise _err(k2, f"gives non-integer values {raw.tolist()} for integer parameter {name}", source)
+                    raise config_error(k2, f"gives non-integer values {raw.tolist()} for integer parameter {name}", source)
                 raw = rounded
-            vals = tuple(dict.fromkeys(_check_param_value(name, _clean_float(v), k2, source) for v in raw))
+            vals = tuple(dict.fromkeys(_check_param_value(name, clean_float(v), k2, source) for v in raw))
             return Axis(name, "grid", vals, key)
         # uniform / loguniform / randint: [low, high]
-        if len(arg) != 2 or not all(_is_number(a) for a in arg):
-            raise _err(k2, f"expected [low, high], got {arg!r}", source)
+        if len(arg) != 2 or not all(is_number(a) for a in arg):
+            raise config_error(k2, f"expected [low, high], got {arg!r}", source)
         lo, hi = arg
         if not float(lo) < float(hi):
-            raise _err(k2, f"low {lo!r} must be below high {hi!r}", source)
+            raise config_error(k2, f"low {lo!r} must be below high {hi!r}", source)
         if kind == "randint":
             if not all(float(a).is_integer() for a in arg):
-                raise _err(k2, f"randint takes integers, got {arg!r}", source)
+                raise config_error(k2, f"randint takes integers, got {arg!r}", source)
             lo, hi = int(lo), int(hi)
             _check_param_value(name, lo, k2, source)
             _check_param_value(name, hi - 1, k2, source)
             return Axis(name, kind, (lo, hi), key)
         if name in INT_PARAMS:
-            raise _err(k2, f"parameter {name} takes integers: use randint", source)
+            raise config_error(k2, f"parameter {name} takes integers: use randint", source)
         if kind == "loguniform" and float(lo) <= 0:
-            raise _err(k2, f"loguniform needs low > 0, got {lo!r}", source)
+            raise config_error(k2, f"loguniform needs low > 0, got {lo!r}", source)
         _check_param_value(name, lo, k2, source)
         _check_param_value(name, hi, k2, source)
         return Axis(name, kind, (float(lo), float(hi)), key)
     if isinstance(spec, list):
         if not spec:
-            raise _err(key, "empty list: nothing to sweep", source)
+            raise config_error(key, "empty list: nothing to sweep", source)
         vals = tuple(_check_param_value(name, v, f"{key}[{i}]", source) for i, v in enumerate(spec))
         return Axis(name, "grid", vals, key)
     return Axis(name, "grid", (_check_param_value(name, spec, key, source),), key)
 
 
-def _check_count(n: int, key: str, source) -> None:
-    """Refuse a count above :data:`MAX_AXIS_VALUES` (before anything of that size is allocated)."""
-    if n > MAX_AXIS_VALUES:
-        raise _err(key, f"count {n:,} is above the limit of {MAX_AXIS_VALUES:,} values per axis "
-                        f"(dfrmot_jax.sweep.spec.MAX_AXIS_VALUES)", source)
-
-
 def _check_option_value(name: str, v, key: str, source):
     problem = option_problem(name, v)
     if problem:
-        raise _err(key, f"{v!r}: {problem}", source)
+        raise config_error(key, f"{v!r}: {problem}", source)
     return v
 
 
 def _option_axis(name: str, spec, key: str, source) -> Axis:
     if name not in OPTION_NAMES:
         hint = " (a dynamic parameter: put it under [params])" if name in PARAM_NAMES else ""
-        raise _err(key, f"unknown option{hint}; options are {list(OPTION_NAMES)}", source)
+        raise config_error(key, f"unknown option{hint}; options are {list(OPTION_NAMES)}", source)
     if isinstance(spec, Mapping):
         if list(spec) != ["grid"]:
-            raise _err(key, "static options take a value, a list or {grid = [...]} (each value is its own "
+            raise config_error(key, "static options take a value, a list or {grid = [...]} (each value is its own "
                             "compilation; random distributions are for parameters)", source)
         spec = spec["grid"]
         key = f"{key}.grid"
     vals = spec if isinstance(spec, list) else [spec]
     if not vals:
-        raise _err(key, "empty list: nothing to sweep", source)
+        raise config_error(key, "empty list: nothing to sweep", source)
     vals = tuple(dict.fromkeys(_check_option_value(name, v, f"{key}[{i}]" if isinstance(spec, list) else key, source)
                                for i, v in enumerate(vals)))
     return Axis(name, "grid", vals, key)
@@ -307,13 +273,13 @@ def _option_axis(name: str, spec, key: str, source) -> Axis:
 def _class_axis(cls: str, name: str, spec, key: str, source, classes: Sequence[str]) -> Axis:
     """A per-class parameter axis ``<cls>.<name>`` (``key`` names it in errors)."""
     if cls not in CLASSES:
-        raise _err(key.rsplit(".", 1)[0] if "." in key else key,
+        raise config_error(key.rsplit(".", 1)[0] if "." in key else key,
                    f"{cls!r} is neither a parameter nor a class; parameters are {list(PARAM_NAMES)}, "
                    f"classes {list(CLASSES)} (per-class axes: <class>.<parameter>)", source)
     if cls not in classes:
-        raise _err(key, f"class {cls!r} is not swept (data.class = {list(classes)})", source)
+        raise config_error(key, f"class {cls!r} is not swept (data.class = {list(classes)})", source)
     if name in OPTION_NAMES and name not in PARAM_NAMES:
-        raise _err(key, "static options apply to every class; per-class axes are for parameters", source)
+        raise config_error(key, "static options apply to every class; per-class axes are for parameters", source)
     axis = _param_axis(name, spec, key, source)
     return replace(axis, name=f"{cls}.{name}", cls=cls)
 
@@ -322,11 +288,11 @@ def _axes(table, kind: str, prefix: str, source, classes: Sequence[str] = ("car"
     if table is None:
         return ()
     if not isinstance(table, Mapping):
-        raise _err(prefix, f"expected a table, got {type(table).__name__}", source)
+        raise config_error(prefix, f"expected a table, got {type(table).__name__}", source)
     if kind != "params":
         for k in table:
             if k in CLASSES or "." in k:
-                raise _err(f"{prefix}.{k}", "static options apply to every class: per-class axes "
+                raise config_error(f"{prefix}.{k}", "static options apply to every class: per-class axes "
                                             "(<class>.<name>) are for [params]", source)
         return tuple(_option_axis(k, v, f"{prefix}.{k}", source) for k, v in table.items())
     out = []
@@ -337,7 +303,7 @@ def _axes(table, kind: str, prefix: str, source, classes: Sequence[str] = ("car"
         elif k not in PARAM_NAMES and k not in OPTION_NAMES and isinstance(v, Mapping) and \
                 not set(v) & set(GRID_KINDS + RANDOM_KINDS):      # pedestrian.a_l = ... / [params.pedestrian]
             if k not in CLASSES:
-                raise _err(f"{prefix}.{k}", f"unknown parameter or class; parameters are {list(PARAM_NAMES)}, "
+                raise config_error(f"{prefix}.{k}", f"unknown parameter or class; parameters are {list(PARAM_NAMES)}, "
                                             f"classes {list(CLASSES)} (per-class axes: <class>.<parameter>)",
                            source)
             for name, spec in v.items():
@@ -347,55 +313,46 @@ def _axes(table, kind: str, prefix: str, source, classes: Sequence[str] = ("car"
     return tuple(out)
 
 
-def _positive_int(doc, key, default, source, minimum=1, prefix=""):
-    v = doc.get(key, default)
-    if v is None:
-        return None
-    if not isinstance(v, int) or isinstance(v, bool) or v < minimum:
-        raise _err(prefix + key, f"{v!r}: expected an integer >= {minimum}", source)
-    return v
-
-
 def _parse_sequences(v, key, source) -> tuple[str, ...] | None:
     if v is None or v == "all":
         return None
     if isinstance(v, str):
         v = [s for s in v.split(",") if s.strip()]
     if not isinstance(v, list) or not v:
-        raise _err(key, f"expected \"all\", a list of sequence names or a comma-separated string, got {v!r}", source)
+        raise config_error(key, f"expected \"all\", a list of sequence names or a comma-separated string, got {v!r}", source)
     out = []
     for s in v:
         if isinstance(s, bool) or not isinstance(s, (int, str)):
-            raise _err(key, f"{s!r} is not a sequence name", source)
+            raise config_error(key, f"{s!r} is not a sequence name", source)
         out.append(f"{s:04d}" if isinstance(s, int) else s.strip().zfill(4))
     if len(set(out)) != len(out):
-        raise _err(key, "a sequence is listed twice", source)
+        raise config_error(key, "a sequence is listed twice", source)
     return tuple(out)
 
 
-def _parse_contrast(c, source) -> Contrast | None:
+def parse_contrast(c, source) -> Contrast | None:
     if c is None:
         return None
-    _check_keys(c, CONTRAST_KEYS, "report.contrast.", source)
+    check_keys(c, CONTRAST_KEYS, "report.contrast.", source)
     axis = c.get("axis")
     if axis not in PARAM_NAMES + OPTION_NAMES:
-        raise _err("report.contrast.axis", f"{axis!r}: expected a parameter or option name", source)
+        raise config_error("report.contrast.axis", f"{axis!r}: expected a parameter or option name", source)
     groups = []
     for k in ("high", "low"):
         v = c.get(k)
         if v is None:
-            raise _err(f"report.contrast.{k}", "missing: the axis values of this group", source)
+            raise config_error(f"report.contrast.{k}", "missing: the axis values of this group", source)
         v = v if isinstance(v, list) else [v]
         if not v:
-            raise _err(f"report.contrast.{k}", "empty list", source)
+            raise config_error(f"report.contrast.{k}", "empty list", source)
         groups.append(tuple(v))
     if set(groups[0]) & set(groups[1]):
-        raise _err("report.contrast", f"a value is in both groups: {sorted(set(groups[0]) & set(groups[1]), key=str)}",
+        raise config_error("report.contrast", f"a value is in both groups: {sorted(set(groups[0]) & set(groups[1]), key=str)}",
                    source)
     by = c.get("by", [])
     by = [by] if isinstance(by, str) else by
     if not isinstance(by, list) or any(b not in PARAM_NAMES + OPTION_NAMES or b == axis for b in by):
-        raise _err("report.contrast.by", f"{by!r}: expected a list of other parameter / option names", source)
+        raise config_error("report.contrast.by", f"{by!r}: expected a list of other parameter / option names", source)
     return Contrast(axis, groups[0], groups[1], tuple(by))
 
 
@@ -406,33 +363,33 @@ def _parse_classes(v, source) -> tuple[str, ...]:
     elif isinstance(v, list) and v:
         items = [(f"data.class[{i}]", c) for i, c in enumerate(v)]
     else:
-        raise _err("data.class", f"{v!r}: expected a class name or a non-empty list of classes {list(CLASSES)}",
+        raise config_error("data.class", f"{v!r}: expected a class name or a non-empty list of classes {list(CLASSES)}",
                    source)
     for key, c in items:
         if c not in CLASSES:
-            raise _err(key, f"{c!r} is not one of {list(CLASSES)}", source)
+            raise config_error(key, f"{c!r} is not one of {list(CLASSES)}", source)
     out = tuple(c for _, c in items)
     if len(set(out)) != len(out):
-        raise _err("data.class", "a class is listed twice", source)
+        raise config_error("data.class", "a class is listed twice", source)
     return out
 
 
 def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     """Validate a sweep given as a dict (the parsed TOML); raises :class:`SweepConfigError`."""
-    _check_keys(doc, TOP_KEYS, "", source)
+    check_keys(doc, TOP_KEYS, "", source)
     name = doc.get("name", Path(source).stem if source else "sweep")
     if not isinstance(name, str) or not name:
-        raise _err("name", f"{name!r}: expected a non-empty string", source)
+        raise config_error("name", f"{name!r}: expected a non-empty string", source)
     desc = doc.get("description", "")
-    chunk = _positive_int(doc, "chunk", 64, source)
-    samples = _positive_int(doc, "samples", 1, source)
-    seed = _positive_int(doc, "seed", 0, source, minimum=0)
+    chunk = positive_int(doc, "chunk", 64, source)
+    samples = positive_int(doc, "samples", 1, source)
+    seed = positive_int(doc, "seed", 0, source, minimum=0)
 
     data = doc.get("data", {})
-    _check_keys(data, DATA_KEYS, "data.", source)
+    check_keys(data, DATA_KEYS, "data.", source)
     for k in ("root", "det2d", "det3d"):
         if k in data and (not isinstance(data[k], str) or not data[k]):
-            raise _err(f"data.{k}", f"{data[k]!r}: expected a non-empty string", source)
+            raise config_error(f"data.{k}", f"{data[k]!r}: expected a non-empty string", source)
     classes = _parse_classes(data.get("class", "car"), source)
     cls = classes[0]
     root = data.get("root")
@@ -443,17 +400,17 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     base = doc.get("baseline", "dfr2023")
     base_cls = None
     if isinstance(base, Mapping):
-        _check_keys(base, BASELINE_KEYS, "baseline.", source)
+        check_keys(base, BASELINE_KEYS, "baseline.", source)
         base_cls = base.get("class")
         if base_cls is not None and base_cls not in CLASSES:
-            raise _err("baseline.class", f"{base_cls!r}: expected one of {list(CLASSES)} (every class's "
+            raise config_error("baseline.class", f"{base_cls!r}: expected one of {list(CLASSES)} (every class's "
                                          f"baseline is the preset as tuned for this class)", source)
         base = base.get("preset", "dfr2023")
         bkey = "baseline.preset"
     else:
         bkey = "baseline"
     if base not in PRESETS:
-        raise _err(bkey, f"unknown preset {base!r}; expected one of {sorted(PRESETS)}", source)
+        raise config_error(bkey, f"unknown preset {base!r}; expected one of {sorted(PRESETS)}", source)
 
     params = _axes(doc.get("params"), "params", "params", source, classes)
     options = _axes(doc.get("options"), "options", "options", source)
@@ -463,9 +420,9 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
         variants.append(Variant("grid", params, options))
     else:
         if not isinstance(variants_doc, list) or not variants_doc:
-            raise _err("variants", "expected a non-empty array of tables ([[variants]])", source)
+            raise config_error("variants", "expected a non-empty array of tables ([[variants]])", source)
         for i, v in enumerate(variants_doc):
-            _check_keys(v, VARIANT_KEYS, f"variants[{i}].", source)
+            check_keys(v, VARIANT_KEYS, f"variants[{i}].", source)
             vp = _axes(v.get("params"), "params", f"variants[{i}].params", source, classes)
             vo = _axes(v.get("options"), "options", f"variants[{i}].options", source)
             over_p = {a.name for a in vp}
@@ -475,21 +432,19 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
                                     tuple(a for a in options if a.name not in over_o) + vo))
 
     rep = doc.get("report", {})
-    _check_keys(rep, REPORT_KEYS, "report.", source)
+    check_keys(rep, REPORT_KEYS, "report.", source)
     try:
         objective = canonical_objective(rep.get("objective", "HOTA"))
     except ValueError as e:
-        raise _err("report.objective", str(e).removeprefix("objective "), source) from None
-    folds = _positive_int(rep, "folds", None, source, minimum=2)
-    top = _positive_int(rep, "top", 10, source)
-    contrast = _parse_contrast(rep.get("contrast"), source)
+        raise config_error("report.objective", str(e).removeprefix("objective "), source) from None
+    folds = positive_int(rep, "folds", None, source, minimum=2)
+    top = positive_int(rep, "top", 10, source)
+    contrast = parse_contrast(rep.get("contrast"), source)
     report_class = rep.get("class")
     if report_class is not None and report_class not in classes + (AVERAGE,):
-        raise _err("report.class", f"{report_class!r}: expected one of the sweep's classes {list(classes)} or "
+        raise config_error("report.class", f"{report_class!r}: expected one of the sweep's classes {list(classes)} or "
                                    f"{AVERAGE!r}", source)
-    from .distortion import _parse_distortion        # (it builds on this module's checks)
-
-    distortion = _parse_distortion(doc.get("distortion"), source)
+    distortion = parse_distortion(doc.get("distortion"), source)
 
     spec = SweepSpec(name=name, description=str(desc), chunk=chunk, seed=seed, samples=samples, data_root=root,
                      det2d=data.get("det2d", "rrc"), det3d=data.get("det3d", "pointrcnn"), cls=cls,
@@ -498,13 +453,13 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
                      raw=dict(doc), classes=classes, baseline_class=base_cls, report_class=report_class)
     for v in spec.variants:
         if samples > 1 and all(a.is_grid for a in v.params):
-            raise _err("samples", f"samples = {samples} repeats the grid with random parameters redrawn, but "
+            raise config_error("samples", f"samples = {samples} repeats the grid with random parameters redrawn, but "
                                   f"variant {v.name!r} has no random parameter (uniform, loguniform, randint, "
                                   f"choice): every config would repeat", source)
     return spec
 
 
-def _as_spec(spec) -> SweepSpec:
+def as_spec(spec) -> SweepSpec:
     if isinstance(spec, SweepSpec):
         return spec
     if isinstance(spec, Mapping):
@@ -513,5 +468,5 @@ def _as_spec(spec) -> SweepSpec:
 
 
 
-def _contrast_doc(c: Contrast) -> dict:
+def contrast_doc(c: Contrast) -> dict:
     return {"axis": c.axis, "high": list(c.high), "low": list(c.low), "by": list(c.by)}

@@ -16,27 +16,23 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import re
 import sys
 import warnings
-from contextlib import contextmanager, suppress
+from contextlib import suppress
 from pathlib import Path
 from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 import pandas as pd
 
+from ..io.atomic import TMP_NAME, naming, sha256, write_parquet_atomic, write_text_atomic
 from ..metrics.evaluate import RAW_FIELDS, class_average_columns, class_combiner, summary_columns
 from .plan import Chunk, DataSettings
-from .spec import LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, SweepSpec, _contrast_doc, _extra_axes
-from .spec import AVERAGE
+from .spec import AVERAGE, LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, SweepSpec, contrast_doc, extra_axes
 from .table import COMBINED, HASH_VERSION, RAW_COLUMN, class_columns
-
 
 #: The ledger of a sweep directory (module docstring).
 LEDGER = "ledger.jsonl"
-#: Temp files of the atomic writes: ``.<name>.<pid>.tmp``.
-_TMP = re.compile(r"^\..+\.(\d+)\.tmp$")
 _NO_RECORD = "no checksum record"
 
 
@@ -49,7 +45,7 @@ class SweepDirectoryError(ValueError):
     belongs to another sweep (``run_sweep(force=True)`` / ``--force`` deletes that sweep's files)."""
 
 
-def _chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, metrics: dict, res, versions,
+def chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, metrics: dict, res, versions,
                  spec_name: str) -> pd.DataFrame:
     """The tidy rows of one chunk: per config, one row per sequence then COMBINED."""
     L = len(chunk.configs)
@@ -61,7 +57,7 @@ def _chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, me
     cols["config_hash"] = np.repeat(sub["config_hash"].to_numpy(), R)
     cols["sequence"] = np.tile(np.array(list(seq_names) + [COMBINED], dtype=object), L)
     for c in ["variant", "baseline"] + list(PARAM_NAMES) + class_columns(sub.columns) + list(OPTION_NAMES) + \
-            [n for n in _extra_axes() if n in sub.columns]:
+            [n for n in extra_axes() if n in sub.columns]:
         cols[c] = np.repeat(sub[c].to_numpy(), R)
     seq_sum = summary_columns(metrics["seq"])
     comb_sum = summary_columns(metrics["comb"])
@@ -92,54 +88,12 @@ def _raw_stack(seq) -> np.ndarray:
     return np.concatenate([np.asarray(seq[f], np.float64) for f in RAW_FIELDS], axis=-1)
 
 
-@contextmanager
-def _naming(path: Path):
-    """An ``OSError`` inside that names no file (a full disk) is raised again naming ``path``."""
-    try:
-        yield
-    except OSError as e:
-        if e.filename is not None:
-            raise
-        raise OSError(e.errno, e.strerror or str(e), str(path)) from e
-
-
-def _atomic_write(path: Path, write) -> str:
-    """``write(tmp)`` to a temp file beside ``path``, then rename it to ``path``; returns the sha256
-    of the bytes written. On any error the temp file is removed."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with _naming(path):
-            write(tmp)
-            digest = _sha256(tmp)
-            os.replace(tmp, path)
-    finally:
-        with suppress(OSError):
-            tmp.unlink(missing_ok=True)
-    return digest
-
-
-def _atomic_parquet(df: pd.DataFrame, path: Path) -> str:
-    return _atomic_write(path, lambda tmp: df.to_parquet(tmp, index=False))
-
-
-def _atomic_text(text: str, path: Path) -> None:
-    _atomic_write(path, lambda tmp: tmp.write_text(text))
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def _chunk_name(chunk_id: str) -> str:
     """A chunk file's name relative to the sweep directory (its ledger key)."""
     return f"chunks/{chunk_id}.parquet"
 
 
-def _chunk_path(out: Path, chunk: Chunk) -> Path:
+def chunk_path(out: Path, chunk: Chunk) -> Path:
     return out / _chunk_name(chunk.id)
 
 
@@ -174,18 +128,18 @@ def _ledger_line(name: str, rec: _Record) -> str:
 def _record(out: Path, name: str, digest: str, rows: int) -> None:
     """Append the record of a file just put in place."""
     path = out / LEDGER
-    with _naming(path), open(path, "a", encoding="utf-8") as f:
+    with naming(path), open(path, "a", encoding="utf-8") as f:
         f.write(_ledger_line(name, _Record(digest, int(rows))))
 
 
 def write_chunk(out: Path, chunk: Chunk, df: pd.DataFrame) -> None:
     """Write a chunk's table atomically, then its ledger record."""
-    _record(out, _chunk_name(chunk.id), _atomic_parquet(df, _chunk_path(out, chunk)), len(df))
+    _record(out, _chunk_name(chunk.id), write_parquet_atomic(chunk_path(out, chunk), df, digest=True), len(df))
 
 
 def write_results(out: Path, df: pd.DataFrame) -> None:
     """Write ``results.parquet`` atomically, then its ledger record."""
-    _record(out, "results.parquet", _atomic_parquet(df, out / "results.parquet"), len(df))
+    _record(out, "results.parquet", write_parquet_atomic(out / "results.parquet", df, digest=True), len(df))
 
 
 def _problem(path: Path, rec: _Record | None, rows: int | None = None) -> str | None:
@@ -195,7 +149,7 @@ def _problem(path: Path, rec: _Record | None, rows: int | None = None) -> str | 
     if rows is not None and rec.rows != rows:
         return f"recorded with {rec.rows} rows, expected {rows}"
     try:
-        digest = _sha256(path)
+        digest = sha256(path)
     except OSError as e:
         return f"unreadable: {e.strerror or e}"
     return None if digest == rec.sha256 else "checksum mismatch: changed or truncated"
@@ -212,18 +166,18 @@ def finished_chunks(out: Path, table: pd.DataFrame, chunks: Sequence[Chunk], dat
     keep: dict[str, _Record] = {}
     damaged = []
     for c in chunks:
-        name, path = _chunk_name(c.id), _chunk_path(out, c)
+        name, path = _chunk_name(c.id), chunk_path(out, c)
         if not path.is_file():
             continue
         rows = len(c.configs) * (sequences[c.cls] + 1)
         problem = _problem(path, ledger.get(name), rows)
         if problem == _NO_RECORD and legacy and _legacy_chunk_ok(path, c, table, rows):
-            ledger[name], problem = _Record(_sha256(path), rows), None
+            ledger[name], problem = _Record(sha256(path), rows), None
         if problem is None:
             keep[name] = ledger[name]
         else:
             damaged.append(f"{name} ({problem})")
-    _atomic_text("".join(_ledger_line(n, r) for n, r in keep.items()), out / LEDGER)
+    write_text_atomic(out / LEDGER, "".join(_ledger_line(n, r) for n, r in keep.items()), parents=False)
     return {c.id for c in chunks if _chunk_name(c.id) in keep}, damaged
 
 
@@ -238,7 +192,7 @@ def _legacy_chunk_ok(path: Path, chunk: Chunk, table: pd.DataFrame, rows: int) -
 
 
 
-def _jsonable(obj):
+def jsonable(obj):
     try:
         return json.loads(json.dumps(obj, default=str))
     except (TypeError, ValueError):
@@ -284,7 +238,7 @@ def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings],
     manifest = {"name": spec.name, "description": spec.description, "source": spec.source,
                 "data": data.identity(), "lengths": list(data.lengths), "baseline": spec.baseline,
                 "chunk": spec.chunk, "objective": spec.objective, "folds": spec.folds, "top": spec.top,
-                "configs": len(table), "chunks": [c.id for c in chunks], "spec": _jsonable(spec.raw),
+                "configs": len(table), "chunks": [c.id for c in chunks], "spec": jsonable(spec.raw),
                 "hash_version": HASH_VERSION, "identity": identity, "ledger": LEDGER}
     if len(datas) > 1:
         manifest["classes"] = list(spec.classes)
@@ -297,9 +251,9 @@ def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings],
         manifest["distortion"] = {"kinds": {k: list(v) for k, v in spec.distortion.kinds},
                                   "seeds": list(spec.distortion.seeds), **spec.distortion.identity()}
     if spec.contrast is not None:
-        manifest["contrast"] = _contrast_doc(spec.contrast)
-    _atomic_text(json.dumps(manifest, indent=1), outdir / "manifest.json")
-    _atomic_parquet(table, outdir / "configs.parquet")
+        manifest["contrast"] = contrast_doc(spec.contrast)
+    write_text_atomic(outdir / "manifest.json", json.dumps(manifest, indent=1), parents=False)
+    write_parquet_atomic(outdir / "configs.parquet", table)
     return old is not None and "ledger" not in old
 
 
@@ -361,7 +315,7 @@ def _clear(outdir: Path) -> None:
     chunk_dir = outdir / "chunks"
     if chunk_dir.is_dir():
         for p in chunk_dir.iterdir():
-            if p.is_file() and (p.suffix == ".parquet" or _TMP.match(p.name)):
+            if p.is_file() and (p.suffix == ".parquet" or TMP_NAME.match(p.name)):
                 p.unlink()
     for name in ("manifest.json", "configs.parquet", "results.parquet", LEDGER):
         (outdir / name).unlink(missing_ok=True)
@@ -371,7 +325,7 @@ def _remove_orphans(outdir: Path) -> None:
     """Delete the temp files of writes that never finished: those of processes no longer running."""
     for d in (outdir, outdir / "chunks"):
         for p in d.iterdir():
-            m = _TMP.match(p.name)
+            m = TMP_NAME.match(p.name)
             if m and p.is_file() and not _running(int(m.group(1))):
                 with suppress(OSError):
                     p.unlink()
@@ -393,7 +347,7 @@ def _running(pid: int) -> bool:
     return True
 
 
-def _finish(df: pd.DataFrame, classes: Sequence[str] = ()) -> pd.DataFrame:
+def finish_table(df: pd.DataFrame, classes: Sequence[str] = ()) -> pd.DataFrame:
     """Rows by config (within a config: classes in order, each its sequences then COMBINED); with
     several classes, each config's class-average row last (:func:`_average_rows`). Rows of chunks
     written before an option of ``LATE_OPTIONS`` (a parameter of ``LATE_PARAMS``) existed get its default."""
@@ -452,7 +406,7 @@ def load_results(out, *, allow_partial: bool = False) -> pd.DataFrame:
     files that read); damaged chunks are left out with a ``RuntimeWarning`` naming them. Chunks
     not finished or damaged raise ``FileNotFoundError`` unless ``allow_partial``."""
     out = Path(out)
-    manifest = _manifest(out)
+    manifest = read_manifest(out)
     final = out / "results.parquet"
     if manifest.get("kind") == "tune":      # a tune directory (dfrmot_jax.tuning): its table is written per batch
         if not final.is_file():
@@ -496,10 +450,10 @@ def load_results(out, *, allow_partial: bool = False) -> pd.DataFrame:
                                 + " (rerun the sweep to resume)")
     if not tables:
         raise FileNotFoundError(f"{out}: no finished chunk yet")
-    return _finish(pd.concat(list(tables.values()), ignore_index=True), manifest.get("classes", ()))
+    return finish_table(pd.concat(list(tables.values()), ignore_index=True), manifest.get("classes", ()))
 
 
-def _manifest(out: Path) -> dict:
+def read_manifest(out: Path) -> dict:
     path = Path(out) / "manifest.json"
     if not path.is_file():
         raise FileNotFoundError(f"{out} is not a sweep directory (no manifest.json)")

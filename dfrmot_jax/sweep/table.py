@@ -18,9 +18,20 @@ import numpy as np
 import pandas as pd
 
 from ..config import CLASSES, INT_PARAMS, PRESETS, Options, Params, as_arrays, preset
+from ..core.filters import fixed_gain_radius
+from .checks import config_error
 from .distortion import DistortionAxes
-from .spec import (DISTORTION_AXES, LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, Axis, SweepSpec, _as_spec,
-                   _err, _extra_axes)
+from .spec import (
+    DISTORTION_AXES,
+    LATE_OPTIONS,
+    LATE_PARAMS,
+    OPTION_NAMES,
+    PARAM_NAMES,
+    Axis,
+    SweepSpec,
+    as_spec,
+    extra_axes,
+)
 
 #: The scheme of ``config_hash`` and chunk ids; recorded in the manifest as ``hash_version``.
 HASH_VERSION = 1
@@ -34,7 +45,7 @@ RAW_COLUMN = "_hota_alpha"
 #: sequences can be re-combined exactly as TrackEval combines sequences (cross-validation).
 
 
-def _canon(name: str, v):
+def canonical_value(name: str, v):
     """Canonical value for hashing: parameters as the tracker sees them (float32 / int32)."""
     if name in PARAM_NAMES:
         return int(v) if name in INT_PARAMS else repr(float(np.float32(v)))
@@ -47,7 +58,7 @@ def _canon(name: str, v):
     return str(v)
 
 
-def _split_class_column(name: str) -> tuple[str, str] | None:
+def split_class_column(name: str) -> tuple[str, str] | None:
     """``"pedestrian.a_l"`` -> ("pedestrian", "a_l"); None for any other column."""
     if not isinstance(name, str) or "." not in name:
         return None
@@ -57,19 +68,19 @@ def _split_class_column(name: str) -> tuple[str, str] | None:
 
 def class_columns(columns) -> list[str]:
     """The per-class parameter columns (``<class>.<parameter>``) among ``columns``, in their order."""
-    return [c for c in columns if _split_class_column(c) is not None]
+    return [c for c in columns if split_class_column(c) is not None]
 
 
 def _class_extra(row: Mapping[str, Any]) -> dict:
     """{class: {parameter: canonical value}} of the row's class columns that differ from its plain ones."""
     out: dict[str, dict] = {}
     for col in row:
-        cp = _split_class_column(col)
+        cp = split_class_column(col)
         if cp is None:
             continue
         cls, p = cp
-        v = _canon(p, row[col])
-        if v != _canon(p, row[p]):
+        v = canonical_value(p, row[col])
+        if v != canonical_value(p, row[p]):
             out.setdefault(cls, {})[p] = v
     return out
 
@@ -81,12 +92,12 @@ def config_hash(row: Mapping[str, Any], settings: Mapping[str, Any] | None = Non
     values, columns ``<class>.<parameter>``, where they differ from the plain column: a row without
     such a difference hashes exactly as before; an option of ``LATE_OPTIONS`` or a parameter of
     ``LATE_PARAMS`` only off its default)."""
-    late = {n: _canon(n, row.get(n, d)) for n, d in LATE_OPTIONS.items()}
-    key = {"params": {n: _canon(n, row[n]) for n in PARAM_NAMES
-                      if n not in LATE_PARAMS or _canon(n, row.get(n, LATE_PARAMS[n])) != _canon(n, LATE_PARAMS[n])},
-           "options": {**{n: _canon(n, row[n]) for n in OPTION_NAMES if n not in LATE_OPTIONS},
-                       **{n: v for n, v in late.items() if v != _canon(n, LATE_OPTIONS[n])}}}
-    extra = {n: _canon(n, row[n]) for n, d in _extra_axes().items() if n in row and row[n] != d}
+    late = {n: canonical_value(n, row.get(n, d)) for n, d in LATE_OPTIONS.items()}
+    key = {"params": {n: canonical_value(n, row[n]) for n in PARAM_NAMES
+                      if n not in LATE_PARAMS or canonical_value(n, row.get(n, LATE_PARAMS[n])) != canonical_value(n, LATE_PARAMS[n])},
+           "options": {**{n: canonical_value(n, row[n]) for n in OPTION_NAMES if n not in LATE_OPTIONS},
+                       **{n: v for n, v in late.items() if v != canonical_value(n, LATE_OPTIONS[n])}}}
+    extra = {n: canonical_value(n, row[n]) for n, d in extra_axes().items() if n in row and row[n] != d}
     if settings:
         extra["settings"] = dict(settings)
     classes = _class_extra(row)
@@ -115,7 +126,7 @@ def config_count(spec) -> tuple[int, str, str]:
     """(configs, how they are made up, the key of the largest factor) of a sweep, without expanding:
     per variant the product of its grid axes' value counts x ``samples``, plus the baseline, all x
     the distortion lanes (an upper bound: configs that hash alike are kept once)."""
-    spec = _as_spec(spec)
+    spec = as_spec(spec)
     total, parts, factors = 1, [], [(1, "params")]
     for v in spec.variants:
         axes = [a for a in v.params if a.is_grid] + list(v.options)
@@ -152,12 +163,12 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     ``max_configs`` (default :data:`MAX_CONFIGS`): a sweep of more configs (:func:`config_count`)
     fails before expanding, with a :class:`SweepConfigError` naming its largest factor.
     """
-    spec = _as_spec(spec)
+    spec = as_spec(spec)
     src = spec.source
     limit = MAX_CONFIGS if max_configs is None else int(max_configs)
     n, desc, key = config_count(spec)
     if n > limit:
-        raise _err(key, f"the sweep expands to up to {n:,} configs ({desc}), above the limit of {limit:,} "
+        raise config_error(key, f"the sweep expands to up to {n:,} configs ({desc}), above the limit of {limit:,} "
                         f"(dfrmot_jax.sweep.MAX_CONFIGS): sweep fewer values, or raise the limit with "
                         f"--max-configs N (run_sweep(max_configs=N))", src)
     single = len(spec.classes) == 1
@@ -165,10 +176,10 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     # per-class columns: class defaults off the plain baseline, and every per-class axis
     explicit = [a.name for v in spec.variants for a in v.params if a.cls] if not single else []
     derived = [f"{k}.{p}" for k, b in class_base.items() for p in PARAM_NAMES
-               if _canon(p, b[p]) != _canon(p, base_row[p])]
+               if canonical_value(p, b[p]) != canonical_value(p, base_row[p])]
     ccols = [f"{k}.{p}" for k in spec.classes for p in PARAM_NAMES if f"{k}.{p}" in set(explicit + derived)]
     rng = np.random.default_rng(spec.seed)
-    first = {**base_row, **{c: class_base[_split_class_column(c)[0]][_split_class_column(c)[1]] for c in ccols}}
+    first = {**base_row, **{c: class_base[split_class_column(c)[0]][split_class_column(c)[1]] for c in ccols}}
     rows: list[dict] = [{"variant": "baseline", "baseline": True, **first}]
     for v in spec.variants:
         grid_axes = [a for a in v.params if a.is_grid] + list(v.options)
@@ -183,31 +194,31 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
                 vals = {a.name: val for a, val in zip(grid_axes, combo)}
                 vals.update({name: d[i] for name, d in draws.items()})
                 row = {"variant": v.name, "baseline": False, **base_row}
-                row.update({k: x for k, x in vals.items() if _split_class_column(k) is None})
+                row.update({k: x for k, x in vals.items() if split_class_column(k) is None})
                 if single:           # the one class's per-class axes are its parameters
-                    row.update({_split_class_column(k)[1]: x for k, x in vals.items()
-                                if _split_class_column(k) is not None})
+                    row.update({split_class_column(k)[1]: x for k, x in vals.items()
+                                if split_class_column(k) is not None})
                 for c in ccols:      # precedence: per-class axis > plain axis > the class's baseline
-                    k, p = _split_class_column(c)
+                    k, p = split_class_column(c)
                     row[c] = vals[c] if c in vals else row[p] if p in plain_set else class_base[k][p]
                 rows.append(row)
                 i += 1
     table = pd.DataFrame(rows, columns=["variant", "baseline"] + list(PARAM_NAMES) + ccols + list(OPTION_NAMES))
     for c in ccols:          # a class default that no row moves off the plain value says nothing
-        k, p = _split_class_column(c)
-        if c not in explicit and all(_canon(p, x) == _canon(p, y) for x, y in zip(table[c], table[p])):
+        k, p = split_class_column(c)
+        if c not in explicit and all(canonical_value(p, x) == canonical_value(p, y) for x, y in zip(table[c], table[p])):
             table = table.drop(columns=[c])
     table = typed_table(table).drop_duplicates("config_hash", keep="first").reset_index(drop=True)
     if spec.distortion is not None:
         table = _cross_distortion(table, spec.distortion)
     table.insert(0, "config", np.arange(len(table), dtype=np.int64))
     if len(table) < 2:
-        raise _err("params", "the sweep has no config besides the baseline: add parameters or options to sweep",
+        raise config_error("params", "the sweep has no config besides the baseline: add parameters or options to sweep",
                    src)
     unstable = unstable_rows(table) & (table["output"] == "filtered").to_numpy()
     if unstable.any():
         r = table[unstable].iloc[0]
-        raise _err("params.gain_beta", f"{int(unstable.sum())} of {len(table)} configs write filtered boxes with "
+        raise config_error("params.gain_beta", f"{int(unstable.sum())} of {len(table)} configs write filtered boxes with "
                                        f"fixed gains outside the filter's stability region (e.g. config "
                                        f"{int(r['config'])}: gain_alpha {r['gain_alpha']:.4g}, gain_beta "
                                        f"{r['gain_beta']:.4g}, gain_gamma {r['gain_gamma']:.4g}): their boxes grow "
@@ -218,7 +229,7 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
         if not len(bad):
             continue
         r = bad.iloc[0]
-        raise _err(f"params.{kl}", f"{kl} = {r[kl]} writes lost tracks' predicted boxes and needs "
+        raise config_error(f"params.{kl}", f"{kl} = {r[kl]} writes lost tracks' predicted boxes and needs "
                                        f"output = \"filtered\" (variant {r['variant']!r} pairs it with output = "
                                        f"\"detections\"); use [[variants]] to give keep_lost its own output", src)
     return table
@@ -227,8 +238,6 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
 def unstable_rows(table: pd.DataFrame) -> np.ndarray:
     """[C] bool: rows with the fixed-gain filter and gains it is unstable with (spectral radius >= 1,
     :func:`dfrmot_jax.core.filters.fixed_gain_radius`; any class's gains)."""
-    from ..core.filters import fixed_gain_radius
-
     out = np.zeros(len(table), bool)
     fixed = (table["filter"] == "fixed_gain").to_numpy()
     for pre in [""] + sorted({c.split(".")[0] + "." for c in class_columns(table.columns) if "gain" in c}):
@@ -243,7 +252,7 @@ def typed_table(table: pd.DataFrame) -> pd.DataFrame:
     declares them) and ``config_hash`` inserted first. Duplicates are kept."""
     table = table.copy()
     for n in list(PARAM_NAMES) + class_columns(table.columns):
-        t = _split_class_column(n)[1] if _split_class_column(n) else n
+        t = split_class_column(n)[1] if split_class_column(n) else n
         table[n] = table[n].astype("int64" if t in INT_PARAMS else "float64")
     for n in OPTION_NAMES:
         d = Options._field_defaults[n]
@@ -303,7 +312,7 @@ def n_settings(table: pd.DataFrame) -> int:
     return int(len(table.drop_duplicates(list(PARAM_NAMES) + class_columns(table.columns) + list(OPTION_NAMES))))
 
 
-def _params_of(table: pd.DataFrame, rows: Sequence[int], cls: str | None = None) -> Params:
+def params_of(table: pd.DataFrame, rows: Sequence[int], cls: str | None = None) -> Params:
     """The parameters of table rows for class ``cls`` (its ``<cls>.<parameter>`` columns where the
     table has them, else the plain ones)."""
     sub = table.iloc[list(rows)]

@@ -9,12 +9,12 @@ import pandas as pd
 WIDTH = 120
 
 
-def _para(text: str) -> str:
+def paragraph(text: str) -> str:
     """A line of prose wrapped to WIDTH (continuation lines indented two spaces)."""
     return textwrap.fill(text, WIDTH, subsequent_indent="  ", break_long_words=False, break_on_hyphens=False)
 
 
-def _table(df: pd.DataFrame, keys=(), text=(), **fmt) -> str:
+def text_table(df: pd.DataFrame, keys=(), text=(), **fmt) -> str:
     """``df.to_string(index=False)`` in at most WIDTH columns: when wider, the columns are split into
     blocks that each repeat the ``keys`` columns, and the free-text columns ``text`` are moved under
     the table as one wrapped line per row."""
@@ -33,6 +33,6 @@ def _table(df: pd.DataFrame, keys=(), text=(), **fmt) -> str:
     out = [render([*keys, *b]) for b in blocks + [cur]]
     if text:
         rows = df.to_dict("records")
-        out.append("\n".join(_para(", ".join(f"{k} {r[k]}" for k in keys) + ": "
+        out.append("\n".join(paragraph(", ".join(f"{k} {r[k]}" for k in keys) + ": "
                                     + "; ".join(f"{c.replace('_', ' ')} {r[c]}" for c in text)) for r in rows))
     return "\n\n".join(out)

@@ -8,12 +8,12 @@ import signal
 import time
 from typing import Callable, Sequence
 
+from ..cli import main
+
 
 def run_cli(capsys, argv: Sequence) -> tuple[int, str, list[str]]:
     """``dfrmot argv`` in-process -> (status, stdout, stderr lines); argparse exits become their
     status. No traceback may reach either stream."""
-    from ..cli import main
-
     try:
         status = main([str(a) for a in argv])
     except SystemExit as e:

@@ -14,6 +14,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from dfrmot_jax.io.kitti import read_tracking_labels
+from dfrmot_jax.metrics.boxes import pair_iou
+
 __all__ = ["SeqResults", "load_results", "write_results", "pack_arrays", "stress_edit", "naive_tracks",
            "f32"]
 
@@ -26,7 +29,6 @@ def f32(x) -> np.ndarray:
 @dataclass
 class SeqResults:
     """One sequence's tracker rows, file order. frame, track_id: [R] int64; type: [R] str; box: [R, 4] f64."""
-
     frame: np.ndarray
     track_id: np.ndarray
     type: np.ndarray
@@ -57,8 +59,6 @@ class SeqResults:
 
 def load_results(results_dir, sequences: Sequence[str]) -> dict[str, SeqResults]:
     """Read ``results_dir/SSSS.txt`` (KITTI tracking results) for each sequence; missing = empty."""
-    from dfrmot_jax.io.kitti import read_tracking_labels
-
     out = {}
     for s in sequences:
         p = Path(results_dir) / f"{s}.txt"
@@ -271,8 +271,6 @@ def stress_edit(res: Mapping[str, SeqResults], gt_labels: Mapping[str, object], 
 
 def naive_tracks(frame: np.ndarray, box: np.ndarray, iou_min: float = 0.3) -> np.ndarray:
     """Greedy frame-to-frame IoU linking of detections (frame-sorted) -> [R] int64 track ids."""
-    from dfrmot_jax.metrics.boxes import pair_iou
-
     ids = np.full(len(frame), -1, dtype=np.int64)
     nxt = 0
     prev_idx = np.zeros(0, dtype=np.int64)

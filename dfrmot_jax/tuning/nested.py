@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..sweep.analysis import _per_sequence_arrays, make_folds, pooled_objective
+from ..sweep.analysis import make_folds, per_sequence_arrays, pooled_objective
+from .once import tune_once
 from .space import SearchSpace
 from .study import Evaluator
 
@@ -23,8 +24,6 @@ from .study import Evaluator
 def nested_cv(spec, settings, space: SearchSpace, data, outdir: Path | None, data_root, backend, progress,
               log) -> dict:
     """Run the k inner tunes and the held-out scoring; returns the figures and per-fold details."""
-    from .run import tune_once
-
     k = settings.folds
     names, lengths = list(data.sequences), list(data.lengths)
     folds = make_folds(names, lengths, k)
@@ -59,7 +58,7 @@ def held_out_scores(df, folds, chosen: list[str], baseline: str | None, objectiv
     Returns ``cross_validated`` (all sequences, each with its fold's choice; TrackEval's combination
     of sequences), ``baseline`` (the same sequences with the baseline), ``mean_held_out`` and
     per fold ``held_out`` / ``baseline_held_out``."""
-    comb, seq_names, _, arrays = _per_sequence_arrays(df)
+    comb, seq_names, _, arrays = per_sequence_arrays(df)
     row_of = {h: i for i, h in enumerate(comb["config_hash"])}
 
     def score(cfg_of_seq, cols) -> float:

@@ -25,6 +25,9 @@ import itertools
 from typing import Any, Sequence
 
 import numpy as np
+import optuna
+from optuna.distributions import CategoricalDistribution, IntDistribution
+from optuna.trial import TrialState
 
 #: the most points a finite space may have (the sampler scores every one of them per ask)
 MAX_POINTS = 200_000
@@ -54,10 +57,6 @@ def ridge_fit(x: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:
 def pairwise_sampler(distributions: dict, seed: int, n_startup: int, lam: float = 1.0):
     """An Optuna sampler over ``distributions`` (all categorical or integer, at most ``MAX_POINTS``
     points) as the module docstring says; ``n_startup`` random trials first; ridge penalty ``lam``."""
-    import optuna
-    from optuna.distributions import CategoricalDistribution, IntDistribution
-    from optuna.trial import TrialState
-
     names = list(distributions)
     choices: list[list[Any]] = []
     for n in names:

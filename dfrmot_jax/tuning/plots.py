@@ -3,6 +3,7 @@ objectives), parameter importances; and the Pareto front as a table."""
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +35,6 @@ def save_plots(result, folder: Path) -> list[Path]:
     if len(objs) == 2:
         jobs["pareto.png"] = lambda: ovm.plot_pareto_front(study, target_names=objs)
     written = []
-    import warnings
 
     for name, draw in jobs.items():
         try:

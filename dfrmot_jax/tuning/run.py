@@ -6,70 +6,28 @@ from __future__ import annotations
 import json
 import shutil
 import sys
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Mapping
 
-import pandas as pd
-
+from ..io.atomic import write_text_atomic
+from ..sweep.backend import make_backend
+from ..sweep.plan import resolve_data
+from ..sweep.runner import run_sweep
 from ..sweep.spec import SweepConfigError, SweepSpec
-from ..sweep.store import SweepDirectoryError, _atomic_text, _jsonable
+from ..sweep.store import SweepDirectoryError, jsonable
 from ..sweep.table import HASH_VERSION
-from .gradient import Refinement, refine
-from .settings import TuneSettings, load_tune, parse_tune_file
+from .nested import nested_cv
+from .once import TuneResult, tune_once
+from .plots import save_plots
+from .settings import RefineSettings, TuneSettings, load_tune, parse_tune_file
 from .space import SearchSpace, search_space
-from .study import Evaluator, search, trial_index, write_tables
 
 MANIFEST = "manifest.json"
 #: what a tune writes in its directory besides the manifest and the nested folds' fold_F/ (all of it
 #: goes with --force: a study left behind would be resumed as the new tune's)
 TUNE_FILES = ("journal.log", "batches", "results.parquet", "trials.parquet", "chunks", "plots", "nested.json",
               "heldout", "transfer", "transfer.json", "ledger.jsonl", "configs.parquet")
-
-
-@dataclass
-class TuneResult:
-    """A finished tune: ``table`` (tidy rows of every evaluated config, ``dfrmot report`` reads the
-    same from ``results.parquet``), ``trials`` (one row per trial), ``best`` (the chosen config's
-    dim values) and ``best_value`` (its in-sample objective), the Optuna ``study``, the
-    ``refinement`` (if any) and, with folds, ``nested`` (:func:`dfrmot_jax.tuning.nested.nested_cv`)."""
-
-    spec: SweepSpec
-    settings: TuneSettings
-    table: pd.DataFrame
-    trials: pd.DataFrame
-    best: dict
-    best_value: float
-    study: Any
-    refinement: Refinement | None = None
-    nested: dict | None = None
-    out: Path | None = None
-    transfer: dict | None = None
-
-    @property
-    def pareto(self) -> pd.DataFrame:
-        """The Pareto front (two objectives): the non-dominated trials, sorted by the first objective."""
-        from .plots import pareto_front
-
-        return pareto_front(self.trials, self.settings)
-
-    def summary(self) -> dict:
-        d = {"name": self.spec.name, "sampler": self.settings.sampler, "budget": self.settings.budget,
-             "batch": self.settings.batch, "objectives": list(self.settings.objectives),
-             "evaluated_configs": int(self.table["config"].nunique()), "best": _jsonable(self.best),
-             "in_sample": self.best_value}
-        base = self.table[self.table["baseline"] & (self.table["sequence"] == "COMBINED")]
-        if len(base):
-            d["baseline"] = float(base.iloc[0][self.settings.objectives[0]])
-        if self.refinement is not None:
-            d["refined_steps"] = len(self.refinement.steps)
-        if self.nested is not None:
-            d["cross_validated"] = self.nested["cross_validated"]
-            d["baseline_cross_validated"] = self.nested.get("baseline")
-            d["folds"] = self.nested["folds"]
-        if self.transfer is not None:
-            d["transfer"] = self.transfer
-        return d
 
 
 def _load(tune) -> tuple[SweepSpec, TuneSettings]:
@@ -81,7 +39,7 @@ def _load(tune) -> tuple[SweepSpec, TuneSettings]:
 
 
 def _identity(spec: SweepSpec, settings: TuneSettings, data) -> dict:
-    return {"spec": _jsonable({k: v for k, v in (spec.raw or {}).items() if k != "tune"}),
+    return {"spec": jsonable({k: v for k, v in (spec.raw or {}).items() if k != "tune"}),
             "tune": settings.identity(), "data": data.identity()}
 
 
@@ -113,7 +71,7 @@ def _write_manifest(outdir: Path, spec: SweepSpec, settings: TuneSettings, data,
          "objective": settings.objectives[0], "objectives": list(settings.objectives),
          "directions": list(settings.directions), "folds": None, "top": spec.top,
          "tune": settings.identity(), "identity": identity, "chunks": [], "hash_version": HASH_VERSION}
-    _atomic_text(json.dumps(m, indent=1, default=str), outdir / MANIFEST)
+    write_text_atomic(outdir / MANIFEST, json.dumps(m, indent=1, default=str), parents=False)
 
 
 def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budget: int | None = None,
@@ -130,8 +88,6 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
     ``backend`` / ``address`` / ``worker_cpus`` / ``workers``: where each batch runs, as
     :func:`~dfrmot_jax.sweep.run_sweep`'s (``backend="ray"``: every batch on the cluster's workers,
     which keep their compilations from batch to batch)."""
-    from ..sweep.backend import make_backend
-
     backend = make_backend(backend, workers=workers, address=address, worker_cpus=worker_cpus)
     spec, settings = _load(tune)
     over = {k: v for k, v in dict(sampler=sampler, budget=budget, batch=batch, folds=folds, seed=seed).items()
@@ -140,12 +96,10 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
     if batch is None and budget is not None:
         settings = replace(settings, batch=min(settings.batch, settings.budget))
     if refine_steps is not None:
-        from .settings import RefineSettings
 
         settings = replace(settings, refine=None if refine_steps == 0 else
                            replace(settings.refine or RefineSettings(), steps=int(refine_steps)))
     log = log if log is not None else (lambda m: print(m, file=sys.stderr, flush=True))
-    from ..sweep.plan import resolve_data
 
     data = resolve_data(spec, data_root)
     space = search_space(spec)
@@ -162,71 +116,18 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
         _write_manifest(outdir, spec, settings, data, identity)
     result = tune_once(spec, settings, space, outdir, data_root, backend, progress, log)
     if settings.folds:
-        from .nested import nested_cv
 
         result.nested = nested_cv(spec, settings, space, data, outdir, data_root, backend, progress, log)
         if outdir is not None:
-            _atomic_text(json.dumps(result.nested, indent=1, default=str), outdir / "nested.json")
+            write_text_atomic(outdir / "nested.json", json.dumps(result.nested, indent=1, default=str), parents=False)
     if settings.transfer is not None:
         result.transfer = transfer(result, space, outdir, data_root, backend)
         if outdir is not None:
-            _atomic_text(json.dumps(result.transfer, indent=1, default=str), outdir / "transfer.json")
+            write_text_atomic(outdir / "transfer.json", json.dumps(result.transfer, indent=1, default=str), parents=False)
     if outdir is not None and plots:
-        from .plots import save_plots
 
         save_plots(result, outdir / "plots")
     return result
-
-
-def tune_once(spec: SweepSpec, settings: TuneSettings, space: SearchSpace, outdir: Path | None, data_root,
-              backend, progress: bool, log) -> TuneResult:
-    """Search (and refine) on ``spec``'s sequences; tables written to ``outdir``."""
-    ev = Evaluator(spec, space, settings, outdir, data_root, backend, log)
-    study = search(spec, settings, outdir, ev, progress, log)
-    first = settings.objectives[0]
-    maximize = settings.directions[0] == "maximize"
-    best_t = _best_trial(study, settings)
-    best, best_value = dict(best_t.params), float(best_t.values[0])
-    refinement = None
-    if settings.refine is not None:
-        refinement = _refine(study, ev, space, settings, best, best_value, maximize, log)
-        if (refinement.best_value > best_value) if maximize else (refinement.best_value < best_value):
-            best, best_value = refinement.best, refinement.best_value
-    table, trials = write_tables(outdir, ev, study, settings)
-    log(f"tune {spec.name}: {table['config'].nunique():,} configs evaluated; best {first} {best_value:.3f}")
-    return TuneResult(spec, settings, table, trials, best, best_value, study, refinement, out=outdir)
-
-
-def _best_trial(study, settings: TuneSettings):
-    """The best trial by the first objective (of the Pareto front with two)."""
-    trials = study.best_trials if len(settings.objectives) > 1 else [study.best_trial]
-    sign = -1 if settings.directions[0] == "maximize" else 1
-    return min(trials, key=lambda t: (sign * t.values[0], t.number))
-
-
-def _refine(study, ev: Evaluator, space: SearchSpace, settings: TuneSettings, start: dict, start_value: float,
-            maximize: bool, log) -> Refinement:
-    """Gradient refinement from ``start``; its evaluations become trials (phase "refine") of the study."""
-    import optuna
-    from optuna.trial import TrialState
-
-    dists = space.distributions()
-    r = settings.refine
-    size = 2 * r.pairs + 1
-    known = {(t.user_attrs.get("batch"), t.user_attrs.get("slot")) for t in study.get_trials(
-        deepcopy=False, states=(TrialState.COMPLETE,)) if t.user_attrs.get("phase") == "refine"}
-
-    def evaluate(configs, k):
-        index = [trial_index(settings, "refine", k, i, size) for i in range(len(configs))]
-        vals = ev.run(f"r{k:04d}", configs, [False] * len(configs), index, "refine", k)
-        for i, (c, v) in enumerate(zip(configs, vals)):
-            if (k, i) not in known:
-                study.add_trial(optuna.trial.create_trial(
-                    params={d.name: c[d.name] for d in space.dims}, distributions=dists, values=list(v),
-                    user_attrs={"phase": "refine", "batch": k, "slot": i, "step_size": size}))
-        return vals[:, 0]
-
-    return refine(evaluate, start, start_value, space.dims, r, settings.seed, maximize, log)
 
 
 TRANSFER_FIELDS = ("HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW")
@@ -235,8 +136,6 @@ TRANSFER_FIELDS = ("HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW")
 def transfer(result: TuneResult, space: SearchSpace, outdir: Path | None, data_root, backend) -> dict:
     """The chosen config applied unchanged to other detections (``[tune.transfer]``), beside their
     baseline (the tune's baseline with the transfer's parameter values), in one call."""
-    from ..sweep.runner import run_sweep
-
     t = result.settings.transfer
     spec = replace(result.spec, det2d=t.det2d or result.spec.det2d, det3d=t.det3d or result.spec.det3d)
     base = {**space.fixed, **dict(t.baseline)}

@@ -22,9 +22,10 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Mapping
 
+from ..config import param_problem
 from ..metrics.table import canonical_objective
 from ..sweep.analysis import MINIMISE
-from ..sweep.spec import SweepConfigError, SweepSpec, _positive_int, parse_spec, read_toml
+from ..sweep.spec import PARAM_NAMES, SweepConfigError, SweepSpec, parse_spec, positive_int, read_toml
 
 SAMPLERS = ("tpe", "cmaes", "gp", "pairwise", "nsga2", "random", "grid")
 TUNE_KEYS = ("sampler", "budget", "batch", "objectives", "folds", "seed", "refine", "transfer")
@@ -40,7 +41,6 @@ class RefineSettings:
     from ONE batched call of ``2 * pairs`` antithetic samples (+ the centre), perturbation scale
     ``sigma`` in the unconstrained coordinates, adam with ``learning_rate`` (cosine decay), stop
     after ``patience`` steps without a better centre."""
-
     steps: int = 8
     pairs: int = 8
     sigma: float = 0.15
@@ -52,7 +52,6 @@ class RefineSettings:
 class TransferSettings:
     """Other detections to score the chosen config on (``det2d`` / ``det3d``: None = the tune's),
     beside the baseline with ``baseline`` parameter values (e.g. PointGNN's a_l = 4)."""
-
     det2d: str | None = None
     det3d: str | None = None
     baseline: tuple = ()
@@ -81,7 +80,7 @@ class TuneSettings:
 
 
 #: an integer key of [tune] (the sweep file's check, keys named ``tune.<key>``)
-_int = partial(_positive_int, prefix="tune.")
+_int = partial(positive_int, prefix="tune.")
 
 
 def _float(d: Mapping, key: str, default, source, prefix: str = "tune.refine."):
@@ -141,9 +140,6 @@ def parse_tune(doc: Mapping | None, source: str | None = None) -> TuneSettings:
 
 
 def _parse_transfer(t, source) -> TransferSettings | None:
-    from ..config import param_problem
-    from ..sweep.spec import PARAM_NAMES
-
     if t is None:
         return None
     if not isinstance(t, Mapping):

@@ -19,10 +19,11 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
+from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
 
 from ..config import INT_PARAMS
 from ..sweep.spec import OPTION_NAMES, PARAM_NAMES, SweepConfigError, SweepSpec
-from ..sweep.table import _canon, baseline_row, config_hash, typed_table
+from ..sweep.table import baseline_row, canonical_value, config_hash, typed_table
 
 #: the dim of a tune over ``[[variants]]`` (its values are the variants' names)
 VARIANT = "variant"
@@ -32,7 +33,6 @@ VARIANT = "variant"
 class Dim:
     """One searched name: ``kind`` 'float' | 'logfloat' | 'int' | 'categorical'; ``values`` (low,
     high) inclusive for numbers, the choices for categoricals."""
-
     name: str
     kind: str
     values: tuple
@@ -47,14 +47,11 @@ class Dim:
 class SearchSpace:
     """The searched dims and the fixed values (the baseline overridden by one-valued axes);
     ``variants``: {name: the values that variant fixes} of a tune over ``[[variants]]``."""
-
     dims: tuple[Dim, ...]
     fixed: Mapping[str, Any]
     variants: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def distributions(self) -> dict:
-        from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
-
         out = {}
         for d in self.dims:
             if d.kind == "categorical":
@@ -100,7 +97,7 @@ class SearchSpace:
         out = {d.name: self.fixed[d.name] for d in self.dims if d.name != VARIANT}
         if self.variants:
             out[VARIANT] = next((n for n, v in self.variants.items()
-                                 if all(_canon(k, self.fixed[k]) == _canon(k, x) for k, x in v.items())), None)
+                                 if all(canonical_value(k, self.fixed[k]) == canonical_value(k, x) for k, x in v.items())), None)
         return out
 
     def contains(self, values: Mapping[str, Any]) -> bool:
@@ -126,7 +123,7 @@ def search_space(spec: SweepSpec) -> SearchSpace:
             raise SweepConfigError(f"variants.{v.name}", "the variants of a tune must search the same axes "
                                    "(they may differ only in one-valued settings)", spec.source)
     base = baseline_row(spec)
-    variants = {v.name: {k: x for k, x in s.fixed.items() if _canon(k, x) != _canon(k, base[k])}
+    variants = {v.name: {k: x for k, x in s.fixed.items() if canonical_value(k, x) != canonical_value(k, base[k])}
                 for v, s in zip(spec.variants, spaces)}
     dim = Dim(VARIANT, "categorical", tuple(variants), "variants")
     return SearchSpace(first.dims + (dim,), base, variants)

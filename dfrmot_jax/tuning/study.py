@@ -34,11 +34,18 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
+import optuna
 import pandas as pd
+from optuna.storages import JournalStorage
+from optuna.storages.journal import JournalFileBackend
+from optuna.trial import TrialState
+from tqdm import tqdm
 
+from ..io.atomic import write_parquet_atomic, write_text_atomic
+from ..sweep.runner import run_sweep
 from ..sweep.spec import SweepSpec
-from ..sweep.store import _atomic_parquet, _atomic_text
-from ..sweep.table import COMBINED
+from ..sweep.table import COMBINED, unstable_rows
+from .pairwise import pairwise_sampler
 from .settings import TuneSettings
 from .space import SearchSpace
 
@@ -49,8 +56,6 @@ REPEAT_ASKS = 10
 
 def make_sampler(settings: TuneSettings, space: SearchSpace, batch: int):
     """The Optuna sampler of search batch ``batch`` (seeded by (seed, batch); see the module docstring)."""
-    import optuna
-
     seed = int(np.random.SeedSequence([settings.seed, batch]).generate_state(1)[0])
     name = settings.sampler
     if name == "tpe":
@@ -69,7 +74,6 @@ def make_sampler(settings: TuneSettings, space: SearchSpace, batch: int):
         return optuna.samplers.GPSampler(seed=seed, n_startup_trials=min(settings.batch, 32),
                                          warn_independent_sampling=False)
     if name == "pairwise":
-        from .pairwise import pairwise_sampler
 
         return pairwise_sampler(space.distributions(), seed, n_startup=settings.batch)
     if name == "nsga2":
@@ -90,15 +94,10 @@ def trial_index(settings: TuneSettings, phase: str, batch: int, slot: int, step_
 
 
 def open_study(outdir: Path | None, settings: TuneSettings):
-    import optuna
-
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
     storage = None
     if outdir is not None:
-        from optuna.storages import JournalStorage
-        from optuna.storages.journal import JournalFileBackend
-
         outdir.mkdir(parents=True, exist_ok=True)
         storage = JournalStorage(JournalFileBackend(str(outdir / "journal.log")))
     return optuna.create_study(storage=storage, study_name=STUDY, directions=list(settings.directions),
@@ -108,7 +107,6 @@ def open_study(outdir: Path | None, settings: TuneSettings):
 @dataclass
 class Evaluator:
     """Runs configs as sweeps (one call per batch) and keeps every config's rows by hash."""
-
     spec: SweepSpec
     space: SearchSpace
     settings: TuneSettings
@@ -127,7 +125,6 @@ class Evaluator:
         table = self.space.table([self.space.row(v) for v in values], baseline)
         new = table[~table["config_hash"].isin(self.rows)].drop_duplicates("config_hash")
         if len(new):
-            from ..sweep.runner import run_sweep
 
             new = new.assign(config=np.arange(len(new), dtype=np.int64)).reset_index(drop=True)
             out = None if self.outdir is None else self.outdir / "batches" / name
@@ -164,8 +161,6 @@ def _values_of(t) -> list:
 
 def _settle(study, outdir: Path | None, ev: Evaluator, space: SearchSpace, settings: TuneSettings, log) -> None:
     """Finish or fail the trials a killed run left RUNNING (module docstring)."""
-    from optuna.trial import TrialState
-
     running = [t for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,))]
     by_batch: dict[int, list] = {}
     for t in running:
@@ -194,9 +189,7 @@ def _evaluate_batch(study, ev: Evaluator, space: SearchSpace, settings: TuneSett
     """Evaluate batch ``b``'s trials in one call and tell them; trials whose fixed gains make the
     filter unstable (:func:`dfrmot_jax.sweep.table.unstable_rows`: boxes grow without bound) are
     told FAIL without being run: they do not count towards the budget (the log says how many)."""
-    from optuna.trial import TrialState
 
-    from ..sweep.table import unstable_rows
 
     frozen = {t.number: t for t in study.get_trials(deepcopy=False)}
     trials = [frozen[n] for n in rec["trials"]]
@@ -220,8 +213,6 @@ def _evaluate_batch(study, ev: Evaluator, space: SearchSpace, settings: TuneSett
 
 def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Evaluator, progress: bool, log):
     """The batched ask/tell loop until ``settings.budget`` search trials are complete."""
-    from optuna.trial import TrialState
-
     space = ev.space
     dists = space.distributions()
     study = open_study(outdir, settings)
@@ -236,7 +227,6 @@ def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Eva
     done = _search_done(study)
     bar = None
     if progress:
-        from tqdm import tqdm
 
         bar = tqdm(total=settings.budget, initial=len(done), unit="cfg", desc=f"tune {spec.name}",
                    dynamic_ncols=True, file=sys.stderr)
@@ -254,7 +244,7 @@ def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Eva
             rec = {"batch": b, "trials": [t.number for t in asked], "params": [t.params for t in asked]}
             if outdir is not None:
                 (outdir / "batches").mkdir(parents=True, exist_ok=True)
-                _atomic_text(json.dumps(rec, default=str), outdir / "batches" / f"{b:04d}.json")
+                write_text_atomic(outdir / "batches" / f"{b:04d}.json", json.dumps(rec, default=str), parents=False)
             _evaluate_batch(study, ev, space, settings, b, rec)
             done = _search_done(study)
             if bar is not None:
@@ -270,8 +260,6 @@ def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Eva
 def _ask_batch(study, dists: dict, space: SearchSpace, evaluated: set, b: int, size: int) -> list:
     """``size`` trials of search batch ``b``, repeats of evaluated or already asked configs refused
     (module docstring)."""
-    from optuna.trial import TrialState
-
     asked, refused = [], 0
     while len(asked) < size:
         t = study.ask(dists)
@@ -299,8 +287,6 @@ def _next_batch(study, outdir: Path | None) -> int:
 
 
 def _search_done(study) -> list:
-    from optuna.trial import TrialState
-
     return [t for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
             if t.user_attrs.get("phase") == "search"]
 
@@ -314,8 +300,6 @@ def _best_text(study, settings: TuneSettings) -> str:
 
 def trials_frame(study, settings: TuneSettings) -> pd.DataFrame:
     """One row per completed trial: trial (tune order), phase, batch, slot, config values, objectives."""
-    from optuna.trial import TrialState
-
     rows = []
     for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
         a = t.user_attrs
@@ -331,8 +315,8 @@ def write_tables(outdir: Path | None, ev: Evaluator, study, settings: TuneSettin
     table = ev.table()
     trials = trials_frame(study, settings)
     if outdir is not None:
-        _atomic_parquet(table, outdir / "results.parquet")
-        _atomic_parquet(trials, outdir / "trials.parquet")
+        write_parquet_atomic(outdir / "results.parquet", table)
+        write_parquet_atomic(outdir / "trials.parquet", trials)
     return table, trials
 
 

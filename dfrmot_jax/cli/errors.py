@@ -1,0 +1,75 @@
+"""The ``dfrmot`` command line's one error handler (:func:`guarded`) and exit statuses; see
+:mod:`dfrmot_jax.cli` for what each status means."""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import re
+import sys
+from typing import Callable
+
+from ..io.kitti import KittiFormatError
+from ..sweep.checks import SweepConfigError
+
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_OVERFLOW, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+
+class CommandParser(argparse.ArgumentParser):
+    """argparse with a one-line error: ``dfrmot CMD: error: MESSAGE (see 'dfrmot CMD --help')``, exit 2."""
+
+    def error(self, message):
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {_one_line(message)} (see '{self.prog} --help')\n")
+
+
+# numpy scalar reprs (numpy >= 2) inside messages: np.str_('Bus') -> 'Bus', np.float64(2.5) -> 2.5
+_NP_REPR = re.compile(r"\bnp\.(?:str_|bytes_|bool_?|u?int\d*|float\d*|complex\d*|longdouble|intp|uintp)\(([^()]*)\)")
+
+
+def _one_line(text) -> str:
+    text = _NP_REPR.sub(r"\1", str(text))
+    return "; ".join(line.strip() for line in text.splitlines() if line.strip())
+
+
+def _input_error(e: BaseException) -> str | None:
+    """The message of a known bad-input error, None for anything else."""
+    if isinstance(e, (KittiFormatError, SweepConfigError, ValueError)):
+        return str(e) or type(e).__name__
+    if isinstance(e, OSError) and (e.filename is not None or isinstance(e, (FileNotFoundError, PermissionError))):
+        if e.filename is None:
+            return str(e)
+        what = e.strerror or str(e)
+        where = f"{e.filename} -> {e.filename2}" if e.filename2 is not None else str(e.filename)
+        return f"{where}: {what}"
+    return None
+
+
+def guarded(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """``run(args)`` of a subcommand module behind the one error handler (the parser's ``func``):
+    returns ``run``'s status, or the status of the error it raised (module docstring)."""
+    name = run.__module__.rpartition(".")[2]
+
+    @functools.wraps(run)
+    def func(args) -> int:
+        cmd = f"dfrmot {getattr(args, 'command', None) or name}"
+        debug = getattr(args, "debug", False)
+        try:
+            return run(args)
+        except KeyboardInterrupt:
+            if debug:
+                raise
+            print(f"{cmd}: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except Exception as e:
+            if debug:
+                raise
+            message = _input_error(e)
+            if message is not None:
+                print(f"{cmd}: error: {_one_line(message)}", file=sys.stderr)
+                return EXIT_INPUT
+            detail = _one_line(e)
+            print(f"{cmd}: internal error: {type(e).__name__}{': ' + detail if detail else ''} "
+                  f"(rerun with --debug for the traceback)", file=sys.stderr)
+            return EXIT_INTERNAL
+
+    return func

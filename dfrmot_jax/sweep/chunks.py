@@ -1,0 +1,250 @@
+"""One class's chunks of a sweep, tracked and scored: :class:`ChunkRunner`, the unit every backend
+runs (the local backend in this process, the Ray backend inside its workers), and the data it runs on.
+
+Per chunk: :func:`dfrmot_jax.track` on one [B] batch (track capacity: the tracker's own policy,
+``api.default_capacity`` for the option group and ``track(grow=True)``; the capacity a chunk grew
+to is kept for the group's later chunks), then the metrics (:class:`dfrmot_jax.metrics.evaluate.LaneScorer`:
+identical outputs scored once, in-process or in a metric worker pool beside the tracker), then the
+chunk's table (:func:`dfrmot_jax.sweep.store.chunk_frame`), handed to the caller's ``keep``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import warnings
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import jax
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from .. import distort
+from ..api import TrackResult, default_capacity, track
+from ..config import Options
+from ..data import cached_split, compact_split, prepare_frames
+from ..metrics.evaluate import LaneScorer, cached_gt, worker_pool
+from ..version import __version__
+from .distortion import DistortionAxes
+from .plan import Chunk, DataSettings, option_groups
+from .spec import SweepSpec
+from .store import chunk_frame
+from .table import params_of
+
+#: lanes per compiled tracker call (the batch is split over the host devices)
+TRACK_CHUNK = 32
+
+#: ``keep(chunk, table)``: what a backend does with a finished chunk's table (write it, or hold it)
+Keep = Callable[[Chunk, pd.DataFrame], None]
+
+
+def versions() -> tuple[str, str]:
+    """(dfrmot_jax version, JAX version): columns of every result row."""
+    return __version__, jax.__version__
+
+
+def progress_bar(progress: bool, total: int, done: int, label: str):
+    """A tqdm bar over configs on stderr, or None without ``progress``."""
+    if not progress:
+        return None
+    return tqdm(total=total, initial=done, unit="cfg", desc=label, dynamic_ncols=True, smoothing=0.05, file=sys.stderr)
+
+
+def load_data(d: DataSettings):
+    """The packed split and the prepared ground truth of one class's data settings, checked to agree
+    (both memoised on the settings and their files' sizes and mtimes)."""
+    split = cached_split(d.root, d.det2d, d.det3d, d.cls, d.sequences)
+    gt = cached_gt(d.root, d.cls, list(d.sequences))
+    if tuple(gt.sequences) != tuple(split.names) or not np.array_equal(gt.lengths, split.lengths):
+        raise RuntimeError("ground truth and detections disagree on the sequences or their lengths")
+    return split, gt
+
+
+@dataclass
+class Pending:
+    """A tracked chunk waiting for its metrics. ``res``: its :class:`~dfrmot_jax.api.TrackResult`
+    without the per-row arrays (the counts the table needs: dropped, overflow, peak, capacity);
+    ``todo``: the lanes it scores itself, the others are scored already or by an earlier chunk in
+    flight."""
+
+    chunk: Chunk
+    res: TrackResult
+    digests: list
+    todo: list
+    future: Any = None
+    result: Any = None
+
+
+def distort_of(table: pd.DataFrame, rows: Sequence[int], dist: DistortionAxes):
+    """``DistortParams [B]`` of the table rows (their distortion.kind / level / seed)."""
+    sub = table.iloc[list(rows)]
+    return distort.stack_distort([dist.lane(k, v, s) for k, v, s in zip(
+        sub["distortion.kind"], sub["distortion.level"], sub["distortion.seed"])])
+
+
+@dataclass
+class Timing:
+    setup: float = 0.0
+    track: float = 0.0
+    metrics: float = 0.0
+    wait: float = 0.0
+    write: float = 0.0
+
+
+@dataclass
+class ChunkRunner:
+    """The run loop of one class's chunks: tracking, metrics (in-process or a worker pool beside the
+    tracker; chunks complete in submission order, a chunk may rely on an earlier one's scores) and
+    the chunk tables. Its state is explicit: per option group the track capacity (``caps``) and the
+    distortion spec (``dspecs``), the chunks in flight, the timings.
+
+    ``workers``: metric processes (None: 2 for large runs, 0: in-process). ``compact``: track on the
+    split compacted to the table's loosest score thresholds (:func:`dfrmot_jax.data.compact_split`:
+    the same results, fewer dead detection slots; never with a distortion, whose draws are keyed by
+    slot)."""
+
+    spec: SweepSpec
+    table: pd.DataFrame
+    data: DataSettings
+    workers: int | None = None
+    compact: bool = True
+    caps: dict = field(default_factory=dict)
+    dspecs: dict = field(default_factory=dict)
+    inflight: deque = field(default_factory=deque)
+    timing: Timing = field(default_factory=Timing)
+
+    def setup(self, todo: Sequence[Chunk], split=None, gt=None) -> None:
+        """Load (or take) the class's split and prepared ground truth; ``todo``: the chunks to run."""
+        if split is None:
+            split, gt = load_data(self.data)
+        if self.compact and self.spec.distortion is None:     # (distortion draws are keyed by slot)
+            every = params_of(self.table, range(len(self.table)), self.data.cls)
+            split = compact_split(split, float(np.min(every.score_2d)), float(np.min(every.score_3d)))
+        self.split, self.gt = split, gt
+        self.frames: tuple | None = None        # (options, prepared frames) of the last option group
+        self.todo = list(todo)
+        self.versions = versions()
+        self.scorer = LaneScorer(self.gt, self.split.offsets)
+        self.lanes_per_call = max(1, min(self.spec.chunk, TRACK_CHUNK))
+        pending_cf = sum(len(c.configs) for c in todo) * self.split.n_frames
+        if self.workers is None:
+            self.workers = min(2, os.cpu_count() or 1) if pending_cf >= 2_000_000 else 0
+        self.groups = option_groups(self.table) if self.spec.distortion is not None else {}
+
+    def run(self, todo: Sequence[Chunk], keep: Keep, bar, log) -> None:
+        """Track and score ``todo``, handing each chunk's table to ``keep`` in order; ``bar``: a
+        progress bar (or None) advanced by each chunk's configs."""
+        t0 = time.perf_counter()
+        label = self.spec.name if len(self.spec.classes) == 1 else f"{self.spec.name} [{self.data.cls}]"
+        self.setup(todo)
+        self.timing.setup = time.perf_counter() - t0
+        pool = worker_pool(self.gt, self.workers) if self.workers > 0 else None
+        try:
+            for c in todo:
+                self.inflight.append(self.start(c, self.frames_of(c.options), pool))
+                # complete in submission order (a chunk may rely on an earlier one's scores)
+                while self.inflight and (self.inflight[0].future is None or self.inflight[0].future.done()):
+                    self.complete(self.inflight.popleft(), keep, bar)
+                while len(self.inflight) > max(1, self.workers):
+                    self.complete(self.inflight.popleft(), keep, bar)
+            while self.inflight:
+                self.complete(self.inflight.popleft(), keep, bar)
+        finally:
+            if pool is not None:
+                pool.shutdown(wait=True, cancel_futures=True)
+        dt = time.perf_counter() - t0
+        n = sum(len(c.configs) for c in todo)
+        tm = self.timing
+        log(f"sweep {label}: {n:,} configs tracked and scored in {dt:.1f} s ({n / dt:.1f} configs/s, "
+            f"{n * self.split.n_frames / dt / 1e3:.0f} k config-frames/s; setup {tm.setup:.1f} s, tracking "
+            f"{tm.track:.1f} s, metrics {tm.metrics:.1f} s in-process + {tm.wait:.1f} s waiting "
+            f"for workers, tables {tm.write:.1f} s; {len(self.scorer):,} distinct outputs scored)")
+
+    def frames_of(self, options: Options):
+        """The split prepared for ``options`` (kept while consecutive chunks share them)."""
+        if self.frames is None or self.frames[0] != options:
+            self.frames = (options, prepare_frames(self.split, options))
+        return self.frames[1]
+
+    def compute(self, c: Chunk) -> pd.DataFrame:
+        """Chunk ``c``'s table, tracked and scored here."""
+        return self.chunk_table(self.start(c, self.frames_of(c.options), None))
+
+    def start(self, c: Chunk, frames, pool) -> Pending:
+        """Track chunk ``c`` and start scoring its new outputs (in the pool, or here)."""
+        table, dist, cls = self.table, self.spec.distortion, self.data.cls
+        params = params_of(table, c.configs, cls)
+        opts = c.options
+        dps = None
+        if dist is not None:
+            # one DistortSpec per option group, covering every lane of the group (all of the
+            # table, not only the chunks left to run): one compilation, whatever is resumed
+            dps = distort_of(table, c.configs, dist)
+            if c.options not in self.dspecs:
+                self.dspecs[c.options] = dist.make_spec(c.options, frames=frames,
+                                                        dps=distort_of(table, self.groups[c.options], dist))
+        if opts.capacity == 0:
+            # Track slots: the tracker's data-sized default for the whole option group (one
+            # compilation; room for a distortion's clutter), or the capacity an earlier chunk of the
+            # group grew to. Results never depend on it: ``track`` re-runs an overflowing lane with
+            # twice the slots.
+            if c.options not in self.caps:
+                self.caps[c.options] = default_capacity(frames, self._group_params(c.options), opts,
+                                                        clutter_slots=dist.clutter_slots if dist is not None else 0)
+            opts = opts._replace(capacity=self.caps[c.options])
+        tt = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)   # overflow is a column of the table
+            if dps is None:
+                res = track(frames, params, opts, chunk=self.lanes_per_call, grow=True)
+            else:       # distortion lanes vmapped with the parameter lanes; per-lane output boxes
+                res = track(self.split, params, opts, chunk=self.lanes_per_call, grow=True, distortion=dps,
+                            spec=self.dspecs[c.options])
+        if c.options.capacity == 0:         # start the group's later chunks where track grew to
+            self.caps[c.options] = max(self.caps[c.options], int(res.capacity.max(initial=0)))
+        self.timing.track += time.perf_counter() - tt
+        digests = self.scorer.digests(res.ids, res.boxes)
+        # lanes identical to one still being scored (an earlier chunk in flight) wait for it
+        busy = {q.digests[i] for q in self.inflight for i in q.todo}
+        slim = res._replace(ids=None, boxes=None, frames=None, src3=None, own3=None, box3=None)
+        p = Pending(c, slim, digests,
+                     self.scorer.new_lanes(digests, busy))
+        if p.todo:
+            dets = self.scorer.dets(res.ids, res.boxes, p.todo)
+            if pool is not None:
+                p.future = self.scorer.submit(pool, dets)
+            else:
+                tm = time.perf_counter()
+                p.result = self.scorer.evaluate(dets)
+                self.timing.metrics += time.perf_counter() - tm
+        return p
+
+    def _group_params(self, options: Options):
+        """The parameters of every chunk left to run with these options."""
+        return params_of(self.table, [i for c in self.todo if c.options == options for i in c.configs],
+                          self.data.cls)
+
+    def chunk_table(self, p: Pending) -> pd.DataFrame:
+        """A tracked chunk's table, once its scores are in."""
+        tw = time.perf_counter()
+        if p.future is not None:
+            p.result = p.future.result()
+        self.timing.wait += time.perf_counter() - tw
+        if p.todo:
+            self.scorer.store(p.digests, p.todo, p.result)
+        return chunk_frame(self.table, p.chunk, self.data, self.split.names, self.split.lengths,
+                            self.scorer.gather(p.digests), p.res, self.versions, self.spec.name)
+
+    def complete(self, p: Pending, keep: Keep, bar) -> None:
+        """Store a chunk's scores and hand its table to ``keep``."""
+        df = self.chunk_table(p)
+        tw = time.perf_counter()
+        keep(p.chunk, df)
+        self.timing.write += time.perf_counter() - tw
+        if bar is not None:
+            bar.update(len(p.chunk.configs))
+
