@@ -43,7 +43,9 @@ Quirks of the reference that are reproduced (and tested on its figures):
   same threshold (published 2D val: 251 vs 250);
 * the score averaging is repeated each pass on the already averaged scores: the mean of ``n``
   copies of a float is computed again (a sequential float sum / n, Python's ``sum`` before 3.12),
-  which may move it by an ulp and move a track across a threshold that is its own score;
+  which may move it by an ulp and so drop a track at the threshold that is its own score. Every
+  fixture line depends on it (averaging once changes all ten); under Python >= 3.12, whose
+  ``sum`` of floats is compensated, the reference itself would print other figures;
 * ``num_gt`` for the recall points is pass 0's ``TP + FN``, with ignored TPs in TP;
 * ``MOTP`` counts ignored TPs' overlaps; sums are accumulated in the reference's order
   (frames, then objects; passes in order), as float64 like Python's floats;
@@ -223,8 +225,7 @@ def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: fl
     e_g, e_t, e_c, t_start = _candidate_pairs(gt, trk, kind, threshold)
     # static part of the tracker-ignore rule: neighbour class, small, or inside a DontCare region
     static = trk.neighbour | (np.abs(trk.box[:, 1] - trk.box[:, 3]) <= MIN_HEIGHT)
-    F = gt.n_frames
-    seg, drow, dcol, _ = enumerate_pairs(np.diff(t_start), t_start[:-1], np.diff(gt.dc_start), gt.dc_start[:-1])
+    _, drow, dcol, _ = enumerate_pairs(np.diff(t_start), t_start[:-1], np.diff(gt.dc_start), gt.dc_start[:-1])
     if len(drow):
         inside = _ioa(trk.box[drow], gt.dc_box[dcol]) > 0.5
         static[drow[inside]] = True
