@@ -309,16 +309,19 @@ class _Passes:
         self.valid = np.zeros(M, dtype=bool)
         self.score = prep.track_mean.copy()                      # current averaged score per track
         self.n_avg = 0                                           # averaging rounds done
+        self.settled = False
         self.edge_on = np.zeros(len(prep.e_g), dtype=bool)
         self.comp_key = [None] * len(prep.comps)
         self.cache: dict = {}
         self.n_gt = int((~prep.gt.ignored).sum())
 
     def _average(self) -> None:
-        if self.n_avg:
+        if self.n_avg and not self.settled:
             with np.errstate(invalid="ignore", divide="ignore"):
                 new = _seq_repeat_sum(self.score, self.p.track_len) / self.p.track_len
-            self.score = np.where(self.p.track_len > 0, new, self.score)
+            new = np.where(self.p.track_len > 0, new, self.score)
+            self.settled = bool(np.array_equal(new, self.score))      # a fixed point: later rounds change nothing
+            self.score = new
         self.n_avg += 1
 
     def _match(self, kept: np.ndarray) -> None:

@@ -1,0 +1,83 @@
+"""Benchmark: AB3DMOT's KITTI metrics (dfrmot_jax.metrics.ab3dmot) on one result folder, cold.
+
+Times :func:`evaluate_ab3dmot_files` on the published DFR-FastMOT output (20 car sequences), 3D IoU
+0.25 by default: cold = every call reads the result files and reads and prepares the ground truth
+(its cache cleared), then the 41-threshold evaluation. Best of ``--repeats``; the median too. Also
+the same with the ground truth prepared (cached), and 2D IoU 0.5. The reference evaluator's wall
+time on this machine kind is in the fixture README (``reference/ab3dmot_eval/README.md``: 204 s for
+this file in 3D on all 21 sequences); the speedup printed is against that figure, so indicative.
+
+The LAST line is one JSON object: ``cold_s``, ``cold_median_s``, ``warm_s``, ``cold_2d_s``,
+``reference_s``, ``speedup``, the figures (sAMOTA, AMOTA, MOTA), machine info and the load average.
+
+    python benchmarks/bench_ab3dmot.py [--data ROOT] [--iou 3d:0.25] [--repeats 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+REFERENCE_S = 204.0   # reference evaluator, published file, 3D, all 21 sequences (fixture README)
+
+
+def _times(fn, repeats):
+    out, res = [], None
+    for _ in range(repeats):
+        t = time.perf_counter()
+        res = fn()
+        out.append(time.perf_counter() - t)
+    return out, res
+
+
+def main() -> None:
+    from machine import machine_info
+
+    from dfrmot_jax.metrics import ab3dmot_prep
+    from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files
+    from dfrmot_jax.paths import default_data_root
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", default=None, help="KITTI tracking training root (default: default_data_root())")
+    ap.add_argument("--iou", default="3d:0.25", help="AB3DMOT IoU, 2d:T or 3d:T (default 3d:0.25)")
+    ap.add_argument("--repeats", type=int, default=5, help="runs per timing (best and median reported)")
+    args = ap.parse_args()
+
+    root = Path(args.data) if args.data else default_data_root()
+    folder = root / "reference" / "dfr_fastmot_rrc_pointrcnn"
+    seqs = sorted(p.stem for p in folder.glob("*.txt"))
+    load_before = os.getloadavg()
+
+    def cold(iou):
+        ab3dmot_prep._GT_CACHE.clear()
+        return evaluate_ab3dmot_files(folder, root, "car", seqs, iou=iou)
+
+    cold_t, res = _times(lambda: cold(args.iou), args.repeats)
+    warm_t, _ = _times(lambda: evaluate_ab3dmot_files(folder, root, "car", seqs, iou=args.iou), args.repeats)
+    cold2_t, res2 = _times(lambda: cold("2d:0.5"), args.repeats)
+    rows = [(f"cold, {args.iou}", cold_t), ("ground truth cached", warm_t), ("cold, 2d:0.5", cold2_t)]
+    print(f"AB3DMOT KITTI metrics, car, {len(seqs)} sequences of {folder.name}; best / median of {args.repeats}")
+    for name, t in rows:
+        print(f"  {name:28s} {min(t):7.3f} s  {statistics.median(t):7.3f} s")
+    print(f"  {args.iou}: sAMOTA {100 * res['sAMOTA']:.4f} AMOTA {100 * res['AMOTA']:.4f} MOTA {100 * res['MOTA']:.4f}; "
+          f"2d:0.5: sAMOTA {100 * res2['sAMOTA']:.4f}")
+    info = machine_info()
+    out = {"bench": "ab3dmot", "iou": args.iou, "sequences": len(seqs), "cold_s": round(min(cold_t), 4),
+           "cold_median_s": round(statistics.median(cold_t), 4), "warm_s": round(min(warm_t), 4),
+           "cold_2d_s": round(min(cold2_t), 4), "reference_s": REFERENCE_S,
+           "speedup": round(REFERENCE_S / min(cold_t), 1),
+           "sAMOTA": round(100 * res["sAMOTA"], 4), "AMOTA": round(100 * res["AMOTA"], 4),
+           "MOTA": round(100 * res["MOTA"], 4), "loadavg_before": [round(x, 2) for x in load_before],
+           "loadavg_after": [round(x, 2) for x in os.getloadavg()], **info}
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
