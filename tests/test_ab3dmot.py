@@ -194,7 +194,7 @@ def tiny(tmp_path):
     (lambda f: f.__setitem__(15, "inf"), "z", "not finite"),
     (lambda f: f.__setitem__(10, "-1.5"), "h", "not positive"),
     (lambda f: f.__setitem__(11, "0"), "w", "zero"),
-    (lambda f: f.__setitem__(12, "-3.9"), "l", "differ in sign"),
+    (lambda f: f.__setitem__(12, "-3.9"), "w", "differ in sign"),
     (lambda f: f.__setitem__(17, "nan"), "score", "not finite"),
     (lambda f: f.__setitem__(13, "abc"), "x", "not a number"),
     (lambda f: f.__setitem__(0, "9"), "frame", "past the ground truth's end"),

@@ -58,7 +58,8 @@ polygon clipping); here the IoU is 1.
 
 Results are dicts of fractions (percent = x 100): ``sAMOTA AMOTA AMOTP MOTA MOTP`` float,
 ``IDS FRAG FP FN TP`` int, ``recall precision best_threshold`` float, ``n_recall_points`` int,
-``all_tracks`` (pass 0: ``MOTA MOTP IDS FRAG FP FN TP recall``).
+``all_tracks`` (pass 0: ``MOTA MOTP IDS FRAG FP FN TP recall``), ``n_rows`` (tracker rows of the
+class read) and ``n_objects`` (ground-truth objects not ignored: MOTA's denominator).
 """
 
 from __future__ import annotations
@@ -417,7 +418,8 @@ def ab3dmot_metrics(prep: Ab3dPrepared) -> dict:
            "AMOTP": s_motp / (N_SAMPLE_POINTS - 1)}
     out.update({k: best[k] for k in keys})
     out.update(recall=best["recall"], precision=best["precision"], best_threshold=float(best_thr),
-               n_recall_points=len(thresholds), all_tracks={k: first[k] for k in keys + ("recall",)})
+               n_recall_points=len(thresholds), all_tracks={k: first[k] for k in keys + ("recall",)},
+               n_rows=len(prep.trk.frame), n_objects=runs.n_gt)
     return out
 
 

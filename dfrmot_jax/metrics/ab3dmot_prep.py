@@ -335,18 +335,18 @@ def _read_file(path, cls: str, length: int, name: str, need_3d: bool) -> dict:
     placeholder = np.all(dims == PLACEHOLDER_DIMS, axis=1) & np.all(loc == PLACEHOLDER_LOC, axis=1)
     if need_3d:
         live = ~placeholder
-        checks = [(j, live & ~np.isfinite(box3d[:, j - 10]), "not finite: {}") for j in range(10, 17)]
-        checks += [(10, live & (box3d[:, 0] <= 0), "height {} is not positive (not a box; a 2D-only row writes "
+        checks = [(j, live & ~np.isfinite(box3d[:, j - 10]), "not finite: {0}") for j in range(10, 17)]
+        checks += [(10, live & (box3d[:, 0] <= 0), "height {0} is not positive (not a box; a 2D-only row writes "
                                                    "h w l x y z = -1 -1 -1 -1000 -1000 -1000)"),
-                   (11, live & (box3d[:, 1] == 0), "width {} is zero (not a box)"),
-                   (12, live & (box3d[:, 2] == 0), "length {} is zero (not a box)"),
-                   (12, live & (box3d[:, 1] * box3d[:, 2] < 0), "length {} and width differ in sign (a box has "
-                                                                 "both positive, or both negative: turned by 180 "
-                                                                 "degrees)")]
+                   (11, live & (box3d[:, 1] == 0), "width {0} is zero (not a box)"),
+                   (12, live & (box3d[:, 2] == 0), "length {0} is zero (not a box)"),
+                   (11, live & (box3d[:, 1] * box3d[:, 2] < 0), "width {0} and length {1} differ in sign (a box "
+                                                                 "has both positive, or both negative: the box "
+                                                                 "turned by 180 degrees)")]
         found = [(int(np.argmax(m)), j, msg) for j, m, msg in checks if m.any()]
         if found:
             k, j, msg = min(found)
-            fail(int(rows[k]), j, msg.format(_quoted(tok[k, j])))
+            fail(int(rows[k]), j, msg.format(_quoted(tok[k, j]), _quoted(tok[k, 12])))
     score = np.where(count[rows] == 18, cols[17], -1.0)
     return dict(frame=frame, tid=tid, neighbour=types[rows] == AB3D_CLASSES[cls][1],
                 box=np.stack([cols[6], cols[7], cols[8], cols[9]], axis=1), box3d=box3d,
