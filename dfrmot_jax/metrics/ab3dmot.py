@@ -219,11 +219,19 @@ def _candidate_pairs(gt: Ab3dGT, trk: Ab3dTracker, kind: str, threshold: float):
     return row[ok], col[ok], cost[ok], t_start
 
 
-def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: float = 0.25) -> Ab3dPrepared:
-    """The shared preprocessing of :func:`ab3dmot_metrics` (see :class:`Ab3dPrepared`)."""
+def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: float = 0.25,
+                   pairs: tuple | None = None) -> Ab3dPrepared:
+    """The shared preprocessing of :func:`ab3dmot_metrics` (see :class:`Ab3dPrepared`).
+
+    pairs: the candidate pairs ``(e_g, e_t, e_c)`` when already computed (by frame, object, row:
+    :mod:`dfrmot_jax.metrics.ab3dmot_arrays` computes them for many outputs at once)."""
     kind, threshold = parse_iou((kind, threshold))
     N, M = len(gt.frame), len(trk.frame)
-    e_g, e_t, e_c, t_start = _candidate_pairs(gt, trk, kind, threshold)
+    if pairs is None:
+        e_g, e_t, e_c, t_start = _candidate_pairs(gt, trk, kind, threshold)
+    else:
+        e_g, e_t, e_c = pairs
+        t_start = segment_starts(np.bincount(trk.frame, minlength=gt.n_frames))
     # static part of the tracker-ignore rule: neighbour class, small, or inside a DontCare region
     static = trk.neighbour | (np.abs(trk.box[:, 1] - trk.box[:, 3]) <= MIN_HEIGHT)
     _, drow, dcol, _ = enumerate_pairs(np.diff(t_start), t_start[:-1], np.diff(gt.dc_start), gt.dc_start[:-1])
