@@ -184,10 +184,10 @@ def test_set_capacity_bounds_are_inclusive():
     from dfrmot_jax.api import MAX_CAPACITY
 
     args = Namespace(preset="dfr2023", set=[f"capacity={MAX_CAPACITY}", "epsilon=0"])
-    params, options = track_cmd._settings(args)
+    params, options = track_cmd.class_settings(args)
     assert options.capacity == MAX_CAPACITY and params.epsilon == 0
     with pytest.raises(ValueError, match="above the maximum capacity"):
-        track_cmd._settings(Namespace(preset="dfr2023", set=[f"capacity={MAX_CAPACITY + 1}"]))
+        track_cmd.class_settings(Namespace(preset="dfr2023", set=[f"capacity={MAX_CAPACITY + 1}"]))
 
 
 def test_one_parser_one_handler():

@@ -1,7 +1,8 @@
 """``dfrmot eval``: TrackEval-identical KITTI evaluation of result folders from the command line.
 
 Usage: ``dfrmot eval RESULTS_DIR [RESULTS_DIR ...] [--data ROOT] [--class car[,pedestrian]]
-[--seqs 0000,0002] [--allow-missing] [--per-seq] [--csv F]``. Each class is scored on its own rows
+[--seqs 0000,0002 | --seqmap FILE] [--metrics kitti2d,ab3dmot] [--ab3dmot-iou 3d:0.25] [--allow-missing]
+[--per-seq] [--csv F]``. Each class is scored on its own rows
 of the result files (one file may hold ``Car`` and ``Pedestrian`` rows), by default on the
 sequences whose ground truth has the class (car: 20 of KITTI's 21, pedestrian: 15); ``--seqs``
 scores every class on exactly those. With several classes each tracker also gets a class average
@@ -26,6 +27,14 @@ order, ``x2 < x1`` allowed, ...); what TrackEval cannot read is refused with fil
 With ``--per-seq``, a sequence whose ground truth has nothing of the class to evaluate (given by
 ``--seqs``, e.g. 0017 for car) is marked ``*``: its rows can only be false positives, which
 COMBINED counts as TrackEval does for the same sequence list.
+
+``--metrics`` picks the metric families: ``kitti2d`` (TrackEval's, the default) and ``ab3dmot``
+(AB3DMOT's KITTI sAMOTA / AMOTA / AMOTP and its best-threshold MOTA, MOTP, IDS, FRAG, FP, FN:
+:mod:`dfrmot_jax.metrics.ab3dmot`, IoU from ``--ab3dmot-iou``, ``2d:T`` or ``3d:T``, default
+``3d:0.25``), which adds the columns of :mod:`dfrmot_jax.metrics.ab3dmot_table` to the CSV (on the
+``COMBINED`` rows; percent like the other ratio columns). ``--seqmap FILE`` evaluates the sequences
+of a KITTI seqmap (e.g. AB3DMOT's validation split), like ``--seqs``; a seqmap naming a sequence
+without ground truth is refused with its file and line.
 """
 
 from __future__ import annotations
@@ -39,6 +48,15 @@ import pandas as pd
 
 from ..io.kitti import KittiFormatError
 from ..io.result_rows import read_result_rows
+from ..metrics.ab3dmot import parse_iou
+from ..metrics.ab3dmot_prep import read_seqmap
+from ..metrics.ab3dmot_table import (
+    AB3DMOT_COLUMNS,
+    ab3dmot_table,
+    add_ab3dmot_columns,
+    evaluate_ab3dmot_classes,
+    parse_metric_families,
+)
 from ..metrics.evaluate import (
     AVERAGE,
     EVAL_CLASSES,
@@ -69,6 +87,21 @@ def _classes_arg(text: str) -> tuple:
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
+def _families_arg(text: str) -> tuple:
+    try:
+        return parse_metric_families(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def _iou_arg(text: str) -> str:
+    try:
+        kind, thr = parse_iou(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    return f"{kind}:{thr:g}"
+
+
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``eval`` on an argparse ``subparsers`` object; returns its parser."""
     p = sub.add_parser(
@@ -91,6 +124,15 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--seqs", default=None,
                    help="comma-separated sequences, e.g. 0000,0002, for every class (default: per class the "
                         "sequences whose ground truth has it); other result files are not looked at")
+    p.add_argument("--seqmap", default=None, metavar="FILE",
+                   help="evaluate the sequences of a KITTI seqmap (NAME empty FIRST LAST a line, e.g. AB3DMOT's "
+                        "evaluate_tracking.seqmap.val), like --seqs")
+    p.add_argument("--metrics", default=("kitti2d",), type=_families_arg, metavar="FAMILIES",
+                   help="metric families, comma-separated: kitti2d (TrackEval's HOTA/CLEAR/Identity, default), "
+                        "ab3dmot (AB3DMOT's KITTI sAMOTA/AMOTA/AMOTP and best-threshold MOTA/MOTP/IDS/FRAG/FP/FN)")
+    p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default="3d:0.25", type=_iou_arg, metavar="2d:T|3d:T",
+                   help="AB3DMOT matching: image-box IoU (2d) or 3D IoU of the rotated boxes (3d) at threshold T "
+                        "(default 3d:0.25; AB3DMOT uses 2d:0.5 and 3d:0.25/0.5/0.7)")
     p.add_argument("--allow-missing", action="store_true",
                    help="score a sequence without a result file, or a class without a row in any file, as an "
                         "empty output (with a warning) instead of refusing")
@@ -165,6 +207,22 @@ def _mark_empty_gt(shown):
                    f"false positives, counted in COMBINED as TrackEval counts them for the same sequences")
 
 
+def _ab3dmot(d: Path, root: Path, seq_lists: dict, iou: str) -> dict:
+    """AB3DMOT's figures of folder ``d`` per class (missing files were checked by the caller)."""
+    return evaluate_ab3dmot_classes(d, root, seq_lists, iou=iou)
+
+
+def _print_ab3dmot(df, seq_lists: dict, iou: str, note_avg: str) -> None:
+    split = "; ".join(f"{c}, {len(s)} sequences" for c, s in seq_lists.items())
+    rows = df[df["seq"] == "COMBINED"]
+    cols = [c for c in ("tracker", "class") if c in rows.columns] + list(AB3DMOT_COLUMNS)
+    fmt = {c: (lambda v: f"{int(v)}") if c.endswith(("IDS", "FRAG", "FP", "FN")) else (lambda v: f"{v:.2f}")
+           for c in AB3DMOT_COLUMNS}
+    print(f"{split} (AB3DMOT KITTI, IoU {iou}; sAMOTA/AMOTA/AMOTP and the best-threshold ab3dmot_* figures, "
+          f"%{note_avg})")
+    print(rows[cols].to_string(index=False, formatters=fmt))
+
+
 def run(args) -> int:
     """Run ``eval`` for parsed ``args``: 0, or raises (bad ground truth, results or arguments)."""
 
@@ -175,17 +233,25 @@ def run(args) -> int:
         raise ValueError(f"no ground truth at {label_dir} (use --data or set DFRMOT_DATA)")
 
     seqs = parse_seqs(args.seqs)
+    families = getattr(args, "metrics", ("kitti2d",))
+    if getattr(args, "seqmap", None):
+
+        if seqs is not None:
+            raise ValueError("--seqs and --seqmap both name the sequences: give one")
+        seqs = list(read_seqmap(args.seqmap, root))
     try:
         classes = parse_classes(args.cls)
-        gts = {}
+        gts, seq_lists = {}, {}
         for c in classes:
             cs = seqs if seqs is not None else cached_class_sequences(root, c)
             if not cs:
                 raise ValueError(f"no sequence of {label_dir} has ground truth of class {c!r}")
-            gts[c] = cached_gt(root, c, cs)
+            seq_lists[c] = tuple(cs)
+            if "kitti2d" in families:
+                gts[c] = cached_gt(root, c, cs)
     except (KittiFormatError, FileNotFoundError, ValueError) as e:
         raise ValueError(f"ground truth: {e}") from e
-    wanted = sorted({s for gt in gts.values() for s in gt.sequences})
+    wanted = sorted({s for cs in seq_lists.values() for s in cs})
     known = None if seqs is not None else sorted(p.stem for p in label_dir.glob("*.txt"))
     folders = [Path(d) for d in args.results]
     for d in folders:
@@ -201,27 +267,40 @@ def run(args) -> int:
             name = str(d)
         names.append(name)
         dets = {c: read_tracker_files(d, gt) for c, gt in gts.items()}
-        for c, gt in gts.items():
-            n_gt = int(gt.n_gt_dets.sum())
-            if dets[c].frame.size or not n_gt:
+        ab = _ab3dmot(d, root, seq_lists, args.ab3dmot_iou) if "ab3dmot" in families else {}
+        for c in seq_lists:
+            if c in gts:
+                n_gt, n_rows = int(gts[c].n_gt_dets.sum()), dets[c].frame.size
+            else:
+                n_gt, n_rows = ab[c]["n_objects"], ab[c]["n_rows"]
+            if n_rows or not n_gt:
                 continue
             what = f"{d}: no {c} row in any result file, but the ground truth has {n_gt} {c} objects to evaluate"
             if not args.allow_missing:
-                raise ValueError(f"{what}; {_class_hint(d, gt.sequences, c)} (--allow-missing scores it as an "
+                raise ValueError(f"{what}; {_class_hint(d, seq_lists[c], c)} (--allow-missing scores it as an "
                                  f"empty output)")
             _warn(f"{what}: scored as an empty output")
-        res = {c: evaluate_dets(gt, dets[c]) for c, gt in gts.items()}
-        if len(res) > 1:
-            res[AVERAGE] = {"COMBINED": class_average({c: r["COMBINED"] for c, r in res.items()})}
-        tables.append(classes_table(res, tracker=name))
+        table = None
+        if gts:
+            res = {c: evaluate_dets(gt, dets[c]) for c, gt in gts.items()}
+            if len(res) > 1:
+                res[AVERAGE] = {"COMBINED": class_average({c: r["COMBINED"] for c, r in res.items()})}
+            table = classes_table(res, tracker=name)
+        if ab:
+
+            table = add_ab3dmot_columns(table, ab3dmot_table(ab, tracker=name))
+        tables.append(table)
     df = pd.concat(tables, ignore_index=True)
-    shown, note = _mark_empty_gt(df) if args.per_seq else (df[df["seq"] == "COMBINED"], "")
-    split = "; ".join(f"{c}, {len(gt.sequences)} sequences, {gt.n_frames} frames" for c, gt in gts.items())
-    note_avg = "; average: ratios averaged over the classes, counts summed" if len(gts) > 1 else ""
-    print(f"{split} (TrackEval Kitti2DBox; HOTA/DetA/AssA = mean over alphas, %{note_avg})")
-    print(_fmt_table(shown))
-    if note:
-        print(note)
+    note_avg = "; average: ratios averaged over the classes, counts summed" if len(seq_lists) > 1 else ""
+    if gts:
+        shown, note = _mark_empty_gt(df) if args.per_seq else (df[df["seq"] == "COMBINED"], "")
+        split = "; ".join(f"{c}, {len(gt.sequences)} sequences, {gt.n_frames} frames" for c, gt in gts.items())
+        print(f"{split} (TrackEval Kitti2DBox; HOTA/DetA/AssA = mean over alphas, %{note_avg})")
+        print(_fmt_table(shown))
+        if note:
+            print(note)
+    if "ab3dmot" in families:
+        _print_ab3dmot(df, seq_lists, args.ab3dmot_iou, note_avg)
     if args.csv:
         out = Path(args.csv)
         out.parent.mkdir(parents=True, exist_ok=True)

@@ -7,6 +7,10 @@ Kitti2DBox), :mod:`~dfrmot_jax.metrics.hota`, :mod:`~dfrmot_jax.metrics.clear`,
 :mod:`~dfrmot_jax.metrics.evaluate` (entry points), :mod:`~dfrmot_jax.metrics.table`,
 :mod:`~dfrmot_jax.cli.eval` (``dfrmot eval``), :mod:`~dfrmot_jax.testing.trackeval_adapter`
 (running the reference ``trackeval`` package) and :mod:`~dfrmot_jax.testing.metric_edits` (test outputs).
+AB3DMOT's KITTI 3D MOT metrics (sAMOTA, AMOTA, AMOTP, exact to its evaluator):
+:mod:`~dfrmot_jax.metrics.ab3dmot` (with ``ab3dmot_prep`` reading its inputs, ``ab3dmot_arrays``
+scoring padded outputs, ``ab3dmot_table`` the CLI's columns); the rotated 3D / BEV box IoU:
+:mod:`~dfrmot_jax.metrics.box3d`.
 
 Typical use::
 

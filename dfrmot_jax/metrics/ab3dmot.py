@@ -1,0 +1,469 @@
+"""AB3DMOT's KITTI 3D MOT metrics (sAMOTA, AMOTA, AMOTP and its best-threshold CLEAR figures), exactly.
+
+The reference is ``scripts/KITTI/evaluate.py`` of xinshuoweng/AB3DMOT (the KITTI devkit's
+``trackingEvaluation`` with 3D IoU and recall-averaged metrics), reimplemented independently,
+vectorised, with every preprocessing step (reading, filtering, IoU, DontCare overlap, graph
+components) done once and shared by its ~42 evaluation passes. Inputs are read by
+:mod:`dfrmot_jax.metrics.ab3dmot_prep` (its docstring: which rows load, what is ignored, the
+3D-field and seqmap rules). Per pass, for a score threshold ``thr``:
+
+1. **Track scores.** Every row's score becomes the mean score of its track (per sequence); tracks
+   whose mean is ``< thr`` are dropped whole.
+2. **Matching, per frame.** Cost ``c = 1 - IoU`` between ground-truth objects (ignored ones
+   included) and kept tracker rows, IoU the image-box IoU (``2d``) or the 3D IoU of the rotated
+   boxes (``3d``, :mod:`dfrmot_jax.metrics.box3d`); pairs with ``c <= 1 - T`` (T the IoU
+   threshold, in floats) are candidates, others cost 1e9. The reference's Munkres on that matrix
+   maximises the number of candidate pairs, then minimises their cost; here the same optimum per
+   connected component of the candidate graph (one pair: matched outright; larger:
+   ``scipy.optimize.linear_sum_assignment``, cached per component and kept-column subset).
+3. **Ignoring.** An unmatched kept tracker row is ignored when it is of the neighbouring class,
+   its image box is at most 25 px high (``|y1 - y2|``), or more than half of its image box lies
+   in a DontCare region (2D, also in 3D mode); "unmatched" is the reference's sticky ``valid``
+   flag: a row matched in *any earlier pass* is never ignored again (the tracker objects are
+   shared by the passes and the flag is not reset). A ground-truth object with occlusion > 2,
+   truncation > 0 or of the neighbouring class is ignored (matched or not).
+4. **Counts.** ``TP`` = matches (ignored objects' included, as the reference prints it), ``FN`` =
+   unmatched non-ignored objects, ``FP`` = kept rows - matches - ignored rows, ``n_gt`` = non-ignored
+   objects; ``IDS`` / ``FRAG`` from each object trajectory's per-frame matched track (the
+   reference's trajectory pass: a frame of an ignored object resets the last id; its exact rules
+   in :func:`_ids_frag`); ``MOTA = 1 - (FN + FP + IDS) / n_gt``, ``MOTP`` = sum of matched IoUs
+   (``1 - c``) / TP, ``sMOTA = min(1, max(0, 1 - (FN + FP + IDS - (1 - r) n_gt) / (r n_gt)))``.
+
+The evaluation: pass 0 keeps every track (``thr = -10000``, ``r = 1``); its matched rows' scores,
+sorted descending, give up to 40 thresholds at recall ``0.025 k`` (``getThresholds``: a score is
+taken when the running recall point is nearer its own recall than the next one's; the first, at
+recall 0, is dropped); one pass per threshold (in that order: descending scores), each with
+``r`` its recall point; ``sAMOTA``, ``AMOTA``, ``AMOTP`` = sums of sMOTA, MOTA, MOTP over these
+passes / 40 (missing recall points count 0); the best threshold is the first with the largest
+MOTA > 0 (else -10000), and a last pass at it gives the printed ``MOTA MOTP IDS FRAG FP FN TP``.
+
+Quirks of the reference that are reproduced (and tested on its figures):
+
+* the sticky ``valid`` flag above: the best-threshold pass can count more FP than pass 0 at the
+  same threshold (published 2D val: 251 vs 250);
+* the score averaging is repeated each pass on the already averaged scores: the mean of ``n``
+  copies of a float is computed again (a sequential float sum / n, Python's ``sum`` before 3.12),
+  which may move it by an ulp and so drop a track at the threshold that is its own score. Every
+  fixture line depends on it (averaging once changes all ten); under Python >= 3.12, whose
+  ``sum`` of floats is compensated, the reference itself would print other figures;
+* ``num_gt`` for the recall points is pass 0's ``TP + FN``, with ignored TPs in TP;
+* ``MOTP`` counts ignored TPs' overlaps; sums are accumulated in the reference's order
+  (frames, then objects; passes in order), as float64 like Python's floats;
+* the per-frame sanity checks and MT/PT/ML are not reproduced (not printed in the figures used).
+
+Ties: on an exactly tied optimum the reference's Munkres and scipy may choose different pairs;
+on the fixtures (two outputs x 2D/3D x two splits) the figures agree to the last printed digit.
+The reference crashes on a result box identical to its ground-truth box (Qhull error in its
+polygon clipping); here the IoU is 1.
+
+Results are dicts of fractions (percent = x 100): ``sAMOTA AMOTA AMOTP MOTA MOTP`` float,
+``IDS FRAG FP FN TP`` int, ``recall precision best_threshold`` float, ``n_recall_points`` int,
+``all_tracks`` (pass 0: ``MOTA MOTP IDS FRAG FP FN TP recall``), ``n_rows`` (tracker rows of the
+class read) and ``n_objects`` (ground-truth objects not ignored: MOTA's denominator).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from dfrmot_jax.metrics.ab3dmot_prep import (
+    MIN_HEIGHT,
+    Ab3dGT,
+    Ab3dTracker,
+    cached_ab3dmot_gt,
+    read_ab3dmot_results,
+    read_seqmap,
+)
+from dfrmot_jax.metrics.box3d import iou_3d
+from dfrmot_jax.metrics.evaluate import cached_class_sequences
+from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
+from dfrmot_jax.paths import default_data_root
+
+__all__ = ["AB3DMOT_FIELDS", "parse_iou", "Ab3dPrepared", "prepare_passes", "ab3dmot_metrics",
+           "evaluate_ab3dmot", "evaluate_ab3dmot_files"]
+
+#: the figures of one evaluation (fractions except counts), in the order the CLI writes them
+AB3DMOT_FIELDS = ("sAMOTA", "AMOTA", "AMOTP", "MOTA", "MOTP", "IDS", "FRAG", "FP", "FN", "TP")
+N_SAMPLE_POINTS = 41
+_MAX_COST = 1e9
+_ALL = -10000.0
+
+
+def parse_iou(spec) -> tuple[str, float]:
+    """``'3d:0.25'`` / ``'2d:0.5'`` / ``('3d', 0.25)`` -> ``('3d', 0.25)``; ValueError otherwise.
+
+    The threshold must be in (0, 1] (at 0 every pair, even of disjoint boxes, would match)."""
+    if isinstance(spec, str):
+        kind, sep, thr = spec.strip().lower().partition(":")
+        if not sep:
+            raise ValueError(f"AB3DMOT IoU {spec!r}: expected 2d:T or 3d:T, e.g. 3d:0.25")
+        try:
+            value = float(thr)
+        except ValueError:
+            raise ValueError(f"AB3DMOT IoU {spec!r}: threshold {thr!r} is not a number") from None
+    else:
+        kind, value = spec
+        kind = str(kind).lower()
+        value = float(value)
+    if kind not in ("2d", "3d"):
+        raise ValueError(f"AB3DMOT IoU {spec!r}: kind must be 2d or 3d, got {kind!r}")
+    if not (0.0 < value <= 1.0):
+        raise ValueError(f"AB3DMOT IoU {spec!r}: threshold must be in (0, 1], got {value}")
+    return kind, value
+
+
+def iou_2d_pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The reference's ``boxoverlap(a, b)`` (union criterion) for pairs of [P, 4] image boxes."""
+    w = np.minimum(a[:, 2], b[:, 2]) - np.maximum(a[:, 0], b[:, 0])
+    h = np.minimum(a[:, 3], b[:, 3]) - np.maximum(a[:, 1], b[:, 1])
+    hit = (w > 0) & (h > 0)
+    inter = w * h
+    union = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1]) + (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1]) - inter
+    out = np.zeros(len(a))
+    np.divide(inter, union, out=out, where=hit & (union != 0))
+    return out
+
+
+def _ioa(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The reference's ``boxoverlap(a, b, 'a')``: intersection over the area of ``a`` ([P, 4] pairs)."""
+    w = np.minimum(a[:, 2], b[:, 2]) - np.maximum(a[:, 0], b[:, 0])
+    h = np.minimum(a[:, 3], b[:, 3]) - np.maximum(a[:, 1], b[:, 1])
+    area = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
+    out = np.zeros(len(a))
+    np.divide(w * h, area, out=out, where=(w > 0) & (h > 0) & (area != 0))
+    return out
+
+
+@dataclass(eq=False)
+class Ab3dPrepared:
+    """Everything the passes share, for one (ground truth, tracker output, IoU kind and threshold).
+
+    Candidate pairs (E, by frame then object then row): ``e_g`` [E] object, ``e_t`` [E] tracker
+    row, ``e_c`` [E] cost ``1 - IoU``. ``trivial`` [E] bool: the pair is its component alone.
+    Components of two or more pairs (C): ``comp_edges`` [E_nt] edge indices grouped by component,
+    ``comp_start`` [C+1]; ``comps``: per component (objects, rows, edge-index matrix [n_obj, n_row]
+    with -1 off the candidates, cost matrix with 1e9 off them). ``trk_static_ignore`` [M] bool
+    (neighbour class, <= 25 px, or in DontCare). Track scores: ``track_mean`` [n_tracks] (pass 0's
+    averaged score), ``track_len`` [n_tracks].
+    """
+    gt: Ab3dGT
+    trk: Ab3dTracker
+    kind: str
+    threshold: float
+    e_g: np.ndarray
+    e_t: np.ndarray
+    e_c: np.ndarray
+    trivial: np.ndarray
+    comp_edges: np.ndarray
+    comp_start: np.ndarray
+    comps: list
+    trk_static_ignore: np.ndarray
+    track_len: np.ndarray
+    track_mean: np.ndarray
+
+
+def _seq_sum_rows(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
+    """Sequential float64 sum (Python's ``sum``: left to right from 0) of ``values`` per group,
+    in array order within a group. values, group: [R]; returns [n_groups]."""
+    out = np.zeros(n_groups)
+    if len(values) == 0:
+        return out
+    order = np.argsort(group, kind="stable")
+    g = group[order]
+    v = values[order]
+    counts = np.bincount(g, minlength=n_groups)
+    starts = segment_starts(counts)[:-1]
+    rank = np.arange(len(g)) - starts[g]
+    # step k adds the k-th value of every group that has one
+    by_rank = np.argsort(rank, kind="stable")
+    rank_counts = np.bincount(rank)
+    pos = 0
+    for n in rank_counts.tolist():
+        idx = by_rank[pos:pos + n]
+        out[g[idx]] += v[idx]
+        pos += n
+    return out
+
+
+def _seq_repeat_sum(value: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Sequential float64 sum of ``n[i]`` copies of ``value[i]`` ([T] each) -> [T]."""
+    out = np.zeros(len(value))
+    if len(value) == 0:
+        return out
+    order = np.argsort(-n, kind="stable")
+    v, ns = value[order], n[order]
+    acc = np.zeros(len(v))
+    active = len(v)
+    for k in range(1, int(ns.max(initial=0)) + 1):
+        while active and ns[active - 1] < k:
+            active -= 1
+        acc[:active] += v[:active]
+    out[order] = acc
+    return out
+
+
+def _candidate_pairs(gt: Ab3dGT, trk: Ab3dTracker, kind: str, threshold: float):
+    F = gt.n_frames
+    nt = np.bincount(trk.frame, minlength=F)
+    t_start = segment_starts(nt)
+    seg, row, col, _ = enumerate_pairs(np.diff(gt.start), gt.start[:-1], nt, t_start[:-1])
+    if kind == "2d":
+        iou = iou_2d_pairs(gt.box[row], trk.box[col])
+    else:
+        iou = np.zeros(len(row))
+        live = np.flatnonzero(trk.has3d[col])
+        if live.size:
+            iou[live] = iou_3d(gt.box3d[row[live]], trk.box3d[col[live]])
+    cost = 1.0 - iou
+    ok = cost <= 1.0 - threshold
+    return row[ok], col[ok], cost[ok], t_start
+
+
+def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: float = 0.25,
+                   pairs: tuple | None = None) -> Ab3dPrepared:
+    """The shared preprocessing of :func:`ab3dmot_metrics` (see :class:`Ab3dPrepared`).
+
+    pairs: the candidate pairs ``(e_g, e_t, e_c)`` when already computed (by frame, object, row:
+    :mod:`dfrmot_jax.metrics.ab3dmot_arrays` computes them for many outputs at once)."""
+    kind, threshold = parse_iou((kind, threshold))
+    N, M = len(gt.frame), len(trk.frame)
+    if pairs is None:
+        e_g, e_t, e_c, t_start = _candidate_pairs(gt, trk, kind, threshold)
+    else:
+        e_g, e_t, e_c = pairs
+        t_start = segment_starts(np.bincount(trk.frame, minlength=gt.n_frames))
+    # static part of the tracker-ignore rule: neighbour class, small, or inside a DontCare region
+    static = trk.neighbour | (np.abs(trk.box[:, 1] - trk.box[:, 3]) <= MIN_HEIGHT)
+    _, drow, dcol, _ = enumerate_pairs(np.diff(t_start), t_start[:-1], np.diff(gt.dc_start), gt.dc_start[:-1])
+    if len(drow):
+        inside = _ioa(trk.box[drow], gt.dc_box[dcol]) > 0.5
+        static[drow[inside]] = True
+    # components of the candidate graph
+    E = len(e_g)
+    trivial = np.ones(E, dtype=bool)
+    comps, comp_edges, comp_start = [], np.zeros(0, np.int64), np.zeros(1, np.int64)
+    if E:
+        deg_g = np.bincount(e_g, minlength=N)
+        deg_t = np.bincount(e_t, minlength=M)
+        trivial = (deg_g[e_g] == 1) & (deg_t[e_t] == 1)
+        hard = np.flatnonzero(~trivial)
+        if hard.size:
+            graph = coo_matrix((np.ones(hard.size), (e_g[hard], N + e_t[hard])), shape=(N + M, N + M))
+            _, label = connected_components(graph, directed=False)
+            lab = label[e_g[hard]]
+            order = np.argsort(lab, kind="stable")         # edges stay in (frame, object, row) order
+            comp_edges = hard[order]
+            _, counts = np.unique(lab[order], return_counts=True)
+            comp_start = segment_starts(counts)
+            for c in range(len(counts)):
+                ed = comp_edges[comp_start[c]:comp_start[c + 1]]
+                objs, gi = np.unique(e_g[ed], return_inverse=True)
+                rows, ti = np.unique(e_t[ed], return_inverse=True)
+                idx = np.full((len(objs), len(rows)), -1, dtype=np.int64)
+                idx[gi, ti] = ed
+                cost = np.full((len(objs), len(rows)), _MAX_COST)
+                cost[gi, ti] = e_c[ed]
+                comps.append((objs, rows, idx, cost))
+    track_len = np.bincount(trk.track, minlength=trk.n_tracks)
+    sums = _seq_sum_rows(trk.score, trk.track, trk.n_tracks)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = sums / track_len
+    return Ab3dPrepared(gt=gt, trk=trk, kind=kind, threshold=threshold, e_g=e_g, e_t=e_t, e_c=e_c, trivial=trivial,
+                        comp_edges=comp_edges, comp_start=comp_start, comps=comps, trk_static_ignore=static,
+                        track_len=track_len, track_mean=mean)
+
+
+def _ids_frag(gt: Ab3dGT, match_track: np.ndarray) -> tuple[int, int]:
+    """The reference's trajectory pass: id switches and fragmentations over all object trajectories.
+
+    For an object trajectory g[0..n-1] (matched track per frame, -1 if none) with ignore flags
+    ign: ``last`` starts at g[0]; at f >= 1 an ignored frame sets last = -1 and counts nothing;
+    otherwise an id switch when last != g[f], last != -1, g[f] != -1 and g[f-1] != -1; a
+    fragmentation when f < n-1, g[f-1] != g[f], last != -1, g[f] != -1 and g[f+1] != -1; then
+    last = g[f] if g[f] != -1. After the loop one more fragmentation when n > 1, g[n-2] != g[n-1],
+    g[n-1] != -1 and frame n-1 is not ignored.
+    """
+    o = gt.traj_order
+    if o.size < 2:
+        return 0, 0
+    g = match_track[o]
+    ign = gt.ignored[o]
+    tr = gt.traj[o]
+    n = len(g)
+    idx = np.arange(n)
+    first = np.ones(n, dtype=bool)
+    first[1:] = tr[1:] != tr[:-1]
+    last_pos = np.ones(n, dtype=bool)
+    last_pos[:-1] = tr[1:] != tr[:-1]
+    event = first | ign | (g != -1)
+    ev_value = np.where(first, g, np.where(ign, -1, g))
+    upto = np.maximum.accumulate(np.where(event, idx, 0))        # latest event at or before i
+    last = np.full(n, -1, dtype=np.int64)
+    last[1:] = ev_value[upto[:-1]]                                # state before processing i
+    prev = np.roll(g, 1)
+    nxt = np.roll(g, -1)
+    body = ~first & ~ign
+    ids = body & (last != g) & (last != -1) & (g != -1) & (prev != -1)
+    frag = body & ~last_pos & (prev != g) & (last != -1) & (g != -1) & (nxt != -1)
+    frag_end = last_pos & ~first & ~ign & (prev != g) & (g != -1)
+    return int(ids.sum()), int(frag.sum() + frag_end.sum())
+
+
+class _Passes:
+    """Runs the reference's passes in order, carrying its state (sticky valid flags, scores)."""
+    def __init__(self, prep: Ab3dPrepared):
+        self.p = prep
+        M = len(prep.trk.frame)
+        self.valid = np.zeros(M, dtype=bool)
+        self.score = prep.track_mean.copy()                      # current averaged score per track
+        self.n_avg = 0                                           # averaging rounds done
+        self.settled = False
+        self.edge_on = np.zeros(len(prep.e_g), dtype=bool)
+        self.comp_key = [None] * len(prep.comps)
+        self.cache: dict = {}
+        self.n_gt = int((~prep.gt.ignored).sum())
+
+    def _average(self) -> None:
+        if self.n_avg and not self.settled:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                new = _seq_repeat_sum(self.score, self.p.track_len) / self.p.track_len
+            new = np.where(self.p.track_len > 0, new, self.score)
+            self.settled = bool(np.array_equal(new, self.score))      # a fixed point: later rounds change nothing
+            self.score = new
+        self.n_avg += 1
+
+    def _match(self, kept: np.ndarray) -> None:
+        p = self.p
+        self.edge_on = np.where(p.trivial, kept[p.e_t], False)
+        for c, (objs, rows, idx, cost) in enumerate(p.comps):
+            k = kept[rows]
+            key = k.tobytes()
+            hit = self.cache.get((c, key))
+            if hit is None:
+                cols = np.flatnonzero(k)
+                if cols.size:
+                    r, cc = linear_sum_assignment(cost[:, cols])
+                    e = idx[r, cols[cc]]
+                    hit = e[e >= 0]
+                else:
+                    hit = np.zeros(0, np.int64)
+                self.cache[(c, key)] = hit
+            self.edge_on[hit] = True
+
+    def run(self, threshold: float, recall: float = 1.0) -> dict:
+        p = self.p
+        gt, trk = p.gt, p.trk
+        self._average()
+        kept = ~(self.score[trk.track] < threshold) if len(trk.track) else np.zeros(0, dtype=bool)
+        self._match(kept)
+        on = np.flatnonzero(self.edge_on)
+        matched_row = np.zeros(len(trk.frame), dtype=bool)
+        matched_row[p.e_t[on]] = True
+        match_track = np.full(len(gt.frame), -1, dtype=np.int64)
+        match_track[p.e_g[on]] = trk.track[p.e_t[on]]
+        self.valid |= matched_row
+        n_ign_trk = int((kept & ~self.valid & p.trk_static_ignore).sum())
+        tp = len(on)
+        fn = int(((match_track < 0) & ~gt.ignored).sum())
+        fp = int(kept.sum()) - tp - n_ign_trk
+        ids, frag = _ids_frag(gt, match_track)
+        total = float(np.cumsum(1.0 - p.e_c[on])[-1]) if tp else 0.0
+        n_gt = self.n_gt
+        if n_gt == 0:
+            mota = smota = -math.inf
+        else:
+            mota = 1 - (fn + fp + ids) / float(n_gt)
+            smota = min(1, max(0, 1 - (fn + fp + ids - (1 - recall) * n_gt) / float(recall * n_gt)))
+        motp = total / float(tp) if tp else 0
+        if (fp + tp) == 0 or (tp + fn) == 0:
+            rec = prec = 0.0
+        else:
+            rec, prec = tp / float(tp + fn), tp / float(fp + tp)
+        return dict(MOTA=mota, MOTP=motp, sMOTA=smota, IDS=ids, FRAG=frag, FP=fp, FN=fn, TP=tp, recall=rec,
+                    precision=prec, scores=self.score[trk.track[p.e_t[on]]])
+
+
+def _thresholds(scores: np.ndarray, num_gt: int) -> tuple[list, list]:
+    """The reference's ``getThresholds``: (thresholds, recall points) from pass 0's matched scores."""
+    s = np.sort(np.asarray(scores, dtype=np.float64))[::-1]
+    n = len(s)
+    if n == 0:
+        return [], []
+    i = np.arange(n)
+    left = (i + 1) / float(num_gt)
+    right = np.where(i < n - 1, (i + 2) / float(num_gt), left)
+    thr, rec = [], []
+    cur, pos, step = 0, 0, 1 / (N_SAMPLE_POINTS - 1.0)
+    while pos < n:
+        take = ~((right[pos:] - cur) < (cur - left[pos:])) | (i[pos:] == n - 1)
+        j = pos + int(np.argmax(take))
+        thr.append(float(s[j]))
+        rec.append(cur)
+        cur += step
+        pos = j + 1
+    return thr[1:], rec[1:]
+
+
+def ab3dmot_metrics(prep: Ab3dPrepared) -> dict:
+    """The reference's full evaluation on prepared inputs (module docstring) -> dict of figures."""
+    runs = _Passes(prep)
+    first = runs.run(_ALL)
+    num_gt = first["TP"] + first["FN"]
+    thresholds, recalls = _thresholds(first["scores"], num_gt) if num_gt else ([], [])
+    s_smota = s_mota = s_motp = 0
+    best_mota, best_thr = 0, _ALL
+    for thr, rec in zip(thresholds, recalls):
+        r = runs.run(thr, rec)
+        s_smota += r["sMOTA"]
+        s_mota += r["MOTA"]
+        s_motp += r["MOTP"]
+        if r["MOTA"] > best_mota:
+            best_thr, best_mota = thr, r["MOTA"]
+    best = runs.run(best_thr)
+    keys = ("MOTA", "MOTP", "IDS", "FRAG", "FP", "FN", "TP")
+    out = {"sAMOTA": s_smota / (N_SAMPLE_POINTS - 1), "AMOTA": s_mota / (N_SAMPLE_POINTS - 1),
+           "AMOTP": s_motp / (N_SAMPLE_POINTS - 1)}
+    out.update({k: best[k] for k in keys})
+    out.update(recall=best["recall"], precision=best["precision"], best_threshold=float(best_thr),
+               n_recall_points=len(thresholds), all_tracks={k: first[k] for k in keys + ("recall",)},
+               n_rows=len(prep.trk.frame), n_objects=runs.n_gt)
+    return out
+
+
+def evaluate_ab3dmot(gt: Ab3dGT, trk: Ab3dTracker, iou="3d:0.25") -> dict:
+    """Score one tracker output (:func:`~dfrmot_jax.metrics.ab3dmot_prep.read_ab3dmot_results`)."""
+    kind, thr = parse_iou(iou)
+    return ab3dmot_metrics(prepare_passes(gt, trk, kind, thr))
+
+
+def evaluate_ab3dmot_files(results_dir, root=None, cls: str = "car", sequences: Sequence | None = None,
+                           iou="3d:0.25", seqmap=None, missing: str = "empty") -> dict:
+    """AB3DMOT's KITTI evaluation of ``results_dir/SSSS.txt`` (one class) -> dict of figures.
+
+    root: KITTI training root (default :func:`dfrmot_jax.paths.default_data_root`) or an
+    :class:`~dfrmot_jax.metrics.ab3dmot_prep.Ab3dGT`; sequences: names or ints (default: the
+    seqmap's, else every ``label_02`` sequence whose ground truth has the class); seqmap: a KITTI
+    seqmap file (e.g. AB3DMOT's ``evaluate_tracking.seqmap.val``); iou: ``'3d:0.25'`` (default),
+    ``'2d:0.5'``, ... (:func:`parse_iou`). missing: a sequence without a file is scored as an empty
+    file (``'empty'``, the reference's behaviour with an empty file) or an error (``'error'``).
+    """
+    kind, thr = parse_iou(iou)
+    if isinstance(root, Ab3dGT):
+        gt = root
+    else:
+        if root is None:
+            root = default_data_root()
+        if sequences is None and seqmap is not None:
+            sequences = read_seqmap(seqmap, root)
+        if sequences is None:
+            sequences = cached_class_sequences(root, cls)
+        gt = cached_ab3dmot_gt(root, cls, sequences)
+    trk = read_ab3dmot_results(results_dir, gt, need_3d=(kind == "3d"), missing=missing)
+    return ab3dmot_metrics(prepare_passes(gt, trk, kind, thr))
