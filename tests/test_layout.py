@@ -1,48 +1,292 @@
-"""The rules of ARCHITECTURE.md, read off the code's imports."""
+"""The rules of ARCHITECTURE.md, read off the code's imports.
+
+ARCHITECTURE.md's layout table is parsed here: its first column names each place of the package
+(``config.py``, ``core/``, ...), its last column what the place may import (backticked places or
+modules, ``everything above``, ``anything``, ``nothing``). The tests check the code against the
+table in both directions (every import allowed, every allowance used, every module in a place), so
+the document and the code cannot drift apart, and check the rules the table cannot say: no import
+cycle, no underscore name imported across modules, the oracle's and the tracker's import closures.
+"""
 
 import ast
+import re
+from functools import lru_cache
 from pathlib import Path
 
-PKG = Path(__file__).resolve().parent.parent / "dfrmot_jax"
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PKG = ROOT / "dfrmot_jax"
 MAX_LINES = 650
+ORACLE = "dfrmot_jax.testing.reference"
 
 
-def _imports(path: Path) -> set[str]:
-    """Package modules a file imports (relative imports resolved to dotted names under dfrmot_jax)."""
-    tree = ast.parse(path.read_text())
-    here = path.relative_to(PKG.parent).with_suffix("").parts          # ("dfrmot_jax", "core", "step")
-    out = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = list(here[:len(here) - node.level])
-                mod = ".".join(base + ([node.module] if node.module else []))
-                names = [mod] + [f"{mod}.{a.name}" for a in node.names]
-            else:
-                names = [node.module or ""]
-            out.update(n for n in names if n.startswith("dfrmot_jax"))
-        elif isinstance(node, ast.Import):
-            out.update(a.name for a in node.names if a.name.startswith("dfrmot_jax"))
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(PKG.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+@lru_cache(maxsize=None)
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for p in sorted(PKG.rglob("*.py"))}
+
+
+def _targets(node, here: str, is_pkg: bool) -> list[tuple[str, str | None]]:
+    """(imported package module, imported name or None) of one import statement."""
+    mods = _modules()
+    if isinstance(node, ast.Import):
+        return [(a.name, None) for a in node.names if a.name.startswith("dfrmot_jax")]
+    base = here.split(".") if is_pkg else here.split(".")[:-1]
+    if node.level:
+        mod = ".".join(base[:len(base) - node.level + 1] + ([node.module] if node.module else []))
+    else:
+        mod = node.module or ""
+    if not mod.startswith("dfrmot_jax"):
+        return []
+    return [(f"{mod}.{a.name}", None) if f"{mod}.{a.name}" in mods else (mod, a.name) for a in node.names]
+
+
+@lru_cache(maxsize=None)
+def _graph() -> dict[str, dict[str, list]]:
+    """module -> {imported module: [imported names]} over every import statement (lazy ones too)."""
+    out = {}
+    for name, path in _modules().items():
+        edges: dict[str, list] = {}
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                for mod, imported in _targets(node, name, path.name == "__init__.py"):
+                    edges.setdefault(mod, []).append(imported)
+        out[name] = edges
     return out
 
 
-def test_core_imports_only_itself_and_config():
-    for path in (PKG / "core").glob("*.py"):
-        bad = {m for m in _imports(path) if not m.startswith(("dfrmot_jax.core", "dfrmot_jax.config"))}
-        assert not bad, f"{path.name} imports {sorted(bad)}"
+def _closure(start: set[str]) -> set[str]:
+    """Every package module reachable from ``start`` through import statements (``start`` included;
+    importing a module also runs the ``__init__`` of each package it sits in, except the package
+    root's, which is the public entry point that imports everything and is no place's dependency)."""
+    seen, todo = set(), list(start)
+    while todo:
+        m = todo.pop()
+        if m in seen:
+            continue
+        seen.add(m)
+        parents = [".".join(m.split(".")[:i]) for i in range(1, m.count(".") + 1)]
+        todo.extend(p for p in parents if p in _modules() and p != "dfrmot_jax")
+        todo.extend(_graph().get(m, {}))
+    return seen
 
 
-def test_the_oracle_imports_nothing_from_core():
-    bad = {m for m in _imports(PKG / "testing" / "reference.py") if m.startswith("dfrmot_jax.core")}
-    assert not bad, sorted(bad)
+# ---------------------------------------------------------------------------------------------
+# The table of ARCHITECTURE.md
+
+def _place_key(cell: str) -> str:
+    """``core/`` -> ``dfrmot_jax.core``; ``config.py`` -> ``dfrmot_jax.config``; ``__init__.py`` -> the root."""
+    cell = cell.strip("`")
+    if cell == "__init__.py":
+        return "dfrmot_jax"
+    return "dfrmot_jax." + cell.removesuffix("/").removesuffix(".py")
+
+
+@lru_cache(maxsize=None)
+def _table() -> list[tuple[str, set[str] | None]]:
+    """[(place, allowed targets or None for anything)] in the table's order; ``everything above``
+    expanded to the places of the rows above."""
+    text = (ROOT / "ARCHITECTURE.md").read_text()
+    section = text.split("## Layout and rules", 1)[1].split("\n## ", 1)[0]
+    rows = [line for line in section.splitlines() if line.startswith("| `")]
+    assert rows, "ARCHITECTURE.md has no layout table"
+    out: list[tuple[str, set[str] | None]] = []
+    for line in rows:
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        places = [_place_key(p) for p in re.findall(r"`([^`]+)`", cells[0])]
+        may = cells[-1]
+        allowed: set[str] | None = set()
+        if may.startswith("anything"):
+            allowed = None
+        else:
+            if "everything above" in may:
+                allowed |= {p for p, _ in out}
+            allowed |= {"dfrmot_jax." + t for t in re.findall(r"`([^`]+)`", may)}
+        out.extend((p, allowed) for p in places)
+    return out
+
+
+def _place_of(module: str) -> str:
+    """The table's place a module belongs to (the longest key it sits under)."""
+    keys = [p for p, _ in _table() if module == p or module.startswith(p + ".")]
+    keys = [k for k in keys if k != "dfrmot_jax" or module == "dfrmot_jax"]
+    assert keys, f"{module} is in no place of ARCHITECTURE.md's layout table"
+    return max(keys, key=len)
+
+
+def _matches(module: str, target: str) -> bool:
+    return module == target or module.startswith(target + ".")
+
+
+def test_every_module_sits_in_a_place_of_the_table_and_every_place_exists():
+    mods = _modules()
+    for m in mods:
+        _place_of(m)
+    for place, _ in _table():
+        assert any(_matches(m, place) for m in mods), f"ARCHITECTURE.md names {place}, which does not exist"
+
+
+def test_every_import_is_one_the_table_allows():
+    table = dict(_table())
+    bad = []
+    for m, edges in _graph().items():
+        place = _place_of(m)
+        allowed = table[place]
+        if allowed is None:
+            continue
+        for t in edges:
+            if _place_of(t) == place or any(_matches(t, a) for a in allowed):
+                continue
+            bad.append(f"{m} imports {t} ({place} may import {sorted(a.removeprefix('dfrmot_jax.') for a in allowed)})")
+    assert not bad, "\n".join(bad)
+
+
+def test_every_allowance_of_the_table_is_used():
+    """An allowance no module uses is a stale line of the document (``everything above`` excepted)."""
+    text_rows = _table()
+    stale = []
+    for i, (place, allowed) in enumerate(text_rows):
+        if allowed is None:
+            continue
+        above = {p for p, _ in text_rows[:i]}
+        named = {a for a in allowed if a not in above or a in _named_targets(place)}
+        used = {t for m, edges in _graph().items() if _place_of(m) == place for t in edges}
+        for a in named:
+            if not any(_matches(t, a) for t in used):
+                stale.append(f"{place} may import {a}, but nothing of it does")
+    assert not stale, "\n".join(stale)
+
+
+def _named_targets(place: str) -> set[str]:
+    """The targets a row names itself (not through ``everything above``)."""
+    text = (ROOT / "ARCHITECTURE.md").read_text().split("## Layout and rules", 1)[1].split("\n## ", 1)[0]
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if line.startswith("| `") and place in [_place_key(p) for p in re.findall(r"`([^`]+)`", cells[0])]:
+            return {"dfrmot_jax." + t for t in re.findall(r"`([^`]+)`", cells[-1])}
+    return set()
+
+
+def test_the_table_holds_transitively():
+    """What a place reaches through every chain of imports stays inside what its allowances reach."""
+    table = dict(_table())
+
+    def allowed_closure(place: str) -> set[str] | None:
+        seen, todo = set(), [place]
+        while todo:
+            p = todo.pop()
+            if p in seen:
+                continue
+            seen.add(p)
+            allowed = table[_place_of(p)]
+            if allowed is None:
+                return None
+            todo.extend(allowed)
+            todo.append(_place_of(p))
+        return seen
+
+    bad = []
+    for place, allowed in table.items():
+        if allowed is None:
+            continue
+        reach = allowed_closure(place)
+        if reach is None:
+            continue
+        start = {m for m in _modules() if _place_of(m) == place}
+        for m in _closure(start):
+            if not any(_matches(m, r) for r in reach):
+                bad.append(f"{place} reaches {m}")
+    assert not bad, "\n".join(sorted(bad))
+
+
+# ---------------------------------------------------------------------------------------------
+# Rules the table cannot say
+
+def test_core_reaches_only_itself_and_config():
+    core = {m for m in _modules() if _matches(m, "dfrmot_jax.core")}
+    bad = sorted(m for m in _closure(core) if not _matches(m, "dfrmot_jax.core") and m != "dfrmot_jax.config")
+    assert not bad, bad
+
+
+@pytest.mark.xfail(strict=True, reason="the oracle still takes SequenceDets from data and truncation from geometry: "
+                                       "being given its own (strict: this mark goes when it passes)")
+def test_the_oracle_reaches_nothing_of_the_tracker():
+    """The NumPy oracle (``testing/reference.py``) imports nothing that imports ``core``, through any
+    chain, so the parity tests compare two independent implementations."""
+    bad = sorted(m for m in _closure({ORACLE}) if _matches(m, "dfrmot_jax.core"))
+    assert not bad, f"the oracle reaches {bad} through {sorted(_graph()[ORACLE])}"
+
+
+def test_no_import_cycle():
+    graph = {m: set(e) for m, e in _graph().items()}
+    index, low, stack, on, cycles = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1 or v in graph.get(v, ()):
+                cycles.append(sorted(comp))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    assert not cycles, cycles
+
+
+def test_no_underscore_name_is_imported_across_modules():
+    bad = [f"{m} imports {name} from {t}" for m, edges in _graph().items() for t, names in edges.items()
+           for name in names if name and name.startswith("_") and not name.startswith("__") and t != m]
+    assert not bad, "\n".join(bad)
+
+
+def test_imports_sit_at_module_top_unless_an_optional_dependency_needs_them_lazy():
+    """Only optional dependencies (Ray, Matplotlib, Optuna's plots, PyTorch, the TrackEval reference)
+    are imported inside functions."""
+    optional = ("ray", "matplotlib", "optuna.visualization", "torch", "trackeval")
+    bad = []
+    for name, path in _modules().items():
+        for fn in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(fn):
+                mods = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                    [("." * node.level) + (node.module or "")] if isinstance(node, ast.ImportFrom) else []
+                for mod in mods:
+                    if not any(mod == o or mod.startswith(o + ".") for o in optional):
+                        bad.append(f"{name}:{node.lineno} imports {mod} inside {fn.name}()")
+    assert not bad, "\n".join(bad)
 
 
 def test_nothing_in_the_package_imports_the_test_tools():
-    for path in PKG.rglob("*.py"):
-        if "testing" in path.relative_to(PKG).parts:
-            continue
-        bad = {m for m in _imports(path) if m.startswith("dfrmot_jax.testing")}
-        assert not bad, f"{path.relative_to(PKG)} imports {sorted(bad)}"
+    bad = [f"{m} imports {t}" for m, edges in _graph().items() if not _matches(m, "dfrmot_jax.testing")
+           for t in edges if _matches(t, "dfrmot_jax.testing")]
+    assert not bad, bad
+
+
+def test_every_package_says_what_it_exports():
+    for name, path in _modules().items():
+        if path.name == "__init__.py":
+            assert "__all__" in path.read_text(), f"{name} has no __all__"
 
 
 def test_no_module_is_too_long():
