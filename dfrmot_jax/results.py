@@ -19,7 +19,8 @@ import numpy as np
 from .config import Options
 from .data import CLASS_NAMES, Frames, Split, object_boxes, object_slots
 from .io.atomic import write_text_atomic
-from .io.columns import COLUMN_SETS
+from .io.columns import (COLUMN_SETS, PLACEHOLDER_DIMS, PLACEHOLDER_LOC, PLACEHOLDER_ROT_Y, PLACEHOLDER_SCORE,
+                         invert_box3d_extent)
 from .io.kitti import tracking_lines
 
 
@@ -118,6 +119,72 @@ def row_3d_values(split: Split, rows: LaneRows) -> dict:
     out.update(has3=has3, own3=rows.own3, dims=split.dims3d[t, j], loc=split.loc3d[t, j],
                rot_y=split.rot_y3d[t, j], alpha=split.alpha3d[t, j], score3=split.score3d[t, j])
     return out
+
+
+def kitti_3d_arrays(split: Split, frames: Frames, options: Options, ids: np.ndarray, src3: np.ndarray,
+                    own3: np.ndarray | None = None, box3: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The score and 3D box each row of B lanes carries in a ``--columns kitti`` result file, as
+    arrays (for 3D metrics from the tracker's output without writing files).
+
+    ids [B, T, K] (-1: no row), src3 [B, T, K] (global 3D index, -1 none), own3 [B, T, K] bool,
+    box3 [B, T, K, 6] (output "filtered": the tracks' filtered corners) -- ``track(detail=True)``'s
+    outputs. Returns scores [B, T, K] float64 and box3d [B, T, K, 7] float64 ``h w l x y z rot_y``
+    (NaN where there is no row). The rules are :func:`dfrmot_jax.io.columns.kitti_values`': a row
+    carrying its own 3D detection (output "detections"; any 3D detection with "filtered") has that
+    detection's rot_y and score; its box is the detection's (``h w l x y z``), or with "filtered"
+    the track's filtered box written to 7 significant digits as the file has it; every other row the
+    placeholders ``-1 -1 -1 -1000 -1000 -1000``, rot_y -10 and its 2D detection's score (1 unknown).
+    The values equal what the written file reads back as.
+    """
+    ids = np.asarray(ids)
+    b, t, k = np.nonzero(ids >= 0)
+    src = np.asarray(src3)[b, t, k].astype(np.int64)
+    has3 = src >= 0
+    own = has3 if own3 is None else np.asarray(own3)[b, t, k].astype(bool) & has3
+    filtered = options.output == "filtered"
+    carry = has3 if filtered else own
+    tt, jj = np.divmod(np.where(has3, src, 0), split.valid3d.shape[1])
+    n = b.size
+    slot = slot_scores(split, frames, options)
+    score = np.full(n, PLACEHOLDER_SCORE) if slot is None else slot[t, k].astype(np.float64)
+    score = np.where(np.isfinite(score), score, PLACEHOLDER_SCORE)
+    score[carry] = split.score3d[tt[carry], jj[carry]]
+    rot_y = np.full(n, PLACEHOLDER_ROT_Y)
+    rot_y[carry] = split.rot_y3d[tt[carry], jj[carry]]
+    dims = np.full((n, 3), PLACEHOLDER_DIMS)
+    loc = np.full((n, 3), PLACEHOLDER_LOC)
+    if filtered:
+        rows3 = np.asarray(box3, np.float64)[b, t, k]
+        ok = has3 & np.all(np.isfinite(rows3), axis=1)
+        d, l = invert_box3d_extent(rows3[ok, :3], rows3[ok, 3:], options.centroid)
+        dims[ok], loc[ok] = _as_estimate(d), _as_estimate(l)
+    else:
+        dims[carry] = split.dims3d[tt[carry], jj[carry]]
+        loc[carry] = split.loc3d[tt[carry], jj[carry]]
+    scores = np.full(ids.shape, np.nan)
+    scores[b, t, k] = score
+    box3d = np.full(ids.shape + (7,), np.nan)
+    box3d[b, t, k] = np.concatenate([dims, loc, rot_y[:, None]], axis=1)
+    return scores, box3d
+
+
+def written_boxes(boxes: np.ndarray) -> np.ndarray:
+    """Image boxes [..., 4] as a kitti file reads them back: integers as they are, others to 6
+    significant digits (``io.columns.fmt_g``); float64."""
+    v = np.asarray(boxes, np.float64)
+    out = v.copy()
+    odd = np.isfinite(v) & (v != np.round(v))
+    if odd.any():
+        out[odd] = [float(f"{x:g}") for x in v[odd].tolist()]
+    return out
+
+
+def _as_estimate(v: np.ndarray) -> np.ndarray:
+    """Filtered 3D values as a kitti file reads back: integers as they are, others to 7 significant
+    digits (``io.columns.fmt_estimate``)."""
+    flat = v.reshape(-1)
+    out = np.array([x if x == int(x) and abs(x) < 1e15 else float(f"{x:.7g}") for x in flat.tolist()], np.float64)
+    return out.reshape(v.shape)
 
 
 def _check_columns(columns: str) -> None:

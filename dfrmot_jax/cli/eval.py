@@ -235,7 +235,6 @@ def run(args) -> int:
     seqs = parse_seqs(args.seqs)
     families = getattr(args, "metrics", ("kitti2d",))
     if getattr(args, "seqmap", None):
-
         if seqs is not None:
             raise ValueError("--seqs and --seqmap both name the sequences: give one")
         seqs = list(read_seqmap(args.seqmap, root))
@@ -287,7 +286,6 @@ def run(args) -> int:
                 res[AVERAGE] = {"COMBINED": class_average({c: r["COMBINED"] for c, r in res.items()})}
             table = classes_table(res, tracker=name)
         if ab:
-
             table = add_ab3dmot_columns(table, ab3dmot_table(ab, tracker=name))
         tables.append(table)
     df = pd.concat(tables, ignore_index=True)

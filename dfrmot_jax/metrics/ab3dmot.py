@@ -96,6 +96,10 @@ _MAX_COST = 1e9
 _ALL = -10000.0
 
 
+#: the IoU AB3DMOT's KITTI results are usually given at (its 3D IoU 0.25)
+DEFAULT_AB3DMOT_IOU = "3d:0.25"
+
+
 def parse_iou(spec) -> tuple[str, float]:
     """``'3d:0.25'`` / ``'2d:0.5'`` / ``('3d', 0.25)`` -> ``('3d', 0.25)``; ValueError otherwise.
 

@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files
+from dfrmot_jax.metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
 
 __all__ = ["METRIC_FAMILIES", "AB3DMOT_COLUMNS", "RATIO_SCALE", "parse_metric_families", "ab3dmot_columns",
            "ab3dmot_class_average", "evaluate_ab3dmot_classes", "ab3dmot_table", "add_ab3dmot_columns"]
@@ -28,8 +29,8 @@ METRIC_FAMILIES = ("kitti2d", "ab3dmot")
 #: the result dict's keys -> column names
 _RENAME = {"sAMOTA": "sAMOTA", "AMOTA": "AMOTA", "AMOTP": "AMOTP", "MOTA": "ab3dmot_MOTA", "MOTP": "ab3dmot_MOTP",
            "IDS": "ab3dmot_IDS", "FRAG": "ab3dmot_FRAG", "FP": "ab3dmot_FP", "FN": "ab3dmot_FN"}
-AB3DMOT_COLUMNS = tuple(_RENAME.values())
-_COUNTS = ("ab3dmot_IDS", "ab3dmot_FRAG", "ab3dmot_FP", "ab3dmot_FN")
+assert tuple(_RENAME.values()) == AB3DMOT_COLUMNS
+_COUNTS = AB3DMOT_COUNT_COLUMNS
 RATIO_SCALE = 100.0
 
 

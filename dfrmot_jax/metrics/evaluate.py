@@ -530,9 +530,9 @@ def summary_columns(seq: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
 def class_combiner(field: str) -> str | None:
     """How the class average treats a field or summary column: "sum" (:data:`CLASS_SUMMED_FIELDS`),
     "mean" (:data:`CLASS_AVERAGED_FIELDS`) or None (not a metric)."""
-    if field in CLASS_SUMMED_FIELDS:
+    if field in CLASS_SUMMED_FIELDS or field in table.AB3DMOT_COUNT_COLUMNS:
         return "sum"
-    if field in CLASS_AVERAGED_FIELDS:
+    if field in CLASS_AVERAGED_FIELDS or field in table.AB3DMOT_RATIO_COLUMNS:
         return "mean"
     return None
 

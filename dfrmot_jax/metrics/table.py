@@ -17,6 +17,13 @@ COUNT_FIELDS = clear.MAIN_INTEGER_FIELDS + identity.INTEGER_FIELDS + ("Dets", "G
 TABLE_FIELDS = (hota.FLOAT_ARRAY_FIELDS + hota.FLOAT_FIELDS + clear.MAIN_FLOAT_FIELDS + clear.MAIN_INTEGER_FIELDS
                 + identity.FLOAT_FIELDS + identity.INTEGER_FIELDS + ("Dets", "GT_Dets", "IDs", "GT_IDs"))
 COMPACT_FIELDS = ("HOTA", "DetA", "AssA", "MOTA", "MOTP", "IDSW", "IDF1", "MT", "ML", "Frag")
+#: AB3DMOT's figures as table columns (:mod:`dfrmot_jax.metrics.ab3dmot_table`): ratios (x100, as
+#: the table's other ratios) and counts, prefixed ``ab3dmot_`` where CLEAR has a column of the name
+AB3DMOT_RATIO_COLUMNS = ("sAMOTA", "AMOTA", "AMOTP", "ab3dmot_MOTA", "ab3dmot_MOTP")
+AB3DMOT_COUNT_COLUMNS = ("ab3dmot_IDS", "ab3dmot_FRAG", "ab3dmot_FP", "ab3dmot_FN")
+AB3DMOT_COLUMNS = AB3DMOT_RATIO_COLUMNS + AB3DMOT_COUNT_COLUMNS
+#: every column an objective (a sweep's report, a tune) may name
+OBJECTIVE_FIELDS = TABLE_FIELDS + AB3DMOT_COLUMNS
 
 
 def summary_row(res: Mapping[str, object]) -> dict[str, object]:
@@ -89,7 +96,7 @@ def canonical_objective(objective) -> str:
     """A metric name in any case (``hota``, ``idf1``) -> its column name (``HOTA``, ``IDF1``);
     ValueError naming the metrics when it is none of them."""
     if isinstance(objective, str):
-        by_lower = {f.lower(): f for f in TABLE_FIELDS}
+        by_lower = {f.lower(): f for f in OBJECTIVE_FIELDS}
         if objective.lower() in by_lower:
             return by_lower[objective.lower()]
-    raise ValueError(f"objective {objective!r}: not a metric; expected one of {list(TABLE_FIELDS)} (any case)")
+    raise ValueError(f"objective {objective!r}: not a metric; expected one of {list(OBJECTIVE_FIELDS)} (any case)")

@@ -10,12 +10,13 @@ import pandas as pd
 
 from ..metrics import clear, identity
 from ..metrics.evaluate import RAW_FIELDS, class_average_columns, combine_sequences, summary_columns
-from ..metrics.table import TABLE_FIELDS, canonical_objective  # noqa: F401  (re-exported)
+from ..metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, TABLE_FIELDS, canonical_objective  # noqa: F401
 from .spec import AVERAGE, OPTION_NAMES, PARAM_NAMES, extra_axes
 from .table import COMBINED, RAW_COLUMN, class_columns, split_class_column
 
 #: Objectives the report knows by name (any metric column works); these are minimised.
-MINIMISE = frozenset({"IDSW", "Frag", "ML", "CLR_FN", "CLR_FP", "IDFN", "IDFP", "PT", "MLR", "FP_per_frame"})
+MINIMISE = frozenset({"IDSW", "Frag", "ML", "CLR_FN", "CLR_FP", "IDFN", "IDFP", "PT", "MLR", "FP_per_frame",
+                      *AB3DMOT_COUNT_COLUMNS})
 OBJECTIVES = ("HOTA", "MOTA", "IDF1", "AssA", "DetA", "IDSW")
 
 
@@ -212,6 +213,10 @@ def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA", cl
     ``fold_sequences``) are then ``{class: [sequences]}``.
     """
     check_objective(df, objective)
+    if objective in AB3DMOT_COLUMNS:
+        raise ValueError(f"objective {objective}: AB3DMOT's figures are not sums over sequences (its recall "
+                         f"thresholds come from all sequences together), so a sweep's rows cannot be re-combined "
+                         f"into folds; cross-validate it with a nested tune (dfrmot tune, [tune] folds = {folds})")
     classes = classes_of(df)
     cls = report_class_of(df, cls)
     if cls == AVERAGE:

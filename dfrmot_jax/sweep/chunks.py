@@ -27,8 +27,10 @@ from .. import distort
 from ..api import TrackResult, default_capacity, track
 from ..config import Options
 from ..data import cached_split, compact_split, prepare_frames
+from ..metrics.ab3dmot_prep import cached_ab3dmot_gt
 from ..metrics.evaluate import LaneScorer, cached_gt, worker_pool
 from ..version import __version__
+from .ab3dmot_lanes import Ab3dmotLanes, add_columns
 from .distortion import DistortionAxes
 from .plan import Chunk, DataSettings, option_groups
 from .spec import SweepSpec
@@ -77,6 +79,7 @@ class Pending:
     todo: list
     future: Any = None
     result: Any = None
+    ab3dmot: list | None = None       # AB3DMOT's columns of each lane (metrics.ab3dmot)
 
 
 def distort_of(table: pd.DataFrame, rows: Sequence[int], dist: DistortionAxes):
@@ -134,6 +137,10 @@ class ChunkRunner:
         if self.workers is None:
             self.workers = min(2, os.cpu_count() or 1) if pending_cf >= 2_000_000 else 0
         self.groups = option_groups(self.table) if self.spec.distortion is not None else {}
+        self.ab3dmot = None
+        if self.spec.ab3dmot is not None:
+            gt3 = cached_ab3dmot_gt(self.data.root, self.data.cls, list(self.split.names))
+            self.ab3dmot = Ab3dmotLanes(gt3, self.split, self.spec.ab3dmot)
 
     def run(self, todo: Sequence[Chunk], keep: Keep, bar, log) -> None:
         """Track and score ``todo``, handing each chunk's table to ``keep`` in order; ``bar``: a
@@ -200,7 +207,8 @@ class ChunkRunner:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)   # overflow is a column of the table
             if dps is None:
-                res = track(frames, params, opts, chunk=self.lanes_per_call, grow=True)
+                res = track(frames, params, opts, chunk=self.lanes_per_call, grow=True,
+                            detail=self.ab3dmot is not None)
             else:       # distortion lanes vmapped with the parameter lanes; per-lane output boxes
                 res = track(self.split, params, opts, chunk=self.lanes_per_call, grow=True, distortion=dps,
                             spec=self.dspecs[c.options])
@@ -211,8 +219,11 @@ class ChunkRunner:
         # lanes identical to one still being scored (an earlier chunk in flight) wait for it
         busy = {q.digests[i] for q in self.inflight for i in q.todo}
         slim = res._replace(ids=None, boxes=None, frames=None, src3=None, own3=None, box3=None)
-        p = Pending(c, slim, digests,
-                     self.scorer.new_lanes(digests, busy))
+        p = Pending(c, slim, digests, self.scorer.new_lanes(digests, busy))
+        if self.ab3dmot is not None:
+            tm = time.perf_counter()
+            p.ab3dmot = self.ab3dmot.score(res)
+            self.timing.metrics += time.perf_counter() - tm
         if p.todo:
             dets = self.scorer.dets(res.ids, res.boxes, p.todo)
             if pool is not None:
@@ -236,8 +247,9 @@ class ChunkRunner:
         self.timing.wait += time.perf_counter() - tw
         if p.todo:
             self.scorer.store(p.digests, p.todo, p.result)
-        return chunk_frame(self.table, p.chunk, self.data, self.split.names, self.split.lengths,
-                            self.scorer.gather(p.digests), p.res, self.versions, self.spec.name)
+        df = chunk_frame(self.table, p.chunk, self.data, self.split.names, self.split.lengths,
+                         self.scorer.gather(p.digests), p.res, self.versions, self.spec.name)
+        return df if p.ab3dmot is None else add_columns(df, p.ab3dmot)
 
     def complete(self, p: Pending, keep: Keep, bar) -> None:
         """Store a chunk's scores and hand its table to ``keep``."""

@@ -105,15 +105,16 @@ def option_groups(table: pd.DataFrame) -> dict[Options, list[int]]:
 
 
 def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk: int,
-         distortion: DistortionAxes | None = None) -> list[Chunk]:
+         distortion: DistortionAxes | None = None, ab3dmot: str | None = None) -> list[Chunk]:
     """Group the configs by static options (first appearance order), cut each group into chunks.
 
     A chunk's id hashes the data settings (its class's), its config hashes and (distortion sweeps)
-    the distortion settings (``DistortionAxes.identity``). ``data``: one class's settings or, for a
+    the distortion settings (``DistortionAxes.identity``) and, when the chunks also carry AB3DMOT's
+    figures, their IoU setting ``ab3dmot`` (``"3d:0.25"``). ``data``: one class's settings or, for a
     sweep over several classes, every class's (:func:`resolve_data_all`): the chunks of each class
     in turn, every config in every class."""
     if not isinstance(data, DataSettings):
-        return [c for d in data for c in plan(table, d, chunk, distortion)]
+        return [c for d in data for c in plan(table, d, chunk, distortion, ab3dmot)]
     groups = option_groups(table)
     hashes = table["config_hash"].to_numpy()
     ident = data.identity()
@@ -124,6 +125,8 @@ def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk
             doc = {"data": ident, "configs": [hashes[i] for i in part]}
             if distortion is not None:
                 doc["distortion"] = distortion.identity()
+            if ab3dmot is not None:
+                doc["ab3dmot"] = ab3dmot
             text = json.dumps(doc, sort_keys=True)
             out.append(Chunk(hashlib.sha1(text.encode()).hexdigest()[:20], g, opts, part, data.cls))
     return out

@@ -15,7 +15,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..config import CLASSES, INHERITED_PARAMS, INT_PARAMS, PRESETS, Options, Params, option_problem, param_problem
-from ..metrics.table import canonical_objective
+from ..metrics.ab3dmot import DEFAULT_AB3DMOT_IOU, parse_iou
+from ..metrics.table import AB3DMOT_COLUMNS, canonical_objective
 from .checks import (
     GRID_KINDS,
     SweepConfigError,
@@ -54,7 +55,8 @@ def extra_axes() -> dict[str, Any]:
 RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
 
 TOP_KEYS = ("name", "description", "chunk", "seed", "samples", "data", "baseline", "params", "options", "variants",
-            "distortion", "report")
+            "distortion", "report", "metrics")
+METRICS_KEYS = ("ab3dmot",)
 DATA_KEYS = ("root", "det2d", "det3d", "class", "sequences")
 BASELINE_KEYS = ("preset", "class")
 REPORT_KEYS = ("objective", "folds", "top", "contrast", "class")
@@ -142,6 +144,7 @@ class SweepSpec:
     report_class: str | None = None             # report.class: a class or "average" (None: see report_class_of)
     objective: str = "HOTA"
     folds: int | None = None
+    ab3dmot: str | None = None                  # metrics.ab3dmot: AB3DMOT's figures too, at this IoU ("3d:0.25")
     top: int = 10
     distortion: DistortionAxes | None = None
     contrast: Contrast | None = None
@@ -445,18 +448,50 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
         raise config_error("report.class", f"{report_class!r}: expected one of the sweep's classes {list(classes)} or "
                                    f"{AVERAGE!r}", source)
     distortion = parse_distortion(doc.get("distortion"), source)
+    ab3dmot = _parse_metrics(doc.get("metrics", {}), objective, folds, source)
+    if ab3dmot is not None and distortion is not None:
+        raise config_error("metrics.ab3dmot", "AB3DMOT's figures are not computed in distortion studies yet "
+                                              "(their lanes' 3D rows include clutter)", source)
 
     spec = SweepSpec(name=name, description=str(desc), chunk=chunk, seed=seed, samples=samples, data_root=root,
                      det2d=data.get("det2d", "rrc"), det3d=data.get("det3d", "pointrcnn"), cls=cls,
                      sequences=sequences, baseline=base, variants=tuple(variants), objective=objective,
                      folds=folds, top=top, distortion=distortion, contrast=contrast, source=source,
-                     raw=dict(doc), classes=classes, baseline_class=base_cls, report_class=report_class)
+                     raw=dict(doc), classes=classes, baseline_class=base_cls, report_class=report_class,
+                     ab3dmot=ab3dmot)
     for v in spec.variants:
         if samples > 1 and all(a.is_grid for a in v.params):
             raise config_error("samples", f"samples = {samples} repeats the grid with random parameters redrawn, but "
                                   f"variant {v.name!r} has no random parameter (uniform, loguniform, randint, "
                                   f"choice): every config would repeat", source)
     return spec
+
+
+def _parse_metrics(doc, objective: str, folds: int | None, source) -> str | None:
+    """The [metrics] table: ``ab3dmot = "3d:0.25"`` (or ``"2d:0.5"``, ``true`` for the default) adds
+    AB3DMOT's figures (``sAMOTA`` ...) to the COMBINED rows; an AB3DMOT objective turns it on."""
+    check_keys(doc, METRICS_KEYS, "metrics.", source)
+    v = doc.get("ab3dmot", objective in AB3DMOT_COLUMNS)
+    if v is False:
+        if objective in AB3DMOT_COLUMNS:
+            raise config_error("metrics.ab3dmot", f"false, but report.objective = {objective!r} is one of "
+                                                  f"AB3DMOT's figures", source)
+        return None
+    if v is True:
+        v = DEFAULT_AB3DMOT_IOU
+    if not isinstance(v, str):
+        raise config_error("metrics.ab3dmot", f"{v!r}: expected true, false or \"2d:T\" / \"3d:T\" "
+                                              f"(the IoU and its threshold, e.g. \"3d:0.25\")", source)
+    try:
+        kind, thres = parse_iou(v)
+    except ValueError as e:
+        raise config_error("metrics.ab3dmot", str(e), source) from None
+    if objective in AB3DMOT_COLUMNS and folds is not None:
+        raise config_error("report.folds", f"{folds}: {objective} is not a sum over sequences (AB3DMOT draws its "
+                                           f"recall thresholds from all sequences together), so a sweep's rows "
+                                           f"cannot be re-combined into folds: cross-validate it with a nested "
+                                           f"tune ([tune] folds = {folds})", source)
+    return f"{kind}:{thres:g}"
 
 
 def as_spec(spec) -> SweepSpec:

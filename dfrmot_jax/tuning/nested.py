@@ -6,6 +6,8 @@ config is scored on the held-out fold. The configs chosen without them score eve
 one batched call (``DIR/heldout``); ``cross_validated`` is the objective over all sequences with
 each sequence tracked by the config chosen without it (TrackEval's combination of sequences,
 directly comparable to a config's COMBINED), beside the baseline's figure on the same sequences.
+An AB3DMOT objective (``sAMOTA`` ...) is not a sum over sequences: its held-out figures are scored
+on each set of sequences at once (:mod:`dfrmot_jax.tuning.composite`).
 """
 
 from __future__ import annotations
@@ -15,7 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..metrics.table import AB3DMOT_COLUMNS
 from ..sweep.analysis import make_folds, per_sequence_arrays, pooled_objective
+from .composite import ab3dmot_held_out
 from .once import tune_once
 from .space import SearchSpace
 from .study import Evaluator
@@ -44,8 +48,12 @@ def nested_cv(spec, settings, space: SearchSpace, data, outdir: Path | None, dat
     base = space.baseline_values()
     configs = chosen + [base]
     ev.run("all", configs, [False] * k + [True], list(range(k + 1)), "heldout", 0)
-    hashes = list(space.table([space.row(c) for c in configs], [False] * k + [True])["config_hash"])
-    out = held_out_scores(ev.table(), folds, hashes[:k], hashes[k], objective)
+    table = space.table([space.row(c) for c in configs], [False] * k + [True])
+    hashes = list(table["config_hash"])
+    if objective in AB3DMOT_COLUMNS:        # not a sum over sequences: scored on each set of rows at once
+        out = ab3dmot_held_out(data, table, folds, spec.ab3dmot, objective)
+    else:
+        out = held_out_scores(ev.table(), folds, hashes[:k], hashes[k], objective)
     for p, q in zip(per_fold, out.pop("per_fold")):
         p.update(q)
     return {"objective": objective, "folds": k, "fold_sequences": folds, **out, "per_fold": per_fold}

@@ -11,6 +11,8 @@ from pathlib import Path
 from typing import Mapping
 
 from ..io.atomic import write_text_atomic
+from ..metrics.ab3dmot import DEFAULT_AB3DMOT_IOU
+from ..metrics.table import AB3DMOT_COLUMNS
 from ..sweep.backend import make_backend
 from ..sweep.plan import resolve_data
 from ..sweep.runner import run_sweep
@@ -96,11 +98,11 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
     if batch is None and budget is not None:
         settings = replace(settings, batch=min(settings.batch, settings.budget))
     if refine_steps is not None:
-
         settings = replace(settings, refine=None if refine_steps == 0 else
                            replace(settings.refine or RefineSettings(), steps=int(refine_steps)))
     log = log if log is not None else (lambda m: print(m, file=sys.stderr, flush=True))
-
+    if spec.ab3dmot is None and any(o in AB3DMOT_COLUMNS for o in settings.objectives):
+        spec = replace(spec, ab3dmot=DEFAULT_AB3DMOT_IOU)      # the objective needs AB3DMOT's figures
     data = resolve_data(spec, data_root)
     space = search_space(spec)
     finite = {"grid": ("categorical",), "pairwise": ("categorical", "int")}.get(settings.sampler)
@@ -116,7 +118,6 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
         _write_manifest(outdir, spec, settings, data, identity)
     result = tune_once(spec, settings, space, outdir, data_root, backend, progress, log)
     if settings.folds:
-
         result.nested = nested_cv(spec, settings, space, data, outdir, data_root, backend, progress, log)
         if outdir is not None:
             write_text_atomic(outdir / "nested.json", json.dumps(result.nested, indent=1, default=str), parents=False)
@@ -125,7 +126,6 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
         if outdir is not None:
             write_text_atomic(outdir / "transfer.json", json.dumps(result.transfer, indent=1, default=str), parents=False)
     if outdir is not None and plots:
-
         save_plots(result, outdir / "plots")
     return result
 

@@ -74,15 +74,23 @@ def make_sampler(settings: TuneSettings, space: SearchSpace, batch: int):
         return optuna.samplers.GPSampler(seed=seed, n_startup_trials=min(settings.batch, 32),
                                          warn_independent_sampling=False)
     if name == "pairwise":
-
         return pairwise_sampler(space.distributions(), seed, n_startup=settings.batch)
     if name == "nsga2":
         return optuna.samplers.NSGAIISampler(seed=seed, population_size=settings.batch)
     if name == "random":
         return optuna.samplers.RandomSampler(seed=seed)
     if name == "grid":
-        return optuna.samplers.GridSampler(space.grid(), seed=seed)
+        return BoundedGridSampler(space.grid(), seed=seed)
     raise AssertionError(name)
+
+
+class BoundedGridSampler(optuna.samplers.GridSampler):
+    """Optuna's grid sampler for batched ask/tell: its ``after_trial`` stops the study once the grid
+    is done, which Optuna refuses outside ``study.optimize`` (RuntimeError); the tune's loop is
+    bounded by its budget instead, so that step is left out."""
+
+    def after_trial(self, study, trial, state, values) -> None:
+        pass
 
 
 def trial_index(settings: TuneSettings, phase: str, batch: int, slot: int, step_size: int = 1) -> int:
@@ -125,7 +133,6 @@ class Evaluator:
         table = self.space.table([self.space.row(v) for v in values], baseline)
         new = table[~table["config_hash"].isin(self.rows)].drop_duplicates("config_hash")
         if len(new):
-
             new = new.assign(config=np.arange(len(new), dtype=np.int64)).reset_index(drop=True)
             out = None if self.outdir is None else self.outdir / "batches" / name
             df = run_sweep(self.spec, out, data_root=self.data_root, progress=False, backend=self.backend or "local",
@@ -227,7 +234,6 @@ def search(spec: SweepSpec, settings: TuneSettings, outdir: Path | None, ev: Eva
     done = _search_done(study)
     bar = None
     if progress:
-
         bar = tqdm(total=settings.budget, initial=len(done), unit="cfg", desc=f"tune {spec.name}",
                    dynamic_ncols=True, file=sys.stderr)
     try:

@@ -1,0 +1,136 @@
+"""AB3DMOT's figures in sweeps and tunes: the same numbers as scoring the written result files."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dfrmot_jax.api import track
+from dfrmot_jax.data import load_split
+from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files
+from dfrmot_jax.metrics.ab3dmot_table import ab3dmot_columns
+from dfrmot_jax.metrics.table import AB3DMOT_COLUMNS
+from dfrmot_jax.results import ClassRun, write_runs
+from dfrmot_jax.sweep import SweepConfigError, expand, params_of, parse_spec, plan, resolve_data, run_sweep, sweep_report
+from dfrmot_jax.sweep.plan import option_groups
+from dfrmot_jax.synthetic import make_scene
+from dfrmot_jax.tuning import run_tune
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory) -> Path:
+    return make_scene(tmp_path_factory.mktemp("ab3d_scene"), n_sequences=3, n_frames=60, n_cars=4, seed=7)
+
+
+def _spec(root, **extra) -> dict:
+    spec = {"name": "ab3d", "chunk": 4, "data": {"root": str(root), "det2d": "synth2d", "det3d": "synth3d"},
+            "params": {"a_l": [4.0, 8.0], "score_3d": [0.3, 0.7]}, "options": {"output": ["detections", "filtered"]},
+            "report": {"objective": "sAMOTA"}}
+    spec.update(extra)
+    return spec
+
+
+def _file_figures(root, table: pd.DataFrame, rows, out: Path, iou: str) -> list[dict]:
+    """AB3DMOT's columns of config rows of ``table``, from their written result files."""
+    split = load_split(root, "synth2d", "synth3d", "car")
+    figures = {}
+    for options, configs in option_groups(table).items():
+        pos = [int(np.flatnonzero(table["config"].to_numpy() == c)[0]) for c in configs if c in rows]
+        if not pos:
+            continue
+        res = track(split, params_of(table, pos, "car"), options, detail=True)
+        for j, p in enumerate(pos):
+            d = out / f"config{p}"
+            write_runs(d, [ClassRun(split, res.frames, res.options, res.ids[j],
+                                    None if res.boxes.ndim == 3 else res.boxes[j], res.src3[j], res.own3[j],
+                                    None if res.box3 is None else res.box3[j])])
+            figures[p] = ab3dmot_columns(evaluate_ab3dmot_files(d, root, "car", list(split.names), iou=iou))
+    return [figures[p] for p in rows]
+
+
+@pytest.mark.parametrize("iou", ["3d:0.25", "2d:0.5"])
+def test_a_sweep_scores_ab3dmot_as_its_written_files(scene, tmp_path, iou):
+    spec = _spec(scene, metrics={"ab3dmot": iou})
+    df = run_sweep(spec, progress=False, log=lambda m: None)
+    comb = df[df["sequence"] == "COMBINED"].reset_index(drop=True)
+    per_seq = df[df["sequence"] != "COMBINED"]
+    assert per_seq[list(AB3DMOT_COLUMNS)].isna().all().all()          # a whole sequence list only
+    table = expand(parse_spec(spec))
+    rows = list(range(len(table)))
+    for p, want in zip(rows, _file_figures(scene, table, rows, tmp_path, iou)):
+        got = comb.loc[comb["config"] == p].iloc[0]
+        for col in AB3DMOT_COLUMNS:
+            assert got[col] == pytest.approx(want[col], abs=1e-9), (p, col)
+    assert comb["sAMOTA"].nunique() > 1                               # the settings change the figure
+    assert str(df["ab3dmot_IDS"].dtype) == "Int64"
+
+
+def test_the_report_ranks_by_samota_and_refuses_its_folds(scene):
+    df = run_sweep(_spec(scene), progress=False, log=lambda m: None)
+    rep = sweep_report(df, objective="sAMOTA")
+    comb = df[df["sequence"] == "COMBINED"]
+    assert rep.summary["best_in_sample"] == pytest.approx(comb["sAMOTA"].max()) and rep.summary["objective"] == "sAMOTA"
+    with pytest.raises(ValueError, match="not sums over sequences"):
+        sweep_report(df, objective="sAMOTA", folds=2)
+    with pytest.raises(SweepConfigError, match="report.folds"):
+        parse_spec(_spec(scene, report={"objective": "sAMOTA", "folds": 2}))
+
+
+def test_metrics_settings_are_checked_and_keep_other_chunk_ids(scene):
+    with pytest.raises(SweepConfigError, match="metrics.ab3dmot"):
+        parse_spec(_spec(scene, metrics={"ab3dmot": "4d:0.2"}))
+    with pytest.raises(SweepConfigError, match="metrics.ab3dmot"):
+        parse_spec(_spec(scene, metrics={"ab3dmot": False}))
+    plain = parse_spec(_spec(scene, report={"objective": "HOTA"}))
+    assert plain.ab3dmot is None
+    table = expand(plain)
+    data = resolve_data(plain)
+    before = [c.id for c in plan(table, data, 4)]
+    assert [c.id for c in plan(table, data, 4, None, None)] == before       # no setting: the same ids
+    assert not set(before) & {c.id for c in plan(table, data, 4, None, "3d:0.25")}
+
+
+def test_a_nested_tune_of_samota_scores_each_fold_as_its_files(scene, tmp_path):
+    spec = _spec(scene)
+    del spec["report"]
+    spec["params"] = {"a_l": [4.0, 8.0], "score_3d": [0.3, 0.7]}
+    spec["options"] = {"output": ["detections"]}
+    spec["tune"] = {"sampler": "grid", "budget": 4, "batch": 4, "objectives": ["sAMOTA"], "folds": 3, "seed": 1}
+    r = run_tune(spec, None, progress=False, log=lambda m: None, plots=False)
+    nested = r.nested
+    assert nested["objective"] == "sAMOTA" and len(nested["per_fold"]) == 3
+    # each sequence's file written by the config chosen without it (or the baseline's), scored together
+    from dfrmot_jax.tuning.space import search_space
+    sp = search_space(parse_spec({k: v for k, v in spec.items() if k != "tune"}))
+    configs = [f["config"] for f in nested["per_fold"]] + [sp.baseline_values()]
+    table = sp.table([sp.row(c) for c in configs], [False] * 3 + [True])
+    figures_dir = tmp_path / "files"
+    _file_figures(scene, table, list(range(len(table))), figures_dir, "3d:0.25")
+    split = load_split(scene, "synth2d", "synth3d", "car")
+    base = ab3dmot_columns(evaluate_ab3dmot_files(figures_dir / "config3", scene, "car", list(split.names)))
+    assert nested["baseline"] == pytest.approx(base["sAMOTA"], abs=1e-9)
+    composite = tmp_path / "composite"
+    composite.mkdir()
+    for f, fold in enumerate(nested["fold_sequences"]):
+        for s in fold:
+            shutil.copy(figures_dir / f"config{f}" / f"{s}.txt", composite / f"{s}.txt")
+    want = ab3dmot_columns(evaluate_ab3dmot_files(composite, scene, "car", list(split.names)))["sAMOTA"]
+    assert nested["cross_validated"] == pytest.approx(want, abs=1e-9)
+    for f, fold in enumerate(nested["fold_sequences"]):
+        held = ab3dmot_columns(evaluate_ab3dmot_files(figures_dir / f"config{f}", scene, "car", list(fold)))
+        assert nested["per_fold"][f]["held_out"] == pytest.approx(held["sAMOTA"], abs=1e-9)
+
+
+def test_a_grid_tune_may_spend_its_budget_on_the_whole_grid(scene):
+    """Optuna's grid sampler stops the study when its grid is done, which it refuses outside
+    study.optimize: a budget of the whole grid ended in an internal error."""
+    spec = _spec(scene)
+    del spec["report"]
+    spec["options"] = {"output": ["detections"]}
+    spec["tune"] = {"sampler": "grid", "budget": 4, "batch": 4, "objectives": ["HOTA"], "seed": 0}
+    r = run_tune(spec, None, progress=False, log=lambda m: None, plots=False)
+    assert r.table["config_hash"].nunique() >= 4
