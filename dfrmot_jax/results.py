@@ -122,7 +122,8 @@ def row_3d_values(split: Split, rows: LaneRows) -> dict:
 
 
 def kitti_3d_arrays(split: Split, frames: Frames, options: Options, ids: np.ndarray, src3: np.ndarray,
-                    own3: np.ndarray | None = None, box3: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    own3: np.ndarray | None = None, box3: np.ndarray | None = None,
+                    columns: str = "kitti") -> tuple[np.ndarray, np.ndarray]:
     """The score and 3D box each row of B lanes carries in a ``--columns kitti`` result file, as
     arrays (for 3D metrics from the tracker's output without writing files).
 
@@ -134,7 +135,8 @@ def kitti_3d_arrays(split: Split, frames: Frames, options: Options, ids: np.ndar
     detection's rot_y and score; its box is the detection's (``h w l x y z``), or with "filtered"
     the track's filtered box written to 7 significant digits as the file has it; every other row the
     placeholders ``-1 -1 -1 -1000 -1000 -1000``, rot_y -10 and its 2D detection's score (1 unknown).
-    The values equal what the written file reads back as.
+    ``columns="kitti-stale"``: a row carrying the matched track's stale 3D detection has its box and
+    rot_y too (score still the 2D detection's). The values equal what the written file reads back as.
     """
     ids = np.asarray(ids)
     b, t, k = np.nonzero(ids >= 0)
@@ -143,6 +145,7 @@ def kitti_3d_arrays(split: Split, frames: Frames, options: Options, ids: np.ndar
     own = has3 if own3 is None else np.asarray(own3)[b, t, k].astype(bool) & has3
     filtered = options.output == "filtered"
     carry = has3 if filtered else own
+    box_carry = has3 if columns == "kitti-stale" else carry
     tt, jj = np.divmod(np.where(has3, src, 0), split.valid3d.shape[1])
     n = b.size
     slot = slot_scores(split, frames, options)
@@ -150,7 +153,7 @@ def kitti_3d_arrays(split: Split, frames: Frames, options: Options, ids: np.ndar
     score = np.where(np.isfinite(score), score, PLACEHOLDER_SCORE)
     score[carry] = split.score3d[tt[carry], jj[carry]]
     rot_y = np.full(n, PLACEHOLDER_ROT_Y)
-    rot_y[carry] = split.rot_y3d[tt[carry], jj[carry]]
+    rot_y[box_carry] = split.rot_y3d[tt[box_carry], jj[box_carry]]
     dims = np.full((n, 3), PLACEHOLDER_DIMS)
     loc = np.full((n, 3), PLACEHOLDER_LOC)
     if filtered:
@@ -159,8 +162,8 @@ def kitti_3d_arrays(split: Split, frames: Frames, options: Options, ids: np.ndar
         d, l = invert_box3d_extent(rows3[ok, :3], rows3[ok, 3:], options.centroid)
         dims[ok], loc[ok] = _as_estimate(d), _as_estimate(l)
     else:
-        dims[carry] = split.dims3d[tt[carry], jj[carry]]
-        loc[carry] = split.loc3d[tt[carry], jj[carry]]
+        dims[box_carry] = split.dims3d[tt[box_carry], jj[box_carry]]
+        loc[box_carry] = split.loc3d[tt[box_carry], jj[box_carry]]
     scores = np.full(ids.shape, np.nan)
     scores[b, t, k] = score
     box3d = np.full(ids.shape + (7,), np.nan)

@@ -34,7 +34,7 @@ def _spec(root, **extra) -> dict:
     return spec
 
 
-def _file_figures(root, table: pd.DataFrame, rows, out: Path, iou: str) -> list[dict]:
+def _file_figures(root, table: pd.DataFrame, rows, out: Path, iou: str, columns: str = "kitti") -> list[dict]:
     """AB3DMOT's columns of config rows of ``table``, from their written result files."""
     split = load_split(root, "synth2d", "synth3d", "car")
     figures = {}
@@ -47,21 +47,21 @@ def _file_figures(root, table: pd.DataFrame, rows, out: Path, iou: str) -> list[
             d = out / f"config{p}"
             write_runs(d, [ClassRun(split, res.frames, res.options, res.ids[j],
                                     None if res.boxes.ndim == 3 else res.boxes[j], res.src3[j], res.own3[j],
-                                    None if res.box3 is None else res.box3[j])])
+                                    None if res.box3 is None else res.box3[j])], columns=columns)
             figures[p] = ab3dmot_columns(evaluate_ab3dmot_files(d, root, "car", list(split.names), iou=iou))
     return [figures[p] for p in rows]
 
 
-@pytest.mark.parametrize("iou", ["3d:0.25", "2d:0.5"])
-def test_a_sweep_scores_ab3dmot_as_its_written_files(scene, tmp_path, iou):
-    spec = _spec(scene, metrics={"ab3dmot": iou})
+@pytest.mark.parametrize("iou, columns", [("3d:0.25", "kitti"), ("2d:0.5", "kitti"), ("3d:0.25", "kitti-stale")])
+def test_a_sweep_scores_ab3dmot_as_its_written_files(scene, tmp_path, iou, columns):
+    spec = _spec(scene, metrics={"ab3dmot": iou, "ab3dmot_columns": columns})
     df = run_sweep(spec, progress=False, log=lambda m: None)
     comb = df[df["sequence"] == "COMBINED"].reset_index(drop=True)
     per_seq = df[df["sequence"] != "COMBINED"]
     assert per_seq[list(AB3DMOT_COLUMNS)].isna().all().all()          # a whole sequence list only
     table = expand(parse_spec(spec))
     rows = list(range(len(table)))
-    for p, want in zip(rows, _file_figures(scene, table, rows, tmp_path, iou)):
+    for p, want in zip(rows, _file_figures(scene, table, rows, tmp_path, iou, columns)):
         got = comb.loc[comb["config"] == p].iloc[0]
         for col in AB3DMOT_COLUMNS:
             assert got[col] == pytest.approx(want[col], abs=1e-9), (p, col)
@@ -85,6 +85,8 @@ def test_metrics_settings_are_checked_and_keep_other_chunk_ids(scene):
         parse_spec(_spec(scene, metrics={"ab3dmot": "4d:0.2"}))
     with pytest.raises(SweepConfigError, match="metrics.ab3dmot"):
         parse_spec(_spec(scene, metrics={"ab3dmot": False}))
+    with pytest.raises(SweepConfigError, match="metrics.ab3dmot_columns"):
+        parse_spec(_spec(scene, metrics={"ab3dmot_columns": "authors"}))
     plain = parse_spec(_spec(scene, report={"objective": "HOTA"}))
     assert plain.ab3dmot is None
     table = expand(plain)
@@ -134,3 +136,22 @@ def test_a_grid_tune_may_spend_its_budget_on_the_whole_grid(scene):
     spec["tune"] = {"sampler": "grid", "budget": 4, "batch": 4, "objectives": ["HOTA"], "seed": 0}
     r = run_tune(spec, None, progress=False, log=lambda m: None, plots=False)
     assert r.table["config_hash"].nunique() >= 4
+
+
+def test_stale_columns_give_a_row_its_tracks_last_3d_box(scene, tmp_path):
+    """kitti-stale: a row without its own 3D detection carries its track's last one (box and rot_y,
+    the 2D score kept); with kitti it carries the placeholders, and rows with their own are equal."""
+    split = load_split(scene, "synth2d", "synth3d", "car")
+    from dfrmot_jax.config import Options, Params
+    res = track(split, Params(), Options(), detail=True)
+    lines = {}
+    for columns in ("kitti", "kitti-stale"):
+        write_runs(tmp_path / columns, [ClassRun(split, res.frames, res.options, res.ids[0], None, res.src3[0],
+                                                 res.own3[0])], columns=columns)
+        lines[columns] = [ln.split() for f in sorted((tmp_path / columns).glob("*.txt")) for ln in f.read_text().splitlines()]
+    stale = [(a, b) for a, b in zip(lines["kitti"], lines["kitti-stale"]) if a != b]
+    assert stale, "the scene has no row with a stale 3D box"
+    for a, b in stale:
+        assert a[:5] + a[6:10] == b[:5] + b[6:10] and a[17] == b[17]     # frame .. 2D box, score
+        assert a[10:16] == ["-1", "-1", "-1", "-1000", "-1000", "-1000"] and float(b[10]) > 0
+    assert len(lines["kitti"]) == len(lines["kitti-stale"])

@@ -191,9 +191,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
     t.add_argument("--class", dest="cls", default="car",
                    help="car | pedestrian | car,pedestrian (each class with its own settings, one file per sequence)")
     t.add_argument("--seqs", help="comma-separated sequences (default: those whose ground truth has the class)")
-    t.add_argument("--columns", default="kitti", choices=["kitti", "authors"],
-                   help="result columns: kitti (standard KITTI rows with each row's 3D box and score) | authors "
-                        "(the authors' C++ 18 columns, byte for byte)")
+    t.add_argument("--columns", default="kitti", choices=["kitti", "kitti-stale", "authors"],
+                   help="result columns: kitti (standard KITTI rows with each row's own 3D box and score; rows "
+                        "without one: placeholders) | kitti-stale (as kitti, but a row without its own 3D box "
+                        "carries its track's last one, as the authors' files) | authors (the authors' C++ 18 "
+                        "columns, byte for byte)")
     t.add_argument("--out", required=True, help="output directory: new or empty (see --overwrite)")
     t.add_argument("--overwrite", action="store_true",
                    help="write into a non-empty --out: its old result files (SSSS.txt) are removed first, other "

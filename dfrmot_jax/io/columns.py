@@ -14,6 +14,11 @@ alpha, rot_y and score of its last 3D detection. Integers print as integers, the
 ``%g``, the 3D values and scores with the fewest digits (at least 6) that read back to the same
 number (so a detector file's values come back unchanged).
 
+``"kitti-stale"``: the kitti columns, except that a row whose object has no 3D detection of its
+own but matched a track with one carries that track's last 3D detection (its alpha, ``h w l``,
+``x y z``, rot_y; the score stays the 2D detection's), as the authors' files do: a 3D evaluation
+then sees the track's stale 3D box instead of the placeholder (unmatched in 3D).
+
 ``"authors"``: the 18 columns exactly as the authors' C++ writes them (spec section 6), so that
 the ``dfr2023`` run reproduces their published files byte for byte:
 ``frame id type -1 -1 alpha x1 y1 x2 y2 D1 D2 D3 L1 L2 L3 rot_y score`` with, from the internal
@@ -35,7 +40,7 @@ from ..geometry import box3d_extent
 
 __all__ = ["COLUMN_SETS", "format_lines", "invert_box3d_extent", "kitti_values", "authors_values"]
 
-COLUMN_SETS = ("kitti", "authors")
+COLUMN_SETS = ("kitti", "kitti-stale", "authors")
 
 PLACEHOLDER_ALPHA = -10.0
 PLACEHOLDER_DIMS = -1.0
@@ -183,18 +188,20 @@ class _Inputs:
             self.score2 = np.where(np.isfinite(self.score2), self.score2, PLACEHOLDER_SCORE)
 
 
-def kitti_values(n: int, centroid: str, inp: _Inputs) -> dict[str, np.ndarray]:
-    """alpha [R], dims [R, 3], loc [R, 3], rot_y [R], score [R] of the kitti columns."""
+def kitti_values(n: int, centroid: str, inp: _Inputs, stale: bool = False) -> dict[str, np.ndarray]:
+    """alpha [R], dims [R, 3], loc [R, 3], rot_y [R], score [R] of the kitti columns (``stale``: of
+    the kitti-stale columns)."""
     filtered = inp.box3 is not None
     carry = inp.has3 if filtered else inp.own3            # rows whose 3D detection values are written
+    box_carry = inp.has3 if stale else carry              # rows whose 3D box (and angles) are written
     alpha = np.full(n, PLACEHOLDER_ALPHA)
     dims = np.full((n, 3), PLACEHOLDER_DIMS)
     loc = np.full((n, 3), PLACEHOLDER_LOC)
     rot_y = np.full(n, PLACEHOLDER_ROT_Y)
     score = inp.score2.copy() if inp.score2 is not None else np.full(n, PLACEHOLDER_SCORE)
-    for out, src in ((alpha, inp.alpha), (rot_y, inp.rot_y), (score, inp.score3)):
+    for out, src, rows in ((alpha, inp.alpha, box_carry), (rot_y, inp.rot_y, box_carry), (score, inp.score3, carry)):
         if src is not None:
-            out[carry] = src[carry]
+            out[rows] = src[rows]
     if filtered:
         box3 = np.asarray(inp.box3, np.float64)
         d, l = invert_box3d_extent(box3[:, :3], box3[:, 3:], centroid)
@@ -202,9 +209,9 @@ def kitti_values(n: int, centroid: str, inp: _Inputs) -> dict[str, np.ndarray]:
         dims[m] = d[m]; loc[m] = l[m]
     else:
         if inp.dims is not None:
-            dims[carry] = inp.dims[carry]
+            dims[box_carry] = inp.dims[box_carry]
         if inp.loc is not None:
-            loc[carry] = inp.loc[carry]
+            loc[box_carry] = inp.loc[box_carry]
     return {"alpha": alpha, "dims": dims, "loc": loc, "rot_y": rot_y, "score": score}
 
 
@@ -241,7 +248,7 @@ def format_lines(frame, track_id, box, type_name="Car", columns: str = "kitti", 
     """Result lines (each ending in ``"\\n"``) for R rows in the given order.
 
     frame, track_id [R] integers; box [R, 4] ``x1 y1 x2 y2``; type_name a str or [R] strs;
-    columns ``"kitti"`` | ``"authors"`` (module docstring); centroid the run's 3D axes
+    columns ``"kitti"`` | ``"kitti-stale"`` | ``"authors"`` (module docstring); centroid the run's 3D axes
     (``"legacy"`` | ``"head"`` | ``"kitti"``).
     Per-row 3D information: has3 [R] bool (the row carries a 3D detection: the object's own, or
     the stale one of the track it matched), own3 [R] bool (it is the object's own), dims [R, 3]
@@ -265,15 +272,15 @@ def format_lines(frame, track_id, box, type_name="Car", columns: str = "kitti", 
     inp = _Inputs(n, has3, own3, dims, loc, rot_y, alpha, score3, score2, box3)
     if n == 0:
         return []
-    if columns == "kitti":
-        v = kitti_values(n, centroid, inp)
+    if columns in ("kitti", "kitti-stale"):
+        v = kitti_values(n, centroid, inp, stale=columns == "kitti-stale")
         num, box_fmt = fmt_exact, fmt_g
     else:
         v = authors_values(n, centroid, inp)
         num = box_fmt = fmt_cxx
     # filtered 3D boxes are float32 estimates, written to their precision rather than to every digit
     # of a float64 sum of them
-    box3_fmt = fmt_estimate if columns == "kitti" and inp.box3 is not None else num
+    box3_fmt = fmt_estimate if columns != "authors" and inp.box3 is not None else num
     cols = [
         [str(x) for x in frame.tolist()],
         [str(x) for x in track_id.tolist()],

@@ -32,12 +32,13 @@ from .table import COMBINED
 
 class Ab3dmotLanes:
     """AB3DMOT scoring of lanes on one split: ``gt`` its ground truth (the split's sequences, in
-    order), ``iou`` ``"3d:0.25"`` / ``"2d:0.5"``; :meth:`score` gives each lane's columns."""
+    order), ``iou`` ``"3d:0.25"`` / ``"2d:0.5"``, ``columns`` the result columns scored (``"kitti"``
+    or ``"kitti-stale"``); :meth:`score` gives each lane's columns."""
 
-    def __init__(self, gt: Ab3dGT, split: Split, iou: str):
+    def __init__(self, gt: Ab3dGT, split: Split, iou: str, columns: str = "kitti"):
         if tuple(gt.sequences) != tuple(split.names):
             raise RuntimeError("AB3DMOT ground truth and detections disagree on the sequences")
-        self.gt, self.split, self.iou = gt, split, iou
+        self.gt, self.split, self.iou, self.columns = gt, split, iou, columns
         self.memo: dict[bytes, dict] = {}
 
     def score(self, res: TrackResult) -> list[dict]:
@@ -45,7 +46,8 @@ class Ab3dmotLanes:
         ids = res.ids
         boxes = output_boxes(res.frames, res.options, res.boxes)
         boxes = np.broadcast_to(boxes, ids.shape + (4,)) if boxes.ndim == 3 else boxes
-        scores, box3d = kitti_3d_arrays(self.split, res.frames, res.options, ids, res.src3, res.own3, res.box3)
+        scores, box3d = kitti_3d_arrays(self.split, res.frames, res.options, ids, res.src3, res.own3, res.box3,
+                                        columns=self.columns)
         digests = []
         for b in range(ids.shape[0]):
             rows = ids[b] >= 0

@@ -140,7 +140,7 @@ class ChunkRunner:
         self.ab3dmot = None
         if self.spec.ab3dmot is not None:
             gt3 = cached_ab3dmot_gt(self.data.root, self.data.cls, list(self.split.names))
-            self.ab3dmot = Ab3dmotLanes(gt3, self.split, self.spec.ab3dmot)
+            self.ab3dmot = Ab3dmotLanes(gt3, self.split, self.spec.ab3dmot, self.spec.ab3dmot_columns)
 
     def run(self, todo: Sequence[Chunk], keep: Keep, bar, log) -> None:
         """Track and score ``todo``, handing each chunk's table to ``keep`` in order; ``bar``: a

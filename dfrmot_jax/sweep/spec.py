@@ -56,7 +56,7 @@ RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
 
 TOP_KEYS = ("name", "description", "chunk", "seed", "samples", "data", "baseline", "params", "options", "variants",
             "distortion", "report", "metrics")
-METRICS_KEYS = ("ab3dmot",)
+METRICS_KEYS = ("ab3dmot", "ab3dmot_columns")
 DATA_KEYS = ("root", "det2d", "det3d", "class", "sequences")
 BASELINE_KEYS = ("preset", "class")
 REPORT_KEYS = ("objective", "folds", "top", "contrast", "class")
@@ -145,6 +145,7 @@ class SweepSpec:
     objective: str = "HOTA"
     folds: int | None = None
     ab3dmot: str | None = None                  # metrics.ab3dmot: AB3DMOT's figures too, at this IoU ("3d:0.25")
+    ab3dmot_columns: str = "kitti"              # metrics.ab3dmot_columns: the result columns scored ("kitti-stale")
     top: int = 10
     distortion: DistortionAxes | None = None
     contrast: Contrast | None = None
@@ -449,6 +450,11 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
                                    f"{AVERAGE!r}", source)
     distortion = parse_distortion(doc.get("distortion"), source)
     ab3dmot = _parse_metrics(doc.get("metrics", {}), objective, folds, source)
+    ab3dmot_columns = doc.get("metrics", {}).get("ab3dmot_columns", "kitti")
+    if ab3dmot_columns not in ("kitti", "kitti-stale"):
+        raise config_error("metrics.ab3dmot_columns", f"{ab3dmot_columns!r}: expected \"kitti\" (rows without their "
+                                                      f"own 3D box unmatched in 3D) or \"kitti-stale\" (they carry "
+                                                      f"their track's last 3D box)", source)
     if ab3dmot is not None and distortion is not None:
         raise config_error("metrics.ab3dmot", "AB3DMOT's figures are not computed in distortion studies yet "
                                               "(their lanes' 3D rows include clutter)", source)
@@ -458,7 +464,7 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
                      sequences=sequences, baseline=base, variants=tuple(variants), objective=objective,
                      folds=folds, top=top, distortion=distortion, contrast=contrast, source=source,
                      raw=dict(doc), classes=classes, baseline_class=base_cls, report_class=report_class,
-                     ab3dmot=ab3dmot)
+                     ab3dmot=ab3dmot, ab3dmot_columns=ab3dmot_columns)
     for v in spec.variants:
         if samples > 1 and all(a.is_grid for a in v.params):
             raise config_error("samples", f"samples = {samples} repeats the grid with random parameters redrawn, but "

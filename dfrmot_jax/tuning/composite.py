@@ -30,7 +30,7 @@ from ..sweep.plan import DataSettings, option_groups
 from ..sweep.table import params_of
 
 
-def _lane_rows(split, table: pd.DataFrame, cls: str) -> list[tuple]:
+def _lane_rows(split, table: pd.DataFrame, cls: str, columns: str) -> list[tuple]:
     """(ids [T, K], boxes [T, K, 4], scores [T, K], box3d [T, K, 7]) of each config row of ``table``."""
     out: list = [None] * len(table)
     for options, rows in option_groups(table).items():
@@ -38,7 +38,8 @@ def _lane_rows(split, table: pd.DataFrame, cls: str) -> list[tuple]:
         res = track(split, params_of(table, pos, cls), options, detail=True)
         boxes = output_boxes(res.frames, res.options, res.boxes)
         boxes = np.broadcast_to(boxes, res.ids.shape + (4,)) if boxes.ndim == 3 else boxes
-        scores, box3d = kitti_3d_arrays(split, res.frames, res.options, res.ids, res.src3, res.own3, res.box3)
+        scores, box3d = kitti_3d_arrays(split, res.frames, res.options, res.ids, res.src3, res.own3, res.box3,
+                                        columns=columns)
         for j, p in enumerate(pos):
             out[p] = (res.ids[j], written_boxes(boxes[j]), scores[j], box3d[j])
     return out
@@ -57,7 +58,7 @@ def _stack(parts: Sequence[tuple]) -> tuple:
 
 
 def ab3dmot_held_out(data: DataSettings, table: pd.DataFrame, folds: Sequence[Sequence[str]], iou: str,
-                     objective: str) -> dict:
+                     objective: str, columns: str = "kitti") -> dict:
     """The nested cross-validation's held-out figures of an AB3DMOT ``objective`` (module docstring).
 
     ``table``: the config table of the k chosen configs (row f chosen without fold f) and, last, the
@@ -65,7 +66,7 @@ def ab3dmot_held_out(data: DataSettings, table: pd.DataFrame, folds: Sequence[Se
     ``held_out``, ``baseline_held_out``), as :func:`dfrmot_jax.tuning.nested.held_out_scores`."""
     split = cached_split(data.root, data.det2d, data.det3d, data.cls, data.sequences)
     names = list(split.names)
-    lanes = _lane_rows(split, table, data.cls)
+    lanes = _lane_rows(split, table, data.cls, columns)
     k = len(folds)
 
     def score(rows_of_seq: Sequence[int], seqs: Sequence[str]) -> float:
