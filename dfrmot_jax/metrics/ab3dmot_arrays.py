@@ -21,8 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from dfrmot_jax.metrics.ab3dmot import ab3dmot_metrics, iou_2d_pairs, parse_iou, prepare_passes
-from dfrmot_jax.metrics.ab3dmot_prep import PLACEHOLDER_DIMS, PLACEHOLDER_LOC, Ab3dGT, Ab3dTracker
+from dfrmot_jax.metrics.ab3dmot_prep import Ab3dGT, Ab3dTracker
 from dfrmot_jax.metrics.box3d import iou_3d
+from dfrmot_jax.metrics.fields3d import box3d_problem, no_box_rows
 from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
 
 __all__ = ["evaluate_ab3dmot_arrays", "tracker_rows_from_arrays"]
@@ -84,11 +85,10 @@ def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_off
             has3d = np.zeros(len(t), dtype=bool)
         else:
             b3 = np.asarray(box3d, dtype=np.float64)[b, t, k]
-            none = (np.all(b3[:, :3] == PLACEHOLDER_DIMS, axis=1) & np.all(b3[:, 3:6] == PLACEHOLDER_LOC, axis=1)
-                    ) | np.isnan(b3).all(axis=1)
-            bad = ~none & (~np.isfinite(b3).all(axis=1) | (b3[:, 0] <= 0) | (b3[:, 1] * b3[:, 2] <= 0))
-            if bad.any():
-                i = int(np.argmax(bad))
+            none = no_box_rows(b3)
+            bad = box3d_problem(b3, ~none)
+            if bad is not None:
+                i = bad[0]
                 raise ValueError(f"{_where(gt, b, int(g[i]), int(k[i]))}: 3D box {b3[i].tolist()} is not a box "
                                  f"(finite, h > 0, w and l non-zero and of one sign) nor the 2D-only placeholder")
             has3d = ~none
