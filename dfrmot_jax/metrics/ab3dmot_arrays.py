@@ -25,6 +25,7 @@ from dfrmot_jax.metrics.ab3dmot_prep import Ab3dGT, Ab3dTracker
 from dfrmot_jax.metrics.box3d import iou_3d
 from dfrmot_jax.metrics.fields3d import box3d_problem, no_box_rows
 from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
+from dfrmot_jax.metrics.similarity import row_ids
 
 __all__ = ["evaluate_ab3dmot_arrays", "tracker_rows_from_arrays"]
 
@@ -98,22 +99,6 @@ def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_off
     return out
 
 
-def _row_ids(vals: np.ndarray) -> np.ndarray:
-    """[N, C] float rows -> [N] int64 ids, equal ids for equal rows (a hash of the bits, checked;
-    exact ``np.unique(axis=0)`` if two different rows ever share a hash)."""
-    bits = np.ascontiguousarray(vals).view(np.uint64)
-    h = np.zeros(len(vals), dtype=np.uint64)
-    with np.errstate(over="ignore"):
-        for j in range(bits.shape[1]):
-            h = (h ^ bits[:, j]) * np.uint64(0x100000001B3)
-    _, first, inv = np.unique(h, return_index=True, return_inverse=True)
-    inv = inv.reshape(-1)
-    rep = vals[first][inv]
-    if np.array_equal(rep, vals, equal_nan=True):
-        return inv.astype(np.int64)
-    return np.unique(vals, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
-
-
 def _all_pairs(gt: Ab3dGT, trks: list, kind: str, threshold: float) -> list:
     """Candidate pairs of every output, each pair's IoU computed once per distinct (object, box)."""
     F = gt.n_frames
@@ -140,7 +125,7 @@ def _all_pairs(gt: Ab3dGT, trks: list, kind: str, threshold: float) -> list:
         near = np.hypot(gb[row, 3] - tb[col, 3], gb[row, 5] - tb[col, 5]) <= reach * (1 + 1e-9)
         sel = np.flatnonzero(live[col] & near)
         if sel.size:
-            box_id = _row_ids(vals)
+            box_id = row_ids(vals)
             key = row[sel] * (int(box_id.max()) + 1) + box_id[col[sel]]
             _, first, inv = np.unique(key, return_index=True, return_inverse=True)
             r, c = row[sel][first], col[sel][first]

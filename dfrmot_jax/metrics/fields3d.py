@@ -25,7 +25,7 @@ import numpy as np
 
 from dfrmot_jax.io.kitti import KittiFormatError, quoted, read_text_file
 
-__all__ = ["PLACEHOLDER_DIMS", "PLACEHOLDER_LOC", "FIELDS_3D", "parse_floats", "placeholder_rows", "no_box_rows",
+__all__ = ["PLACEHOLDER_DIMS", "PLACEHOLDER_LOC", "FIELDS_3D", "parse_floats", "placeholder_rows", "no_box_rows", "box_rows",
            "box3d_problem", "read_box3d_columns"]
 
 PLACEHOLDER_DIMS = (-1.0, -1.0, -1.0)
@@ -61,6 +61,13 @@ def no_box_rows(b3: np.ndarray) -> np.ndarray:
     """[R, 7] -> [R] bool: rows without a 3D box in padded arrays (the placeholder, or all NaN)."""
     b3 = np.asarray(b3, dtype=np.float64).reshape(-1, 7)
     return placeholder_rows(b3) | np.isnan(b3).all(axis=1)
+
+
+def box_rows(b3: np.ndarray) -> np.ndarray:
+    """[R, 7] -> [R] bool: the rows that are a box (module docstring; the placeholder is none)."""
+    b3 = np.asarray(b3, dtype=np.float64).reshape(-1, 7)
+    with np.errstate(invalid="ignore"):
+        return (np.isfinite(b3).all(axis=1) & (b3[:, 0] > 0) & (np.sign(b3[:, 1]) * np.sign(b3[:, 2]) > 0)) & ~placeholder_rows(b3)
 
 
 def box3d_problem(b3: np.ndarray, live: np.ndarray) -> tuple[int, int, str] | None:
