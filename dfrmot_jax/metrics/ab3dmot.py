@@ -85,7 +85,8 @@ from dfrmot_jax.metrics.evaluate import cached_class_sequences
 from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.paths import default_data_root
 
-__all__ = ["AB3DMOT_FIELDS", "parse_iou", "Ab3dPrepared", "prepare_passes", "ab3dmot_metrics",
+__all__ = ["AB3DMOT_FIELDS", "parse_iou", "Ab3dPrepared", "prepare_passes", "static_ignore", "seq_sum_rows",
+           "iou_2d_pairs", "ab3dmot_metrics",
            "evaluate_ab3dmot", "evaluate_ab3dmot_files"]
 
 #: the figures of one evaluation (fractions except counts), in the order the CLI writes them
@@ -166,7 +167,7 @@ class Ab3dPrepared:
     track_mean: np.ndarray
 
 
-def _seq_sum_rows(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
+def seq_sum_rows(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
     """Sequential float64 sum (Python's ``sum``: left to right from 0) of ``values`` per group,
     in array order within a group. values, group: [R]; returns [n_groups]."""
     out = np.zeros(n_groups)
@@ -203,28 +204,38 @@ def _candidate_pairs(gt: Ab3dGT, trk: Ab3dTracker, kind: str, threshold: float):
             iou[live] = iou_3d(gt.box3d[row[live]], trk.box3d[col[live]])
     cost = 1.0 - iou
     ok = cost <= 1.0 - threshold
-    return row[ok], col[ok], cost[ok], t_start
+    return row[ok], col[ok], cost[ok]
+
+
+def static_ignore(gt: Ab3dGT, frame: np.ndarray, box: np.ndarray, neighbour: np.ndarray) -> np.ndarray:
+    """The static part of the tracker-ignore rule for rows (any order; global ``frame`` [M], image ``box``
+    [M, 4], ``neighbour`` [M] bool): of the neighbouring class, at most 25 px high (``|y1 - y2|``),
+    or more than half inside a DontCare region -> [M] bool."""
+    static = neighbour | (np.abs(box[:, 1] - box[:, 3]) <= MIN_HEIGHT)
+    by_frame = np.argsort(frame, kind="stable")            # rows in any order
+    nt = np.bincount(frame, minlength=gt.n_frames)
+    t_start = segment_starts(nt)
+    _, drow, dcol, _ = enumerate_pairs(nt, t_start[:-1], np.diff(gt.dc_start), gt.dc_start[:-1])
+    if len(drow):
+        drow = by_frame[drow]
+        inside = _ioa(box[drow], gt.dc_box[dcol]) > 0.5
+        static[drow[inside]] = True
+    return static
 
 
 def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: float = 0.25,
-                   pairs: tuple | None = None) -> Ab3dPrepared:
+                   pairs: tuple | None = None, static: np.ndarray | None = None,
+                   track_mean: np.ndarray | None = None) -> Ab3dPrepared:
     """The shared preprocessing of :func:`ab3dmot_metrics` (see :class:`Ab3dPrepared`).
 
-    pairs: the candidate pairs ``(e_g, e_t, e_c)`` when already computed (by frame, object, row:
-    :mod:`dfrmot_jax.metrics.ab3dmot_arrays` computes them for many outputs at once)."""
+    Computed for many outputs at once by :mod:`dfrmot_jax.metrics.ab3dmot_arrays`, and then given:
+    pairs, the candidate pairs ``(e_g, e_t, e_c)`` (by frame, object, row); static, the rows'
+    :func:`static_ignore`; track_mean, the tracks' mean scores (:func:`seq_sum_rows` / length)."""
     kind, threshold = parse_iou((kind, threshold))
     N, M = len(gt.frame), len(trk.frame)
-    if pairs is None:
-        e_g, e_t, e_c, t_start = _candidate_pairs(gt, trk, kind, threshold)
-    else:
-        e_g, e_t, e_c = pairs
-        t_start = segment_starts(np.bincount(trk.frame, minlength=gt.n_frames))
-    # static part of the tracker-ignore rule: neighbour class, small, or inside a DontCare region
-    static = trk.neighbour | (np.abs(trk.box[:, 1] - trk.box[:, 3]) <= MIN_HEIGHT)
-    _, drow, dcol, _ = enumerate_pairs(np.diff(t_start), t_start[:-1], np.diff(gt.dc_start), gt.dc_start[:-1])
-    if len(drow):
-        inside = _ioa(trk.box[drow], gt.dc_box[dcol]) > 0.5
-        static[drow[inside]] = True
+    e_g, e_t, e_c = _candidate_pairs(gt, trk, kind, threshold) if pairs is None else pairs
+    if static is None:
+        static = static_ignore(gt, trk.frame, trk.box, trk.neighbour)
     # components of the candidate graph
     E = len(e_g)
     trivial = np.ones(E, dtype=bool)
@@ -252,9 +263,10 @@ def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: fl
                 cost[gi, ti] = e_c[ed]
                 comps.append((objs, rows, idx, cost))
     track_len = np.bincount(trk.track, minlength=trk.n_tracks)
-    sums = _seq_sum_rows(trk.score, trk.track, trk.n_tracks)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = sums / track_len
+    mean = track_mean
+    if mean is None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = seq_sum_rows(trk.score, trk.track, trk.n_tracks) / track_len
     return Ab3dPrepared(gt=gt, trk=trk, kind=kind, threshold=threshold, e_g=e_g, e_t=e_t, e_c=e_c, trivial=trivial,
                         comp_edges=comp_edges, comp_start=comp_start, comps=comps, trk_static_ignore=static,
                         track_len=track_len, track_mean=mean)

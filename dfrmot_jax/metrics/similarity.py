@@ -11,6 +11,7 @@ Many outputs of a sweep carry the same boxes: :func:`pair_similarity_3d` compute
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 
 from dfrmot_jax.metrics.box3d import bev_iou, iou_3d
 
@@ -28,20 +29,34 @@ def parse_similarity(similarity) -> str:
     return s
 
 
+def _mix(x: np.ndarray) -> np.ndarray:
+    """SplitMix64's finaliser on [N] uint64 (in place): every input bit reaches every output bit
+    (float64 values of float32 data have 29 zero low bits, which a plain multiplicative hash loses)."""
+    x ^= x >> np.uint64(30)
+    x *= np.uint64(0xBF58476D1CE4E5B9)
+    x ^= x >> np.uint64(27)
+    x *= np.uint64(0x94D049BB133111EB)
+    x ^= x >> np.uint64(31)
+    return x
+
+
 def row_ids(vals: np.ndarray) -> np.ndarray:
-    """[N, C] float rows -> [N] int64 ids, equal ids for equal rows (a hash of the bits, checked;
-    exact ``np.unique(axis=0)`` if two different rows ever share a hash)."""
+    """[N, C] float rows -> [N] int64 ids ``0..U-1``, equal ids for equal rows (bit for bit).
+
+    A hash of each row's bits, factorised with pandas' hash table (O(N), where sorting the hashes
+    costs several times more on sweep-sized inputs), then checked: if two different rows ever
+    share a hash, the exact ``np.unique(axis=0)`` decides."""
     vals = np.ascontiguousarray(vals, dtype=np.float64)
     bits = vals.view(np.uint64)
     h = np.zeros(len(vals), dtype=np.uint64)
     with np.errstate(over="ignore"):
         for j in range(bits.shape[1]):
-            h = (h ^ bits[:, j]) * np.uint64(0x100000001B3)
-    _, first, inv = np.unique(h, return_index=True, return_inverse=True)
-    inv = inv.reshape(-1)
-    rep = vals[first][inv]
-    if np.array_equal(rep, vals, equal_nan=True):
-        return inv.astype(np.int64)
+            h = _mix(h ^ bits[:, j])
+    codes = pd.factorize(h)[0].astype(np.int64)
+    first = np.empty(int(codes.max(initial=-1)) + 1, dtype=np.int64)
+    first[codes[::-1]] = np.arange(len(codes))[::-1]
+    if np.array_equal(vals[first][codes].view(np.uint64), bits):
+        return codes
     return np.unique(vals, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
 
 
