@@ -29,13 +29,13 @@ import numpy as np
 import pandas as pd
 
 from dfrmot_jax.metrics.ab3dmot import (
-    ab3dmot_metrics,
     iou_2d_pairs,
     parse_iou,
     prepare_passes,
     seq_sum_rows,
     static_ignore,
 )
+from dfrmot_jax.metrics.ab3dmot_passes import run_passes_many
 from dfrmot_jax.metrics.ab3dmot_prep import Ab3dGT, Ab3dTracker
 from dfrmot_jax.metrics.box3d import iou_3d
 from dfrmot_jax.metrics.fields3d import box3d_problem, no_box_rows
@@ -236,11 +236,10 @@ def evaluate_ab3dmot_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offs
     n_all = int(rows.track_start[-1])
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = seq_sum_rows(rows.score, gtrack, n_all) / np.bincount(gtrack, minlength=n_all)
-    out = []
+    preps = []
     for b in range(B):
         i, j = rows.lane_start[b], rows.lane_start[b + 1]
         t0 = rows.track_start[b]
-        prep = prepare_passes(gt, rows.tracker(gt, b), kind, thr, pairs=pairs[b], static=static[i:j],
-                              track_mean=mean[t0:t0 + rows.n_tracks[b]])
-        out.append(ab3dmot_metrics(prep))
-    return out
+        preps.append(prepare_passes(gt, rows.tracker(gt, b), kind, thr, pairs=pairs[b], static=static[i:j],
+                                    track_mean=mean[t0:t0 + rows.n_tracks[b]]))
+    return run_passes_many(preps)

@@ -39,7 +39,7 @@ from scipy.optimize import linear_sum_assignment
 from dfrmot_jax.metrics.pairs import segment_starts
 
 __all__ = ["N_SAMPLE_POINTS", "ALL_TRACKS", "score_rounds", "thresholds", "TrajLayout", "traj_layout", "ids_frag",
-           "run_passes"]
+           "run_passes", "run_passes_many"]
 
 N_SAMPLE_POINTS = 41
 ALL_TRACKS = -10000.0          # the reference's threshold of the pass that keeps every track
@@ -291,7 +291,11 @@ class _Structure:
                 valid = valid.copy()
                 valid[self.comp_row_index[p.e_t[e]]] = True
                 ignored[j] += int((k_rows[j] & static & ~valid).sum())
-        total = np.cumsum(np.where(on, self.vals, 0.0), axis=1)[:, -1] if len(self.vals) else np.zeros(P)
+        if len(self.vals):
+            w = np.where(on, self.vals, 0.0)
+            total = np.add.accumulate(w, axis=1, out=w)[:, -1].copy()
+        else:
+            total = np.zeros(P)
         ids, frag = ids_frag(self.layout, kept, comp_g, self.comp_index)
         matched_scores = [on[j] for j in range(P)]
         return dict(TP=tp, FN=self.n_gt - tpn, FP=kept @ self.rows_t - tp - ignored, IDS=ids, FRAG=frag,
@@ -317,35 +321,49 @@ def _figures(c: dict, j: int, n_gt: int, recall: float) -> dict:
 
 def run_passes(prep) -> dict:
     """The reference's full evaluation of one prepared output (:mod:`dfrmot_jax.metrics.ab3dmot`)."""
-    trk = prep.trk
-    st = _Structure(prep)
-    valid = np.zeros(len(st.comp_rows), dtype=bool)
-    kept0 = ~(prep.track_mean < ALL_TRACKS)
-    c0, valid = st.counts(kept0[None], valid)
-    first = _figures(c0, 0, st.n_gt, 1.0)
-    num_gt = first["TP"] + first["FN"]
-    matched = prep.track_mean[st.edge_track[c0["on"][0]]]
-    thr, rec = thresholds(matched, num_gt) if num_gt else ([], [])
-    rounds = score_rounds(prep.track_mean, prep.track_len, len(thr) + 1)
-    s_smota = s_mota = s_motp = 0
-    best_mota, best_thr = 0, ALL_TRACKS
-    if thr:
-        kept = ~(rounds[1:len(thr) + 1] < np.asarray(thr)[:, None])
-        c, valid = st.counts(kept, valid)
-        for j, (t, r) in enumerate(zip(thr, rec)):
-            f = _figures(c, j, st.n_gt, r)
-            s_smota += f["sMOTA"]
-            s_mota += f["MOTA"]
-            s_motp += f["MOTP"]
-            if f["MOTA"] > best_mota:
-                best_thr, best_mota = t, f["MOTA"]
-    cb, _ = st.counts(~(rounds[len(thr) + 1] < best_thr)[None], valid)
-    best = _figures(cb, 0, st.n_gt, 1.0)
-    keys = ("MOTA", "MOTP", "IDS", "FRAG", "FP", "FN", "TP")
-    out = {"sAMOTA": s_smota / (N_SAMPLE_POINTS - 1), "AMOTA": s_mota / (N_SAMPLE_POINTS - 1),
-           "AMOTP": s_motp / (N_SAMPLE_POINTS - 1)}
-    out.update({k: best[k] for k in keys})
-    out.update(recall=best["recall"], precision=best["precision"], best_threshold=float(best_thr),
-               n_recall_points=len(thr), all_tracks={k: first[k] for k in keys + ("recall",)},
-               n_rows=len(trk.frame), n_objects=st.n_gt)
+    return run_passes_many([prep])[0]
+
+
+def run_passes_many(preps: list) -> list[dict]:
+    """:func:`run_passes` of several prepared outputs; their score rounds computed in one call."""
+    first_passes = []
+    for prep in preps:
+        st = _Structure(prep)
+        valid = np.zeros(len(st.comp_rows), dtype=bool)
+        c0, valid = st.counts(~(prep.track_mean < ALL_TRACKS)[None], valid)
+        first = _figures(c0, 0, st.n_gt, 1.0)
+        num_gt = first["TP"] + first["FN"]
+        matched = prep.track_mean[st.edge_track[c0["on"][0]]]
+        thr, rec = thresholds(matched, num_gt) if num_gt else ([], [])
+        first_passes.append((st, valid, first, thr, rec))
+    n_rounds = max(len(f[3]) for f in first_passes) + 1 if preps else 0
+    starts = segment_starts(np.array([len(p.track_mean) for p in preps], dtype=np.int64))
+    all_rounds = score_rounds(np.concatenate([p.track_mean for p in preps]) if preps else np.zeros(0),
+                              np.concatenate([p.track_len for p in preps]) if preps else np.zeros(0, np.int64),
+                              n_rounds)
+    out = []
+    for i, (prep, (st, valid, first, thr, rec)) in enumerate(zip(preps, first_passes)):
+        rounds = all_rounds[:, starts[i]:starts[i + 1]]
+        s_smota = s_mota = s_motp = 0
+        best_mota, best_thr = 0, ALL_TRACKS
+        if thr:
+            kept = ~(rounds[1:len(thr) + 1] < np.asarray(thr)[:, None])
+            c, valid = st.counts(kept, valid)
+            for j, (t, r) in enumerate(zip(thr, rec)):
+                f = _figures(c, j, st.n_gt, r)
+                s_smota += f["sMOTA"]
+                s_mota += f["MOTA"]
+                s_motp += f["MOTP"]
+                if f["MOTA"] > best_mota:
+                    best_thr, best_mota = t, f["MOTA"]
+        cb, _ = st.counts(~(rounds[len(thr) + 1] < best_thr)[None], valid)
+        best = _figures(cb, 0, st.n_gt, 1.0)
+        keys = ("MOTA", "MOTP", "IDS", "FRAG", "FP", "FN", "TP")
+        res = {"sAMOTA": s_smota / (N_SAMPLE_POINTS - 1), "AMOTA": s_mota / (N_SAMPLE_POINTS - 1),
+               "AMOTP": s_motp / (N_SAMPLE_POINTS - 1)}
+        res.update({k: best[k] for k in keys})
+        res.update(recall=best["recall"], precision=best["precision"], best_threshold=float(best_thr),
+                   n_recall_points=len(thr), all_tracks={k: first[k] for k in keys + ("recall",)},
+                   n_rows=len(prep.trk.frame), n_objects=st.n_gt)
+        out.append(res)
     return out
