@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from dfrmot_jax.io.kitti import KittiFormatError
-from dfrmot_jax.metrics.ab3dmot import _ids_frag, evaluate_ab3dmot_files, parse_iou
+from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files, parse_iou
+from dfrmot_jax.metrics.ab3dmot_passes import ids_frag, traj_layout
 from dfrmot_jax.metrics.ab3dmot_prep import prepare_ab3dmot_gt, read_seqmap
 from dfrmot_jax.paths import default_data_root
 
@@ -160,25 +161,31 @@ def _ids_frag_reference(trajs):
 
 
 def test_ids_and_frag_match_the_reference_loop():
-    from types import SimpleNamespace
-
+    """Random trajectories, three passes each: an object's only candidate track (or none) is matched
+    in a pass when the track is kept; the same matches once as lone pairs (tracks kept per pass) and
+    once through components (the matched track given per pass), against the reference's loop."""
     rng = np.random.default_rng(5)
-    for _ in range(200):
+    n_tracks, P = 5, 3
+    for _ in range(300):
         n_traj = int(rng.integers(1, 6))
-        trajs, traj, order_vals, ign_all = [], [], [], []
-        for t in range(n_traj):
-            n = int(rng.integers(1, 9))
-            g = rng.integers(-1, 3, n).tolist()
-            ign = (rng.random(n) < 0.2).tolist()
-            trajs.append((g, ign))
-            traj += [t] * n
-            order_vals += g
-            ign_all += ign
-        perm = rng.permutation(len(traj))                  # objects in any order; traj_order sorts them
-        traj_a = np.array(traj)[perm]
-        frame = np.concatenate([np.arange(sum(1 for x in traj if x == t)) for t in range(n_traj)])[perm]
-        gt = SimpleNamespace(traj_order=np.lexsort((frame, traj_a)), ignored=np.array(ign_all)[perm], traj=traj_a)
-        assert _ids_frag(gt, np.array(order_vals)[perm]) == _ids_frag_reference(trajs)
+        lengths = rng.integers(1, 10, n_traj)
+        traj = np.repeat(np.arange(n_traj), lengths)
+        frame = np.concatenate([np.arange(n) for n in lengths])
+        n = len(traj)
+        cand = rng.integers(-1, n_tracks, n)
+        ign = rng.random(n) < 0.2
+        kept = rng.random((P, n_tracks)) < 0.7
+        g = np.where((cand >= 0) & kept[:, np.maximum(cand, 0)], cand, -1)           # [P, n]
+        want = [_ids_frag_reference([(g[j, traj == t].tolist(), ign[traj == t].tolist()) for t in range(n_traj)])
+                for j in range(P)]
+        perm = rng.permutation(n)                          # objects in any order; the layout's order sorts them
+        order = np.lexsort((frame[perm], traj[perm]))
+        lone = traj_layout(order, traj[perm], ign[perm], cand[perm], n_tracks, np.full(n, -1))
+        got = ids_frag(lone, kept, np.zeros((P, 0), dtype=np.int64), np.full(n, -1))
+        assert list(zip(got[0].tolist(), got[1].tolist())) == want
+        comp = traj_layout(order, traj[perm], ign[perm], np.full(n, -2), n_tracks, np.arange(n))
+        got = ids_frag(comp, np.zeros((P, n_tracks), dtype=bool), g[:, perm], np.arange(n))
+        assert list(zip(got[0].tolist(), got[1].tolist())) == want
 
 
 # ---------------------------------------------------------------- bad input

@@ -10,7 +10,10 @@ Kitti2DBox), :mod:`~dfrmot_jax.metrics.hota`, :mod:`~dfrmot_jax.metrics.clear`,
 AB3DMOT's KITTI 3D MOT metrics (sAMOTA, AMOTA, AMOTP, exact to its evaluator):
 :mod:`~dfrmot_jax.metrics.ab3dmot` (with ``ab3dmot_prep`` reading its inputs, ``ab3dmot_arrays``
 scoring padded outputs, ``ab3dmot_table`` the CLI's columns); the rotated 3D / BEV box IoU:
-:mod:`~dfrmot_jax.metrics.box3d`.
+:mod:`~dfrmot_jax.metrics.box3d`. HOTA / CLEAR / Identity with that similarity instead of the
+image IoU: ``similarity='3d'`` or ``'bev'`` on every entry point (:mod:`~dfrmot_jax.metrics.similarity`;
+the KITTI preprocessing stays 2D); the 3D fields of a row are read by one set of rules,
+:mod:`~dfrmot_jax.metrics.fields3d`.
 
 Typical use::
 
@@ -18,6 +21,7 @@ Typical use::
     res = evaluate_files("out/run1", gt)                 # {seq | 'COMBINED': {field: value}}
     df = evaluate_classes("out/run1", root, "car,pedestrian")  # tidy: class, seq, ...; + class 'average'
     many = evaluate_arrays(gt, ids, boxes, seq_offsets)  # B dicts from [B, T, K] tracker output
+    res3 = evaluate_files("out/run1", gt, similarity="3d")  # the same fields, 3D IoU (label them HOTA_3d, ...)
     metrics_table(res)                                   # pandas, TrackEval summary (x100)
 """
 

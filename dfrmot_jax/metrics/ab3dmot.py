@@ -26,7 +26,7 @@ components) done once and shared by its ~42 evaluation passes. Inputs are read b
    unmatched non-ignored objects, ``FP`` = kept rows - matches - ignored rows, ``n_gt`` = non-ignored
    objects; ``IDS`` / ``FRAG`` from each object trajectory's per-frame matched track (the
    reference's trajectory pass: a frame of an ignored object resets the last id; its exact rules
-   in :func:`_ids_frag`); ``MOTA = 1 - (FN + FP + IDS) / n_gt``, ``MOTP`` = sum of matched IoUs
+   in :func:`~dfrmot_jax.metrics.ab3dmot_passes.ids_frag`); ``MOTA = 1 - (FN + FP + IDS) / n_gt``, ``MOTP`` = sum of matched IoUs
    (``1 - c``) / TP, ``sMOTA = min(1, max(0, 1 - (FN + FP + IDS - (1 - r) n_gt) / (r n_gt)))``.
 
 The evaluation: pass 0 keeps every track (``thr = -10000``, ``r = 1``); its matched rows' scores,
@@ -64,15 +64,14 @@ class read) and ``n_objects`` (ground-truth objects not ignored: MOTA's denomina
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from dfrmot_jax.metrics.ab3dmot_passes import run_passes
 from dfrmot_jax.metrics.ab3dmot_prep import (
     MIN_HEIGHT,
     Ab3dGT,
@@ -86,14 +85,13 @@ from dfrmot_jax.metrics.evaluate import cached_class_sequences
 from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.paths import default_data_root
 
-__all__ = ["AB3DMOT_FIELDS", "parse_iou", "Ab3dPrepared", "prepare_passes", "ab3dmot_metrics",
+__all__ = ["AB3DMOT_FIELDS", "parse_iou", "Ab3dPrepared", "prepare_passes", "static_ignore", "seq_sum_rows",
+           "iou_2d_pairs", "ab3dmot_metrics",
            "evaluate_ab3dmot", "evaluate_ab3dmot_files"]
 
 #: the figures of one evaluation (fractions except counts), in the order the CLI writes them
 AB3DMOT_FIELDS = ("sAMOTA", "AMOTA", "AMOTP", "MOTA", "MOTP", "IDS", "FRAG", "FP", "FN", "TP")
-N_SAMPLE_POINTS = 41
 _MAX_COST = 1e9
-_ALL = -10000.0
 
 
 #: the IoU AB3DMOT's KITTI results are usually given at (its 3D IoU 0.25)
@@ -173,7 +171,7 @@ class Ab3dPrepared:
     track_mean: np.ndarray
 
 
-def _seq_sum_rows(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
+def seq_sum_rows(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
     """Sequential float64 sum (Python's ``sum``: left to right from 0) of ``values`` per group,
     in array order within a group. values, group: [R]; returns [n_groups]."""
     out = np.zeros(n_groups)
@@ -196,23 +194,6 @@ def _seq_sum_rows(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.nd
     return out
 
 
-def _seq_repeat_sum(value: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Sequential float64 sum of ``n[i]`` copies of ``value[i]`` ([T] each) -> [T]."""
-    out = np.zeros(len(value))
-    if len(value) == 0:
-        return out
-    order = np.argsort(-n, kind="stable")
-    v, ns = value[order], n[order]
-    acc = np.zeros(len(v))
-    active = len(v)
-    for k in range(1, int(ns.max(initial=0)) + 1):
-        while active and ns[active - 1] < k:
-            active -= 1
-        acc[:active] += v[:active]
-    out[order] = acc
-    return out
-
-
 def _candidate_pairs(gt: Ab3dGT, trk: Ab3dTracker, kind: str, threshold: float):
     F = gt.n_frames
     nt = np.bincount(trk.frame, minlength=F)
@@ -227,28 +208,38 @@ def _candidate_pairs(gt: Ab3dGT, trk: Ab3dTracker, kind: str, threshold: float):
             iou[live] = iou_3d(gt.box3d[row[live]], trk.box3d[col[live]])
     cost = 1.0 - iou
     ok = cost <= 1.0 - threshold
-    return row[ok], col[ok], cost[ok], t_start
+    return row[ok], col[ok], cost[ok]
+
+
+def static_ignore(gt: Ab3dGT, frame: np.ndarray, box: np.ndarray, neighbour: np.ndarray) -> np.ndarray:
+    """The static part of the tracker-ignore rule for rows (any order; global ``frame`` [M], image ``box``
+    [M, 4], ``neighbour`` [M] bool): of the neighbouring class, at most 25 px high (``|y1 - y2|``),
+    or more than half inside a DontCare region -> [M] bool."""
+    static = neighbour | (np.abs(box[:, 1] - box[:, 3]) <= MIN_HEIGHT)
+    by_frame = np.argsort(frame, kind="stable")            # rows in any order
+    nt = np.bincount(frame, minlength=gt.n_frames)
+    t_start = segment_starts(nt)
+    _, drow, dcol, _ = enumerate_pairs(nt, t_start[:-1], np.diff(gt.dc_start), gt.dc_start[:-1])
+    if len(drow):
+        drow = by_frame[drow]
+        inside = _ioa(box[drow], gt.dc_box[dcol]) > 0.5
+        static[drow[inside]] = True
+    return static
 
 
 def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: float = 0.25,
-                   pairs: tuple | None = None) -> Ab3dPrepared:
+                   pairs: tuple | None = None, static: np.ndarray | None = None,
+                   track_mean: np.ndarray | None = None) -> Ab3dPrepared:
     """The shared preprocessing of :func:`ab3dmot_metrics` (see :class:`Ab3dPrepared`).
 
-    pairs: the candidate pairs ``(e_g, e_t, e_c)`` when already computed (by frame, object, row:
-    :mod:`dfrmot_jax.metrics.ab3dmot_arrays` computes them for many outputs at once)."""
+    Computed for many outputs at once by :mod:`dfrmot_jax.metrics.ab3dmot_arrays`, and then given:
+    pairs, the candidate pairs ``(e_g, e_t, e_c)`` (by frame, object, row); static, the rows'
+    :func:`static_ignore`; track_mean, the tracks' mean scores (:func:`seq_sum_rows` / length)."""
     kind, threshold = parse_iou((kind, threshold))
     N, M = len(gt.frame), len(trk.frame)
-    if pairs is None:
-        e_g, e_t, e_c, t_start = _candidate_pairs(gt, trk, kind, threshold)
-    else:
-        e_g, e_t, e_c = pairs
-        t_start = segment_starts(np.bincount(trk.frame, minlength=gt.n_frames))
-    # static part of the tracker-ignore rule: neighbour class, small, or inside a DontCare region
-    static = trk.neighbour | (np.abs(trk.box[:, 1] - trk.box[:, 3]) <= MIN_HEIGHT)
-    _, drow, dcol, _ = enumerate_pairs(np.diff(t_start), t_start[:-1], np.diff(gt.dc_start), gt.dc_start[:-1])
-    if len(drow):
-        inside = _ioa(trk.box[drow], gt.dc_box[dcol]) > 0.5
-        static[drow[inside]] = True
+    e_g, e_t, e_c = _candidate_pairs(gt, trk, kind, threshold) if pairs is None else pairs
+    if static is None:
+        static = static_ignore(gt, trk.frame, trk.box, trk.neighbour)
     # components of the candidate graph
     E = len(e_g)
     trivial = np.ones(E, dtype=bool)
@@ -276,169 +267,19 @@ def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: fl
                 cost[gi, ti] = e_c[ed]
                 comps.append((objs, rows, idx, cost))
     track_len = np.bincount(trk.track, minlength=trk.n_tracks)
-    sums = _seq_sum_rows(trk.score, trk.track, trk.n_tracks)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = sums / track_len
+    mean = track_mean
+    if mean is None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = seq_sum_rows(trk.score, trk.track, trk.n_tracks) / track_len
     return Ab3dPrepared(gt=gt, trk=trk, kind=kind, threshold=threshold, e_g=e_g, e_t=e_t, e_c=e_c, trivial=trivial,
                         comp_edges=comp_edges, comp_start=comp_start, comps=comps, trk_static_ignore=static,
                         track_len=track_len, track_mean=mean)
 
 
-def _ids_frag(gt: Ab3dGT, match_track: np.ndarray) -> tuple[int, int]:
-    """The reference's trajectory pass: id switches and fragmentations over all object trajectories.
-
-    For an object trajectory g[0..n-1] (matched track per frame, -1 if none) with ignore flags
-    ign: ``last`` starts at g[0]; at f >= 1 an ignored frame sets last = -1 and counts nothing;
-    otherwise an id switch when last != g[f], last != -1, g[f] != -1 and g[f-1] != -1; a
-    fragmentation when f < n-1, g[f-1] != g[f], last != -1, g[f] != -1 and g[f+1] != -1; then
-    last = g[f] if g[f] != -1. After the loop one more fragmentation when n > 1, g[n-2] != g[n-1],
-    g[n-1] != -1 and frame n-1 is not ignored.
-    """
-    o = gt.traj_order
-    if o.size < 2:
-        return 0, 0
-    g = match_track[o]
-    ign = gt.ignored[o]
-    tr = gt.traj[o]
-    n = len(g)
-    idx = np.arange(n)
-    first = np.ones(n, dtype=bool)
-    first[1:] = tr[1:] != tr[:-1]
-    last_pos = np.ones(n, dtype=bool)
-    last_pos[:-1] = tr[1:] != tr[:-1]
-    event = first | ign | (g != -1)
-    ev_value = np.where(first, g, np.where(ign, -1, g))
-    upto = np.maximum.accumulate(np.where(event, idx, 0))        # latest event at or before i
-    last = np.full(n, -1, dtype=np.int64)
-    last[1:] = ev_value[upto[:-1]]                                # state before processing i
-    prev = np.roll(g, 1)
-    nxt = np.roll(g, -1)
-    body = ~first & ~ign
-    ids = body & (last != g) & (last != -1) & (g != -1) & (prev != -1)
-    frag = body & ~last_pos & (prev != g) & (last != -1) & (g != -1) & (nxt != -1)
-    frag_end = last_pos & ~first & ~ign & (prev != g) & (g != -1)
-    return int(ids.sum()), int(frag.sum() + frag_end.sum())
-
-
-class _Passes:
-    """Runs the reference's passes in order, carrying its state (sticky valid flags, scores)."""
-    def __init__(self, prep: Ab3dPrepared):
-        self.p = prep
-        M = len(prep.trk.frame)
-        self.valid = np.zeros(M, dtype=bool)
-        self.score = prep.track_mean.copy()                      # current averaged score per track
-        self.n_avg = 0                                           # averaging rounds done
-        self.settled = False
-        self.edge_on = np.zeros(len(prep.e_g), dtype=bool)
-        self.comp_key = [None] * len(prep.comps)
-        self.cache: dict = {}
-        self.n_gt = int((~prep.gt.ignored).sum())
-
-    def _average(self) -> None:
-        if self.n_avg and not self.settled:
-            with np.errstate(invalid="ignore", divide="ignore"):
-                new = _seq_repeat_sum(self.score, self.p.track_len) / self.p.track_len
-            new = np.where(self.p.track_len > 0, new, self.score)
-            self.settled = bool(np.array_equal(new, self.score))      # a fixed point: later rounds change nothing
-            self.score = new
-        self.n_avg += 1
-
-    def _match(self, kept: np.ndarray) -> None:
-        p = self.p
-        self.edge_on = np.where(p.trivial, kept[p.e_t], False)
-        for c, (objs, rows, idx, cost) in enumerate(p.comps):
-            k = kept[rows]
-            key = k.tobytes()
-            hit = self.cache.get((c, key))
-            if hit is None:
-                cols = np.flatnonzero(k)
-                if cols.size:
-                    r, cc = linear_sum_assignment(cost[:, cols])
-                    e = idx[r, cols[cc]]
-                    hit = e[e >= 0]
-                else:
-                    hit = np.zeros(0, np.int64)
-                self.cache[(c, key)] = hit
-            self.edge_on[hit] = True
-
-    def run(self, threshold: float, recall: float = 1.0) -> dict:
-        p = self.p
-        gt, trk = p.gt, p.trk
-        self._average()
-        kept = ~(self.score[trk.track] < threshold) if len(trk.track) else np.zeros(0, dtype=bool)
-        self._match(kept)
-        on = np.flatnonzero(self.edge_on)
-        matched_row = np.zeros(len(trk.frame), dtype=bool)
-        matched_row[p.e_t[on]] = True
-        match_track = np.full(len(gt.frame), -1, dtype=np.int64)
-        match_track[p.e_g[on]] = trk.track[p.e_t[on]]
-        self.valid |= matched_row
-        n_ign_trk = int((kept & ~self.valid & p.trk_static_ignore).sum())
-        tp = len(on)
-        fn = int(((match_track < 0) & ~gt.ignored).sum())
-        fp = int(kept.sum()) - tp - n_ign_trk
-        ids, frag = _ids_frag(gt, match_track)
-        total = float(np.cumsum(1.0 - p.e_c[on])[-1]) if tp else 0.0
-        n_gt = self.n_gt
-        if n_gt == 0:
-            mota = smota = -math.inf
-        else:
-            mota = 1 - (fn + fp + ids) / float(n_gt)
-            smota = min(1, max(0, 1 - (fn + fp + ids - (1 - recall) * n_gt) / float(recall * n_gt)))
-        motp = total / float(tp) if tp else 0
-        if (fp + tp) == 0 or (tp + fn) == 0:
-            rec = prec = 0.0
-        else:
-            rec, prec = tp / float(tp + fn), tp / float(fp + tp)
-        return dict(MOTA=mota, MOTP=motp, sMOTA=smota, IDS=ids, FRAG=frag, FP=fp, FN=fn, TP=tp, recall=rec,
-                    precision=prec, scores=self.score[trk.track[p.e_t[on]]])
-
-
-def _thresholds(scores: np.ndarray, num_gt: int) -> tuple[list, list]:
-    """The reference's ``getThresholds``: (thresholds, recall points) from pass 0's matched scores."""
-    s = np.sort(np.asarray(scores, dtype=np.float64))[::-1]
-    n = len(s)
-    if n == 0:
-        return [], []
-    i = np.arange(n)
-    left = (i + 1) / float(num_gt)
-    right = np.where(i < n - 1, (i + 2) / float(num_gt), left)
-    thr, rec = [], []
-    cur, pos, step = 0, 0, 1 / (N_SAMPLE_POINTS - 1.0)
-    while pos < n:
-        take = ~((right[pos:] - cur) < (cur - left[pos:])) | (i[pos:] == n - 1)
-        j = pos + int(np.argmax(take))
-        thr.append(float(s[j]))
-        rec.append(cur)
-        cur += step
-        pos = j + 1
-    return thr[1:], rec[1:]
-
-
 def ab3dmot_metrics(prep: Ab3dPrepared) -> dict:
-    """The reference's full evaluation on prepared inputs (module docstring) -> dict of figures."""
-    runs = _Passes(prep)
-    first = runs.run(_ALL)
-    num_gt = first["TP"] + first["FN"]
-    thresholds, recalls = _thresholds(first["scores"], num_gt) if num_gt else ([], [])
-    s_smota = s_mota = s_motp = 0
-    best_mota, best_thr = 0, _ALL
-    for thr, rec in zip(thresholds, recalls):
-        r = runs.run(thr, rec)
-        s_smota += r["sMOTA"]
-        s_mota += r["MOTA"]
-        s_motp += r["MOTP"]
-        if r["MOTA"] > best_mota:
-            best_thr, best_mota = thr, r["MOTA"]
-    best = runs.run(best_thr)
-    keys = ("MOTA", "MOTP", "IDS", "FRAG", "FP", "FN", "TP")
-    out = {"sAMOTA": s_smota / (N_SAMPLE_POINTS - 1), "AMOTA": s_mota / (N_SAMPLE_POINTS - 1),
-           "AMOTP": s_motp / (N_SAMPLE_POINTS - 1)}
-    out.update({k: best[k] for k in keys})
-    out.update(recall=best["recall"], precision=best["precision"], best_threshold=float(best_thr),
-               n_recall_points=len(thresholds), all_tracks={k: first[k] for k in keys + ("recall",)},
-               n_rows=len(prep.trk.frame), n_objects=runs.n_gt)
-    return out
+    """The reference's full evaluation on prepared inputs (module docstring) -> dict of figures;
+    its passes computed together (:mod:`dfrmot_jax.metrics.ab3dmot_passes`)."""
+    return run_passes(prep)
 
 
 def evaluate_ab3dmot(gt: Ab3dGT, trk: Ab3dTracker, iou="3d:0.25") -> dict:

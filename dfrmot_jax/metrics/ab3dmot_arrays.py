@@ -10,20 +10,37 @@ Every row is of the evaluated class (no neighbouring-class rows). The 3D rules a
 (:mod:`dfrmot_jax.metrics.ab3dmot_prep`): a bad box raises ValueError naming config, sequence,
 frame and slot.
 
-The IoU of each (ground-truth object, box) pair is computed once for all outputs (the outputs of a
-sweep mostly carry the same detections' boxes); the passes then run per output. Results are the
+Everything that does not depend on the output's tracks is done once for all outputs: the rows of
+every output are flattened together, the distinct (frame, box) values found (the outputs of a sweep
+mostly carry the same detections' boxes), their candidate pairs with the ground truth (IoU) and the
+static ignore rule computed once each and joined back to every output's rows; track means in one
+call. The passes then run per output (all its thresholds together,
+:mod:`~dfrmot_jax.metrics.ab3dmot_passes`). Results are the
 dicts of :func:`~dfrmot_jax.metrics.ab3dmot.ab3dmot_metrics`, identical to scoring the written
 files with :func:`~dfrmot_jax.metrics.ab3dmot.evaluate_ab3dmot_files`.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from dfrmot_jax.metrics.ab3dmot import ab3dmot_metrics, iou_2d_pairs, parse_iou, prepare_passes
-from dfrmot_jax.metrics.ab3dmot_prep import PLACEHOLDER_DIMS, PLACEHOLDER_LOC, Ab3dGT, Ab3dTracker
+import pandas as pd
+
+from dfrmot_jax.metrics.ab3dmot import (
+    iou_2d_pairs,
+    parse_iou,
+    prepare_passes,
+    seq_sum_rows,
+    static_ignore,
+)
+from dfrmot_jax.metrics.ab3dmot_passes import run_passes_many
+from dfrmot_jax.metrics.ab3dmot_prep import Ab3dGT, Ab3dTracker
 from dfrmot_jax.metrics.box3d import iou_3d
+from dfrmot_jax.metrics.fields3d import box3d_problem, no_box_rows
 from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
+from dfrmot_jax.metrics.similarity import row_ids
 
 __all__ = ["evaluate_ab3dmot_arrays", "tracker_rows_from_arrays"]
 
@@ -33,12 +50,35 @@ def _where(gt: Ab3dGT, b: int, g: int, k: int) -> str:
     return f"config {b}, sequence {gt.sequences[s]}, frame {g - int(gt.offsets[s])}, slot {k}"
 
 
-def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None) -> list[Ab3dTracker]:
-    """[B, T, K] padded output -> one :class:`~dfrmot_jax.metrics.ab3dmot_prep.Ab3dTracker` per config.
+class _Rows(NamedTuple):
+    """The rows of B outputs flattened together (R rows by config, frame, slot): ``lane``, ``frame``
+    (global), ``slot``, ``track`` (per config from 0), ``box`` [R, 4], ``score``, ``box3d`` [R, 7],
+    ``has3d``; ``lane_start`` [B+1], ``n_tracks`` [B], ``track_start`` [B+1] (global track index =
+    track_start[lane] + track)."""
+    lane: np.ndarray
+    frame: np.ndarray
+    slot: np.ndarray
+    track: np.ndarray
+    box: np.ndarray
+    score: np.ndarray
+    box3d: np.ndarray
+    has3d: np.ndarray
+    lane_start: np.ndarray
+    n_tracks: np.ndarray
+    track_start: np.ndarray
 
-    ids [B, T, K] int (negative: empty slot; ids per sequence); boxes [B, T, K, 4] image boxes;
-    scores [B, T, K]; box3d [B, T, K, 7] or None (2D IoU only); seq_offsets [S] first frame along T
-    of each of ``gt.sequences`` (default back to back; other frames of T are ignored)."""
+    def tracker(self, gt: Ab3dGT, b: int) -> Ab3dTracker:
+        i, j = self.lane_start[b], self.lane_start[b + 1]
+        frame = self.frame[i:j]
+        return Ab3dTracker(frame=frame, track=self.track[i:j], n_tracks=int(self.n_tracks[b]),
+                           neighbour=np.zeros(j - i, dtype=bool), box=self.box[i:j], box3d=self.box3d[i:j],
+                           has3d=self.has3d[i:j], score=self.score[i:j], source=self.slot[i:j],
+                           seq=np.searchsorted(gt.offsets, frame, side="right") - 1, paths=())
+
+
+def _flat_rows(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None) -> _Rows:
+    """[B, T, K] padded output -> :class:`_Rows` (checked: finite image boxes and scores, no id
+    twice in a frame, 3D boxes or the placeholder; ValueError naming config, sequence, frame, slot)."""
     ids = np.asarray(ids)
     if ids.ndim != 3:
         raise ValueError(f"ids must be [B, T, K], got shape {ids.shape}")
@@ -58,99 +98,119 @@ def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_off
     gmap = np.full(T, -1, dtype=np.int64)
     for s in range(S):
         gmap[seq_offsets[s]:seq_offsets[s] + gt.lengths[s]] = np.arange(gt.offsets[s], gt.offsets[s + 1])
-    out = []
-    for b in range(B):
-        t, k = np.nonzero((ids[b] >= 0) & (gmap >= 0)[:, None])
-        g = gmap[t]
-        order = np.lexsort((k, g))
-        t, k, g = t[order], k[order], g[order]
-        tid = ids[b, t, k].astype(np.int64)
-        box, score = boxes[b, t, k], scores[b, t, k]
-        bad = ~np.isfinite(box).all(axis=1) | ~np.isfinite(score)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise ValueError(f"{_where(gt, b, int(g[i]), int(k[i]))}: image box or score not finite")
-        seq = np.searchsorted(gt.offsets, g, side="right") - 1
-        if len(g):
-            o = np.lexsort((tid, g))
-            dup = (g[o][1:] == g[o][:-1]) & (tid[o][1:] == tid[o][:-1])
-            if dup.any():
-                i = int(o[1:][np.argmax(dup)])
-                raise ValueError(f"{_where(gt, b, int(g[i]), int(k[i]))}: id {tid[i]} occurs twice in the frame")
-        key = seq * (int(tid.max(initial=0)) + 1) + tid
-        _, track = np.unique(key, return_inverse=True)
-        if box3d is None:
-            b3 = np.full((len(t), 7), np.nan)
-            has3d = np.zeros(len(t), dtype=bool)
-        else:
-            b3 = np.asarray(box3d, dtype=np.float64)[b, t, k]
-            none = (np.all(b3[:, :3] == PLACEHOLDER_DIMS, axis=1) & np.all(b3[:, 3:6] == PLACEHOLDER_LOC, axis=1)
-                    ) | np.isnan(b3).all(axis=1)
-            bad = ~none & (~np.isfinite(b3).all(axis=1) | (b3[:, 0] <= 0) | (b3[:, 1] * b3[:, 2] <= 0))
-            if bad.any():
-                i = int(np.argmax(bad))
-                raise ValueError(f"{_where(gt, b, int(g[i]), int(k[i]))}: 3D box {b3[i].tolist()} is not a box "
-                                 f"(finite, h > 0, w and l non-zero and of one sign) nor the 2D-only placeholder")
-            has3d = ~none
-        out.append(Ab3dTracker(frame=g, track=track.reshape(-1).astype(np.int64), n_tracks=int(track.max(initial=-1)) + 1,
-                               neighbour=np.zeros(len(t), dtype=bool), box=box, box3d=b3, has3d=has3d, score=score,
-                               source=k.astype(np.int64), seq=seq.astype(np.int64), paths=()))
-    return out
-
-
-def _row_ids(vals: np.ndarray) -> np.ndarray:
-    """[N, C] float rows -> [N] int64 ids, equal ids for equal rows (a hash of the bits, checked;
-    exact ``np.unique(axis=0)`` if two different rows ever share a hash)."""
-    bits = np.ascontiguousarray(vals).view(np.uint64)
-    h = np.zeros(len(vals), dtype=np.uint64)
-    with np.errstate(over="ignore"):
-        for j in range(bits.shape[1]):
-            h = (h ^ bits[:, j]) * np.uint64(0x100000001B3)
-    _, first, inv = np.unique(h, return_index=True, return_inverse=True)
-    inv = inv.reshape(-1)
-    rep = vals[first][inv]
-    if np.array_equal(rep, vals, equal_nan=True):
-        return inv.astype(np.int64)
-    return np.unique(vals, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
-
-
-def _all_pairs(gt: Ab3dGT, trks: list, kind: str, threshold: float) -> list:
-    """Candidate pairs of every output, each pair's IoU computed once per distinct (object, box)."""
-    F = gt.n_frames
-    B = len(trks)
-    frame = np.concatenate([t.frame + b * F for b, t in enumerate(trks)]) if B else np.zeros(0, np.int64)
-    lane_start = segment_starts(np.array([len(t.frame) for t in trks], dtype=np.int64))
-    nt = np.bincount(frame, minlength=B * F)
-    t_start = segment_starts(nt)
-    g_of = np.tile(np.arange(F), B)
-    _, row, col, _ = enumerate_pairs(np.diff(gt.start)[g_of], gt.start[g_of], nt, t_start[:-1])
-    if kind == "2d":
-        vals = np.concatenate([t.box for t in trks])
-        live = np.ones(len(vals), dtype=bool)
+    b, t, k = np.nonzero((ids >= 0) & (gmap >= 0)[None, :, None])
+    g = gmap[t]
+    if np.any(np.diff(gmap[gmap >= 0]) < 0):                 # sequences out of order along T
+        o = np.lexsort((k, g, b))
+        b, t, k, g = b[o], t[o], k[o], g[o]
+    tid = ids[b, t, k].astype(np.int64)
+    box, score = boxes[b, t, k], scores[b, t, k]
+    bad = ~np.isfinite(box).all(axis=1) | ~np.isfinite(score)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"{_where(gt, int(b[i]), int(g[i]), int(k[i]))}: image box or score not finite")
+    R = len(b)
+    lane_frame = b * max(gt.n_frames, 1) + g
+    top = int(tid.max(initial=0)) + 1
+    if B * max(gt.n_frames, 1) * top < 2**62:
+        dup = pd.Series(lane_frame * top + tid).duplicated().to_numpy()
     else:
-        vals = np.concatenate([t.box3d for t in trks])
-        live = np.concatenate([t.has3d for t in trks])
-    iou = np.zeros(len(row))
-    if kind == "2d":
-        iou = iou_2d_pairs(gt.box[row], vals[col])
+        dup = np.zeros(R, dtype=bool)
+        dup[np.unique(np.stack([lane_frame, tid], axis=1), axis=0, return_index=True)[1]] = True
+        dup = ~dup
+    if dup.any():
+        i = int(np.argmax(dup))
+        raise ValueError(f"{_where(gt, int(b[i]), int(g[i]), int(k[i]))}: id {tid[i]} occurs twice in the frame")
+    seq = np.searchsorted(gt.offsets, g, side="right") - 1
+    lane_seq = b * max(S, 1) + seq
+    if B * max(S, 1) * top < 2**62:
+        codes = pd.factorize(lane_seq * top + tid)[0]
     else:
-        # pairs whose ground circles overlap (others have IoU 0), each distinct (object, box) once
-        gb, tb = gt.box3d, vals
-        reach = 0.5 * (np.hypot(gb[row, 1], gb[row, 2]) + np.hypot(tb[col, 1], tb[col, 2]))
-        near = np.hypot(gb[row, 3] - tb[col, 3], gb[row, 5] - tb[col, 5]) <= reach * (1 + 1e-9)
-        sel = np.flatnonzero(live[col] & near)
-        if sel.size:
-            box_id = _row_ids(vals)
-            key = row[sel] * (int(box_id.max()) + 1) + box_id[col[sel]]
-            _, first, inv = np.unique(key, return_index=True, return_inverse=True)
-            r, c = row[sel][first], col[sel][first]
-            iou[sel] = iou_3d(gt.box3d[r], vals[c])[inv.reshape(-1)]
+        codes = np.unique(np.stack([lane_seq, tid], axis=1), axis=0, return_inverse=True)[1].reshape(-1)
+    lane_start = segment_starts(np.bincount(b, minlength=B))
+    # rows come lane by lane, so each lane's new codes are one contiguous range
+    track_start = np.zeros(B + 1, dtype=np.int64)
+    n_tracks = np.zeros(B, dtype=np.int64)
+    for lane in range(B):
+        i, j = lane_start[lane], lane_start[lane + 1]
+        if j > i:
+            track_start[lane] = codes[i:j].min()
+            n_tracks[lane] = codes[i:j].max() + 1 - track_start[lane]
+    track_start[B] = int(codes.max(initial=-1)) + 1
+    track = codes - track_start[b]
+    if box3d is None:
+        b3 = np.full((R, 7), np.nan)
+        has3d = np.zeros(R, dtype=bool)
+    else:
+        b3 = np.asarray(box3d, dtype=np.float64)[b, t, k]
+        none = no_box_rows(b3)
+        bad = box3d_problem(b3, ~none)
+        if bad is not None:
+            i = bad[0]
+            raise ValueError(f"{_where(gt, int(b[i]), int(g[i]), int(k[i]))}: 3D box {b3[i].tolist()} is not a box "
+                             f"(finite, h > 0, w and l non-zero and of one sign) nor the 2D-only placeholder")
+        has3d = ~none
+    return _Rows(lane=b.astype(np.int64), frame=g, slot=k.astype(np.int64), track=track, box=box, score=score,
+                 box3d=b3, has3d=has3d, lane_start=lane_start, n_tracks=n_tracks, track_start=track_start)
+
+
+def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None) -> list[Ab3dTracker]:
+    """[B, T, K] padded output -> one :class:`~dfrmot_jax.metrics.ab3dmot_prep.Ab3dTracker` per config.
+
+    ids [B, T, K] int (negative: empty slot; ids per sequence); boxes [B, T, K, 4] image boxes;
+    scores [B, T, K]; box3d [B, T, K, 7] or None (2D IoU only); seq_offsets [S] first frame along T
+    of each of ``gt.sequences`` (default back to back; other frames of T are ignored)."""
+    rows = _flat_rows(gt, ids, boxes, scores, box3d, seq_offsets)
+    return [rows.tracker(gt, b) for b in range(len(rows.n_tracks))]
+
+
+def _distinct(frame: np.ndarray, vals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct (frame, value row) of [R] frames and [R, C] rows -> (first row of each [U], id of each row [R])."""
+    ids = row_ids(np.concatenate([frame[:, None].astype(np.float64), vals], axis=1))
+    first = np.full(int(ids.max(initial=-1)) + 1, -1, dtype=np.int64)
+    first[ids[::-1]] = np.arange(len(ids))[::-1]
+    return first, ids
+
+
+def _pairs(gt: Ab3dGT, rows: _Rows, kind: str, threshold: float) -> list:
+    """Candidate pairs of every output (by frame, object, row within each): the distinct (frame, box)
+    values' pairs with the ground truth (IoU once each), joined back to every output's rows."""
+    B = len(rows.n_tracks)
+    vals, live = (rows.box, np.ones(len(rows.frame), dtype=bool)) if kind == "2d" else (rows.box3d, rows.has3d)
+    sel = np.flatnonzero(live)
+    first, uid = _distinct(rows.frame[sel], vals[sel])
+    ufr = rows.frame[sel[first]]
+    o = np.argsort(ufr, kind="stable")                  # distinct values by frame
+    rank = np.empty(len(o), dtype=np.int64)
+    rank[o] = np.arange(len(o))
+    nu = np.bincount(ufr, minlength=gt.n_frames)
+    _, obj, col, _ = enumerate_pairs(np.diff(gt.start), gt.start[:-1], nu, segment_starts(nu)[:-1])
+    u = sel[first[o[col]]]                              # a row carrying the value
+    if kind == "2d":
+        iou = iou_2d_pairs(gt.box[obj], rows.box[u])
+    else:
+        gb, tb = gt.box3d, rows.box3d
+        iou = np.zeros(len(obj))
+        reach = 0.5 * (np.hypot(gb[obj, 1], gb[obj, 2]) + np.hypot(tb[u, 1], tb[u, 2]))
+        near = np.flatnonzero(np.hypot(gb[obj, 3] - tb[u, 3], gb[obj, 5] - tb[u, 5]) <= reach * (1 + 1e-9))
+        iou[near] = iou_3d(gb[obj[near]], tb[u[near]])
     cost = 1.0 - iou
     ok = np.flatnonzero(cost <= 1.0 - threshold)
-    row, col, cost = row[ok], col[ok], cost[ok]
-    lane = np.searchsorted(lane_start, col, side="right") - 1
-    cut = np.searchsorted(lane, np.arange(B + 1))
-    return [(row[cut[b]:cut[b + 1]], col[cut[b]:cut[b + 1]] - lane_start[b], cost[cut[b]:cut[b + 1]])
+    ok = ok[np.argsort(col[ok], kind="stable")]          # candidate pairs by distinct value, then object
+    obj, cost, ucol = obj[ok], cost[ok], col[ok]
+    # join: each live row gets the pairs of its value, then (lane, object, row) order
+    cnt = np.bincount(ucol, minlength=len(o))
+    cstart = segment_starts(cnt)
+    r_rank = rank[uid]
+    n_r = cnt[r_rank]
+    e_row = np.repeat(sel, n_r)
+    e_idx = np.repeat(cstart[r_rank], n_r) + (np.arange(int(n_r.sum())) - np.repeat(segment_starts(n_r)[:-1], n_r))
+    e_obj = obj[e_idx]
+    e_lane = rows.lane[e_row]
+    order = np.argsort(e_lane * max(len(gt.frame), 1) + e_obj, kind="stable")    # rows stay in order per object
+    e_row, e_obj, e_cost, e_lane = e_row[order], e_obj[order], cost[e_idx[order]], e_lane[order]
+    cut = np.searchsorted(e_lane, np.arange(B + 1))
+    return [(e_obj[cut[b]:cut[b + 1]], e_row[cut[b]:cut[b + 1]] - rows.lane_start[b], e_cost[cut[b]:cut[b + 1]])
             for b in range(B)]
 
 
@@ -164,8 +224,22 @@ def evaluate_ab3dmot_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offs
     kind, thr = parse_iou(iou)
     if kind == "3d" and box3d is None:
         raise ValueError("3D IoU needs box3d [B, T, K, 7] (h w l x y z rot_y per slot)")
-    trks = tracker_rows_from_arrays(gt, ids, boxes, scores, box3d if kind == "3d" else None, seq_offsets)
-    if not trks:
+    rows = _flat_rows(gt, ids, boxes, scores, box3d if kind == "3d" else None, seq_offsets)
+    B = len(rows.n_tracks)
+    if not B:
         return []
-    pairs = _all_pairs(gt, trks, kind, thr)
-    return [ab3dmot_metrics(prepare_passes(gt, t, kind, thr, pairs=p)) for t, p in zip(trks, pairs)]
+    pairs = _pairs(gt, rows, kind, thr)
+    # the static ignore rule once per distinct (frame, image box); track means in one call
+    first, bid = _distinct(rows.frame, rows.box)
+    static = static_ignore(gt, rows.frame[first], rows.box[first], np.zeros(len(first), dtype=bool))[bid]
+    gtrack = rows.track_start[rows.lane] + rows.track
+    n_all = int(rows.track_start[-1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = seq_sum_rows(rows.score, gtrack, n_all) / np.bincount(gtrack, minlength=n_all)
+    preps = []
+    for b in range(B):
+        i, j = rows.lane_start[b], rows.lane_start[b + 1]
+        t0 = rows.track_start[b]
+        preps.append(prepare_passes(gt, rows.tracker(gt, b), kind, thr, pairs=pairs[b], static=static[i:j],
+                                    track_mean=mean[t0:t0 + rows.n_tracks[b]]))
+    return run_passes_many(preps)

@@ -49,6 +49,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from dfrmot_jax.io.kitti import KittiFormatError, file_stamps, quoted, read_text_file, read_tracking_labels
+from dfrmot_jax.metrics.fields3d import PLACEHOLDER_DIMS, PLACEHOLDER_LOC, box3d_problem, parse_floats, placeholder_rows
 from dfrmot_jax.metrics.pairs import segment_starts
 
 __all__ = ["AB3D_CLASSES", "Ab3dGT", "Ab3dTracker", "prepare_ab3dmot_gt", "cached_ab3dmot_gt",
@@ -58,8 +59,6 @@ __all__ = ["AB3D_CLASSES", "Ab3dGT", "Ab3dTracker", "prepare_ab3dmot_gt", "cache
 AB3D_CLASSES = {"car": (("car", "van", "dontcare"), "van"),
                 "pedestrian": (("pedestrian", "person_sitting", "dontcare"), "person_sitting")}
 MAX_TRUNCATION, MAX_OCCLUSION, MIN_HEIGHT = 0, 2, 25
-PLACEHOLDER_DIMS = (-1.0, -1.0, -1.0)
-PLACEHOLDER_LOC = (-1000.0, -1000.0, -1000.0)
 _NAMES = ("frame", "track_id", "type", "truncated", "occluded", "alpha", "x1", "y1", "x2", "y2",
           "h", "w", "l", "x", "y", "z", "rot_y", "score")
 
@@ -254,22 +253,6 @@ class Ab3dTracker(NamedTuple):
     paths: tuple
 
 
-def _floats(tokens: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """[N] str tokens -> ([N] float64 as Python's ``float``, NaN where unreadable; [N] bool read)."""
-    try:
-        return tokens.astype(np.float64), np.ones(len(tokens), dtype=bool)
-    except ValueError:
-        out = np.full(len(tokens), np.nan)
-        ok = np.zeros(len(tokens), dtype=bool)
-        for k, tok in enumerate(tokens):
-            try:
-                out[k] = float(tok)
-                ok[k] = True
-            except ValueError:
-                pass
-        return out, ok
-
-
 def _read_file(path, cls: str, length: int, name: str, need_3d: bool) -> dict:
     """One result file -> dict of the loaded rows' columns (file order); raises KittiFormatError."""
     text = read_text_file(path)
@@ -294,7 +277,7 @@ def _read_file(path, cls: str, length: int, name: str, need_3d: bool) -> dict:
         tok[k, :count[r]] = split[r]
     cols = {}
     for j in (0, 1) + tuple(range(3, 18)):
-        v, ok = _floats(tok[:, j].astype(str))
+        v, ok = parse_floats(tok[:, j].astype(str))
         if not ok.all():
             k = int(np.argmin(ok))
             fail(int(rows[k]), j, f"not a number: {quoted(tok[k, j])}")
@@ -332,21 +315,12 @@ def _read_file(path, cls: str, length: int, name: str, need_3d: bool) -> dict:
     dims = np.stack([cols[10], cols[11], cols[12]], axis=1)
     loc = np.stack([cols[13], cols[14], cols[15]], axis=1)
     box3d = np.concatenate([dims, loc, cols[16][:, None]], axis=1)
-    placeholder = np.all(dims == PLACEHOLDER_DIMS, axis=1) & np.all(loc == PLACEHOLDER_LOC, axis=1)
+    placeholder = placeholder_rows(box3d)
     if need_3d:
-        live = ~placeholder
-        checks = [(j, live & ~np.isfinite(box3d[:, j - 10]), "not finite: {0}") for j in range(10, 17)]
-        checks += [(10, live & (box3d[:, 0] <= 0), "height {0} is not positive (not a box; a 2D-only row writes "
-                                                   "h w l x y z = -1 -1 -1 -1000 -1000 -1000)"),
-                   (11, live & (box3d[:, 1] == 0), "width {0} is zero (not a box)"),
-                   (12, live & (box3d[:, 2] == 0), "length {0} is zero (not a box)"),
-                   (11, live & (box3d[:, 1] * box3d[:, 2] < 0), "width {0} and length {1} differ in sign (a box "
-                                                                 "has both positive, or both negative: the box "
-                                                                 "turned by 180 degrees)")]
-        found = [(int(np.argmax(m)), j, msg) for j, m, msg in checks if m.any()]
-        if found:
-            k, j, msg = min(found)
-            fail(int(rows[k]), j, msg.format(quoted(tok[k, j]), quoted(tok[k, 12])))
+        bad = box3d_problem(box3d, ~placeholder)
+        if bad is not None:
+            k, j, msg = bad
+            fail(int(rows[k]), 10 + j, msg.format(quoted(tok[k, 10 + j]), quoted(tok[k, 12])))
     score = np.where(count[rows] == 18, cols[17], -1.0)
     return dict(frame=frame, tid=tid, neighbour=types[rows] == AB3D_CLASSES[cls][1],
                 box=np.stack([cols[6], cols[7], cols[8], cols[9]], axis=1), box3d=box3d,

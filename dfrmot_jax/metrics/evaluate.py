@@ -23,6 +23,14 @@ AssA DetRe DetPr AssRe AssPr LocA OWTA per alpha, HOTA(0) LocA(0) HOTALocA(0), M
 CLR_Re CLR_Pr MTR PTR MLR sMOTA CLR_F1 FP_per_frame MOTAL, IDF1 IDR IDP, and MOTP_sum as TrackEval
 does) is the plain mean over the classes; nothing is recomputed from the sums.
 
+Similarity: every entry point takes ``similarity='2d'`` (TrackEval's image IoU, the default),
+``'3d'`` (3D IoU of the rotated boxes) or ``'bev'`` (bird's-eye-view IoU): the same definitions and
+the same KITTI preprocessing, only the similarity the metrics match on changes (see
+:mod:`dfrmot_jax.metrics.kitti`: distractors and DontCare stay 2D, as KITTI's; a row without a 3D
+box is unmatched in 3D). Files are then read with their 3D fields (located errors); arrays need
+``box3d``. The result fields keep their names (``HOTA``, ``DetA``, ...): the caller labels them
+(e.g. ``HOTA_3d``).
+
 Sweeps (:mod:`dfrmot_jax.sweep`) score padded tracker output with :class:`LaneScorer` (each
 distinct output scored once, in sub-batches of lanes, optionally in a :func:`worker_pool`), keep
 TrackEval's summary view per row (:func:`summary_columns`), re-combine any subset of sequences
@@ -54,6 +62,7 @@ from dfrmot_jax.metrics.kitti import (
     read_tracker_files,
     tracker_dets_from_arrays,
 )
+from dfrmot_jax.metrics.similarity import parse_similarity
 from dfrmot_jax.metrics.table import classes_table
 from dfrmot_jax.paths import default_data_root
 
@@ -172,9 +181,10 @@ def class_average(per_class: Mapping[str, Mapping[str, object]]) -> dict[str, ob
     return out
 
 
-def evaluate_batch(gt: PreparedGT, dets: TrackerDets) -> dict[str, dict[str, np.ndarray]]:
-    """All metrics for the lanes of ``dets``: ``{'seq': {field: [L, S(, 19)]}, 'comb': {field: [L(, 19)]}}``."""
-    b = preprocess(gt, dets)
+def evaluate_batch(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> dict[str, dict[str, np.ndarray]]:
+    """All metrics for the lanes of ``dets``: ``{'seq': {field: [L, S(, 19)]}, 'comb': {field: [L(, 19)]}}``.
+    similarity: ``'2d'``, ``'3d'`` or ``'bev'`` (module docstring)."""
+    b = preprocess(gt, dets, similarity)
     L, S = b.n_lanes, len(gt.sequences)
     seq = {}
     seq.update(hota.hota_sequences(b))
@@ -231,7 +241,7 @@ def _to_dicts(gt: PreparedGT, out: dict) -> list[dict[str, dict[str, object]]]:
 
 
 def evaluate_files(results_dir, root=None, cls: str = "car", sequences: Sequence | None = None,
-                   missing: str = "empty") -> dict[str, dict[str, object]]:
+                   missing: str = "empty", similarity: str = "2d") -> dict[str, dict[str, object]]:
     """Evaluate one tracker's KITTI result files ``results_dir/SSSS.txt`` like TrackEval's Kitti2DBox.
 
     root: KITTI training root (default :func:`dfrmot_jax.paths.default_data_root`) or a
@@ -242,24 +252,29 @@ def evaluate_files(results_dir, root=None, cls: str = "car", sequences: Sequence
     no readable file (a directory, a dangling symlink) is always an error. ``dfrmot eval`` is
     stricter by default (it also refuses stale files and results without the class).
     Files are read as TrackEval reads them (:func:`read_tracker_files`: rows in any order,
-    ``x2 < x1`` allowed, ...). Returns ``{seq: {field: value}, ..., 'COMBINED': {...}}``.
+    ``x2 < x1`` allowed, ...). similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (module
+    docstring; 3D and BEV read the rows' 3D fields ``h w l x y z rot_y``, the ground truth's from
+    label_02). Returns ``{seq: {field: value}, ..., 'COMBINED': {...}}``.
     Raises ``KittiFormatError`` (file, line, field) for malformed files, frames beyond a sequence,
-    unknown class names or an id repeated within a frame.
+    unknown class names, an id repeated within a frame or (3D, BEV) 3D fields that are no box.
     """
+    similarity = parse_similarity(similarity)
     if root is None:
         root = default_data_root()
     gt = cached_gt(root, cls, sequences)
-    return evaluate_dets(gt, read_tracker_files(results_dir, gt, missing=missing))
+    return evaluate_dets(gt, read_tracker_files(results_dir, gt, missing=missing, need_3d=similarity != "2d"),
+                         similarity)
 
 
-def evaluate_dets(gt: PreparedGT, dets: TrackerDets) -> dict[str, dict[str, object]]:
+def evaluate_dets(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> dict[str, dict[str, object]]:
     """One lane of tracker output (:func:`read_tracker_files`) scored against ``gt``:
     ``{seq: {field: value}, ..., 'COMBINED': {...}}``."""
-    return _to_dicts(gt, evaluate_batch(gt, dets))[0]
+    return _to_dicts(gt, evaluate_batch(gt, dets, similarity))[0]
 
 
 def evaluate_files_classes(results_dir, root=None, classes: Sequence[str] | str = EVAL_CLASSES,
-                           sequences: Sequence | None = None, missing: str = "empty") -> dict[str, dict]:
+                           sequences: Sequence | None = None, missing: str = "empty",
+                           similarity: str = "2d") -> dict[str, dict]:
     """Evaluate one tracker's result files for several classes, each like :func:`evaluate_files`.
 
     One file ``results_dir/SSSS.txt`` holds the rows of every class (type names ``Car``,
@@ -271,6 +286,7 @@ def evaluate_files_classes(results_dir, root=None, classes: Sequence[str] | str 
     scored on exactly these (as TrackEval's seqmap).
     Returns ``{cls: {seq: {field: value}, ..., 'COMBINED': {...}}, ...}`` and, with two or more
     classes, ``'average': {'COMBINED': class_average(each class's COMBINED)}`` (:func:`class_average`).
+    similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'``, as :func:`evaluate_files`.
     """
     if root is None:
         root = default_data_root()
@@ -279,21 +295,24 @@ def evaluate_files_classes(results_dir, root=None, classes: Sequence[str] | str 
         seqs = sequences if sequences is not None else cached_class_sequences(root, c)
         if not len(seqs):
             raise ValueError(f"no sequence of {Path(root) / 'label_02'} has ground truth of class {c!r}")
-        out[c] = evaluate_files(results_dir, cached_gt(root, c, seqs), missing=missing)
+        out[c] = evaluate_files(results_dir, cached_gt(root, c, seqs), missing=missing, similarity=similarity)
     if len(out) > 1:
         out[AVERAGE] = {"COMBINED": class_average({c: r["COMBINED"] for c, r in out.items()})}
     return out
 
 
 def evaluate_classes(results_dir, root=None, classes: Sequence[str] | str = EVAL_CLASSES,
-                     sequences: Sequence | None = None, missing: str = "empty", tracker: str | None = None):
+                     sequences: Sequence | None = None, missing: str = "empty", tracker: str | None = None,
+                     similarity: str = "2d"):
     """:func:`evaluate_files_classes` as a tidy pandas DataFrame (:func:`dfrmot_jax.metrics.table.classes_table`).
 
     Columns ``[tracker,] class, seq`` and TrackEval's summary fields (ratios x100, counts int); one
     row per (class, sequence), each class's ``COMBINED``, and with two or more classes a last row
     ``class = 'average', seq = 'COMBINED'`` (ratio columns the mean over the classes, counts summed).
+    similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'``; the column names stay (``HOTA``, ...).
     """
-    return classes_table(evaluate_files_classes(results_dir, root, classes, sequences, missing), tracker=tracker)
+    return classes_table(evaluate_files_classes(results_dir, root, classes, sequences, missing, similarity),
+                         tracker=tracker)
 
 
 def lane_slice(dets: TrackerDets, a: int, b: int) -> TrackerDets:
@@ -301,7 +320,9 @@ def lane_slice(dets: TrackerDets, a: int, b: int) -> TrackerDets:
     i, j = np.searchsorted(dets.lane, [a, b], side="left")
     return dets._replace(n_lanes=b - a, lane=dets.lane[i:j] - a, frame=dets.frame[i:j],
                          track_id=dets.track_id[i:j], box=dets.box[i:j], source=dets.source[i:j],
-                         paths=dets.paths[a:b] if dets.paths else dets.paths)
+                         paths=dets.paths[a:b] if dets.paths else dets.paths,
+                         box3d=None if dets.box3d is None else dets.box3d[i:j],
+                         has3d=None if dets.has3d is None else dets.has3d[i:j])
 
 
 def _concat(outs: list[dict]) -> dict:
@@ -309,10 +330,10 @@ def _concat(outs: list[dict]) -> dict:
             for part in ("seq", "comb")}
 
 
-def evaluate_lanes(gt: PreparedGT, dets: TrackerDets, lanes_per_batch: int = 16) -> dict:
+def evaluate_lanes(gt: PreparedGT, dets: TrackerDets, lanes_per_batch: int = 16, similarity: str = "2d") -> dict:
     """:func:`evaluate_batch` over sub-batches of ``lanes_per_batch`` lanes (bounded memory), concatenated:
     ``{'seq': {field: [L, S(, 19)]}, 'comb': {field: [L(, 19)]}}``."""
-    return _concat([evaluate_batch(gt, lane_slice(dets, a, min(a + lanes_per_batch, dets.n_lanes)))
+    return _concat([evaluate_batch(gt, lane_slice(dets, a, min(a + lanes_per_batch, dets.n_lanes)), similarity)
                     for a in range(0, dets.n_lanes, lanes_per_batch)])
 
 
@@ -324,8 +345,8 @@ def _init_worker(gt: PreparedGT) -> None:
     _WORKER_GT = gt
 
 
-def _run_chunk(dets: TrackerDets) -> dict:
-    return evaluate_batch(_WORKER_GT, dets)
+def _run_chunk(dets: TrackerDets, similarity: str = "2d") -> dict:
+    return evaluate_batch(_WORKER_GT, dets, similarity)
 
 
 class _Parts(list):
@@ -338,7 +359,7 @@ class _Parts(list):
 
 
 def worker_pool(gt: PreparedGT, workers: int, start_method: str | None = None) -> ProcessPoolExecutor:
-    """A process pool whose workers hold ``gt`` (sent once): submit ``_run_chunk(dets)``.
+    """A process pool whose workers hold ``gt`` (sent once): submit ``_run_chunk(dets, similarity)``.
     ``start_method`` default ``'forkserver'`` where available, else ``'spawn'`` (both safe in a
     process running JAX threads).
 
@@ -405,23 +426,29 @@ class LaneScorer:
 
     A lane's output is identified by a digest of its ids (and its own boxes, when boxes are per
     lane); :meth:`new_lanes` picks the lanes whose output is not scored yet, :meth:`store` keeps
-    their scores and :meth:`gather` returns the scores of every lane of a batch."""
-    def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16):
+    their scores and :meth:`gather` returns the scores of every lane of a batch. similarity:
+    ``'2d'`` (default), ``'3d'`` or ``'bev'`` (then :meth:`digests` and :meth:`dets` take ``box3d``,
+    [B, T, K, 7] or [T, K, 7] shared by the lanes)."""
+    def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16, similarity: str = "2d"):
         self.gt = gt
         self.offsets = np.asarray(offsets, np.int64)
         self.lanes_per_batch = lanes_per_batch
+        self.similarity = parse_similarity(similarity)
         self.memo: dict[bytes, tuple[dict, dict]] = {}
 
     def __len__(self) -> int:
         return len(self.memo)
 
     @staticmethod
-    def digests(ids: np.ndarray, boxes: np.ndarray) -> list[bytes]:
+    def digests(ids: np.ndarray, boxes: np.ndarray, box3d: np.ndarray | None = None) -> list[bytes]:
+        """One digest per lane of ``ids`` [B, T, K] and the lane's own boxes ([B, T, K, 4] / 3D boxes
+        [B, T, K, 7]; boxes shared by the lanes, [T, K, ...], are the same for every lane)."""
         out = []
         for b in range(ids.shape[0]):
             h = hashlib.sha1(np.ascontiguousarray(ids[b]).tobytes())
-            if boxes.ndim == 4:
-                h.update(np.ascontiguousarray(boxes[b][ids[b] >= 0]).tobytes())
+            for bx in (boxes, box3d):
+                if bx is not None and bx.ndim == 4:
+                    h.update(np.ascontiguousarray(bx[b][ids[b] >= 0]).tobytes())
             out.append(h.digest())
         return out
 
@@ -436,19 +463,25 @@ class LaneScorer:
                     out.append(i)
         return out
 
-    def dets(self, ids, boxes, lanes) -> TrackerDets:
+    def dets(self, ids, boxes, lanes, box3d=None) -> TrackerDets:
         lanes = np.asarray(lanes, np.int64)
-        bx = boxes[lanes] if boxes.ndim == 4 else np.broadcast_to(boxes, (len(lanes),) + boxes.shape)
-        return tracker_dets_from_arrays(self.gt, ids[lanes], bx, self.offsets)
+
+        def per_lane(a):
+            return a[lanes] if a.ndim == 4 else np.broadcast_to(a, (len(lanes),) + a.shape)
+
+        if self.similarity != "2d" and box3d is None:
+            raise ValueError(f"similarity {self.similarity!r} needs box3d")
+        b3 = per_lane(np.asarray(box3d)) if box3d is not None and self.similarity != "2d" else None
+        return tracker_dets_from_arrays(self.gt, ids[lanes], per_lane(boxes), self.offsets, b3)
 
     def evaluate(self, dets: TrackerDets) -> dict:
-        return evaluate_lanes(self.gt, dets, self.lanes_per_batch)
+        return evaluate_lanes(self.gt, dets, self.lanes_per_batch, self.similarity)
 
     def submit(self, pool: ProcessPoolExecutor, dets: TrackerDets) -> "_Parts":
         """Score ``dets`` in the pool, ``lanes_per_batch`` lanes per task (one chunk's lanes spread over
         every process): a future-like ``_Parts`` whose ``result()`` equals :meth:`evaluate`'s."""
         n = self.lanes_per_batch
-        return _Parts(pool.submit(_run_chunk, lane_slice(dets, a, min(a + n, dets.n_lanes)))
+        return _Parts(pool.submit(_run_chunk, lane_slice(dets, a, min(a + n, dets.n_lanes)), self.similarity)
                       for a in range(0, dets.n_lanes, n))
 
     def store(self, digests: Sequence[bytes], lanes: Sequence[int], result: dict) -> None:
@@ -466,7 +499,8 @@ class LaneScorer:
                 "comb": {f: np.stack([c[f] for _, c in per]) for f in per[0][1]}}
 
 
-def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, chunk: int = 4, workers: int | None = 1,
+def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None, similarity: str = "2d",
+                    chunk: int = 4, workers: int | None = 1,
                     start_method: str | None = None) -> list[dict[str, dict[str, object]]]:
     """Evaluate B tracker configs straight from padded output; one result dict per config.
 
@@ -475,6 +509,9 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, chunk: int 
     values are used as float64). seq_offsets: [S] first frame along T of each of ``gt.sequences``
     (default: the sequences back to back, ``gt.offsets[:-1]``). Within a frame, slots are taken in
     order k = 0..K-1 (the order of rows in a result file; it decides ties exactly as in TrackEval).
+    similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (module docstring); 3D and BEV need
+    box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot (the 3D box the result file would carry; a
+    slot without one holds the placeholder ``-1 -1 -1 -1000 -1000 -1000`` or all NaN: unmatched in 3D).
     chunk: configs per vectorised batch (peak memory ~ chunk x 60 MB for all of KITTI car).
     workers: processes for chunks (default 1; ``None`` = 2 when B >= 64 and 2+ CPUs). With
     workers > 1 a process pool (``start_method``, default ``'forkserver'`` on Linux, else
@@ -485,7 +522,10 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, chunk: int 
     """
     if seq_offsets is None:
         seq_offsets = gt.offsets[:-1]
-    dets = tracker_dets_from_arrays(gt, ids, boxes, seq_offsets)
+    similarity = parse_similarity(similarity)
+    if similarity != "2d" and box3d is None:
+        raise ValueError(f"similarity {similarity!r} needs box3d [B, T, K, 7] (h w l x y z rot_y per slot)")
+    dets = tracker_dets_from_arrays(gt, ids, boxes, seq_offsets, box3d if similarity != "2d" else None)
     B = dets.n_lanes
     if B == 0:
         return []
@@ -495,9 +535,9 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, chunk: int 
         workers = 2 if (B >= 64 and (os.cpu_count() or 1) >= 2) else 1
     if workers > 1 and len(tasks) > 1:
         with worker_pool(gt, min(workers, len(tasks)), start_method) as ex:
-            outs = list(ex.map(_run_chunk, tasks))
+            outs = list(ex.map(_run_chunk, tasks, [similarity] * len(tasks)))
     else:
-        outs = [evaluate_batch(gt, t) for t in tasks]
+        outs = [evaluate_batch(gt, t, similarity) for t in tasks]
     return _to_dicts(gt, _concat(outs))
 
 

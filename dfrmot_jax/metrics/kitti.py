@@ -21,6 +21,16 @@ What TrackEval does (``trackeval/datasets/kitti_2d_box.py`` and ``_base_dataset.
   (score > eps) to a distractor GT are removed. Of the unmatched tracker boxes, those with height
   ``y2 - y1 <= 25 + eps`` px or with intersection-over-own-area ``> 0.5 + eps`` with any DontCare
   region are removed. Distractor GT are then dropped.
+* **Similarity** (``similarity=``, :mod:`dfrmot_jax.metrics.similarity`): TrackEval's image-box
+  IoU (``'2d'``, the default), or, with the rest unchanged, the 3D IoU of the rotated boxes (``'3d'``) or their
+  bird's-eye-view IoU (``'bev'``) (:mod:`dfrmot_jax.metrics.box3d`), which then feeds HOTA, CLEAR
+  and Identity in place of the 2D IoU (their thresholds unchanged: CLEAR and Identity match at
+  similarity >= 0.5, HOTA over alpha = 0.05..0.95). The preprocessing stays 2D, as KITTI's: the
+  distractor matching (image IoU >= 0.5), the 25 px height and the DontCare overlap use the image
+  boxes whatever the similarity. A row without a 3D box (the 2D-only placeholder
+  ``-1 -1 -1 -1000 -1000 -1000``, or all NaN in arrays; :mod:`dfrmot_jax.metrics.fields3d`) has 3D /
+  BEV similarity 0 to every object: in 3D it is never matched (a false positive unless removed by
+  the 2D preprocessing), and a ground-truth object without one is never matched either (a miss).
 * **Ids.** GT and tracker ids are relabelled per sequence to ``0..n-1`` in sorted order (this
   does not change any metric value here; we use one global index per (config, sequence, id)).
   Duplicate ids within a frame after preprocessing are an error.
@@ -42,7 +52,9 @@ import numpy as np
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.io.result_rows import read_result_rows
 from dfrmot_jax.metrics.boxes import EPS, columns, gather_iou, pair_ioa
+from dfrmot_jax.metrics.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows, read_box3d_columns
 from dfrmot_jax.metrics.pairs import assign_frames, enumerate_pairs, nontrivial_segments, segment_starts
+from dfrmot_jax.metrics.similarity import pair_similarity_3d, parse_similarity
 
 __all__ = [
     "CLASS_NAME_TO_ID",
@@ -118,6 +130,8 @@ class PreparedGT:
     * ``gid_count`` [NG] float64 detections per GT id; ``gid_seq`` [NG]; ``n_gt_ids`` [S];
       ``n_gt_dets`` [S].
     * DontCare regions: ``dc_box`` [D, 4], ``dc_start`` [F+1].
+    * 3D boxes of the class rows: ``row_box3d`` [N, 7] ``h w l x y z rot_y`` (label_02's columns),
+      ``row_has3d`` [N] bool (False where the fields are no box: the placeholder or worse).
     """
     cls: str
     cls_id: int
@@ -139,6 +153,8 @@ class PreparedGT:
     n_gt_dets: np.ndarray
     dc_box: np.ndarray
     dc_start: np.ndarray
+    row_box3d: np.ndarray
+    row_has3d: np.ndarray
     root: str = ""
     _cache: dict = field(default_factory=dict, repr=False)
 
@@ -184,7 +200,7 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
     else:
         names = [_seq_name(s) for s in sequences]
 
-    lengths, boxes, evals, ids, frames, dcb, dcf = [], [], [], [], [], [], []
+    lengths, boxes, boxes3d, evals, ids, frames, dcb, dcf = [], [], [], [], [], [], [], []
     offset = 0
     gid_off = 0
     n_ids, n_dets, gid_counts = [], [], []
@@ -205,6 +221,7 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
         sel = np.flatnonzero(use)
         order = sel[np.argsort(lab.frame[sel], kind="stable")]
         boxes.append(lab.box[order])
+        boxes3d.append(np.concatenate([lab.dims[order], lab.loc[order], lab.rot_y[order, None]], axis=1))
         evals.append(is_eval[order])
         frames.append(lab.frame[order] + offset)
         # relabel eval ids contiguously per sequence (sorted unique, as TrackEval)
@@ -241,6 +258,8 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
     eval_count = np.bincount(eval_frame, minlength=F).astype(np.int64)
     dc_frame = np.concatenate(dcf) if dcf else np.zeros(0, np.int64)
     gid_count = np.concatenate(gid_counts) if gid_counts else np.zeros(0)
+    row_box3d = np.concatenate(boxes3d).reshape(-1, 7).astype(np.float64) if boxes3d else np.zeros((0, 7))
+    row_has3d = box_rows(row_box3d)              # ground truth whose 3D fields are no box: no 3D box
     n_gt_ids = np.asarray(n_ids, dtype=np.int64)
     return PreparedGT(
         cls=cls, cls_id=cls_id, sequences=tuple(names), lengths=lengths_a, offsets=offsets,
@@ -251,7 +270,7 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
         n_gt_ids=n_gt_ids, n_gt_dets=np.asarray(n_dets, dtype=np.int64),
         dc_box=np.concatenate(dcb).reshape(-1, 4).astype(np.float64) if dcb else np.zeros((0, 4)),
         dc_start=segment_starts(np.bincount(dc_frame, minlength=F)),
-        root=str(root),
+        row_box3d=np.ascontiguousarray(row_box3d), row_has3d=row_has3d, root=str(root),
     )
 
 
@@ -286,7 +305,8 @@ class TrackerDets(NamedTuple):
 
     lane, frame (global GT frame), track_id: [M] int64; box: [M, 4] float64 ``x1, y1, x2, y2``;
     source: [M] int64 row in the source file (files) or slot index (arrays), for error messages;
-    paths: per lane, per sequence the source file (or None).
+    paths: per lane, per sequence the source file (or None). box3d: [M, 7] float64 ``h w l x y z
+    rot_y`` and has3d: [M] bool (False: no 3D box), or both None when the 3D fields were not read.
     """
     n_lanes: int
     lane: np.ndarray
@@ -295,6 +315,8 @@ class TrackerDets(NamedTuple):
     box: np.ndarray
     source: np.ndarray
     paths: tuple = ()
+    box3d: np.ndarray | None = None
+    has3d: np.ndarray | None = None
 
 
 def result_file_problem(path) -> str | None:
@@ -343,7 +365,7 @@ def inspect_results(results_dir, sequences: Sequence, known: Sequence | None = N
     return ResultFolder(tuple(missing), tuple(unreadable), unexpected)
 
 
-def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty") -> TrackerDets:
+def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty", need_3d: bool = False) -> TrackerDets:
     """Read ``results_dir/SSSS.txt`` for every sequence of ``gt`` (KITTI tracking result format).
 
     Files are read as TrackEval reads them (:mod:`dfrmot_jax.io.result_rows`: rows in any order,
@@ -355,13 +377,16 @@ def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty") -> T
     :func:`~dfrmot_jax.io.result_rows.read_result_rows` refuses. A name that is no readable file
     (a directory, a dangling symlink) always raises. A missing file is an empty output with
     ``missing='empty'`` (TrackEval itself refuses to run without every file; an empty file there
-    gives the same numbers) or raises with ``missing='error'``. Returns one lane.
+    gives the same numbers) or raises with ``missing='error'``. need_3d: also read the 3D fields
+    ``h w l x y z rot_y`` (columns 11-17) of the kept rows, by the rules of
+    :mod:`dfrmot_jax.metrics.fields3d` (the placeholder: no 3D box; anything else that is no box, a
+    missing column or a non-number: ``KittiFormatError`` with file, line and field). Returns one lane.
     """
     kio = _kitti_io()
     results_dir = Path(results_dir)
     if not results_dir.is_dir():
         raise FileNotFoundError(f"results folder not found: {results_dir}")
-    fr, ids, bx, src, paths = [], [], [], [], []
+    fr, ids, bx, src, paths, b3, h3 = [], [], [], [], [], [], []
     for s, name in enumerate(gt.sequences):
         path = results_dir / f"{name}.txt"
         why = result_file_problem(path)
@@ -387,21 +412,36 @@ def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty") -> T
         ids.append(rows.track_id[keep])
         bx.append(rows.box[keep])
         src.append(rows.row[keep])
+        if need_3d:
+            with open(path, encoding="utf-8-sig") as f:
+                first = f.readline()
+            # io.result_rows' separator rule: commas when the first line has one, else whitespace
+            box3d, has3d = read_box3d_columns(path, rows.row[keep], "," if "," in first else None)
+            b3.append(box3d)
+            h3.append(has3d)
+    e = np.zeros(0, np.int64)
+    box3d = has3d = None
+    if need_3d:
+        box3d = np.concatenate(b3) if b3 else np.zeros((0, 7))
+        has3d = np.concatenate(h3) if h3 else np.zeros(0, dtype=bool)
     if fr:
         frame = np.concatenate(fr)
         return TrackerDets(1, np.zeros(len(frame), np.int64), frame, np.concatenate(ids),
                            np.ascontiguousarray(np.concatenate(bx), dtype=np.float64), np.concatenate(src),
-                           (tuple(paths),))
-    e = np.zeros(0, np.int64)
-    return TrackerDets(1, e, e, e, np.zeros((0, 4)), e, (tuple(paths),))
+                           (tuple(paths),), box3d, has3d)
+    return TrackerDets(1, e, e, e, np.zeros((0, 4)), e, (tuple(paths),), box3d, has3d)
 
 
-def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets) -> TrackerDets:
+def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets,
+                             box3d: np.ndarray | None = None) -> TrackerDets:
     """Flatten padded tracker output into :class:`TrackerDets`.
 
     ids: [B, T, K] int (negative = empty slot); boxes: [B, T, K, 4] float ``x1, y1, x2, y2``;
     seq_offsets: [S] first frame (along T) of each of ``gt.sequences``; sequence s uses frames
     ``seq_offsets[s] : seq_offsets[s] + gt.lengths[s]``; other frames of T are ignored.
+    box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot, or None (3D fields not needed). A slot
+    without a 3D box holds the placeholder or all NaN; any other value that is no box
+    (:mod:`dfrmot_jax.metrics.fields3d`) raises ValueError naming config, frame, slot and field.
     """
     ids = np.asarray(ids)
     if ids.ndim != 3:
@@ -432,8 +472,20 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     if box.size and not np.all(np.isfinite(box)):
         bad = int(np.flatnonzero(~np.all(np.isfinite(box), axis=1))[0])
         raise ValueError(f"non-finite box in config {b[bad]}, frame {t[bad]}, slot {k[bad]}")
+    b3 = h3 = None
+    if box3d is not None:
+        box3d = np.asarray(box3d)
+        if box3d.shape != (B, T, K, 7):
+            raise ValueError(f"box3d must be [B, T, K, 7] = {(B, T, K, 7)}, got {box3d.shape}")
+        b3 = box3d[b, t, k].astype(np.float64)
+        h3 = ~no_box_rows(b3)
+        bad = box3d_problem(b3, h3)
+        if bad is not None:
+            i, j, msg = bad
+            raise ValueError(f"3D box of config {b[i]}, frame {t[i]}, slot {k[i]}, field {FIELDS_3D[j]}: "
+                             + msg.format(repr(float(b3[i, j])), repr(float(b3[i, 2]))))
     return TrackerDets(B, b.astype(np.int64), g.astype(np.int64), ids[b, t, k].astype(np.int64), box,
-                       k.astype(np.int64))
+                       k.astype(np.int64), (), b3, h3)
 
 
 @dataclass(eq=False)
@@ -486,12 +538,18 @@ def _duplicate_error(gt: PreparedGT, dets: TrackerDets, idx: int) -> Exception:
     return DuplicateIdError(f"config {lane}: {msg}")
 
 
-def preprocess(gt: PreparedGT, dets: TrackerDets) -> EvalBatch:
+def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> EvalBatch:
     """TrackEval's ``get_preprocessed_seq_data`` for every lane and frame at once.
 
+    similarity: ``'2d'`` (image IoU), ``'3d'`` or ``'bev'`` (module docstring: the metric pairs'
+    ``sim``; the preprocessing itself stays 2D); 3D and BEV need ``dets.box3d``.
     Returns an :class:`EvalBatch`. Raises :class:`DuplicateIdError` (or ``KittiFormatError`` for
     file input) when an id repeats within a frame after preprocessing.
     """
+    similarity = parse_similarity(similarity)
+    if similarity != "2d" and dets.box3d is None:
+        raise ValueError(f"similarity {similarity!r} needs the tracker's 3D boxes (read with need_3d=True, or "
+                         f"box3d= for arrays)")
     L = int(dets.n_lanes)
     F = gt.n_frames
     S = len(gt.sequences)
@@ -565,7 +623,10 @@ def preprocess(gt: PreparedGT, dets: TrackerDets) -> EvalBatch:
     p_lf = seg[sel]
     p_e = ev_row[sel]
     p_k = kpos[col[sel]]
-    sim = iou[sel]
+    if similarity == "2d":
+        sim = iou[sel]
+    else:
+        sim = pair_similarity_3d(gt.row_box3d, gt.row_has3d, row[sel], dets.box3d, dets.has3d, col[sel], similarity)
     ng_e = gt.eval_count[g_of_lf]
     pair_start = segment_starts(ng_e * nk)
     n_tr_dets = np.bincount(grp, minlength=L * S).reshape(L, S).astype(np.int64)
