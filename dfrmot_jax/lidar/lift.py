@@ -48,7 +48,7 @@ from scipy.spatial import cKDTree
 from ..geometry import truncate_2d_box
 from ..io.kitti import Calib
 
-__all__ = ["LiftSettings", "LIFT_SETTINGS", "Prepared", "Lifted", "velo_to_image", "voxel_grid", "crop_mask",
+__all__ = ["LiftSettings", "LIFT_SETTINGS", "lift_setting_name", "with_setting", "Prepared", "Lifted", "velo_to_image", "voxel_grid", "crop_mask",
            "project_pixels", "detection_boxes", "shrunk_boxes", "assign_points", "largest_clusters",
            "prepare_points", "lift_prepared", "lift_frames"]
 
@@ -97,6 +97,35 @@ class LiftSettings(NamedTuple):
 
 #: the settings' names, as ``--set NAME=VALUE`` and sweep axes (``lift.NAME``) spell them
 LIFT_SETTINGS = LiftSettings._fields
+
+
+def lift_setting_name(name: str) -> str | None:
+    """``"shrink"`` or ``"lift.shrink"`` -> ``"shrink"``; None for a name that is no lifting setting."""
+    name = name.strip()
+    name = name[len("lift."):] if name.startswith("lift.") else name
+    return name if name in LIFT_SETTINGS else None
+
+
+def with_setting(settings: LiftSettings, name: str, raw) -> LiftSettings:
+    """``settings`` with one setting from text or a number (``crop_lo`` / ``crop_hi``: three numbers,
+    comma-separated), validated; ValueError naming the setting."""
+    key = lift_setting_name(name)
+    if key is None:
+        raise ValueError(f"lift setting {name!r}: unknown; the settings are {list(LIFT_SETTINGS)}")
+    try:
+        if key in ("crop_lo", "crop_hi"):
+            parts = raw.split(",") if isinstance(raw, str) else list(raw)
+            value = tuple(float(v) for v in parts)
+        elif key == "min_cluster":
+            value = float(raw)
+            if value != int(value):
+                raise ValueError
+            value = int(value)
+        else:
+            value = float(raw)
+    except (TypeError, ValueError):
+        raise ValueError(f"lift setting {key}: {raw!r} is not a valid value") from None
+    return settings._replace(**{key: value}).validate()
 #: the first stage's settings (a change of any other setting reuses a :class:`Prepared`)
 PREPARE_FIELDS = ("leaf", "crop_lo", "crop_hi", "score_cut")
 #: groups of points are this far apart on the radius graph's 4th axis (m)
