@@ -29,6 +29,9 @@ from .io.kitti import (
 )
 from .core.step import Frames
 from .config import Options
+from .lidar.lift import LiftSettings
+from .lidar.scans import scan_stamps
+from .lidar.source import lidar_dir, lift_sequence
 from .paths import missing_data_message
 
 CLASS_NAMES = {"car": "Car", "pedestrian": "Pedestrian"}
@@ -41,13 +44,16 @@ TYPE_NAMES_3D = frozenset({"car", "van", "truck", "pedestrian", "person", "perso
 
 
 class SequenceDets(NamedTuple):
-    """One sequence's raw detections as read from its files (rows in file order)."""
+    """One sequence's raw detections as read from its files (rows in file order). fused3d: the 3D
+    rows were lifted from the 2D ones (``det3d="lidar:DIR"``): each one's image box is its 2D
+    detection's, also as ``Split.proj3d``."""
 
     name: str
     n_frames: int
     det2d: Detections2D
     det3d: Detections3D
     calib: Calib
+    fused3d: bool = False
 
 
 class Split(NamedTuple):
@@ -159,13 +165,17 @@ def class_rows_3d(det: Detections3D, cls: str, path=None) -> np.ndarray:
 
 
 def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
-                   image_size=DEFAULT_IMAGE_SIZE) -> list[SequenceDets]:
+                   image_size=DEFAULT_IMAGE_SIZE, lift: LiftSettings | None = None) -> list[SequenceDets]:
     """Read detections and calib of each sequence (default: those whose ground truth has the class).
 
     A root without ``label_02/`` raises ValueError (the KITTI root is wrong), a missing detection or
     calib file :class:`KittiFormatError` (``file not found``); an empty file is a sequence without
     detections. 3D rows whose ``type`` is another class are dropped (:func:`class_rows_3d`; on the
     shipped PointRCNN / PointGNN files every row is the folder's class).
+
+    ``det3d="lidar:DIR"``: the 3D detections are the 2D ones lifted from the scans
+    ``DIR/velodyne/SSSS/FFFFFF.bin`` with the settings ``lift`` (default ``LiftSettings()``), cached
+    per setting (:func:`dfrmot_jax.lidar.lift_sequence`); each belongs to its 2D detection.
     """
     root = Path(root)
     if cls not in CLASS_NAMES:
@@ -173,26 +183,39 @@ def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
     if not (root / "label_02").is_dir():
         raise ValueError(missing_data_message(root))
     d2 = detection_dir(root, det2d, cls)
-    d3 = detection_dir(root, det3d, cls)
+    scans = lidar_dir(det3d)
+    d3 = None if scans is not None else detection_dir(root, det3d, cls)
     if sequences is None:
         sequences = sequences_with_class(root, cls)
     lengths = sequence_lengths(root, sequences)
     out = []
     for name in sequences:
-        p2, p3 = d2 / f"{name}.txt", d3 / f"{name}.txt"
-        det2, det3 = read_detections_2d(p2), read_detections_3d(p3)
-        for kind, det, path in (("2D", det2, p2), ("3D", det3, p3)):
+        p2 = d2 / f"{name}.txt"
+        det2 = read_detections_2d(p2)
+        calib_path = root / "calib" / f"{name}.txt"
+        calib = read_calib(calib_path)
+        checks = [("2D", det2, p2)]
+        if scans is None:
+            p3 = d3 / f"{name}.txt"
+            det3 = read_detections_3d(p3)
+            checks.append(("3D", det3, p3))
+        for kind, det, path in checks:
             beyond = det.frame >= lengths[name]
             if beyond.any():
                 row = int(np.argmax(beyond))
                 raise KittiFormatError(str(path), line_of_row(path, row), "frame",
                                        f"{kind} detection at frame {int(det.frame[row])} beyond the sequence "
                                        f"({lengths[name]} frames)")
+        if scans is not None:
+            det3 = lift_sequence(scans, name, lengths[name], det2, calib, lift or LiftSettings(), cls,
+                                 stamp_files=(p2, calib_path))
+            out.append(SequenceDets(name=name, n_frames=lengths[name], det2d=det2, det3d=det3, calib=calib,
+                                    fused3d=True))
+            continue
         keep = class_rows_3d(det3, cls, p3)
         if not keep.all():
             det3 = Detections3D(*(np.asarray(v)[keep] for v in det3))
-        out.append(SequenceDets(name=name, n_frames=lengths[name], det2d=det2, det3d=det3,
-                                calib=read_calib(root / "calib" / f"{name}.txt")))
+        out.append(SequenceDets(name=name, n_frames=lengths[name], det2d=det2, det3d=det3, calib=calib))
     return out
 
 
@@ -250,7 +273,8 @@ def pack(seqs: list[SequenceDets], cls: str = "car", image_size=DEFAULT_IMAGE_SI
         dims3d[t, slot] = d.dims; loc3d[t, slot] = d.loc; rot_y3d[t, slot] = d.rot_y; alpha3d[t, slot] = d.alpha
         row3d[t, slot] = np.arange(d.frame.size)
         if d.frame.size:
-            proj3d[t, slot] = project_box3d_to_image(d.dims, d.loc, d.rot_y, s.calib.P2, image_size)
+            proj3d[t, slot] = d.box if s.fused3d else project_box3d_to_image(d.dims, d.loc, d.rot_y, s.calib.P2,
+                                                                              image_size)
     return Split(names=tuple(s.name for s in seqs), lengths=lengths, offsets=offsets, reset=reset, seq=seq,
                  frame=frame, box2d=box2d, score2d=score2d, valid2d=valid2d, row2d=row2d, box3d=box3d,
                  proj3d=proj3d, score3d=score3d, dims3d=dims3d, loc3d=loc3d, rot_y3d=rot_y3d, alpha3d=alpha3d,
@@ -258,30 +282,38 @@ def pack(seqs: list[SequenceDets], cls: str = "car", image_size=DEFAULT_IMAGE_SI
 
 
 def load_split(root, det2d="rrc", det3d="pointrcnn", cls: str = "car", sequences=None,
-               image_size=DEFAULT_IMAGE_SIZE) -> Split:
-    """Read and pack a split: ``load_split(root, "rrc", "pointrcnn", "car")``."""
-    return pack(load_sequences(root, det2d, det3d, cls, sequences, image_size), cls, image_size)._replace(
+               image_size=DEFAULT_IMAGE_SIZE, lift: LiftSettings | None = None) -> Split:
+    """Read and pack a split: ``load_split(root, "rrc", "pointrcnn", "car")``; with LiDAR scans
+    ``load_split(root, "rrc", "lidar:DIR", "car", lift=LiftSettings(shrink=0.1))``."""
+    return pack(load_sequences(root, det2d, det3d, cls, sequences, image_size, lift), cls, image_size)._replace(
         root=str(root))
 
 
 _SPLITS: dict = {}
 
 
-def cached_split(root, det2d, det3d, cls: str, sequences) -> Split:
+def cached_split(root, det2d, det3d, cls: str, sequences, lift: LiftSettings | None = None) -> Split:
     """:func:`load_split` memoised on its arguments and the size and mtime of every file it reads
-    (labels for the lengths, calibrations, both detectors' files): sweeps on the same data, such as
-    a tune's batches, read it once."""
+    (labels for the lengths, calibrations, both detectors' files; with ``det3d="lidar:DIR"`` the lifting
+    settings and every scan): sweeps on the same data, such as a tune's batches, read it once."""
     root = Path(root)
     sequences = tuple(sequences)
     files = [root / sub / f"{s}.txt" for sub in ("label_02", "calib") for s in sequences]
-    for det in (det2d, det3d):
+    scans = lidar_dir(det3d)
+    for det in (det2d,) if scans is not None else (det2d, det3d):
         folder = detection_dir(root, det, cls)
         files += [folder / f"{s}.txt" for s in sequences]
-    key, stamp = (str(root.resolve()), str(det2d), str(det3d), cls, sequences), file_stamps(files)
+    stamp = file_stamps(files)
+    lift_key = None
+    if scans is not None:
+        lift_key = tuple((lift or LiftSettings()).validate())
+        lengths = sequence_lengths(root, sequences)
+        stamp += tuple(scan_stamps(scans, s, lengths[s]) for s in sequences)
+    key = (str(root.resolve()), str(det2d), str(det3d), cls, sequences, lift_key)
     hit = _SPLITS.get(key)
     if hit is not None and hit[0] == stamp:
         return hit[1]
-    split = load_split(root, det2d, det3d, cls, list(sequences))
+    split = load_split(root, det2d, det3d, cls, list(sequences), lift=lift)
     if len(_SPLITS) >= 4:
         _SPLITS.clear()
     _SPLITS[key] = (stamp, split)

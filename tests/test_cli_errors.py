@@ -14,7 +14,7 @@ from dfrmot_jax.cli import track as track_cmd
 from dfrmot_jax.config import PRESETS, Options, Params
 from dfrmot_jax.testing.cli import error_line, run_cli
 
-COMMANDS = ("track", "demo", "eval", "sweep", "tune", "report")
+COMMANDS = ("track", "demo", "eval", "sweep", "tune", "report", "lidar")
 
 
 @pytest.fixture(scope="module")

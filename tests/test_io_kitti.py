@@ -519,6 +519,17 @@ def test_calib_aliases_crlf_and_missing_imu(tmp_path):
     np.testing.assert_array_equal(c.Tr_imu_to_velo, np.zeros((3, 4)))
 
 
+@pytest.mark.parametrize("sep", [" ", "\t", "  "])
+def test_calib_devkit_names_without_colon_any_blank(tmp_path, sep):
+    """The tracking devkit's ``R_rect`` / ``Tr_velo_cam`` (no colon) read as ``R0_rect:`` / ``Tr_velo_to_cam:``."""
+    ref = read_calib(write(tmp_path / "a.txt", calib_text()))
+    c = read_calib(write(tmp_path / "b.txt", calib_text(r="R_rect", tr="Tr_velo_cam", sep=sep)))
+    for name in ("P2", "R0_rect", "Tr_velo_to_cam"):
+        np.testing.assert_array_equal(getattr(c, name), getattr(ref, name))
+    e = raises(tmp_path, read_calib, calib_text(r="R_rect", sep=sep).replace(f"R_rect{sep}9.999239e-01", "R_rect"))
+    assert (e.line, e.field) == (5, "R_rect") and "expected 9 values, got 8" in e.message
+
+
 @pytest.mark.parametrize("missing, field", [("P2:", "P2"), ("R0_rect:", "R0_rect"), ("Tr_velo_to_cam:", "Tr_velo_to_cam")])
 def test_calib_missing_matrix(tmp_path, missing, field):
     text = "\n".join(s for s in calib_text().splitlines() if not s.startswith(missing))

@@ -1,6 +1,6 @@
 """The ``dfrmot`` command line: one parser, one error handler, one module per subcommand.
 
-Each subcommand module (``track``, ``demo``, ``eval``, ``sweep``, ``tune``, ``report``) has
+Each subcommand module (``track``, ``demo``, ``eval``, ``sweep``, ``tune``, ``report``, ``lidar``) has
 ``add_parser(sub)``, which registers the subcommand with ``func=guarded(run)``, and ``run(args)``,
 which returns the exit status or raises. :func:`~dfrmot_jax.cli.errors.guarded` is the only place that turns exceptions
 into messages and exit statuses:
@@ -26,7 +26,7 @@ from __future__ import annotations
 import argparse
 
 from ..version import __version__
-from . import demo, eval, report, sweep, track, tune
+from . import demo, eval, lidar, report, sweep, track, tune
 from .errors import (EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_OVERFLOW, CommandParser,
                      guarded)
 
@@ -35,7 +35,7 @@ __all__ = ["main", "build_parser", "guarded", "EXIT_OK", "EXIT_INTERNAL", "EXIT_
 
 
 #: The subcommand modules, in the order ``dfrmot --help`` lists them.
-COMMANDS = (track, demo, eval, sweep, tune, report)
+COMMANDS = (track, demo, eval, sweep, tune, report, lidar)
 
 DESCRIPTION = ("DFR-FastMOT camera+LiDAR tracking as batched JAX: track KITTI splits, score them "
                "exactly like TrackEval, run and report parameter sweeps.")

@@ -29,6 +29,7 @@ from ..config import (
     preset,
 )
 from ..data import load_split
+from ..lidar import LiftSettings, lidar_dir, lift_setting_name, tie_scores, with_setting
 from ..paths import ENV_VAR, default_data_root
 from ..results import ClassRun, result_files, write_runs
 from .errors import guarded
@@ -51,11 +52,29 @@ def _classes(text: str) -> list[str]:
     return classes
 
 
-def class_settings(args, cls: str = "car"):
-    """The preset for the class, then every ``--set NAME=VALUE`` and ``--set CLASS.NAME=VALUE`` of it."""
-    params, options = preset(args.preset, cls)
+def lift_of(args) -> LiftSettings:
+    """The lifting settings of ``--det3d lidar:DIR``: ``--set shrink=0.1`` (or ``lift.shrink``), ..."""
+    s = LiftSettings()
     for item in args.set or []:
         lhs, eq, rhs = item.partition("=")
+        if lift_setting_name(lhs) is not None:
+            s = with_setting(s, lhs, rhs.strip())
+    return s
+
+
+def class_settings(args, cls: str = "car"):
+    """The preset for the class, then every ``--set NAME=VALUE`` and ``--set CLASS.NAME=VALUE`` of it
+    (lifting settings excepted, :func:`lift_of`). With ``--det3d lidar:DIR`` score_3d is score_2d
+    (a lifted box carries its 2D detection's score) unless set."""
+    params, options = preset(args.preset, cls)
+    lifted = lidar_dir(getattr(args, "det3d", "")) is not None
+    set_3d = False
+    for item in args.set or []:
+        lhs, eq, rhs = item.partition("=")
+        if lift_setting_name(lhs) is not None:
+            if not lifted:
+                raise ValueError(f"--set {item}: a lifting setting, for --det3d lidar:DIR only")
+            continue
         prefix, dot, name = lhs.strip().partition(".")
         if dot:
             if prefix not in CLASSES:
@@ -64,8 +83,9 @@ def class_settings(args, cls: str = "car"):
             if prefix != cls:
                 continue
             item = f"{name}{eq}{rhs}"
+        set_3d = set_3d or item.partition("=")[0].strip() == "score_3d"
         params, options = parse_assignment(item, params, options)
-    return params, options
+    return (tie_scores(params) if lifted and not set_3d else params), options
 
 
 # ---- help text generated from dfrmot_jax.config ----------------------------------------------------
@@ -182,7 +202,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                         "per class)")
     t.add_argument("--det3d", default="pointrcnn",
                    help="3D detector: name under ROOT/detections, or a directory (of SSSS.txt files, or of a folder "
-                        "per class)")
+                        "per class), or lidar:DIR: the 2D detections lifted to 3D from the scans "
+                        "DIR/velodyne/SSSS/FFFFFF.bin (settings --set shrink=0.2, leaf, crop_lo, crop_hi, tolerance, "
+                        "min_cluster, score_cut; score_3d follows score_2d)")
     t.add_argument("--preset", default="dfr2023",
                    help="the settings to start from: " + " | ".join(PRESETS) + " (listed below)")
     t.add_argument("--set", action="append", metavar="NAME=VALUE",
@@ -227,11 +249,12 @@ def run(args) -> int:
     root = Path(args.data) if args.data else default_data_root()
     classes = _classes(args.cls)
     settings = {cls: class_settings(args, cls) for cls in classes}
+    lift = lift_of(args)
     t0 = time.perf_counter()
     runs, status = [], 0
     for cls in classes:
         params, options = settings[cls]
-        split = load_split(root, args.det2d, args.det3d, cls, parse_seqs(args.seqs))
+        split = load_split(root, args.det2d, args.det3d, cls, parse_seqs(args.seqs), lift=lift)
         res = track(split, params, options, detail=True)
         runs.append(ClassRun(split, res.frames, options, res.ids[0],
                              None if options.output == "detections" else res.lane_boxes(0),

@@ -452,7 +452,9 @@ _CALIB_ALIASES = {"R0_rect": "R_rect", "Tr_velo_to_cam": "Tr_velo_cam", "Tr_imu_
 
 
 def read_calib(path) -> Calib:
-    """Read a KITTI calibration file: one matrix a line, ``NAME: v v ...`` (the colon is optional).
+    """Read a KITTI calibration file: one matrix a line, ``NAME: v v ...`` (the colon is optional:
+    the tracking devkit writes ``R_rect v v ...`` and ``Tr_velo_cam v v ...``, the object files and
+    the shared data ``R0_rect: v v ...`` and ``Tr_velo_to_cam: v v ...``; spaces or tabs).
 
     ``P2``, ``R0_rect`` (or ``R_rect``) and ``Tr_velo_to_cam`` (or ``Tr_velo_cam``) are required;
     ``P0``, ``P1``, ``P3`` and ``Tr_imu_to_velo`` (or ``Tr_imu_velo``) are zeros when absent.
@@ -464,8 +466,8 @@ def read_calib(path) -> Calib:
     for line_no, s in zip(text.line_numbers, text.lines):
         if ":" in s:
             name, rest = s.split(":", 1)
-        else:
-            name, _, rest = s.strip().partition(" ")
+        else:                                          # the tracking devkit's "R_rect v v ..." (any blank)
+            name, rest = (s.split(None, 1) + [""])[:2]
         name = name.strip()
         key = _CALIB_NAMES.get(name)
         if key is None:
