@@ -13,10 +13,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .geometry import KITTI_IMAGE_SIZE, box3d_extent, project_box3d_to_image, truncate_2d_box, truncate_3d_box
+from .geometry import KITTI_IMAGE_SIZE, box3d_extent, project_box3d_to_image
 from .io.kitti import (
-    Calib,
-    Detections2D,
     Detections3D,
     KittiFormatError,
     file_stamps,
@@ -27,6 +25,8 @@ from .io.kitti import (
     read_tracking_labels,
     sequence_lengths,
 )
+from .io.sequence import SequenceDets  # public here too: load_sequences returns it, pack takes it
+from .core.boxes import truncate_2d_box, truncate_3d_box
 from .core.step import Frames
 from .config import Options
 from .paths import missing_data_message
@@ -38,16 +38,6 @@ DEFAULT_IMAGE_SIZE = KITTI_IMAGE_SIZE        # (width, height) of camera 02, def
 TYPE_CODES_3D = {1: "pedestrian", 2: "car", 3: "cyclist"}
 TYPE_NAMES_3D = frozenset({"car", "van", "truck", "pedestrian", "person", "person_sitting", "cyclist", "tram",
                            "misc", "dontcare"})
-
-
-class SequenceDets(NamedTuple):
-    """One sequence's raw detections as read from its files (rows in file order)."""
-
-    name: str
-    n_frames: int
-    det2d: Detections2D
-    det3d: Detections3D
-    calib: Calib
 
 
 class Split(NamedTuple):

@@ -1,0 +1,17 @@
+"""One sequence's parsed detection files, as the KITTI readers return them (no packing, no tracker)."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from .kitti import Calib, Detections2D, Detections3D
+
+
+class SequenceDets(NamedTuple):
+    """One sequence's raw detections as read from its files (rows in file order)."""
+
+    name: str
+    n_frames: int
+    det2d: Detections2D
+    det3d: Detections3D
+    calib: Calib
