@@ -154,12 +154,34 @@ def test_default_capacity_comes_from_the_data(scene):
     assert loose >= cap
 
 
+def _frame_ids(ids: np.ndarray) -> list[tuple[int, int]]:
+    """(frame, id) of every output box of ids [T, K], sorted."""
+    t, k = np.nonzero(ids >= 0)
+    return sorted(zip(t.tolist(), ids[t, k].tolist()))
+
+
 def test_ids_restart_at_each_sequence(scene):
-    _, _, split = scene
-    res = track(split, stack_params([Params()]), Options())
-    for s in range(len(split.names)):
-        ids = res.ids[0][split.sequence_slice(s)]
-        assert ids[ids >= 0].min() == 0
+    """The id rule (``core.memory``): each birth takes the next id, in slot order, and the counter
+    restarts at 0 on a sequence's first frame. With every birth output (min_hits 1) each sequence's
+    ids are therefore 0..n-1, first seen in that order; with the default min_hits (births that never
+    reach it leave gaps) the ids are the oracle's, which tracks each sequence on its own; and a
+    sequence tracked alone gets the same ids as inside the split."""
+    _, seqs, split = scene
+    assert len(seqs) >= 2
+    for params in (Params(min_hits=1), Params()):
+        res = track(split, stack_params([params]), Options())
+        ref = reference_rows(seqs, params, Options())
+        for s in range(len(seqs)):
+            mine = _frame_ids(res.ids[0][split.sequence_slice(s)])
+            assert mine == sorted({(row[0], row[1]) for row in ref[s]})
+            if params.min_hits == 1:
+                first = {}
+                for t, i in mine:
+                    first.setdefault(i, t)
+                assert sorted(first) == list(range(len(first))) and len(first) > 10
+                assert all(first[i] <= first[i + 1] for i in range(len(first) - 1)), first
+        alone = track(pack([seqs[1]]), stack_params([params]), Options())
+        assert _frame_ids(alone.ids[0]) == _frame_ids(res.ids[0][split.sequence_slice(1)])
 
 
 def test_keep_lost_needs_filtered_output(scene):
