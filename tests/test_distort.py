@@ -113,6 +113,7 @@ def kitti(kitti_root):
 # ---- level 0, determinism, batching ---------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["synthetic", "synthetic_float"])
 def test_level_zero_is_bit_identical_synthetic(which, request):
     frames, gid2, gid3, spec = request.getfixturevalue(which)

@@ -37,6 +37,7 @@ def test_presets_match_reference(scene, name):
     _assert_parity(split, seqs, *preset(name))
 
 
+@pytest.mark.slow
 def test_random_settings_match_reference(scene):
     _, seqs, split = scene
     rng = np.random.default_rng(11)
@@ -44,6 +45,7 @@ def test_random_settings_match_reference(scene):
         _assert_parity(split, seqs, params, options)
 
 
+@pytest.mark.slow
 def test_small_frames_track_like_the_oracle_and_like_one_size(scene, monkeypatch):
     """Frames with few detections run on a smaller copy of the step (``core.run.small_frames``, on
     for long splits; forced here): the oracle's tracks id for id, and the same arrays as one size,
@@ -67,6 +69,7 @@ def test_small_frames_track_like_the_oracle_and_like_one_size(scene, monkeypatch
                 np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_vmap_batch_equals_loop_of_single_runs(scene):
     _, _, split = scene
     rng = np.random.default_rng(5)
@@ -82,6 +85,7 @@ def test_vmap_batch_equals_loop_of_single_runs(scene):
         np.testing.assert_array_equal(batch.boxes[b][:, :k][live], single.boxes[0][live])
 
 
+@pytest.mark.slow
 def test_second_call_with_new_values_does_not_recompile(scene):
     _, _, split = scene
     frames = prepare_frames(split, Options())
@@ -111,6 +115,7 @@ CHANGES = {
 }
 
 
+@pytest.mark.slow
 def test_every_parameter_changes_the_output(scene):
     """A guard against settings that are silently ignored."""
     _, _, split = scene
@@ -127,6 +132,7 @@ def test_every_parameter_changes_the_output(scene):
             assert not same, f"changing {name} to {value} under {options} changed nothing"
 
 
+@pytest.mark.slow
 def test_overflow_is_detected_counted_per_lane_and_reported(scene):
     _, _, split = scene
     params = stack_params([Params(), Params(epsilon=0), Params(epsilon=60)])
