@@ -13,10 +13,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .geometry import KITTI_IMAGE_SIZE, box3d_extent, project_box3d_to_image, truncate_2d_box, truncate_3d_box
+from .geometry import KITTI_IMAGE_SIZE, box3d_extent, project_box3d_to_image
 from .io.kitti import (
-    Calib,
-    Detections2D,
     Detections3D,
     KittiFormatError,
     file_stamps,
@@ -27,6 +25,8 @@ from .io.kitti import (
     read_tracking_labels,
     sequence_lengths,
 )
+from .io.sequence import SequenceDets  # public here too: load_sequences returns it, pack takes it
+from .core.boxes import truncate_2d_box, truncate_3d_box
 from .core.step import Frames
 from .config import Options
 from .lidar.lift import LiftSettings
@@ -41,19 +41,6 @@ DEFAULT_IMAGE_SIZE = KITTI_IMAGE_SIZE        # (width, height) of camera 02, def
 TYPE_CODES_3D = {1: "pedestrian", 2: "car", 3: "cyclist"}
 TYPE_NAMES_3D = frozenset({"car", "van", "truck", "pedestrian", "person", "person_sitting", "cyclist", "tram",
                            "misc", "dontcare"})
-
-
-class SequenceDets(NamedTuple):
-    """One sequence's raw detections as read from its files (rows in file order). fused3d: the 3D
-    rows were lifted from the 2D ones (``det3d="lidar:DIR"``): each one's image box is its 2D
-    detection's, also as ``Split.proj3d``."""
-
-    name: str
-    n_frames: int
-    det2d: Detections2D
-    det3d: Detections3D
-    calib: Calib
-    fused3d: bool = False
 
 
 class Split(NamedTuple):

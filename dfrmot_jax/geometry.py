@@ -1,11 +1,13 @@
 """Box geometry for KITTI data (NumPy, used at data-load time).
 
-The loaders' integer truncation of image boxes (:func:`truncate_2d_box`, :func:`truncate_3d_box`),
-the internal 3D box (:func:`box3d_extent`) and the IoU (:func:`iou_2d`, via ``core.boxes.iou``)
-are array-generic: NumPy in, NumPy out; jax in, jax out. ``dfrmot_jax.distort`` traces the very
-same functions inside the tracker's scan (jitter re-truncates, clutter builds 3D boxes). The one
-projection that stays separate is the distortions' in-scan clutter projection
+The internal 3D box (:func:`box3d_extent`) is array-generic: NumPy in, NumPy out; jax in, jax
+out. ``dfrmot_jax.distort`` traces the very same function inside the tracker's scan (clutter builds
+3D boxes). The one projection that stays separate is the distortions' in-scan clutter projection
 (``distort.exact.project_box``): see :func:`project_box3d_to_image` for why.
+
+The box rules the step itself uses (the one IoU, the loaders' integer truncation) live in
+``core.boxes``; this module imports nothing of the tracker, so that the test oracle
+(``testing.reference``) can use the dataset's geometry and stay independent of ``core``.
 
 Conventions (KITTI object / tracking labels, rectified camera-0 coordinates):
 
@@ -22,9 +24,9 @@ Conventions (KITTI object / tracking labels, rectified camera-0 coordinates):
 
 from __future__ import annotations
 
+import jax
+import jax.numpy as jnp
 import numpy as np
-
-from .core.boxes import iou, truncate_2d_box, truncate_3d_box, xp_of as _xp  # noqa: F401  (re-exported)
 
 #: Default KITTI image size (width, height) of camera 02.
 KITTI_IMAGE_SIZE = (1242, 375)
@@ -147,24 +149,6 @@ def project_box3d_to_image(dims, loc, rot_y, P2, image_size=KITTI_IMAGE_SIZE, cl
     return boxes
 
 
-def iou_2d(a, b) -> np.ndarray:
-    """Intersection over union of axis-aligned image boxes.
-
-    Args:
-        a: ``[..., 4]`` boxes ``(x1, y1, x2, y2)``.
-        b: ``[..., 4]`` boxes, broadcast against ``a`` (use ``a[:, None]`` and ``b[None]`` for a
-            pairwise ``[N, M]`` matrix).
-
-    Returns:
-        ``[...]`` float IoU in ``[0, 1]``; boxes are continuous (area ``(x2-x1)*(y2-y1)``, no
-        ``+1``). The IoU is 0 when the boxes do not overlap, when the union is empty
-        (degenerate boxes) and when a box contains NaN.
-
-    NumPy float64: ``core.boxes.iou`` (areas clipped at 0) of the inputs as float64 arrays.
-    """
-    return iou(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64), clip_areas=True)
-
-
 def box3d_extent(dims, loc, centroid: str):
     """Internal 3D box (min corner, max corner) [..., 3] in float32, as the authors' loader builds it.
 
@@ -176,7 +160,7 @@ def box3d_extent(dims, loc, centroid: str):
     one float32 operation on float32 inputs (``0.5 * l`` is exact), so no multiply-add can be
     contracted differently in different XLA programs.
     """
-    xp = _xp(dims, loc)
+    xp = jnp if isinstance(dims, jax.Array) or isinstance(loc, jax.Array) else np
     h, w, l = (xp.asarray(dims[..., i]).astype(xp.float32) for i in range(3))
     x, y, z = (xp.asarray(loc[..., i]).astype(xp.float32) for i in range(3))
     if centroid == "legacy":

@@ -16,3 +16,12 @@ def kitti_root() -> Path:
     if not data_available(root):
         pytest.skip(f"KITTI data not found at {root} (set {ENV_VAR} to the KITTI tracking training root)")
     return root
+
+
+@pytest.hookimpl(tryfirst=True)       # before `-m` selects on the markers
+def pytest_collection_modifyitems(config, items):
+    """Every test that uses the KITTI data (the ``kitti_root`` fixture, directly or through another
+    fixture) is marked ``kitti``, so ``-m "not kitti"`` leaves out exactly those."""
+    for item in items:
+        if "kitti_root" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.kitti)

@@ -16,6 +16,7 @@ def split(tmp_path_factory):
     return load_split(root, "synth2d", "synth3d", "car")
 
 
+@pytest.mark.slow
 def test_distortion_lanes_run_with_the_parameter_grid(split):
     params = stack_params([Params(), Params(a_l=4.0), Params(), Params()])
     dps = distort.stack_distort([distort.level_params("drop", 0.0, seed=0), distort.level_params("drop", 0.0, seed=0),
@@ -33,6 +34,7 @@ def test_distortion_lanes_run_with_the_parameter_grid(split):
     np.testing.assert_array_equal(again.ids, dist.ids)  # same seeds, same distortion, any chunking
 
 
+@pytest.mark.slow
 def test_clutter_adds_written_false_positives(split):
     dps = distort.stack_distort([distort.level_params("clutter", 0.0), distort.level_params("clutter", 1.5, seed=3)])
     res = track(split, stack_params([Params(), Params()]), Options(), distortion=dps, clutter_slots=3)

@@ -82,6 +82,7 @@ def test_empty_problems():
         assert got.shape == shape and not np.any(got)
 
 
+@pytest.mark.slow
 def test_greedy_min_under_vmap_matches_each_lane():
     rng = np.random.default_rng(3)
     cost = rng.integers(0, 3, (5, 6, 8)) / 3

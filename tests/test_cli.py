@@ -1,6 +1,8 @@
 import subprocess
 import sys
 
+import pytest
+
 from dfrmot_jax.cli import main
 from dfrmot_jax.io.kitti import read_tracking_labels
 from dfrmot_jax.synthetic import make_scene
@@ -13,6 +15,7 @@ def test_demo_runs_with_no_data(tmp_path, capsys):
     assert (tmp_path / "results" / "0000.txt").exists()
 
 
+@pytest.mark.slow
 def test_track_writes_one_file_per_sequence_and_set_changes_output(tmp_path):
     root = make_scene(tmp_path / "scene", n_sequences=2, n_frames=80, seed=4)
     base = ["track", "--data", str(root), "--det2d", "synth2d", "--det3d", "synth3d"]

@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from dfrmot_jax.data import (box3d_extent, detection_dir, load_sequences, load_split, object_boxes, pack,
-                             prepare_frames, sequences_with_class, truncate_2d_box, truncate_3d_box)
+                             prepare_frames, sequences_with_class)
+from dfrmot_jax.core.boxes import truncate_2d_box, truncate_3d_box
 from dfrmot_jax.io.kitti import KittiFormatError
 from dfrmot_jax.config import Options
 from dfrmot_jax.synthetic import make_scene

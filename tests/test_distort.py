@@ -113,6 +113,7 @@ def kitti(kitti_root):
 # ---- level 0, determinism, batching ---------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["synthetic", "synthetic_float"])
 def test_level_zero_is_bit_identical_synthetic(which, request):
     frames, gid2, gid3, spec = request.getfixturevalue(which)
@@ -407,7 +408,7 @@ def test_clutter_count_and_geometry(which, request):
     for b, t, j in zip(*np.nonzero(on2)):
         rb = frames.box2[t][frames.valid2[t]]
         if rb.size:
-            free.append(dm.geometry.iou_2d(out.box2[b, t, M2 + j][None], rb).max() < D.FREE_IOU)
+            free.append(dm.core.boxes.iou(np.float64(out.box2[b, t, M2 + j][None]), np.float64(rb)).max() < D.FREE_IOU)
     assert np.mean(free) > 0.9
     s2 = out.score2[:, :, M2:][on2]
     assert s2.min() >= D.SCORE2_Q[0] - 1e-6 and s2.max() <= D.SCORE2_Q[-1] + 1e-6
@@ -532,44 +533,105 @@ def _random_boxes(rng, n):
     return b
 
 
-def test_truncation_and_extent_are_the_loaders_in_numpy_and_jax():
-    rng = np.random.default_rng(0)
-    box = _random_boxes(rng, 64)
-    for generic, loader in ((dm.geometry.truncate_2d_box, dm.data.truncate_2d_box),
-                            (dm.geometry.truncate_3d_box, dm.data.truncate_3d_box)):
-        ref = loader(box)
-        assert generic(box).tobytes() == ref.tobytes()                          # NumPy path: the same bits
-        f32 = box.astype(np.float32)
-        assert np.asarray(jax.jit(generic)(jnp.asarray(f32))).tobytes() == loader(f32).tobytes()
-    dims = rng.uniform(0.5, 5.0, (32, 3)); loc = rng.uniform(-30, 60, (32, 3))
-    for centroid in ("legacy", "head", "kitti"):
-        ref = box3d_extent(dims, loc, centroid)
-        got_np = dm.geometry.box3d_extent(dims, loc, centroid)
+# (x1, y1, x2, y2) -> the 2D loader's box, the 3D loader's box, by hand with C++ (int) (towards
+# zero): 2D x = (int) x1, w = |x - (int) x2|; 3D x = (int) x1, w = (int) |x - x2|; out (x, y, x + w, y + h).
+_TRUNCATION_CASES = [
+    ([10.9, 20.2, 50.7, 80.99], [10, 20, 50, 80], [10, 20, 50, 80]),
+    ([-0.5, -1.5, 2.5, 3.5], [0, -1, 2, 3], [0, -1, 2, 3]),          # (int) -0.5 = 0, (int) -1.5 = -1
+    ([-3.7, 0.5, -1.2, 0.5], [-3, 0, -1, 0], [-3, 0, -2, 0]),        # 2D |-3 - -1| = 2; 3D (int) 1.8 = 1
+    ([5.0, 7.0, 2.5, 1.5], [5, 7, 8, 13], [5, 7, 7, 12]),            # inverted: 2D |5 - 2| = 3; 3D (int) 2.5 = 2
+    ([1241.5, 374.5, 1241.9, 374.99], [1241, 374, 1241, 374], [1241, 374, 1241, 374]),
+    ([100.5, 50.5, 200.5, 150.5], [100, 50, 200, 150], [100, 50, 200, 150]),
+]
+
+
+def test_truncation_by_hand_in_numpy_and_jax():
+    from dfrmot_jax.core.boxes import truncate_2d_box, truncate_3d_box
+    box = np.array([c[0] for c in _TRUNCATION_CASES])
+    for fn, col in ((truncate_2d_box, 1), (truncate_3d_box, 2)):
+        want = np.array([c[col] for c in _TRUNCATION_CASES], np.float64)
+        np.testing.assert_array_equal(fn(box), want)
+        np.testing.assert_array_equal(np.asarray(jax.jit(fn)(jnp.asarray(box, jnp.float32))), want)
         with jax.enable_x64(True):
-            got_j = jax.jit(dm.geometry.box3d_extent, static_argnums=2)(jnp.asarray(dims, jnp.float32),
-                                                                           jnp.asarray(loc, jnp.float32), centroid)
-        for r, a, b in zip(ref, got_np, got_j):
-            assert a.dtype == np.float32 and a.tobytes() == r.tobytes()
-            assert np.asarray(b).tobytes() == r.tobytes()
+            np.testing.assert_array_equal(np.asarray(jax.jit(fn)(jnp.asarray(box))), want)
+        # NaN stays in its coordinates (a projected box behind the camera)
+        out = fn(np.array([[np.nan, 1.0, 2.0, 3.0]]))[0]
+        assert np.isnan(out[[0, 2]]).all() and out[1] == 1 and out[3] == 3
+        # the traced function (the distortions' re-truncation in the scan) gives the NumPy bits
+        rnd = _random_boxes(np.random.default_rng(0), 64).astype(np.float32)
+        assert np.asarray(jax.jit(fn)(jnp.asarray(rnd))).tobytes() == fn(rnd).tobytes()
 
 
-def test_one_iou_for_loader_tracker_and_clutter():
+def test_box3d_extent_by_hand_and_against_the_corners():
+    # dyadic values, exact in float32: (h, w, l) = (1.5, 1.75, 4), (x, y, z) = (2, 1.25, 20.5)
+    dims, loc = np.array([[1.5, 1.75, 4.0]]), np.array([[2.0, 1.25, 20.5]])
+    by_hand = {"legacy": ([20.5, 1.25, 2.0], [24.5, 3.0, 3.5]),      # (z, y, x) + (l, w, h)
+               "head": ([20.5, -2.0, -1.25], [24.5, -0.5, 0.5]),     # (z, -x, -y) + (l, h, w)
+               "kitti": ([0.0, -0.25, 19.625], [4.0, 1.25, 21.375])}  # (x -+ l/2, y - h .. y, z -+ w/2)
+    for centroid, (lo, hi) in by_hand.items():
+        got = box3d_extent(dims, loc, centroid)
+        with jax.enable_x64(True):
+            got_j = jax.jit(box3d_extent, static_argnums=2)(jnp.asarray(dims, jnp.float32),
+                                                             jnp.asarray(loc, jnp.float32), centroid)
+        for g, gj, want in zip(got, got_j, (lo, hi)):
+            assert g.dtype == np.float32
+            np.testing.assert_array_equal(g[0], want)
+            np.testing.assert_array_equal(np.asarray(gj)[0], want)
+    # "kitti" is the axis-aligned hull of the box's 8 corners at rot_y = 0 (geometry.box3d_corners)
+    rng = np.random.default_rng(0)
+    dims = rng.uniform(0.5, 5.0, (32, 3)); loc = rng.uniform(-30, 60, (32, 3))
+    corners = dm.geometry.box3d_corners(dims, loc, np.zeros(32))
+    lo, hi = box3d_extent(dims, loc, "kitti")
+    np.testing.assert_allclose(lo, corners.min(axis=1), rtol=1e-6, atol=1e-5)
+    np.testing.assert_allclose(hi, corners.max(axis=1), rtol=1e-6, atol=1e-5)
+
+
+def _iou_by_formula(a, b) -> float:
+    """IoU of two boxes written out: overlap rectangle over the sum of areas minus the overlap."""
+    ax1, ay1, ax2, ay2 = (float(v) for v in a)
+    bx1, by1, bx2, by2 = (float(v) for v in b)
+    if any(v != v for v in (ax1, ay1, ax2, ay2, bx1, by1, bx2, by2)):
+        return 0.0
+    w = min(ax2, bx2) - max(ax1, bx1)
+    h = min(ay2, by2) - max(ay1, by1)
+    if w <= 0 or h <= 0:
+        return 0.0
+    inter = w * h
+    union = (ax2 - ax1) * (ay2 - ay1) + (bx2 - bx1) * (by2 - by1) - inter
+    return inter / union if union > 0 else 0.0
+
+
+def test_iou_against_the_formula():
     from dfrmot_jax.core import boxes
+    a0 = [0.0, 0.0, 10.0, 10.0]
+    hand = [(a0, a0, 1.0), (a0, [5.0, 5.0, 15.0, 15.0], 25 / 175), (a0, [5.0, 0.0, 15.0, 10.0], 50 / 150),
+            (a0, [2.0, 2.0, 4.0, 4.0], 4 / 100),                                    # contained
+            ([-4.0, -4.0, 4.0, 4.0], [0.0, -8.0, 8.0, 0.0], 16 / 112),              # negative coordinates
+            (a0, [10.0, 0.0, 20.0, 10.0], 0.0), (a0, [20.0, 20.0, 30.0, 30.0], 0.0),  # touching, apart
+            ([1.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0], 0.0),                      # empty union
+            (a0, [8.0, 8.0, 2.0, 2.0], 0.0), (a0, [2.0, 8.0, 8.0, 2.0], 0.0),       # inverted
+            (a0, [np.nan] * 4, 0.0)]
+    for a, b, want in hand:
+        assert _iou_by_formula(a, b) == pytest.approx(want, abs=0)
+        for clip in (True, False):
+            assert float(boxes.iou(np.array(a), np.array(b), clip_areas=clip)) == pytest.approx(want, rel=1e-15)
     rng = np.random.default_rng(1)
-    a, b = _random_boxes(rng, 24), _random_boxes(rng, 20)
+
+    def near(n):                                   # boxes in a 200 px square, every tenth inverted
+        xy = rng.uniform(-50, 150, (n, 2)); wh = rng.uniform(5, 120, (n, 2))
+        wh[::10] *= -1
+        return np.concatenate([xy, xy + wh], axis=1)
+
+    a, b = near(24), near(20)
     a[3] = np.nan
-    ref = dm.geometry.iou_2d(a[:, None], b[None])
-    assert ref.dtype == np.float64 and ref.tobytes() == boxes.iou(a[:, None], b[None]).tobytes()
-    af, bf = a.astype(np.float32), b.astype(np.float32)
-    # the tracker's matrix: raw (unclipped) areas, which only matters for inverted boxes
-    m = np.asarray(boxes.iou_matrix(jnp.asarray(af), jnp.asarray(bf)))
-    assert np.array_equal(m, np.asarray(boxes.iou(jnp.asarray(af)[:, None], jnp.asarray(bf)[None], clip_areas=False)))
-    ok = (af[:, 2] >= af[:, 0]) & (af[:, 3] >= af[:, 1])
-    okb = (bf[:, 2] >= bf[:, 0]) & (bf[:, 3] >= bf[:, 1])
-    clipped = np.asarray(boxes.iou(jnp.asarray(af)[:, None], jnp.asarray(bf)[None]))
-    assert np.array_equal(m[np.ix_(ok, okb)], clipped[np.ix_(ok, okb)])
-    np.testing.assert_allclose(clipped, ref, atol=1e-6)
-    assert np.all(clipped[3] == 0)
+    want = np.array([[_iou_by_formula(x, y) for y in b] for x in a])
+    assert (want > 0).sum() > 100                                                 # some overlap
+    np.testing.assert_allclose(boxes.iou(a[:, None], b[None]), want, rtol=1e-13, atol=0)
+    np.testing.assert_allclose(boxes.iou(a[:, None], b[None], clip_areas=False), want, rtol=1e-13, atol=0)
+    # the tracker's matrix (float32 inputs, as the step's boxes outside x64), and the clutter's jax path
+    af, bf = jnp.asarray(a, jnp.float32), jnp.asarray(b, jnp.float32)
+    np.testing.assert_allclose(np.asarray(boxes.iou_matrix(af, bf)), want, atol=1e-5)
+    np.testing.assert_allclose(np.asarray(boxes.iou(af[:, None], bf[None])), want, atol=1e-5)
 
 
 def test_clutter_projection_has_the_loaders_behind_the_camera_rule():

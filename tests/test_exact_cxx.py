@@ -195,6 +195,7 @@ def pool():
         yield p
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,fraction,seed", [("dfr2023", 0.25, 1), ("dfr2023", 0.5, 2),
                                                 ("dfr_head", 0.25, 3), ("dfr_head", 0.5, 4)])
 def test_random_row_drops_of_kitti_tracker_equals_oracle(kitti_root, pool, name, fraction, seed):

@@ -140,6 +140,7 @@ def _untied(params: Params) -> Params:
     return params._replace(a_f=abs(params.a_f))
 
 
+@pytest.mark.slow
 def test_tracker_with_hungarian_matches_the_oracle_and_does_not_recompile(scene):
     _, seqs, split = scene
     rng = np.random.default_rng(17)
@@ -150,6 +151,7 @@ def test_tracker_with_hungarian_matches_the_oracle_and_does_not_recompile(scene)
         track(split, stack_params([s._replace(a_l=s.a_l + 1.0, a_f=0.1) for s in settings]), HUNGARIAN)
 
 
+@pytest.mark.slow
 def test_random_options_with_hungarian_match_the_oracle(scene):
     _, seqs, split = scene
     rng = np.random.default_rng(4)

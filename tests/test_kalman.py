@@ -127,6 +127,7 @@ def _filtered_corners(ids, src3, box3):
     return {(int(a), int(ids[a, b])): np.asarray(box3[a, b], np.float64) for a, b in zip(t, k)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kalman_init", ["diffuse", "steady"])
 def test_distinct_3d_noise_tracker_matches_oracle(scene, kalman_init):
     """kf_q3 / kf_r3 drive the 3D corners' filter in both implementations (0 = kf_q / kf_r)."""

@@ -86,6 +86,7 @@ def _simulate(rng, n, t, q, r, p0, kalman_init, gap=0.1):
     return kn.Series(np.where(mask, z, 0.0), mask)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kalman_init", ["diffuse", "steady"])
 def test_fit_recovers_known_noise(kalman_init):
     q, r, p0 = 0.3, 2.0, 4.0
@@ -106,6 +107,7 @@ def test_fit_recovers_known_noise(kalman_init):
     assert np.all(np.abs(err) < 4 * se), (fit, se)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kalman_init", ["diffuse", "steady"])
 def test_gradient_is_finite(kalman_init):
     z, mask = _random_series(np.random.default_rng(3), 20, 40)
@@ -156,6 +158,7 @@ def test_track_labelled_twice_in_a_frame_is_a_located_error(label_root):
     assert e.value.line == 8 and e.value.field == "track_id"
 
 
+@pytest.mark.slow
 def test_fit_kalman_noise_gives_tracker_params(tmp_path):
     root = make_scene(tmp_path, n_sequences=1, n_frames=60, n_cars=4, seed=2)
     out = kn.fit_kalman_noise(root, "car")

@@ -13,8 +13,6 @@ import re
 from functools import lru_cache
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parent.parent
 PKG = ROOT / "dfrmot_jax"
 MAX_LINES = 650
@@ -213,8 +211,6 @@ def test_core_reaches_only_itself_and_config():
     assert not bad, bad
 
 
-@pytest.mark.xfail(strict=True, reason="the oracle still takes SequenceDets from data and truncation from geometry: "
-                                       "being given its own (strict: this mark goes when it passes)")
 def test_the_oracle_reaches_nothing_of_the_tracker():
     """The NumPy oracle (``testing/reference.py``) imports nothing that imports ``core``, through any
     chain, so the parity tests compare two independent implementations."""

@@ -8,7 +8,7 @@ import pytest
 
 import dfrmot_jax as dm
 from dfrmot_jax.data import load_split
-from dfrmot_jax.geometry import truncate_2d_box
+from dfrmot_jax.core.boxes import truncate_2d_box
 from dfrmot_jax.io.kitti import KittiFormatError, read_calib, read_detections_2d, read_detections_3d, \
     read_tracking_labels, sequence_lengths
 from dfrmot_jax.lidar import LiftSettings, SimSettings, clear_cache, lift_sequence, scan_path, simulate_to_folder, \

@@ -21,6 +21,7 @@ SEQS = ["0000", "0011", "0014", "0017"]
 GROUPS = [Options(), Options(filter="kalman", output="filtered", truncate=False)]
 
 
+@pytest.mark.slow
 def test_tracker_output_for_10_random_settings_scores_like_trackeval(kitti_root, tmp_path):
     split = load_split(kitti_root, "rrc", "pointrcnn", "car", SEQS)
     gt = prepare_gt(kitti_root, "car", SEQS)

@@ -16,6 +16,8 @@ def test_expected_notebooks_present():
     assert set(EXPECTED) <= {p.name for p in NOTEBOOKS}
 
 
+@pytest.mark.notebook
+@pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
 def test_notebook_runs(path, monkeypatch, tmp_path):
     nbformat = pytest.importorskip("nbformat")

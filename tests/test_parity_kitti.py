@@ -84,6 +84,7 @@ def test_presets_match_the_reference_on_all_21_sequences(all21, pool, name):
     assert (mm["missing"], mm["extra"], mm["id"], mm["box"]) == (0, 0, 0, 0), mm
 
 
+@pytest.mark.slow
 def test_random_settings_match_the_reference_on_all_21_sequences(all21, pool):
     """16 random settings: 4 random static option sets x 4 random parameter draws (one batch each)."""
     seqs, split = all21
@@ -113,6 +114,7 @@ def _links(split, ids):
     return out
 
 
+@pytest.mark.slow
 def test_steady_kalman_tracks_like_its_fixed_gain_twin(kitti_root):
     """With noise whose steady-state gains are (a, b, g), the Kalman filter links detections like the
     fixed-gain filter with gains (a, b, g) - more so than like other gains. Not identically: during

@@ -4,6 +4,8 @@ not re-run the script."""
 import subprocess
 import sys
 
+import pytest
+
 SCRIPT = """
 import dfrmot_jax as dm
 from dfrmot_jax.synthetic import make_scene
@@ -16,6 +18,7 @@ print("ROWS", len(df))
 """
 
 
+@pytest.mark.slow
 def test_run_sweep_with_workers_from_a_plain_script(tmp_path):
     script = tmp_path / "plain.py"
     script.write_text(SCRIPT.format(scene=str(tmp_path / "scene"), out=str(tmp_path / "out")))

@@ -106,6 +106,7 @@ def test_track_and_eval_two_sequences_cli(pgnn_dir, kitti_root, tmp_path, capsys
     assert comb["class"] == "car" and comb["HOTA"] > 65 and comb["MOTA"] > 70  # 71.0 / 79.8
 
 
+@pytest.mark.slow
 def test_rrc_pointgnn_a_l_4_reproduces_the_paper(pgnn_dir, kitti_root, tmp_path):
     import dfrmot_jax as dm
     from dfrmot_jax.metrics import evaluate_files

@@ -170,6 +170,8 @@ def local_table(scene, tmp_path_factory):
     return run_sweep(_spec(scene), out, progress=False, workers=0, log=lambda m: None)
 
 
+@pytest.mark.ray
+@pytest.mark.slow
 def test_cli_sweep_on_a_two_node_cluster_equals_the_local_table(cluster, scene, local_table, tmp_path):
     """The acceptance command, in its own driver process, against `ray start` nodes."""
     import json
@@ -191,6 +193,8 @@ def test_cli_sweep_on_a_two_node_cluster_equals_the_local_table(cluster, scene, 
     pd.testing.assert_frame_equal(pd.read_parquet(out / "results.parquet"), local_table)
 
 
+@pytest.mark.ray
+@pytest.mark.slow
 def test_a_worker_node_killed_mid_run_loses_and_duplicates_nothing(cluster, scene, local_table, tmp_path,
                                                                   monkeypatch):
     logs: list[str] = []
@@ -235,6 +239,8 @@ def _interrupted(monkeypatch, after: int):
     monkeypatch.setattr(runner, "write_chunk", write)
 
 
+@pytest.mark.ray
+@pytest.mark.slow
 @pytest.mark.parametrize("first,second", [("local", "ray"), ("ray", "local")])
 def test_a_sweep_started_on_one_backend_is_finished_on_the_other(cluster, scene, local_table, tmp_path,
                                                                  monkeypatch, first, second):
@@ -251,6 +257,8 @@ def test_a_sweep_started_on_one_backend_is_finished_on_the_other(cluster, scene,
     pd.testing.assert_frame_equal(df, local_table)
 
 
+@pytest.mark.ray
+@pytest.mark.slow
 def test_a_tune_runs_its_batches_on_the_cluster(cluster, scene, tmp_path, monkeypatch):
     from dfrmot_jax.tuning import run_tune
 

@@ -42,6 +42,7 @@ def kitti_car(kitti_root):
     return seqs, pack(seqs, "car")
 
 
+@pytest.mark.slow
 def test_dfr2023_rows_carry_the_oracles_3d_detections(kitti_car):
     seqs, split = kitti_car
     params, options = preset("dfr2023")
@@ -50,6 +51,7 @@ def test_dfr2023_rows_carry_the_oracles_3d_detections(kitti_car):
     assert rows == 28812 and stale == 2033          # the published files hold 2,033 stale 3D boxes
 
 
+@pytest.mark.slow
 def test_random_settings_rows_carry_the_oracles_3d_detections(kitti_car):
     seqs, split = kitti_car
     few = [0, 4, 11]

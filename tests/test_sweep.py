@@ -264,6 +264,7 @@ def test_recombining_all_sequences_gives_combined(small_table):
         np.testing.assert_array_equal(out[f], comb[f].to_numpy(), err_msg=f)
 
 
+@pytest.mark.slow
 def test_deterministic_in_memory_equals_directory(small_table, scene, tmp_path):
     a = run_sweep(small_spec(scene), out=tmp_path / "a", progress=False, log=lambda m: None)
     pd.testing.assert_frame_equal(a.drop(columns=[RAW_COLUMN]), small_table.drop(columns=[RAW_COLUMN]))
@@ -292,6 +293,7 @@ def test_chunking_and_track_slots_do_not_change_results(small_table, scene):
     pd.testing.assert_frame_equal(df[cols], small_table[cols])
 
 
+@pytest.mark.slow
 def test_metric_worker_processes_give_the_same_table(small_table, scene):
     df = run_sweep(small_spec(scene), chunk=2, workers=2, progress=False, log=lambda m: None)
     cols = [c for c in df.columns if c not in ("chunk", RAW_COLUMN)]
@@ -328,6 +330,7 @@ def test_a_split_is_read_once_until_its_files_change(small_table, scene, tmp_pat
     assert not df2["HOTA"].equals(df["HOTA"])
 
 
+@pytest.mark.slow
 def test_compacted_detection_slots_change_nothing(small_table, scene, monkeypatch):
     """The split compacted to the table's loosest thresholds (the default) gives every column of
     every row as the full split does; the compaction really drops slots here."""

@@ -271,6 +271,7 @@ def test_each_class_its_own_split(root):
 # ---- running -----------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_tidy_table_rows_per_class_and_average(run):
     df, _ = run
     n = df["config"].nunique()
@@ -290,6 +291,7 @@ def test_tidy_table_rows_per_class_and_average(run):
     assert car.groupby(["score_2d", "min_hits"])["HOTA"].nunique().eq(1).all()
 
 
+@pytest.mark.slow
 def test_average_rows_are_trackeval_class_average(run):
     from dfrmot_jax.metrics.evaluate import CLASS_SUMMED_FIELDS, class_average
     from dfrmot_jax.metrics.table import TABLE_FIELDS
@@ -308,6 +310,7 @@ def test_average_rows_are_trackeval_class_average(run):
     assert df.loc[df["class"] == AVERAGE, "IDSW"].dtype == np.int64
 
 
+@pytest.mark.slow
 def test_pedestrian_rows_equal_a_single_class_sweep(run, root):
     """The pedestrian rows of the two-class sweep are what a pedestrian-only sweep of the same
     effective settings gives (the chunk split, compilation and metrics are per class)."""
@@ -326,6 +329,7 @@ def test_pedestrian_rows_equal_a_single_class_sweep(run, root):
     pd.testing.assert_frame_equal(a, b)
 
 
+@pytest.mark.slow
 def test_resume_and_directory(run, root):
     df, out = run
     pd.testing.assert_frame_equal(load_results(out), df)
@@ -344,6 +348,7 @@ def test_resume_and_directory(run, root):
     assert manifest["class_data"]["pedestrian"]["sequences"] == ["0000", "0002"]
 
 
+@pytest.mark.slow
 def test_cv_on_the_average_folds_each_class(run):
     from dfrmot_jax.sweep import objective_on, per_sequence_arrays, combine_sequences, summary_columns
 
@@ -378,6 +383,7 @@ def test_cv_on_the_average_folds_each_class(run):
     assert cv["baseline"] == avg[avg["baseline"]]["IDSW"].iloc[0]
 
 
+@pytest.mark.slow
 def test_cv_and_report_on_one_class_equal_its_view(run):
     df, _ = run
     view = class_view(df, "pedestrian")
@@ -394,6 +400,7 @@ def test_cv_and_report_on_one_class_equal_its_view(run):
         sweep_report(df, cls="cyclist")
 
 
+@pytest.mark.slow
 def test_report_defaults_to_the_average(run):
     df, _ = run
     rep = sweep_report(df, folds=2, top=3)
@@ -406,6 +413,7 @@ def test_report_defaults_to_the_average(run):
     assert set(rep.sensitivity["axis"]) == {"score_2d", "pedestrian.score_2d", "min_hits"}
 
 
+@pytest.mark.slow
 def test_cli_report_class(run, root, tmp_path, capsys):
     from dfrmot_jax.cli import main
 
@@ -430,6 +438,7 @@ def test_cli_report_class(run, root, tmp_path, capsys):
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["class"] == "pedestrian"
 
 
+@pytest.mark.slow
 def test_raw_column_of_average_rows(run):
     df, _ = run
     avg = df[df["class"] == AVERAGE]
@@ -451,6 +460,7 @@ def test_shipped_ablation_tuned_variant_is_the_pedestrian_default():
         assert t.loc[0, k] == v, k                      # the baseline row: the car settings
 
 
+@pytest.mark.slow
 def test_kitti_pedestrian_baseline_and_defaults(kitti_root):
     """On KITTI (skipped without the data): pedestrians with the car settings score HOTA 50.43, with
     the pedestrian defaults (CLASS_DEFAULTS, from sweeps/kitti_pedestrian.toml) 55.82."""

@@ -175,6 +175,7 @@ def test_shipped_robustness_study():
 # ---- running -------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_tidy_rows_carry_the_axes(dist_table, scene):
     t = expand(dist_spec(scene))
     df = dist_table
@@ -185,6 +186,7 @@ def test_tidy_rows_carry_the_axes(dist_table, scene):
     assert (comb["overflow"] == 0).all()
 
 
+@pytest.mark.slow
 def test_level0_rows_equal_the_undistorted_sweep(dist_table, clean_table):
     """Level-0 lanes run inside distorted chunks (zero levels, same compiled program) and give the
     undistorted sweep's rows exactly."""
@@ -197,6 +199,7 @@ def test_level0_rows_equal_the_undistorted_sweep(dist_table, clean_table):
     assert all(np.array_equal(a, b) for a, b in zip(zero[RAW_COLUMN], clean[RAW_COLUMN]))
 
 
+@pytest.mark.slow
 def test_distortion_degrades_and_seeds_differ(dist_table):
     comb = dist_table[dist_table["sequence"] == COMBINED]
     base = comb[comb["distortion.kind"] == "none"].set_index(["epsilon", "output"])["DetA"].sort_index()
@@ -207,6 +210,7 @@ def test_distortion_degrades_and_seeds_differ(dist_table):
         assert d.groupby(["epsilon", "output"])["IDTP"].nunique().max() == 2
 
 
+@pytest.mark.slow
 def test_rows_equal_direct_track_with_per_lane_boxes(dist_table, scene):
     """A distorted row is what track(distortion=...) + evaluate_arrays on the lane's own boxes give;
     jitter moves the boxes, so the scorer must use the per-lane boxes."""
@@ -233,6 +237,7 @@ def test_rows_equal_direct_track_with_per_lane_boxes(dist_table, scene):
                                       err_msg=col)
 
 
+@pytest.mark.slow
 def test_clutter_lanes_add_false_positives(scene):
     spec = dist_spec(scene, options={}, distortion={"kind": "clutter", "level": [0, 1.5], "seeds": 2,
                                                      "clutter_slots": 3})
@@ -246,6 +251,7 @@ def test_clutter_lanes_add_false_positives(scene):
     assert (other["config_hash"] != t["config_hash"]).sum() == (t["distortion.kind"] == "clutter").sum()
 
 
+@pytest.mark.slow
 def test_deterministic_and_chunking_independent(dist_table, scene):
     again = run_sweep(dist_spec(scene, chunk=3), **quiet())
     cols = [c for c in dist_table.columns if c not in ("chunk", RAW_COLUMN)]
@@ -253,6 +259,7 @@ def test_deterministic_and_chunking_independent(dist_table, scene):
     assert all(np.array_equal(a, b) for a, b in zip(again[RAW_COLUMN], dist_table[RAW_COLUMN]))
 
 
+@pytest.mark.slow
 def test_resume_skips_finished_chunks(dist_table, scene, tmp_path):
     out = tmp_path / "run"
     spec = dist_spec(scene)
@@ -298,6 +305,7 @@ def _axes(spec):
 # ---- curves, contrasts, report -------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_curves_and_contrast(dist_table):
     curves = robustness_curves(dist_table, ["HOTA", "IDSW"])
     assert set(curves["kind"]) == {"drop", "burst"}
@@ -327,6 +335,7 @@ def test_curves_and_contrast(dist_table):
     assert len(summ) == 2 * 2 * 2 and {"helps_up_to", "stops_at", "crossing", "gap_before", "max_gap"} <= set(summ)
 
 
+@pytest.mark.slow
 def test_report_prints_levels_and_contrast(dist_table, scene, tmp_path, capsys):
     rep = sweep_report(dist_table, top=3, contrast={"axis": "epsilon", "high": [30], "low": [1]})
     assert "robustness: HOTA" in rep.text and "drop \\ level" in rep.text and "burst \\ level" in rep.text

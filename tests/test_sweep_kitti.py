@@ -12,6 +12,7 @@ PUBLISHED = {"HOTA": 82.79, "DetA": 83.12, "AssA": 82.59, "MOTA": 90.73, "MOTP":
              "IDF1": 91.36, "MT": 503, "ML": 8, "Frag": 238}
 
 
+@pytest.mark.slow
 def test_baseline_row_reproduces_dfr2023(kitti_root):
     spec = {"name": "kitti_baseline", "chunk": 2,
             "data": {"root": str(kitti_root), "det2d": "rrc", "det3d": "pointrcnn", "class": "car"},
@@ -27,6 +28,7 @@ def test_baseline_row_reproduces_dfr2023(kitti_root):
 
 
 
+@pytest.mark.slow
 def test_compacted_detection_slots_change_nothing(kitti_root, monkeypatch):
     """Sweeps track each class on its split compacted to the table's loosest score thresholds
     (``data.compact_split``: 14 + 19 detection slots -> fewer): every column of every row equals the

@@ -42,6 +42,7 @@ def _cmd(toml: Path, out: Path) -> list[str]:
             "--workers", "0", "--no-progress"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGKILL")
 def test_killed_sweep_resumes_to_the_same_table(tmp_path):
     root = make_scene(tmp_path / "scene", n_sequences=3, n_frames=150, n_cars=5, seed=11)

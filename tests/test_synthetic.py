@@ -4,7 +4,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dfrmot_jax.geometry import iou_2d, project_box3d_to_image
+from dfrmot_jax.core.boxes import iou
+from dfrmot_jax.geometry import project_box3d_to_image
 from dfrmot_jax.synthetic import IMAGE_SIZE, NOISE_DEFAULTS, make_scene
 
 W, H = IMAGE_SIZE
@@ -191,6 +192,10 @@ def test_scene_physics(scene):
     assert n_entering >= 3 and n_leaving >= 3
     assert (occ == 0).mean() > 0.5 and (occ == 2).any() and (occ == 1).any()
     assert (trunc == 0).mean() > 0.7 and (trunc > 0).any()
+
+
+def iou_2d(a, b):
+    return iou(np.asarray(a, np.float64), np.asarray(b, np.float64))
 
 
 def _best_match(frames, boxes, gt):

@@ -26,6 +26,7 @@ def _rows(path, type_name=None):
     return t.frame[keep], t.track_id[keep], t.box[keep]
 
 
+@pytest.mark.slow
 def test_one_file_per_sequence_holds_both_classes_with_unique_ids(runs):
     both = sorted(p.name for p in (runs / "both").iterdir())
     car = sorted(p.name for p in (runs / "car").iterdir())
@@ -50,6 +51,7 @@ def test_one_file_per_sequence_holds_both_classes_with_unique_ids(runs):
     assert mixed >= 10
 
 
+@pytest.mark.slow
 def test_eval_of_the_two_class_files_scores_each_class_as_alone(runs, kitti_root):
     both = evaluate_classes(runs / "both", kitti_root, ["car", "pedestrian"])
     car = evaluate_classes(runs / "car", kitti_root, ["car"])

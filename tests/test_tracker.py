@@ -37,6 +37,7 @@ def test_presets_match_reference(scene, name):
     _assert_parity(split, seqs, *preset(name))
 
 
+@pytest.mark.slow
 def test_random_settings_match_reference(scene):
     _, seqs, split = scene
     rng = np.random.default_rng(11)
@@ -44,6 +45,7 @@ def test_random_settings_match_reference(scene):
         _assert_parity(split, seqs, params, options)
 
 
+@pytest.mark.slow
 def test_small_frames_track_like_the_oracle_and_like_one_size(scene):
     """Frames with few detections run on a smaller copy of the step (``core.run.small_frames``, on
     for long splits; forced here): the oracle's tracks id for id, and the same arrays as one size,
@@ -64,6 +66,7 @@ def test_small_frames_track_like_the_oracle_and_like_one_size(scene):
                 np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_vmap_batch_equals_loop_of_single_runs(scene):
     _, _, split = scene
     rng = np.random.default_rng(5)
@@ -79,6 +82,7 @@ def test_vmap_batch_equals_loop_of_single_runs(scene):
         np.testing.assert_array_equal(batch.boxes[b][:, :k][live], single.boxes[0][live])
 
 
+@pytest.mark.slow
 def test_second_call_with_new_values_does_not_recompile(scene):
     _, _, split = scene
     frames = prepare_frames(split, Options())
@@ -108,6 +112,7 @@ CHANGES = {
 }
 
 
+@pytest.mark.slow
 def test_every_parameter_changes_the_output(scene):
     """A guard against settings that are silently ignored."""
     _, _, split = scene
@@ -124,6 +129,7 @@ def test_every_parameter_changes_the_output(scene):
             assert not same, f"changing {name} to {value} under {options} changed nothing"
 
 
+@pytest.mark.slow
 def test_overflow_is_detected_counted_per_lane_and_reported(scene):
     _, _, split = scene
     params = stack_params([Params(), Params(epsilon=0), Params(epsilon=60)])
@@ -151,12 +157,34 @@ def test_default_capacity_comes_from_the_data(scene):
     assert loose >= cap
 
 
+def _frame_ids(ids: np.ndarray) -> list[tuple[int, int]]:
+    """(frame, id) of every output box of ids [T, K], sorted."""
+    t, k = np.nonzero(ids >= 0)
+    return sorted(zip(t.tolist(), ids[t, k].tolist()))
+
+
 def test_ids_restart_at_each_sequence(scene):
-    _, _, split = scene
-    res = track(split, stack_params([Params()]), Options())
-    for s in range(len(split.names)):
-        ids = res.ids[0][split.sequence_slice(s)]
-        assert ids[ids >= 0].min() == 0
+    """The id rule (``core.memory``): each birth takes the next id, in slot order, and the counter
+    restarts at 0 on a sequence's first frame. With every birth output (min_hits 1) each sequence's
+    ids are therefore 0..n-1, first seen in that order; with the default min_hits (births that never
+    reach it leave gaps) the ids are the oracle's, which tracks each sequence on its own; and a
+    sequence tracked alone gets the same ids as inside the split."""
+    _, seqs, split = scene
+    assert len(seqs) >= 2
+    for params in (Params(min_hits=1), Params()):
+        res = track(split, stack_params([params]), Options())
+        ref = reference_rows(seqs, params, Options())
+        for s in range(len(seqs)):
+            mine = _frame_ids(res.ids[0][split.sequence_slice(s)])
+            assert mine == sorted({(row[0], row[1]) for row in ref[s]})
+            if params.min_hits == 1:
+                first = {}
+                for t, i in mine:
+                    first.setdefault(i, t)
+                assert sorted(first) == list(range(len(first))) and len(first) > 10
+                assert all(first[i] <= first[i + 1] for i in range(len(first) - 1)), first
+        alone = track(pack([seqs[1]]), stack_params([params]), Options())
+        assert _frame_ids(alone.ids[0]) == _frame_ids(res.ids[0][split.sequence_slice(1)])
 
 
 def test_keep_lost_needs_filtered_output(scene):

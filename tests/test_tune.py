@@ -61,6 +61,7 @@ def _quiet(**kw):
     return dict(progress=False, workers=0, log=lambda m: None, **kw)
 
 
+@pytest.mark.slow
 def test_each_batch_is_one_call_and_the_baseline_is_trial_0(scene, tmp_path, monkeypatch):
     calls = []
     real = study.run_sweep
@@ -89,6 +90,7 @@ def test_each_batch_is_one_call_and_the_baseline_is_trial_0(scene, tmp_path, mon
     assert (tmp_path / "out" / "plots" / "history.png").is_file()
 
 
+@pytest.mark.slow
 def test_an_interrupted_batch_is_asked_again_and_the_table_is_unchanged(scene, tmp_path):
     """A kill while a batch was being asked (trials RUNNING, no batch record): they are failed and the
     batch re-asked with the same seeded sampler; the final table equals an uninterrupted run's."""
@@ -116,6 +118,7 @@ def test_an_interrupted_batch_is_asked_again_and_the_table_is_unchanged(scene, t
     assert states.count("FAIL") == 2 and states.count("RUNNING") == 0
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGKILL")
 def test_kill_9_during_a_tune_then_rerun_gives_the_same_table(scene, tmp_path):
     path = _write(tmp_path, _tune_text(scene, budget=16, batch=4))
@@ -138,6 +141,7 @@ def test_kill_9_during_a_tune_then_rerun_gives_the_same_table(scene, tmp_path):
     assert summary["evaluated_configs"] == clean.table["config"].nunique()
 
 
+@pytest.mark.slow
 def test_nested_cv_tunes_without_the_held_out_sequences(scene, tmp_path):
     res = run_tune(_write(tmp_path, _tune_text(scene, budget=6, batch=3)), tmp_path / "n", folds=2, **_quiet())
     n = res.nested
@@ -177,6 +181,7 @@ def test_pareto_front_unit():
     assert list(front["trial"]) == [3, 0]
 
 
+@pytest.mark.slow
 def test_refinement_runs_as_batched_steps_and_is_recorded(scene, tmp_path):
     extra = "[tune.refine]\nsteps = 2\npairs = 2\npatience = 2\n"
     res = run_tune(_write(tmp_path, _tune_text(scene, budget=4, batch=4, extra=extra)), tmp_path / "r", **_quiet())
@@ -312,6 +317,7 @@ seed = 1
 """
 
 
+@pytest.mark.slow
 def test_a_tune_over_variants_and_a_finite_space_spends_its_budget_on_distinct_configs(scene, tmp_path):
     """[[variants]] are one ``variant`` dim (each sets its one-valued gains); the space has 3 x 2 x 2 =
     12 points and random draws repeat them: repeats are refused (FAIL, phase "repeat") and the budget of

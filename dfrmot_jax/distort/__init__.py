@@ -25,7 +25,7 @@ reserved empty slots), applied in this order to one frame:
    With ``DistortSpec.truncate`` (``Options.truncate``) the stored boxes are integers, the
    truncated file values: the jittered file value is taken as ``box + 0.5 + noise`` (the centre of
    the truncation cell) and truncated again with the loaders' own formulas
-   (``geometry.truncate_2d_box`` / ``geometry.truncate_3d_box``), so the integer boxes move by
+   (``core.boxes.truncate_2d_box`` / ``core.boxes.truncate_3d_box``), so the integer boxes move by
    ``round(noise)`` (std ``sqrt(sigma^2 + 1/12)`` for ``sigma`` >~ 0.5) and a sub-pixel ``sigma``
    mostly leaves them unchanged. Without truncation the corners move by the noise exactly and are
    re-ordered (``x1 <= x2``, ``y1 <= y2``).

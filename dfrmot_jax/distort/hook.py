@@ -11,8 +11,8 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from ..core.boxes import truncate_2d_box, truncate_3d_box
 from ..data import DEFAULT_IMAGE_SIZE, Frames
-from ..geometry import truncate_2d_box, truncate_3d_box
 from . import draws
 from .bursts import occluded
 from .clutter import clutter_2d, clutter_3d

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from ..config import Options
+from ..core.boxes import iou
 from ..data import Split, image_box_3d
-from ..geometry import iou_2d
 from ..io.kitti import read_tracking_labels
 from .clutter import pad_slots
 from .spec import DistortSpec
@@ -30,9 +30,9 @@ def _match_ids(det_box: np.ndarray, det_valid: np.ndarray, gt_box: np.ndarray, g
     out = np.full(det_box.shape[0], -1, np.int32)
     if gt_box.shape[0] == 0 or not det_valid.any():
         return out
-    iou = iou_2d(det_box[:, None, :], gt_box[None, :, :])                  # [M, G]
-    best = np.argmax(iou, axis=1)
-    ok = det_valid & (iou[np.arange(det_box.shape[0]), best] >= min_iou)
+    overlap = iou(np.asarray(det_box, np.float64)[:, None, :], np.asarray(gt_box, np.float64)[None, :, :])  # [M, G]
+    best = np.argmax(overlap, axis=1)
+    ok = det_valid & (overlap[np.arange(det_box.shape[0]), best] >= min_iou)
     out[ok] = gt_id[best[ok]]
     return out
 

@@ -21,7 +21,7 @@ def ordered(box):
 def jitter_box(box, valid, sigma, n, truncate_fn=None):
     """Image boxes [M, 4] with ``sigma * n`` added to each corner (``n`` [M, 4] standard normals).
 
-    With ``truncate_fn`` (the loader's rule, ``geometry.truncate_2d_box`` / ``truncate_3d_box``)
+    With ``truncate_fn`` (the loader's rule, ``core.boxes.truncate_2d_box`` / ``truncate_3d_box``)
     the integer box is taken as the centre of its truncation cell (``box + 0.5``, exact), moved and
     truncated again; without it the moved corners are re-ordered.
     """

@@ -13,12 +13,14 @@ from dfrmot_jax.io.kitti import (
     sequence_lengths,
     write_tracking_results,
 )
+from dfrmot_jax.io.sequence import SequenceDets
 
 __all__ = [
     "Calib",
     "Detections2D",
     "Detections3D",
     "KittiFormatError",
+    "SequenceDets",
     "TrackingLabels",
     "read_calib",
     "read_detections_2d",

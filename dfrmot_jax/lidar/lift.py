@@ -45,7 +45,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from ..geometry import truncate_2d_box
+from ..core.boxes import truncate_2d_box
 from ..io.kitti import Calib
 
 __all__ = ["LiftSettings", "LIFT_SETTINGS", "lift_setting_name", "with_setting", "Prepared", "Lifted", "velo_to_image", "voxel_grid", "crop_mask",

@@ -4,19 +4,24 @@ Written for clarity, following ``docs/dfr-fastmot-spec.md`` step by step. Detect
 are float32 as parsed; parameters are float64 (score thresholds compared in float32 with the
 scores); arithmetic (IoU, distances, costs, filters) is float64, as in the JAX tracker and the
 authors' C++, so that the two can be compared id for id.
+
+It shares no code with the tracker: it imports nothing that imports ``dfrmot_jax.core`` (checked
+by ``tests/test_oracle_independent.py``) and keeps its own copies of the box rules the tracker
+takes from ``core.boxes`` (IoU, the loaders' integer truncation), written from the C++ code.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from ..data import SequenceDets
-from ..geometry import box3d_extent, project_box3d_to_image, truncate_2d_box, truncate_3d_box
+from ..geometry import box3d_extent, project_box3d_to_image
+from ..io.sequence import SequenceDets
 from ..config import Options, Params
 
 F32 = np.float32
@@ -84,12 +89,35 @@ def iou(a, b) -> float:
     return float(iou_matrix(a, b)[0, 0])
 
 
+def c_int(v: float) -> float:
+    """C++ ``(int)`` / ``stoi`` of a coordinate, as a float: towards zero (Python ``int`` of a float
+    truncates the same way); a NaN or infinite value is kept (it has no integer)."""
+    v = float(v)
+    return float(int(v)) if math.isfinite(v) else v
+
+
+def truncate_2d(box) -> np.ndarray:
+    """The authors' 2D loader: each corner read as an integer, x = (int) x1, w = |x - (int) x2|;
+    returned as (x, y, x + w, y + h) float64."""
+    x1, y1, x2, y2 = (float(v) for v in box)
+    x, y = c_int(x1), c_int(y1)
+    w, h = abs(x - c_int(x2)), abs(y - c_int(y2))
+    return np.array([x, y, x + w, y + h], F64)
+
+
+def truncate_3d(box) -> np.ndarray:
+    """The authors' 3D loader (and a track's truncated box): x = (int) x1, w = (int) |x - x2|, the
+    far corner as read; returned as (x, y, x + w, y + h) float64."""
+    x1, y1, x2, y2 = (float(v) for v in box)
+    x, y = c_int(x1), c_int(y1)
+    w, h = c_int(abs(x - x2)), c_int(abs(y - y2))
+    return np.array([x, y, x + w, y + h], F64)
+
+
 def predicted_box(p: np.ndarray, truncate: bool) -> np.ndarray:
     """A track's 2D box from its filter (top-left, bottom-right); truncated as the code does."""
     if truncate:
-        x = np.trunc(p[0]); y = np.trunc(p[1])
-        w = np.trunc(np.abs(x - p[2])); h = np.trunc(np.abs(y - p[3]))
-        return np.array([x, y, x + w, y + h], F64)
+        return truncate_3d(p)
     return np.array([p[0], p[1], p[0] + np.abs(p[2] - p[0]), p[1] + np.abs(p[3] - p[1])], F64)
 
 
@@ -186,14 +214,14 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
 
     def box2(i):
         b = d2.box[i]
-        return (truncate_2d_box(b) if options.truncate else b).astype(F32).astype(F64)
+        return (truncate_2d(b) if options.truncate else b).astype(F32).astype(F64)
 
     def box3(j):
         if options.merge == "calib_projection" or options.modality == "3d":
             b = project_box3d_to_image(d3.dims[j], d3.loc[j], d3.rot_y[j], seq.calib.P2, image_size)
         else:
             b = d3.box[j]
-        return (truncate_3d_box(b) if options.truncate else b).astype(F32).astype(F64)
+        return (truncate_3d(b) if options.truncate else b).astype(F32).astype(F64)
 
     def extent3(j):
         lo, hi = box3d_extent(d3.dims[j], d3.loc[j], options.centroid)
