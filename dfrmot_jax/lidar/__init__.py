@@ -5,6 +5,7 @@ detection source, ``det3d="lidar:DIR"`` (``source``)."""
 from dfrmot_jax.lidar.lift import (LIFT_SETTINGS, Lifted, LiftSettings, Prepared, lift_frames, lift_prepared,
                                    lift_setting_name, prepare_points, with_setting)
 from dfrmot_jax.lidar.scans import check_frames, read_scan, scan_path, write_scan
+from dfrmot_jax.lidar.sim_cache import simulate_cached, simulated_name
 from dfrmot_jax.lidar.simulate import SimSettings, simulate_sequence, simulate_to_folder
 from dfrmot_jax.lidar.source import (LIDAR_PREFIX, clear_cache, lidar_dir, lift_sequence, tie_scores, to_detections3d,
                                      write_detections3d)
@@ -12,5 +13,5 @@ from dfrmot_jax.lidar.source import (LIDAR_PREFIX, clear_cache, lidar_dir, lift_
 __all__ = [
     "LIFT_SETTINGS", "LIDAR_PREFIX", "Lifted", "LiftSettings", "Prepared", "SimSettings", "check_frames", "clear_cache",
     "lidar_dir", "lift_frames", "lift_prepared", "lift_sequence", "lift_setting_name", "prepare_points", "read_scan", "scan_path",
-    "simulate_sequence", "simulate_to_folder", "tie_scores", "to_detections3d", "with_setting", "write_detections3d", "write_scan",
+    "simulate_cached", "simulate_sequence", "simulate_to_folder", "simulated_name", "tie_scores", "to_detections3d", "with_setting", "write_detections3d", "write_scan",
 ]

@@ -27,11 +27,13 @@ from .. import distort
 from ..api import TrackResult, default_capacity, track
 from ..config import Options
 from ..data import cached_split, compact_split, prepare_frames
+from ..lidar import LIDAR_PREFIX, lidar_dir, simulate_cached
 from ..metrics.ab3dmot_prep import cached_ab3dmot_gt
 from ..metrics.evaluate import LaneScorer, cached_gt, worker_pool
 from ..version import __version__
 from .ab3dmot_lanes import Ab3dmotLanes, add_columns
 from .distortion import DistortionAxes
+from .lidar_axes import key_settings
 from .plan import Chunk, DataSettings, option_groups
 from .spec import SweepSpec
 from .store import chunk_frame
@@ -58,8 +60,16 @@ def progress_bar(progress: bool, total: int, done: int, label: str):
 
 def load_data(d: DataSettings):
     """The packed split and the prepared ground truth of one class's data settings, checked to agree
-    (both memoised on the settings and their files' sizes and mtimes)."""
-    split = cached_split(d.root, d.det2d, d.det3d, d.cls, d.sequences)
+    (both memoised on the settings and their files' sizes and mtimes). A LiDAR setting
+    (``d.lidar``): the 2D detections lifted with its lifting settings, from the scans of ``lidar:DIR``
+    or, simulated, from ``DIR/simulated/<name>/`` (simulated there once, :func:`lidar.simulate_cached`)."""
+    det3d, lift = d.det3d, None
+    if d.lidar is not None:
+        lift, sim, seed = key_settings(d.lidar)
+        if sim is not None:
+            scans = simulate_cached(lidar_dir(d.det3d), d.root, d.sequences, d.lengths, sim, seed)
+            det3d = f"{LIDAR_PREFIX}{scans}"
+    split = cached_split(d.root, d.det2d, det3d, d.cls, d.sequences, lift=lift)
     gt = cached_gt(d.root, d.cls, list(d.sequences))
     if tuple(gt.sequences) != tuple(split.names) or not np.array_equal(gt.lengths, split.lengths):
         raise RuntimeError("ground truth and detections disagree on the sequences or their lengths")

@@ -15,9 +15,11 @@ import pandas as pd
 from ..config import MIN_CAPACITY, Options
 from ..data import detection_dir, sequences_with_class
 from ..io.kitti import KittiFormatError, sequence_lengths
+from ..lidar import lidar_dir
 from ..paths import default_data_root
 from .checks import config_error
 from .distortion import DistortionAxes
+from .lidar_axes import lidar_key
 from .spec import OPTION_NAMES, as_spec
 
 #: Default most tracker output one chunk may hold, GB (``run_sweep(max_memory=...)``, ``dfrmot sweep
@@ -34,18 +36,26 @@ class DataSettings:
     cls: str
     sequences: tuple[str, ...]
     lengths: tuple[int, ...] = ()
+    lidar: tuple | None = None      # a sweep with [lift] / [simulate]: this split's lidar_axes.lidar_key
 
     def identity(self) -> dict:
-        return {"root": self.root, "det2d": self.det2d, "det3d": self.det3d, "class": self.cls,
-                "sequences": list(self.sequences)}
+        out = {"root": self.root, "det2d": self.det2d, "det3d": self.det3d, "class": self.cls,
+               "sequences": list(self.sequences)}
+        if self.lidar is not None:
+            out["lidar"] = {"lift": dict(self.lidar[0]),
+                            "simulate": None if self.lidar[1] is None else dict(self.lidar[1])}
+        return out
 
 
 def resolve_data_all(spec, data_root=None) -> tuple[DataSettings, ...]:
     """The data settings of every class of the sweep (``data.class`` order), each checked before any
     work: each class has its own split (the sequences whose ground truth has the class, or
-    ``data.sequences``)."""
+    ``data.sequences``), and with [lift] / [simulate] each class one split per LiDAR setting."""
     spec = as_spec(spec)
-    return tuple(resolve_data(spec, data_root, cls=c) for c in spec.classes)
+    datas = [resolve_data(spec, data_root, cls=c) for c in spec.classes]
+    if spec.lidar is None:
+        return tuple(datas)
+    return tuple(replace(d, lidar=lidar_key(s, spec.lidar.simulate)) for d in datas for s in spec.lidar.settings())
 
 
 def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
@@ -63,7 +73,15 @@ def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
         raise config_error("data.root", f"{root} has no label_02/ (the KITTI tracking training root; set it in the "
                                 f"sweep file, with --data, or with $DFRMOT_DATA)", src)
     root = root.resolve()
-    for key, det in (("data.det2d", spec.det2d), ("data.det3d", spec.det3d)):
+    try:
+        scans = lidar_dir(spec.det3d)
+    except ValueError as e:
+        raise config_error("data.det3d", str(e), src) from None
+    simulated = spec.lidar is not None and spec.lidar.simulate
+    if scans is not None and not simulated and not scans.is_dir():
+        raise config_error("data.det3d", f"LiDAR scan folder {scans} not found (lidar:DIR expects "
+                                         f"DIR/velodyne/SSSS/FFFFFF.bin; with [simulate] DIR is a cache folder)", src)
+    for key, det in (("data.det2d", spec.det2d),) + ((("data.det3d", spec.det3d),) if scans is None else ()):
         try:
             detection_dir(root, det, spec.cls)
         except KittiFormatError as e:
@@ -90,6 +108,11 @@ class Chunk:
     options: Options
     configs: tuple[int, ...]
     cls: str = "car"
+    lidar: tuple | None = None      # the LiDAR setting of its split (DataSettings.lidar)
+
+    def of(self, data: "DataSettings") -> bool:
+        """Whether this chunk runs on ``data``'s split."""
+        return self.cls == data.cls and self.lidar == data.lidar
 
 
 def _row_options(row: Mapping) -> Options:
@@ -115,7 +138,12 @@ def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk
     in turn, every config in every class."""
     if not isinstance(data, DataSettings):
         return [c for d in data for c in plan(table, d, chunk, distortion, ab3dmot)]
-    groups = option_groups(table)
+    if data.lidar is not None:      # this LiDAR setting's configs only
+        simulate = data.lidar[1] is not None
+        mine = [lidar_key(r, simulate) == data.lidar for r in table.to_dict("records")]
+        groups = option_groups(table[mine])
+    else:
+        groups = option_groups(table)
     hashes = table["config_hash"].to_numpy()
     ident = data.identity()
     out = []
@@ -128,7 +156,7 @@ def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk
             if ab3dmot is not None:
                 doc["ab3dmot"] = ab3dmot
             text = json.dumps(doc, sort_keys=True)
-            out.append(Chunk(hashlib.sha1(text.encode()).hexdigest()[:20], g, opts, part, data.cls))
+            out.append(Chunk(hashlib.sha1(text.encode()).hexdigest()[:20], g, opts, part, data.cls, data.lidar))
     return out
 
 

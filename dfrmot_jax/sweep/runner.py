@@ -16,6 +16,7 @@ import pandas as pd
 from .backend import make_backend
 from .checks import SweepConfigError
 from .chunks import progress_bar
+from .lidar_axes import describe_key
 from .plan import Chunk, DataSettings, check_memory, plan, resolve_data_all
 from .spec import SweepSpec, as_spec
 from .store import chunk_path, finish_table, finished_chunks, write_chunk, write_manifest, write_results
@@ -113,18 +114,21 @@ def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds
                 + "; ".join(damaged))
     frames_out: dict[str, pd.DataFrame] = {}
     for d in datas:
-        cchunks = [c for c in chunks if c.cls == d.cls]
+        cchunks = [c for c in chunks if c.of(d)]
         todo = [c for c in cchunks if c.id not in done]
         n_done = sum(len(c.configs) for c in cchunks if c.id in done)
-        total_cf = len(table) * sum(d.lengths)
+        n_cfg = sum(len(c.configs) for c in cchunks)
+        total_cf = n_cfg * sum(d.lengths)
         n_groups = len({c.group for c in cchunks})
         lanes = ""
         if spec.distortion is not None:
             n_set = n_settings(table)
             lanes = (f" = {n_set:,} settings x {spec.distortion.n_lanes} distortion lanes (kinds "
                      f"{', '.join(k for k, _ in spec.distortion.kinds)}; {len(spec.distortion.seeds)} seeds)")
-        name = spec.name if len(datas) == 1 else f"{spec.name} [{d.cls}]"
-        log(f"sweep {name}: {len(table):,} configs{lanes} ({n_groups} option group(s), {len(cchunks)} chunks of <= "
+        name = spec.name if len(spec.classes) == 1 else f"{spec.name} [{d.cls}]"
+        if d.lidar is not None:
+            name = f"{name} [{describe_key(d.lidar)}]"
+        log(f"sweep {name}: {n_cfg:,} configs{lanes} ({n_groups} option group(s), {len(cchunks)} chunks of <= "
             f"{spec.chunk}; {sum(c.id in done for c in cchunks)} done) x {len(d.sequences)} sequences / "
             f"{sum(d.lengths):,} frames = {total_cf / 1e6:.1f} M config-frames" + (f" -> {outdir}" if outdir else ""))
         if todo:
@@ -134,7 +138,7 @@ def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds
                 else:
                     frames_out[c.id] = df
 
-            bar = progress_bar(progress, len(table), n_done, name)
+            bar = progress_bar(progress, n_cfg, n_done, name)
             try:
                 backend.run_chunks(spec, table, d, todo, keep, bar, log, compact=compact)
             finally:

@@ -28,6 +28,7 @@ from .checks import (
     positive_int,
 )
 from .distortion import DistortionAxes, parse_distortion
+from .lidar_axes import LIDAR_AXES, LidarAxes, parse_lidar
 
 PARAM_NAMES: tuple[str, ...] = Params._fields
 OPTION_NAMES: tuple[str, ...] = Options._fields
@@ -41,7 +42,7 @@ LATE_PARAMS: dict[str, Any] = {n: Params._field_defaults[n] for n in INHERITED_P
 #: Further per-lane axes (columns of the config table, part of the config hash): name -> default
 #: value. A column equal to its default is left out of the hash, so adding an axis keeps existing
 #: hashes. The distortion axes are registered separately (``DISTORTION_AXES``).
-EXTRA_AXES: dict[str, Any] = {}
+EXTRA_AXES: dict[str, Any] = {**LIDAR_AXES}
 #: The per-lane distortion axes of a sweep with a [distortion] table (columns of its config table
 #: and of every result row; part of the config hash when off their default): the kind (one of
 #: ``distort.KINDS``; "none" = undistorted, level 0 of every kind), the level, the seed.
@@ -55,7 +56,7 @@ def extra_axes() -> dict[str, Any]:
 RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
 
 TOP_KEYS = ("name", "description", "chunk", "seed", "samples", "data", "baseline", "params", "options", "variants",
-            "distortion", "report", "metrics")
+            "distortion", "report", "metrics", "lift", "simulate")
 METRICS_KEYS = ("ab3dmot", "ab3dmot_columns")
 DATA_KEYS = ("root", "det2d", "det3d", "class", "sequences")
 BASELINE_KEYS = ("preset", "class")
@@ -148,6 +149,7 @@ class SweepSpec:
     ab3dmot_columns: str = "kitti"              # metrics.ab3dmot_columns: the result columns scored ("kitti-stale")
     top: int = 10
     distortion: DistortionAxes | None = None
+    lidar: LidarAxes | None = None              # [lift] / [simulate]: LiDAR settings crossed with every config
     contrast: Contrast | None = None
     source: str | None = None
     raw: Mapping | None = field(default=None, compare=False, repr=False)
@@ -464,7 +466,7 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
                      sequences=sequences, baseline=base, variants=tuple(variants), objective=objective,
                      folds=folds, top=top, distortion=distortion, contrast=contrast, source=source,
                      raw=dict(doc), classes=classes, baseline_class=base_cls, report_class=report_class,
-                     ab3dmot=ab3dmot, ab3dmot_columns=ab3dmot_columns)
+                     ab3dmot=ab3dmot, ab3dmot_columns=ab3dmot_columns, lidar=parse_lidar(doc, source))
     for v in spec.variants:
         if samples > 1 and all(a.is_grid for a in v.params):
             raise config_error("samples", f"samples = {samples} repeats the grid with random parameters redrawn, but "

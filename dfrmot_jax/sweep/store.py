@@ -240,9 +240,11 @@ def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings],
                 "chunk": spec.chunk, "objective": spec.objective, "folds": spec.folds, "top": spec.top,
                 "configs": len(table), "chunks": [c.id for c in chunks], "spec": jsonable(spec.raw),
                 "hash_version": HASH_VERSION, "identity": identity, "ledger": LEDGER}
-    if len(datas) > 1:
+    if len(spec.classes) > 1:
         manifest["classes"] = list(spec.classes)
         manifest["class_data"] = {d.cls: {**d.identity(), "lengths": list(d.lengths)} for d in datas}
+    if spec.lidar is not None:
+        manifest["lidar"] = [d.identity()["lidar"] for d in datas if d.cls == data.cls]
     if spec.baseline_class is not None:
         manifest["baseline_class"] = spec.baseline_class
     if spec.report_class is not None:
@@ -302,7 +304,7 @@ def _other_sweep(old: dict, spec: SweepSpec, datas: Sequence[DataSettings], tabl
     if old.get("kind", "sweep") != "sweep":
         return f"holds a {old.get('kind')} ({old.get('name')!r})"
     if (old.get("class_data") or {datas[0].cls: old.get("data")}) != \
-            {d.cls: (d.identity() if len(datas) == 1 else {**d.identity(), "lengths": list(d.lengths)}) for d in datas}:
+            {d.cls: (d.identity() if len(spec.classes) == 1 else {**d.identity(), "lengths": list(d.lengths)}) for d in datas}:
         what = "data"
     else:
         what = "configs"

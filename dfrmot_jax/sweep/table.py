@@ -20,7 +20,9 @@ import pandas as pd
 from ..config import CLASSES, INT_PARAMS, PRESETS, Options, Params, as_arrays, preset
 from ..core.filters import fixed_gain_radius
 from .checks import config_error
+from ..lidar import lidar_dir
 from .distortion import DistortionAxes
+from .lidar_axes import LidarAxes, tie_table_scores
 from .spec import (
     DISTORTION_AXES,
     LATE_OPTIONS,
@@ -136,6 +138,11 @@ def config_count(spec) -> tuple[int, str, str]:
         parts.append(f"variant {v.name!r}: " + (" x ".join(f"{name} {c:,}" for c, _, name in counts
                                                            if c > 1 or name != "samples") or "1"))
     desc = "the baseline + " + "; ".join(parts)
+    if spec.lidar is not None:
+        n_lidar = len(spec.lidar.settings())
+        total *= n_lidar
+        desc = f"{desc}; x {n_lidar:,} LiDAR settings"
+        factors += [(len(v), c) for c, v in spec.lidar.axes]
     if spec.distortion is not None:
         lanes = spec.distortion.n_lanes
         total = total * lanes + 1
@@ -208,7 +215,11 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
         k, p = split_class_column(c)
         if c not in explicit and all(canonical_value(p, x) == canonical_value(p, y) for x, y in zip(table[c], table[p])):
             table = table.drop(columns=[c])
+    if lidar_dir(spec.det3d) is not None:      # lifted boxes carry their 2D score (as dfrmot track)
+        table = tie_table_scores(table, {a.name for v in spec.variants for a in v.params})
     table = typed_table(table).drop_duplicates("config_hash", keep="first").reset_index(drop=True)
+    if spec.lidar is not None:
+        table = _cross_lidar(table, spec.lidar)
     if spec.distortion is not None:
         table = _cross_distortion(table, spec.distortion)
     table.insert(0, "config", np.arange(len(table), dtype=np.int64))
@@ -279,6 +290,20 @@ def _baseline_rows(spec: SweepSpec) -> tuple[dict, dict[str, dict]]:
     p, o = preset(spec.baseline, spec.baseline_class) if spec.baseline_class else PRESETS[spec.baseline]
     per = {k: preset(spec.baseline, spec.baseline_class or k)[0]._asdict() for k in spec.classes}
     return {**p._asdict(), **o._asdict()}, per
+
+
+def _cross_lidar(table: pd.DataFrame, axes: LidarAxes) -> pd.DataFrame:
+    """Every config x the LiDAR settings (``lift.*`` / ``simulate.*`` columns, innermost); the
+    baseline flag stays on the baseline at ``axes.baseline()``, still the first row; hashes recomputed."""
+    every, first = axes.settings(), axes.baseline()
+    rows = [{**r, **s, "baseline": bool(r["baseline"]) and s == first}
+            for r in table.drop(columns=["config_hash"]).to_dict("records")
+            for s in ([first] + [x for x in every if x != first] if r["baseline"] else every)]
+    out = pd.DataFrame(rows, columns=list(table.columns.drop("config_hash")) + axes.columns)
+    for c in table.columns.drop("config_hash"):
+        out[c] = out[c].astype(table[c].dtype)
+    out.insert(0, "config_hash", [config_hash(r) for r in out.to_dict("records")])
+    return out.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
 
 
 def _cross_distortion(table: pd.DataFrame, dist: DistortionAxes) -> pd.DataFrame:
