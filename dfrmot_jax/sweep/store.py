@@ -382,7 +382,9 @@ def _average_rows(df: pd.DataFrame, classes: Sequence[str]) -> pd.DataFrame:
     metrics = class_average_columns([{c: p[c].to_numpy() for c in p.columns if class_combiner(c)}
                                       for p in parts])
     for f, v in metrics.items():
-        out[f] = v.astype(out[f].dtype) if np.issubdtype(out[f].dtype, np.integer) else v
+        # counts stay integers (AB3DMOT's are nullable Int64: empty on per-sequence rows)
+        out[f] = pd.array(np.asarray(v, np.int64), dtype=out[f].dtype) if pd.api.types.is_integer_dtype(out[f].dtype) \
+            else v
     for f, how in (("frames", "sum"), ("overflow", "sum"), ("peak_tracks", "max")):
         if f in out.columns:
             stack = np.stack([p[f].to_numpy() for p in parts])
