@@ -34,7 +34,7 @@ import numpy as np
 
 from .kitti import KittiFormatError, quoted, read_text_file
 
-__all__ = ["ResultRows", "read_result_rows", "MIN_COLUMNS"]
+__all__ = ["ResultRows", "read_result_rows", "parse_floats", "MIN_COLUMNS"]
 
 #: ``frame id type truncated occluded alpha x1 y1 x2 y2``: TrackEval's boxes are columns 6..9
 MIN_COLUMNS = 10
@@ -64,8 +64,9 @@ def _field(j: int) -> str:
     return _NAMES[j] if j < len(_NAMES) else f"column {j + 1}"
 
 
-def _numbers(tokens: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """[N] object str -> ([N] float64 as Python's ``float`` reads them, NaN where it cannot; [N] bool read)."""
+def parse_floats(tokens: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[N] str tokens (object or str arrays) -> ([N] float64 as Python's ``float`` reads them, NaN where it
+    cannot; [N] bool read)."""
     try:
         return tokens.astype(np.float64), np.ones(len(tokens), dtype=bool)
     except (ValueError, TypeError):
@@ -111,8 +112,8 @@ def read_result_rows(path) -> ResultRows:
     every = np.arange(len(split))
     flag(count < 3, every, -1, lambda r: f"expected at least 3 columns ({MIN_COLUMNS} on a row with an id >= 0), "
                                          f"got {count[r]}")
-    frame, frame_ok = _numbers(tok[:, 0])
-    tid, id_ok = _numbers(tok[:, 1])
+    frame, frame_ok = parse_floats(tok[:, 0])
+    tid, id_ok = parse_floats(tok[:, 1])
     for j, v, ok in ((0, frame, frame_ok), (1, tid, id_ok)):
         flag(~ok, every, j, lambda r, j=j: f"not a number: {quoted(tok[r, j])}")
         flag(ok & ~np.isfinite(v), every, j, lambda r, j=j: f"not finite: {quoted(tok[r, j])}")
@@ -130,7 +131,7 @@ def read_result_rows(path) -> ResultRows:
     box = np.zeros((len(keep), 4))
     for j in range(3, width):
         has = kc > j
-        v, ok = _numbers(tok[keep[has], j])
+        v, ok = parse_floats(tok[keep[has], j])
         flag(~ok, keep[has], j, lambda r, j=j: f"not a number: {quoted(tok[r, j])}")
         if _BOX.start <= j < _BOX.stop:
             flag(ok & ~np.isfinite(v), keep[has], j, lambda r, j=j: f"not finite: {quoted(tok[r, j])}")
