@@ -71,6 +71,8 @@ def chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, met
     per_seq = cs[:, offs[1:]] - cs[:, offs[:-1]]
     cols["overflow"] = np.concatenate([per_seq, res.overflow.astype(np.int64)[:, None]], axis=1).reshape(-1)
     cols["peak_tracks"] = np.repeat(res.peak.astype(np.int64), R)
+    # the track slots each lane ran with (``capacity`` is what was asked: 0 = from the data)
+    cols["capacity_used"] = np.repeat(np.asarray(res.capacity, np.int64), R)
     cols["det2d"] = np.repeat(np.array([data.det2d], dtype=object), L * R)
     cols["det3d"] = np.repeat(np.array([data.det3d], dtype=object), L * R)
     cols["class"] = np.repeat(np.array([data.cls], dtype=object), L * R)
@@ -368,7 +370,7 @@ def finish_table(df: pd.DataFrame, classes: Sequence[str] = ()) -> pd.DataFrame:
 def _average_rows(df: pd.DataFrame, classes: Sequence[str]) -> pd.DataFrame:
     """One ``class = "average"``, ``sequence = COMBINED`` row per config that has every class's
     COMBINED row: metric columns the class average (:func:`_class_average_columns`), ``frames``
-    and ``overflow`` summed, ``peak_tracks`` the largest, ``chunk`` empty, the per-alpha column
+    and ``overflow`` summed, ``peak_tracks`` and ``capacity_used`` the largest, ``chunk`` empty, the per-alpha column
     the class average of its fields; the config's other columns as in its rows."""
     comb = df[df["sequence"] == COMBINED]
     parts = [comb[comb["class"] == c].set_index("config") for c in classes]
@@ -383,7 +385,7 @@ def _average_rows(df: pd.DataFrame, classes: Sequence[str]) -> pd.DataFrame:
                                       for p in parts])
     for f, v in metrics.items():
         out[f] = v.astype(out[f].dtype) if np.issubdtype(out[f].dtype, np.integer) else v
-    for f, how in (("frames", "sum"), ("overflow", "sum"), ("peak_tracks", "max")):
+    for f, how in (("frames", "sum"), ("overflow", "sum"), ("peak_tracks", "max"), ("capacity_used", "max")):
         if f in out.columns:
             stack = np.stack([p[f].to_numpy() for p in parts])
             out[f] = stack.sum(axis=0) if how == "sum" else stack.max(axis=0)
