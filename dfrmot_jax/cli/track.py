@@ -31,6 +31,7 @@ from ..config import (
 from ..data import load_split
 from ..paths import ENV_VAR, default_data_root
 from ..results import ClassRun, result_files, write_runs
+from ..sweep.table import unstable_gains, unstable_message
 from .errors import guarded
 
 __all__ = ["add_parser", "run", "config_help"]
@@ -225,6 +226,11 @@ def run(args) -> int:
     root = Path(args.data) if args.data else default_data_root()
     classes = _classes(args.cls)
     settings = {cls: class_settings(args, cls) for cls in classes}
+    for cls, (p, o) in settings.items():
+        if o.output == "filtered" and unstable_gains([o.filter == "fixed_gain"], p.gain_alpha, p.gain_beta,
+                                                     p.gain_gamma)[0]:
+            raise ValueError(unstable_message(f"the {cls} settings (--preset {args.preset} and --set)", p.gain_alpha,
+                                              p.gain_beta, p.gain_gamma, more=", or output=detections"))
     t0 = time.perf_counter()
     runs, status = [], 0
     for cls in classes:
