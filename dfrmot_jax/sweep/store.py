@@ -27,6 +27,7 @@ import pandas as pd
 
 from ..io.atomic import TMP_NAME, naming, sha256, write_parquet_atomic, write_text_atomic
 from ..metrics.evaluate import RAW_FIELDS, class_average_columns, class_combiner, summary_columns
+from .folder import SweepDirectoryError, claim
 from .plan import Chunk, DataSettings
 from .spec import AVERAGE, LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, SweepSpec, contrast_doc, extra_axes
 from .table import COMBINED, HASH_VERSION, RAW_COLUMN, class_columns
@@ -38,11 +39,6 @@ _NO_RECORD = "no checksum record"
 
 class HashVersionError(ValueError):
     """A sweep directory written with another ``config_hash`` scheme than this version's."""
-
-
-class SweepDirectoryError(ValueError):
-    """The output directory cannot take this sweep: it is a file, its manifest is damaged, or it
-    belongs to another sweep (``run_sweep(force=True)`` / ``--force`` deletes that sweep's files)."""
 
 
 def chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, metrics: dict, res, versions,
@@ -261,31 +257,26 @@ def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings],
 
 def _claim(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings], table: pd.DataFrame,
            chunks: Sequence[Chunk], identity: str, force: bool) -> dict | None:
-    """The manifest ``outdir`` holds if it is this sweep's (None: none, or deleted with ``force``)."""
-    path = outdir / "manifest.json"
-    if not path.is_file():
-        return None
-    try:
-        old = json.loads(path.read_text())
-        if not isinstance(old, dict):
-            raise ValueError("not a JSON object")
-        version = hash_version(old)
-    except ValueError as e:
-        problem = f"has a damaged manifest.json ({e})"
-    else:
-        if version != HASH_VERSION and not force:
-            raise HashVersionError(f"{outdir} was written with config_hash scheme {version}, this version uses "
-                                   f"{HASH_VERSION}: its chunks would not be found (use another --out, or --force "
-                                   f"to delete them)")
-        if version == HASH_VERSION and (old.get("identity") == identity or old.get("chunks") == [c.id for c in chunks]
-                                        and _same_configs(outdir, table)):
-            return old
-        problem = _other_sweep(old, spec, datas, table)
-    if not force:
-        raise SweepDirectoryError(f"{outdir} {problem}: its results would be replaced; use another --out, or --force "
-                                  f"to delete its chunks and results first")
-    _clear(outdir)
-    return None
+    """The manifest ``outdir`` holds if it is this sweep's (None: none, or deleted with ``force``):
+    :func:`.folder.claim` with the sweep's identity (or, for a directory written before it, the
+    same chunks and configs) and its hash scheme."""
+    def version(old: dict) -> int | None:
+        try:
+            return hash_version(old)
+        except (TypeError, ValueError):
+            return None
+
+    def check(old: dict) -> None:
+        if version(old) not in (None, HASH_VERSION) and not force:
+            raise HashVersionError(f"{outdir} was written with config_hash scheme {version(old)}, this version "
+                                   f"uses {HASH_VERSION}: its chunks would not be found (use another --out, or "
+                                   f"--force to delete them)")
+
+    def same(old: dict) -> bool:
+        return version(old) == HASH_VERSION and (old.get("identity") == identity or old.get("chunks") == [
+            c.id for c in chunks] and _same_configs(outdir, table))
+
+    return claim(outdir, "sweep", same, force, other=lambda old: _other_sweep(old, spec, datas, table), check=check)
 
 
 def _same_configs(outdir: Path, table: pd.DataFrame) -> bool:
@@ -301,8 +292,6 @@ def _same_configs(outdir: Path, table: pd.DataFrame) -> bool:
 
 def _other_sweep(old: dict, spec: SweepSpec, datas: Sequence[DataSettings], table: pd.DataFrame) -> str:
     """How the sweep of manifest ``old`` differs from this one (a phrase)."""
-    if old.get("kind", "sweep") != "sweep":
-        return f"holds a {old.get('kind')} ({old.get('name')!r})"
     if (old.get("class_data") or {datas[0].cls: old.get("data")}) != \
             {d.cls: (d.identity() if len(datas) == 1 else {**d.identity(), "lengths": list(d.lengths)}) for d in datas}:
         what = "data"
@@ -310,17 +299,6 @@ def _other_sweep(old: dict, spec: SweepSpec, datas: Sequence[DataSettings], tabl
         what = "configs"
     return (f"holds another sweep ({old.get('name')!r}, {old.get('configs')} configs; this one: {spec.name!r}, "
             f"{len(table)} configs, differs in its {what})")
-
-
-def _clear(outdir: Path) -> None:
-    """Delete the files of the sweep in ``outdir`` (and nothing else)."""
-    chunk_dir = outdir / "chunks"
-    if chunk_dir.is_dir():
-        for p in chunk_dir.iterdir():
-            if p.is_file() and (p.suffix == ".parquet" or TMP_NAME.match(p.name)):
-                p.unlink()
-    for name in ("manifest.json", "configs.parquet", "results.parquet", LEDGER):
-        (outdir / name).unlink(missing_ok=True)
 
 
 def _remove_orphans(outdir: Path) -> None:
