@@ -16,9 +16,12 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import platform
 import sys
+import time
 import warnings
 from contextlib import suppress
+from importlib import metadata
 from pathlib import Path
 from typing import Any, NamedTuple, Sequence
 
@@ -30,6 +33,7 @@ from ..metrics.evaluate import RAW_FIELDS, class_average_columns, class_combiner
 from .folder import SweepDirectoryError, claim
 from .plan import Chunk, DataSettings
 from .spec import AVERAGE, LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, SweepSpec, contrast_doc, extra_axes
+from ..version import __version__
 from .table import COMBINED, HASH_VERSION, RAW_COLUMN, class_columns
 
 #: The ledger of a sweep directory (module docstring).
@@ -197,6 +201,23 @@ def jsonable(obj):
         return None
 
 
+def environment() -> dict:
+    """The software and machine a directory was last written with (its manifest's ``environment``,
+    shown by the report): versions, Python, OS, CPU model and count, the time."""
+    cpu = platform.processor() or platform.machine()
+    with suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    versions = {}
+    for name in ("jax", "jaxlib", "numpy", "pandas"):
+        with suppress(metadata.PackageNotFoundError):
+            versions[name] = metadata.version(name)
+    return {"dfrmot_jax": __version__, **versions, "python": platform.python_version(), "os": platform.platform(),
+            "cpu": cpu, "cpus": os.cpu_count(), "written": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
+
+
 def hash_version(manifest: dict) -> int:
     """The ``config_hash`` scheme a directory was written with (no ``hash_version``: 1)."""
     return int(manifest.get("hash_version", 1))
@@ -237,7 +258,7 @@ def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings],
                 "data": data.identity(), "lengths": list(data.lengths), "baseline": spec.baseline,
                 "chunk": spec.chunk, "objective": spec.objective, "folds": spec.folds, "top": spec.top,
                 "configs": len(table), "chunks": [c.id for c in chunks], "spec": jsonable(spec.raw),
-                "hash_version": HASH_VERSION, "identity": identity, "ledger": LEDGER}
+                "hash_version": HASH_VERSION, "identity": identity, "ledger": LEDGER, "environment": environment()}
     if len(datas) > 1:
         manifest["classes"] = list(spec.classes)
         manifest["class_data"] = {d.cls: {**d.identity(), "lengths": list(d.lengths)} for d in datas}

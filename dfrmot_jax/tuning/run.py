@@ -16,7 +16,7 @@ from ..sweep.plan import resolve_data
 from ..sweep.runner import run_sweep
 from ..sweep.spec import SweepConfigError, SweepSpec
 from ..sweep.folder import MANIFEST, claim
-from ..sweep.store import jsonable
+from ..sweep.store import environment, jsonable
 from ..sweep.table import HASH_VERSION
 from .nested import nested_cv
 from .once import TuneResult, tune_once
@@ -42,7 +42,8 @@ def _write_manifest(outdir: Path, spec: SweepSpec, settings: TuneSettings, data,
          "data": data.identity(), "lengths": list(data.lengths), "baseline": spec.baseline, "chunk": spec.chunk,
          "objective": settings.objectives[0], "objectives": list(settings.objectives),
          "directions": list(settings.directions), "folds": None, "top": spec.top,
-         "tune": settings.identity(), "identity": identity, "chunks": [], "hash_version": HASH_VERSION}
+         "tune": settings.identity(), "identity": identity, "chunks": [], "hash_version": HASH_VERSION,
+         "environment": environment()}
     write_text_atomic(outdir / MANIFEST, json.dumps(m, indent=1, default=str), parents=False)
 
 
