@@ -17,8 +17,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..sweep import RAW_COLUMN, load_results, sweep_report
-from ..sweep.html import html_report
+from ..sweep import RAW_COLUMN, html_report, load_results, sweep_report
 from .errors import guarded
 
 __all__ = ["add_parser", "run", "parse_contrast"]
