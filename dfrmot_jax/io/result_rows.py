@@ -136,17 +136,36 @@ def read_result_rows(path) -> ResultRows:
         if _BOX.start <= j < _BOX.stop:
             flag(ok & ~np.isfinite(v), keep[has], j, lambda r, j=j: f"not finite: {quoted(tok[r, j])}")
             box[has, j - _BOX.start] = v
-    # TrackEval stacks the kept rows of a frame into one array: they must have the same length
+    # TrackEval stacks the kept rows of a frame into one array: they must have the same length. Of a
+    # frame whose rows differ, the rows off the file's own count (its most common one among kept
+    # rows; a tie: the first kept row's) are the ones named
     order = np.lexsort((keep, kf))
     same = np.zeros(len(keep), dtype=bool)
     same[1:] = kf[order][1:] == kf[order][:-1]
-    first = np.maximum.accumulate(np.where(same, 0, np.arange(len(keep))))
-    ragged = np.zeros(len(keep), dtype=bool)
-    ragged[order] = kc[order] != kc[order][first]
-    head = np.empty(len(keep), dtype=np.int64)
-    head[order] = keep[order][first]
-    flag(ragged, keep, -1, lambda r: f"{count[r]} columns, but line {text.line_numbers[head[keep == r][0]]} of the "
-                                     f"same frame has {count[head[keep == r][0]]}")
+    group = np.empty(len(keep), dtype=np.int64)
+    group[order] = np.cumsum(~same) - 1
+    lo = np.full(group.max(initial=-1) + 1, np.iinfo(np.int64).max)
+    hi = np.full_like(lo, -1)
+    np.minimum.at(lo, group, kc)
+    np.maximum.at(hi, group, kc)
+    ragged_frame = lo[group] != hi[group]
+    if ragged_frame.any():
+        values, counts = np.unique(kc, return_counts=True)
+        top = values[counts == counts.max()]
+        usual = int(kc[0]) if kc[0] in top else int(top[0])
+        odd = ragged_frame & (kc != usual)
+        # another row of the same frame, for the message: one with the file's count if there is one
+        other = {}
+        for j in np.flatnonzero(ragged_frame)[::-1]:
+            if kc[j] == usual or group[j] not in other:
+                other[group[j]] = int(keep[j])
+
+        def ragged(r):
+            j = int(np.flatnonzero(keep == r)[0])
+            o = other[group[j]]
+            return (f"{count[r]} columns, but the file's rows have {usual} (line {text.line_numbers[o]} of the same "
+                    f"frame has {count[o]})")
+        flag(odd, keep, -1, ragged)
     if problems:
         r, _, name, message = min(problems, key=lambda p: (p[0], p[1]))
         raise KittiFormatError(text.path, text.line_numbers[r], name, message)
