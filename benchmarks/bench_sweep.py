@@ -53,7 +53,7 @@ def main(argv=None) -> int:
         t0, c0 = time.perf_counter(), cpu_time()
         df = run_sweep(spec, out, progress=args.progress, workers=args.workers)
         seconds = time.perf_counter() - t0
-        cpu_seconds = cpu_time() - c0      # this process and its metric workers
+        cpu_seconds = cpu_time() - c0      # this process and its metric workers (forkserver children too)
         load1 = os.getloadavg()[0]
         t1 = time.perf_counter()
         rep = sweep_report(df, objective=args.objective, folds=args.folds)

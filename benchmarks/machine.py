@@ -32,11 +32,21 @@ def machine_info() -> dict:
 
 
 def cpu_time() -> float:
-    """CPU time of this process and its finished children (metric workers), user + system."""
-    import resource
+    """CPU time (user + system) of this process and of every process it started, running or ended:
+    the metric workers too, which run under multiprocessing's forkserver (children of the forkserver,
+    so ``RUSAGE_CHILDREN`` never sees them): each live descendant counts with the ended children it
+    has reaped (``psutil``: ``children_user`` / ``children_system``), so nothing is counted twice. A
+    descendant that ends and is reaped between two calls is counted through its parent."""
+    import psutil
 
-    r = [resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
-    return sum(x.ru_utime + x.ru_stime for x in r)
+    total = 0.0
+    for p in [psutil.Process()] + psutil.Process().children(recursive=True):
+        try:
+            t = p.cpu_times()
+        except (psutil.NoSuchProcess, psutil.AccessDenied):
+            continue
+        total += t.user + t.system + t.children_user + t.children_system
+    return total
 
 
 def cold_output_dir(out: str | None, prefix: str) -> Path:

@@ -25,6 +25,7 @@ from .io.kitti import (
     read_tracking_labels,
     sequence_lengths,
 )
+from .io.memo import FileMemo
 from .io.sequence import SequenceDets  # public here too: load_sequences returns it, pack takes it
 from .core.boxes import truncate_2d_box, truncate_3d_box
 from .core.step import Frames
@@ -276,7 +277,7 @@ def load_split(root, det2d="rrc", det3d="pointrcnn", cls: str = "car", sequences
         root=str(root))
 
 
-_SPLITS: dict = {}
+_SPLITS = FileMemo(size=4)
 
 
 def cached_split(root, det2d, det3d, cls: str, sequences, lift: LiftSettings | None = None) -> Split:
@@ -297,14 +298,7 @@ def cached_split(root, det2d, det3d, cls: str, sequences, lift: LiftSettings | N
         lengths = sequence_lengths(root, sequences)
         stamp += tuple(scan_stamps(scans, s, lengths[s]) for s in sequences)
     key = (str(root.resolve()), str(det2d), str(det3d), cls, sequences, lift_key)
-    hit = _SPLITS.get(key)
-    if hit is not None and hit[0] == stamp:
-        return hit[1]
-    split = load_split(root, det2d, det3d, cls, list(sequences), lift=lift)
-    if len(_SPLITS) >= 4:
-        _SPLITS.clear()
-    _SPLITS[key] = (stamp, split)
-    return split
+    return _SPLITS.get(key, stamp, lambda: load_split(root, det2d, det3d, cls, list(sequences), lift=lift))
 
 
 def compact_split(split: Split, score_2d: float, score_3d: float) -> Split:

@@ -115,3 +115,24 @@ def test_bad_3d_fields_exit_2_located(tmp_path, capsys):
     assert "0000.txt:3: field 'w': width '-1.6' and length '3.9' differ in sign" in error_line(err, "eval")
     status, _, err = run_cli(capsys, ["eval", res, "--data", root, "--metrics", "ab3dmot", "--ab3dmot-iou", "2d:0.5"])
     assert status == 0, err                                 # 2D matching does not read the 3D fields
+
+
+def test_eval_similarity_3d_matches_in_3d(tmp_path, capsys):
+    """--similarity 3d: HOTA / CLEAR in 3D (the 2D-only track unmatched), as the metrics' own call."""
+    from dfrmot_jax.metrics import evaluate_files
+
+    root, res = _scene(tmp_path)
+    rows = {}
+    for sim in ("2d", "3d", "bev"):
+        out = tmp_path / f"{sim}.csv"
+        status, stdout, err = run_cli(capsys, ["eval", res, "--data", root, "--similarity", sim, "--csv", out])
+        assert status == 0, err
+        assert ("3D IoU" in stdout) == (sim == "3d")
+        rows[sim] = _rows(out)[("res", "car", "COMBINED")]
+        want = evaluate_files(res, root, "car", ["0000"], similarity=sim)["COMBINED"]
+        assert float(rows[sim]["MOTA"]) == pytest.approx(100 * float(want["MOTA"]))
+    assert float(rows["2d"]["MOTA"]) == pytest.approx(100.0)
+    assert float(rows["3d"]["MOTA"]) == pytest.approx(0.0) and rows["3d"]["CLR_FP"] == "4"  # 4 matched, 4 FP + 4 FN
+    assert rows["bev"]["CLR_FP"] == rows["3d"]["CLR_FP"]
+    status, _, err = run_cli(capsys, ["eval", res, "--data", root, "--similarity", "4d"])
+    assert status == 2 and "--similarity" in error_line(err, "eval")

@@ -248,3 +248,15 @@ def test_demo_writes_to_out_or_removes_its_temporary_directory(tmp_path, monkeyp
     assert list(scratch.iterdir()) == [], "the demo left its temporary directory behind"
     assert "COMBINED" in temp and temp.splitlines()[-2:] == kept.splitlines()[-2:]     # the same scores
     assert "removed" in temp and "--out" in temp
+
+
+def test_track_refuses_filtered_boxes_with_unstable_fixed_gains_up_front(scene, tmp_path, capsys):
+    """Issue 23, bug 6: as a sweep does (same message), before any tracking or writing."""
+    out = tmp_path / "out"
+    argv = _track(scene, out, "--set", "gain_beta=0.12", "--set", "gain_gamma=0.16", "--set", "output=filtered")
+    status, _, err = run_cli(capsys, argv)
+    line = error_line(err, "track")
+    assert status == 2 and "outside the filter's stability region" in line and "gain_gamma 0.16" in line, err
+    assert not out.exists()
+    status, _, err = run_cli(capsys, argv[:-2] + ["--set", "output=detections"])      # raw boxes: finite
+    assert status == 0, err

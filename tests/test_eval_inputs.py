@@ -334,3 +334,21 @@ def test_we_read_exactly_what_trackeval_reads(kitti_root, tmp_path, capsys):
         if f"0000.txt:2: field '{want.lstrip('!')}'" not in line:
             problems.append(f"{rows!r}: {line}")
     assert not problems, "\n".join(problems)
+
+
+def test_a_ragged_row_is_the_one_that_differs_from_the_files_own_column_count(tmp_path):
+    """Issue 23, bug 1: in a file of 18-column rows, a frame whose first row has 17 columns is
+    reported at that row (not at the next, correct one), with the file's count."""
+    row = "{f} {i} Car -1 -1 -10 100 160 200 288 -1 -1 -1 -1000 -1000 -1000 -10"
+    lines = [row.format(f=f, i=i) + " 1" for f in range(48) for i in (1, 2)]       # lines 1..96: 18 columns
+    lines[94] = row.format(f=47, i=1)                                                  # line 95: 17 columns
+    lines += [row.format(f=48, i=1) + " 1"]
+    path = tmp_path / "0012.txt"
+    path.write_text("\n".join(lines) + "\n")
+    from dfrmot_jax.io.result_rows import read_result_rows
+
+    with pytest.raises(KittiFormatError) as e:
+        read_result_rows(path)
+    msg = str(e.value)
+    assert "0012.txt:95: field 'columns'" in msg, msg
+    assert "17 columns" in msg and "the file's rows have 18" in msg and "line 96" in msg, msg

@@ -465,3 +465,15 @@ def test_an_option_capacity_past_the_maximum_is_refused_naming_the_key():
     with pytest.raises(SweepConfigError, match=r"options\.capacity.*2147483648.*from 0 to 4096"):
         parse_spec({"params": {"a_l": [4.0, 8.0]}, "options": {"capacity": [2147483648]}})
     assert MAX_CAPACITY == 4096
+
+
+def test_the_table_records_the_capacity_asked_and_the_one_each_lane_used(scene):
+    """Issue 23, bug 4: ``options.capacity = 1`` runs (overflowing lanes re-run larger); the table
+    says what was asked (``capacity``: 1; 0 = from the data) and what each lane ran with."""
+    df = run_sweep(small_spec(scene, options={"capacity": 1}), progress=False, log=lambda m: None)
+    grid, base = df[~df["baseline"]], df[df["baseline"]]
+    assert (grid["capacity"] == 1).all() and (base["capacity"] == 0).all()
+    assert (df["capacity_used"] >= df["peak_tracks"]).all() and (grid["capacity_used"] > 1).all()
+    assert (df["overflow"] == 0).all()
+    for _, g in df.groupby("config"):
+        assert g["capacity_used"].nunique() == 1

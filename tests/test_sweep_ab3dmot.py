@@ -155,3 +155,28 @@ def test_stale_columns_give_a_row_its_tracks_last_3d_box(scene, tmp_path):
         assert a[:5] + a[6:10] == b[:5] + b[6:10] and a[17] == b[17]     # frame .. 2D box, score
         assert a[10:16] == ["-1", "-1", "-1", "-1000", "-1000", "-1000"] and float(b[10]) > 0
     assert len(lines["kitti"]) == len(lines["kitti-stale"])
+
+
+@pytest.mark.slow
+def test_car_and_pedestrian_on_kitti_with_their_class_average(kitti_root, tmp_path):
+    """The sweep objective on KITTI car and pedestrian: each class's figures are its files' (baseline
+    config), the average row averages the ratios and sums the counts."""
+    seqs = ["0012", "0013", "0017"]
+    spec = {"name": "kitti_ab3d", "chunk": 8, "data": {"root": str(kitti_root), "det2d": "rrc", "det3d": "pointrcnn",
+                                                        "class": ["car", "pedestrian"], "sequences": seqs},
+            "baseline": {"preset": "dfr2023"}, "params": {"a_l": [8.0, 5.0]}, "report": {"objective": "sAMOTA"}}
+    df = run_sweep(spec, progress=False, log=lambda m: None)
+    comb = df[(df["sequence"] == "COMBINED") & (df["config"] == 0)].set_index("class")
+    from dfrmot_jax.config import preset
+    for cls in ("car", "pedestrian"):
+        split = load_split(kitti_root, "rrc", "pointrcnn", cls, seqs)
+        params, options = preset("dfr2023", cls)
+        res = track(split, params, options, detail=True)
+        write_runs(tmp_path / cls, [ClassRun(split, res.frames, res.options, res.ids[0], None, res.src3[0],
+                                             res.own3[0])])
+        want = ab3dmot_columns(evaluate_ab3dmot_files(tmp_path / cls, kitti_root, cls, list(split.names)))
+        for col in AB3DMOT_COLUMNS:
+            assert comb.loc[cls, col] == pytest.approx(want[col], abs=1e-9), (cls, col)
+    avg = comb.loc["average"]
+    assert avg["sAMOTA"] == pytest.approx((comb.loc["car", "sAMOTA"] + comb.loc["pedestrian", "sAMOTA"]) / 2)
+    assert avg["ab3dmot_FP"] == comb.loc["car", "ab3dmot_FP"] + comb.loc["pedestrian", "ab3dmot_FP"]

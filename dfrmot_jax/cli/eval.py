@@ -1,7 +1,8 @@
 """``dfrmot eval``: TrackEval-identical KITTI evaluation of result folders from the command line.
 
 Usage: ``dfrmot eval RESULTS_DIR [RESULTS_DIR ...] [--data ROOT] [--class car[,pedestrian]]
-[--seqs 0000,0002 | --seqmap FILE] [--metrics kitti2d,ab3dmot] [--ab3dmot-iou 3d:0.25] [--allow-missing]
+[--seqs 0000,0002 | --seqmap FILE] [--metrics kitti2d,ab3dmot] [--ab3dmot-iou 3d:0.25] [--similarity 2d|3d|bev]
+[--allow-missing]
 [--per-seq] [--csv F]``. Each class is scored on its own rows
 of the result files (one file may hold ``Car`` and ``Pedestrian`` rows), by default on the
 sequences whose ground truth has the class (car: 20 of KITTI's 21, pedestrian: 15); ``--seqs``
@@ -133,6 +134,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default="3d:0.25", type=_iou_arg, metavar="2d:T|3d:T",
                    help="AB3DMOT matching: image-box IoU (2d) or 3D IoU of the rotated boxes (3d) at threshold T "
                         "(default 3d:0.25; AB3DMOT uses 2d:0.5 and 3d:0.25/0.5/0.7)")
+    p.add_argument("--similarity", default="2d", choices=("2d", "3d", "bev"),
+                   help="kitti2d family: the similarity HOTA / CLEAR / Identity match on: 2d image-box IoU (TrackEval's "
+                        "Kitti2DBox, default), 3d IoU of rotated boxes or bev IoU; KITTI's distractor and DontCare "
+                        "rules stay 2D; rows without a 3D box are unmatched in 3D")
     p.add_argument("--allow-missing", action="store_true",
                    help="score a sequence without a result file, or a class without a row in any file, as an "
                         "empty output (with a warning) instead of refusing")
@@ -225,8 +230,6 @@ def _print_ab3dmot(df, seq_lists: dict, iou: str, note_avg: str) -> None:
 
 def run(args) -> int:
     """Run ``eval`` for parsed ``args``: 0, or raises (bad ground truth, results or arguments)."""
-
-
     root = Path(args.data) if args.data else default_data_root()
     label_dir = root / "label_02"
     if not label_dir.is_dir():
@@ -265,7 +268,8 @@ def run(args) -> int:
         if name in names:
             name = str(d)
         names.append(name)
-        dets = {c: read_tracker_files(d, gt) for c, gt in gts.items()}
+        similarity = getattr(args, "similarity", "2d")
+        dets = {c: read_tracker_files(d, gt, need_3d=similarity != "2d") for c, gt in gts.items()}
         ab = _ab3dmot(d, root, seq_lists, args.ab3dmot_iou) if "ab3dmot" in families else {}
         for c in seq_lists:
             if c in gts:
@@ -281,7 +285,7 @@ def run(args) -> int:
             _warn(f"{what}: scored as an empty output")
         table = None
         if gts:
-            res = {c: evaluate_dets(gt, dets[c]) for c, gt in gts.items()}
+            res = {c: evaluate_dets(gt, dets[c], similarity) for c, gt in gts.items()}
             if len(res) > 1:
                 res[AVERAGE] = {"COMBINED": class_average({c: r["COMBINED"] for c, r in res.items()})}
             table = classes_table(res, tracker=name)
@@ -293,7 +297,9 @@ def run(args) -> int:
     if gts:
         shown, note = _mark_empty_gt(df) if args.per_seq else (df[df["seq"] == "COMBINED"], "")
         split = "; ".join(f"{c}, {len(gt.sequences)} sequences, {gt.n_frames} frames" for c, gt in gts.items())
-        print(f"{split} (TrackEval Kitti2DBox; HOTA/DetA/AssA = mean over alphas, %{note_avg})")
+        sim = {"2d": "", "3d": "; similarity: 3D IoU of rotated boxes", "bev": "; similarity: bird's-eye-view IoU"}[
+            getattr(args, "similarity", "2d")]
+        print(f"{split} (TrackEval Kitti2DBox{sim}; HOTA/DetA/AssA = mean over alphas, %{note_avg})")
         print(_fmt_table(shown))
         if note:
             print(note)

@@ -5,6 +5,7 @@ Usage::
     dfrmot report results/grid [--objective HOTA|MOTA|IDF1|AssA|IDSW] [--folds 5] [--top 10]
     dfrmot report results/classes --class pedestrian      # several classes: one class, or average (default)
     dfrmot report results/robustness --contrast epsilon:30,60/1,2,3:filter    # distortion sweeps
+    dfrmot report results/grid --html grid.html           # also one self-contained page to open and share
 
 The report's last line is one JSON object.
 """
@@ -13,9 +14,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
-from ..sweep import RAW_COLUMN, load_results, sweep_report
+from ..sweep import RAW_COLUMN, html_report, load_results, sweep_report
 from .errors import guarded
 
 __all__ = ["add_parser", "run", "parse_contrast"]
@@ -26,9 +28,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "report", help="best configs, baseline, sensitivity and cross-validation of a sweep directory",
         description="Print the best configs of a sweep (by --objective), the baseline row beside them, how "
-                    "sensitive the score is to each swept axis and, with --folds, the cross-validated best. "
-                    "The last line is one JSON object.")
-    p.add_argument("dir", metavar="DIR", help="a sweep result directory (dfrmot sweep --out DIR)")
+                    "sensitive the score is to each swept axis and, with --folds, the cross-validated best "
+                    "(a tune directory: also its own figures). The last line is one JSON object. With --html, "
+                    "also one self-contained page to open in a browser and share.")
+    p.add_argument("dir", metavar="DIR", help="a sweep or tune directory (dfrmot sweep / tune --out DIR)")
     p.add_argument("--objective", help="HOTA (default), MOTA, IDF1, AssA, DetA, IDSW (minimised), ...")
     p.add_argument("--folds", type=int, help="k-fold cross-validation over sequences (default: the sweep's --folds)")
     p.add_argument("--top", type=int, help="configs listed (default 10)")
@@ -41,6 +44,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="distortion sweeps: the gap between two groups of an axis per level, paired by seed, e.g. "
                         "epsilon:30,60/1,2,3:filter (long minus short memory, per filter); default: the sweep "
                         "file's report.contrast")
+    p.add_argument("--html", metavar="OUT.html",
+                   help="also write the report as one self-contained HTML page (figures as inline SVG; no script, "
+                        "no network): the run's identity, top configs beside the baseline, sensitivity per axis, "
+                        "the objective per sequence, the cross-validated figure (the file's --folds, else min(5, "
+                        "sequences)) and, where the directory holds them, robustness curves and contrast, the "
+                        "tune's history and Pareto front")
     p.set_defaults(func=guarded(run))
     return p
 
@@ -73,6 +82,11 @@ def run(args) -> int:
                        folds=args.folds, top=10 if args.top is None else args.top, contrast=contrast,
                        cls=getattr(args, "cls", None))
     print(rep.text)
+    if getattr(args, "html", None):
+        page = html_report(Path(args.dir), args.html, objective=args.objective or _manifest_objective(args.dir),
+                           folds=args.folds, top=10 if args.top is None else args.top, contrast=contrast,
+                           cls=getattr(args, "cls", None))
+        print(f"dfrmot report: wrote {page}", file=sys.stderr)
     if args.csv:
         df = load_results(args.dir, allow_partial=True)
         df.drop(columns=[RAW_COLUMN], errors="ignore").to_csv(args.csv, index=False)

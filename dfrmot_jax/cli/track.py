@@ -2,7 +2,9 @@
 
 ``--out`` is a new or empty folder: a non-empty one is refused (exit 2) unless ``--overwrite``, which
 removes its old result files (``SSSS.txt`` and temporaries of an interrupted write) before writing
-and keeps every other file, so that no stale sequence is scored with the new ones.
+and keeps every other file, so that no stale sequence is scored with the new ones. The folder is
+locked while the run writes it (:func:`dfrmot_jax.io.lock.folder_lock`): a second run on it fails at
+once, naming the folder and the process writing it.
 """
 
 from __future__ import annotations
@@ -29,9 +31,11 @@ from ..config import (
     preset,
 )
 from ..data import load_split
+from ..io.lock import LOCK_NAME, folder_lock
 from ..lidar import LiftSettings, lidar_dir, lift_setting_name, tie_scores, with_setting
 from ..paths import ENV_VAR, default_data_root
 from ..results import ClassRun, result_files, write_runs
+from ..sweep.table import unstable_gains, unstable_message
 from .errors import guarded
 
 __all__ = ["add_parser", "run", "config_help"]
@@ -233,7 +237,7 @@ def _old_results(out: Path, overwrite: bool) -> list[Path]:
         return []
     if not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
-    entries = sorted(p.name for p in out.iterdir())
+    entries = sorted(p.name for p in out.iterdir() if p.name != LOCK_NAME)
     if not entries:
         return []
     if not overwrite:
@@ -245,10 +249,22 @@ def _old_results(out: Path, overwrite: bool) -> list[Path]:
 
 
 def run(args) -> int:
-    old = _old_results(Path(args.out), args.overwrite)
-    root = Path(args.data) if args.data else default_data_root()
+    _old_results(Path(args.out), args.overwrite)           # (a bad --out fails before anything else)
     classes = _classes(args.cls)
     settings = {cls: class_settings(args, cls) for cls in classes}
+    for cls, (p, o) in settings.items():
+        if o.output == "filtered" and unstable_gains([o.filter == "fixed_gain"], p.gain_alpha, p.gain_beta,
+                                                     p.gain_gamma)[0]:
+            raise ValueError(unstable_message(f"the {cls} settings (--preset {args.preset} and --set)", p.gain_alpha,
+                                              p.gain_beta, p.gain_gamma, more=", or output=detections"))
+    with folder_lock(args.out, "track"):
+        return _track(args, classes, settings)
+
+
+def _track(args, classes, settings) -> int:
+    """Track and write, holding the lock of ``--out``."""
+    old = _old_results(Path(args.out), args.overwrite)
+    root = Path(args.data) if args.data else default_data_root()
     lift = lift_of(args)
     t0 = time.perf_counter()
     runs, status = [], 0

@@ -34,7 +34,7 @@ import numpy as np
 
 from .kitti import KittiFormatError, quoted, read_text_file
 
-__all__ = ["ResultRows", "read_result_rows", "MIN_COLUMNS"]
+__all__ = ["ResultRows", "read_result_rows", "parse_floats", "MIN_COLUMNS"]
 
 #: ``frame id type truncated occluded alpha x1 y1 x2 y2``: TrackEval's boxes are columns 6..9
 MIN_COLUMNS = 10
@@ -64,8 +64,9 @@ def _field(j: int) -> str:
     return _NAMES[j] if j < len(_NAMES) else f"column {j + 1}"
 
 
-def _numbers(tokens: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """[N] object str -> ([N] float64 as Python's ``float`` reads them, NaN where it cannot; [N] bool read)."""
+def parse_floats(tokens: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[N] str tokens (object or str arrays) -> ([N] float64 as Python's ``float`` reads them, NaN where it
+    cannot; [N] bool read)."""
     try:
         return tokens.astype(np.float64), np.ones(len(tokens), dtype=bool)
     except (ValueError, TypeError):
@@ -111,8 +112,8 @@ def read_result_rows(path) -> ResultRows:
     every = np.arange(len(split))
     flag(count < 3, every, -1, lambda r: f"expected at least 3 columns ({MIN_COLUMNS} on a row with an id >= 0), "
                                          f"got {count[r]}")
-    frame, frame_ok = _numbers(tok[:, 0])
-    tid, id_ok = _numbers(tok[:, 1])
+    frame, frame_ok = parse_floats(tok[:, 0])
+    tid, id_ok = parse_floats(tok[:, 1])
     for j, v, ok in ((0, frame, frame_ok), (1, tid, id_ok)):
         flag(~ok, every, j, lambda r, j=j: f"not a number: {quoted(tok[r, j])}")
         flag(ok & ~np.isfinite(v), every, j, lambda r, j=j: f"not finite: {quoted(tok[r, j])}")
@@ -130,22 +131,41 @@ def read_result_rows(path) -> ResultRows:
     box = np.zeros((len(keep), 4))
     for j in range(3, width):
         has = kc > j
-        v, ok = _numbers(tok[keep[has], j])
+        v, ok = parse_floats(tok[keep[has], j])
         flag(~ok, keep[has], j, lambda r, j=j: f"not a number: {quoted(tok[r, j])}")
         if _BOX.start <= j < _BOX.stop:
             flag(ok & ~np.isfinite(v), keep[has], j, lambda r, j=j: f"not finite: {quoted(tok[r, j])}")
             box[has, j - _BOX.start] = v
-    # TrackEval stacks the kept rows of a frame into one array: they must have the same length
+    # TrackEval stacks the kept rows of a frame into one array: they must have the same length. Of a
+    # frame whose rows differ, the rows off the file's own count (its most common one among kept
+    # rows; a tie: the first kept row's) are the ones named
     order = np.lexsort((keep, kf))
     same = np.zeros(len(keep), dtype=bool)
     same[1:] = kf[order][1:] == kf[order][:-1]
-    first = np.maximum.accumulate(np.where(same, 0, np.arange(len(keep))))
-    ragged = np.zeros(len(keep), dtype=bool)
-    ragged[order] = kc[order] != kc[order][first]
-    head = np.empty(len(keep), dtype=np.int64)
-    head[order] = keep[order][first]
-    flag(ragged, keep, -1, lambda r: f"{count[r]} columns, but line {text.line_numbers[head[keep == r][0]]} of the "
-                                     f"same frame has {count[head[keep == r][0]]}")
+    group = np.empty(len(keep), dtype=np.int64)
+    group[order] = np.cumsum(~same) - 1
+    lo = np.full(group.max(initial=-1) + 1, np.iinfo(np.int64).max)
+    hi = np.full_like(lo, -1)
+    np.minimum.at(lo, group, kc)
+    np.maximum.at(hi, group, kc)
+    ragged_frame = lo[group] != hi[group]
+    if ragged_frame.any():
+        values, counts = np.unique(kc, return_counts=True)
+        top = values[counts == counts.max()]
+        usual = int(kc[0]) if kc[0] in top else int(top[0])
+        odd = ragged_frame & (kc != usual)
+        # another row of the same frame, for the message: one with the file's count if there is one
+        other = {}
+        for j in np.flatnonzero(ragged_frame)[::-1]:
+            if kc[j] == usual or group[j] not in other:
+                other[group[j]] = int(keep[j])
+
+        def ragged(r):
+            j = int(np.flatnonzero(keep == r)[0])
+            o = other[group[j]]
+            return (f"{count[r]} columns, but the file's rows have {usual} (line {text.line_numbers[o]} of the same "
+                    f"frame has {count[o]})")
+        flag(odd, keep, -1, ragged)
     if problems:
         r, _, name, message = min(problems, key=lambda p: (p[0], p[1]))
         raise KittiFormatError(text.path, text.line_numbers[r], name, message)

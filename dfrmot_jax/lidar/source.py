@@ -39,6 +39,7 @@ import numpy as np
 
 from ..io.atomic import write_text_atomic
 from ..io.kitti import Calib, Detections2D, Detections3D, KittiFormatError, file_stamps
+from ..io.memo import FileMemo
 from .lift import PREPARE_FIELDS, Lifted, LiftSettings, Prepared, detection_boxes, lift_prepared, prepare_points
 from .scans import check_frames, read_scan, scan_stamps
 
@@ -47,9 +48,8 @@ __all__ = ["LIDAR_PREFIX", "lidar_dir", "to_detections3d", "lift_sequence", "wri
 
 LIDAR_PREFIX = "lidar:"
 _KITTI_TYPE = {"car": "Car", "pedestrian": "Pedestrian"}
-_PREPARED: dict = {}
-_LIFTED: dict = {}
-_MAX_ENTRIES = 256
+_PREPARED = FileMemo(size=256)     # keys hold the files' stamps: stamp None
+_LIFTED = FileMemo(size=256)
 
 
 def lidar_dir(det3d) -> Path | None:
@@ -100,13 +100,6 @@ def to_detections3d(lifted: Lifted, det2: Detections2D, calib: Calib, cls: str =
                         dims=np.stack([h, w, l], axis=1), loc=loc, rot_y=rot_y, alpha=alpha)
 
 
-def _remember(cache: dict, key, value):
-    if len(cache) >= _MAX_ENTRIES:
-        cache.clear()
-    cache[key] = value
-    return value
-
-
 def clear_cache() -> None:
     """Forget every cached lifting (both stages)."""
     _PREPARED.clear()
@@ -130,19 +123,18 @@ def lift_sequence(scan_dir, sequence: str, n_frames: int, det2: Detections2D, ca
     paths = check_frames(scan_dir, sequence, n_frames)
     base = (str(scan_dir.resolve()), str(sequence), int(n_frames), cls, scan_stamps(scan_dir, sequence, n_frames),
             file_stamps(stamp_files))
-    key2 = base + (tuple(s),)
-    hit = _LIFTED.get(key2)
-    if hit is not None:
-        return hit
-    key1 = base + tuple(getattr(s, f) for f in PREPARE_FIELDS)
-    prep: Prepared | None = _PREPARED.get(key1)
-    if prep is None:
+
+    def prepare() -> Prepared:
         keep, _ = detection_boxes(det2.box, det2.score, s.score_cut)
         frames = np.unique(np.asarray(det2.frame)[keep])
         scans = {int(f): read_scan(paths[int(f)]) for f in frames}
-        prep = _remember(_PREPARED, key1, prepare_points(scans, det2.frame, det2.box, det2.score, calib, s))
-    lifted = lift_prepared(prep, s)
-    return _remember(_LIFTED, key2, to_detections3d(lifted, det2, calib, cls))
+        return prepare_points(scans, det2.frame, det2.box, det2.score, calib, s)
+
+    def lift() -> Detections3D:
+        prep = _PREPARED.get(base + tuple(getattr(s, f) for f in PREPARE_FIELDS), None, prepare)
+        return to_detections3d(lift_prepared(prep, s), det2, calib, cls)
+
+    return _LIFTED.get(base + (tuple(s),), None, lift)
 
 
 def _num(v: float) -> str:

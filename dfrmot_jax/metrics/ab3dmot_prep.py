@@ -49,6 +49,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from dfrmot_jax.io.kitti import KittiFormatError, file_stamps, quoted, read_text_file, read_tracking_labels
+from dfrmot_jax.io.memo import FileMemo
 from dfrmot_jax.metrics.fields3d import PLACEHOLDER_DIMS, PLACEHOLDER_LOC, box3d_problem, parse_floats, placeholder_rows
 from dfrmot_jax.metrics.pairs import segment_starts
 
@@ -209,7 +210,7 @@ def prepare_ab3dmot_gt(root, cls: str = "car", sequences: Sequence | None = None
                   traj_order=np.lexsort((frame, traj)), root=str(root))
 
 
-_GT_CACHE: dict = {}
+_GT_CACHE = FileMemo()
 
 
 def cached_ab3dmot_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Ab3dGT:
@@ -221,14 +222,12 @@ def cached_ab3dmot_gt(root, cls: str = "car", sequences: Sequence | None = None)
              else tuple(_seq_name(s) for s in sequences))
     stamp = file_stamps(label_dir / f"{n}.txt" for n in names)
     key = (str(Path(root).resolve()), str(cls).lower(), names)
-    hit = _GT_CACHE.get(key)
-    if hit is not None and hit[0] == stamp:
-        return hit[1]
-    gt = prepare_ab3dmot_gt(root, cls, names)
-    if len(_GT_CACHE) > 16:
-        _GT_CACHE.clear()
-    _GT_CACHE[key] = (stamp, gt)
-    return gt
+    return _GT_CACHE.get(key, stamp, lambda: prepare_ab3dmot_gt(root, cls, names))
+
+
+def clear_cache() -> None:
+    """Forget the memoised ground truth (a cold start)."""
+    _GT_CACHE.clear()
 
 
 class Ab3dTracker(NamedTuple):

@@ -52,6 +52,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from dfrmot_jax.io.kitti import file_stamps
+from dfrmot_jax.io.memo import FileMemo
 from dfrmot_jax.metrics import clear, hota, identity, table
 from dfrmot_jax.metrics.kitti import (
     PreparedGT,
@@ -79,7 +80,7 @@ RAW_FIELDS = ("HOTA_TP", "HOTA_FN", "HOTA_FP", "AssA", "AssRe", "AssPr", "LocA")
 EVAL_CLASSES = ("car", "pedestrian")
 AVERAGE = "average"
 
-_GT_CACHE: dict = {}
+_GT_CACHE = FileMemo()
 
 
 def cached_gt(root, cls: str = "car", sequences: Sequence | None = None) -> PreparedGT:
@@ -93,17 +94,10 @@ def cached_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Prep
         names = tuple(f"{s:04d}" if isinstance(s, (int, np.integer)) else str(s) for s in sequences)
     stamp = file_stamps(label_dir / f"{n}.txt" for n in names)
     key = (str(Path(root).resolve()), cls.lower(), names)
-    hit = _GT_CACHE.get(key)
-    if hit is not None and hit[0] == stamp:
-        return hit[1]
-    gt = prepare_gt(root, cls, names)
-    if len(_GT_CACHE) > 16:
-        _GT_CACHE.clear()
-    _GT_CACHE[key] = (stamp, gt)
-    return gt
+    return _GT_CACHE.get(key, stamp, lambda: prepare_gt(root, cls, names))
 
 
-_SEQ_CACHE: dict = {}
+_SEQ_CACHE = FileMemo()
 
 
 def _label_stamp(label_dir: Path) -> tuple:
@@ -120,14 +114,7 @@ def cached_class_sequences(root, cls: str = "car") -> tuple:
     label_dir = Path(root) / "label_02"
     key = (str(Path(root).resolve()), cls.lower())
     stamp = _label_stamp(label_dir)
-    hit = _SEQ_CACHE.get(key)
-    if hit is not None and hit[0] == stamp:
-        return hit[1]
-    seqs = class_sequences(root, cls)
-    if len(_SEQ_CACHE) > 16:
-        _SEQ_CACHE.clear()
-    _SEQ_CACHE[key] = (stamp, seqs)
-    return seqs
+    return _SEQ_CACHE.get(key, stamp, lambda: class_sequences(root, cls))
 
 
 def clear_caches() -> None:

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from dfrmot_jax.io.kitti import KittiFormatError, quoted, read_text_file
+from dfrmot_jax.io.result_rows import parse_floats
 
 __all__ = ["PLACEHOLDER_DIMS", "PLACEHOLDER_LOC", "FIELDS_3D", "parse_floats", "placeholder_rows", "no_box_rows", "box_rows",
            "box3d_problem", "read_box3d_columns"]
@@ -33,22 +34,6 @@ PLACEHOLDER_LOC = (-1000.0, -1000.0, -1000.0)
 #: the fields of columns 11-17 of a KITTI tracking row
 FIELDS_3D = ("h", "w", "l", "x", "y", "z", "rot_y")
 FIRST_COLUMN = 10          # 0-based column of ``h``
-
-
-def parse_floats(tokens: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """[N] str tokens -> ([N] float64 as Python's ``float`` reads them, NaN where unreadable; [N] bool read)."""
-    try:
-        return np.asarray(tokens, dtype=str).astype(np.float64), np.ones(len(tokens), dtype=bool)
-    except ValueError:
-        out = np.full(len(tokens), np.nan)
-        ok = np.zeros(len(tokens), dtype=bool)
-        for k, tok in enumerate(tokens):
-            try:
-                out[k] = float(tok)
-                ok[k] = True
-            except ValueError:
-                pass
-        return out, ok
 
 
 def placeholder_rows(b3: np.ndarray) -> np.ndarray:

@@ -29,9 +29,11 @@ Modules: :mod:`.checks` (``SweepConfigError`` and the value checks every table s
 :mod:`.table` (``expand``, ``config_hash``, ``HASH_VERSION``), :mod:`.plan` (data settings, option
 groups, chunks), :mod:`.chunks` (``ChunkRunner``: one class's chunks tracked and scored, the unit
 every backend runs), :mod:`.backend` (local or Ray: ``check()`` and ``run_chunks(...)``),
-:mod:`.ray_backend`, :mod:`.runner` (``prepare_sweep``, ``run_sweep``), :mod:`.store` (the directory:
-chunk files, manifest, ``load_results``), :mod:`.analysis` (ranking, sensitivity, folds,
-cross-validation), :mod:`.robustness`, :mod:`.text`, :mod:`.report` (``sweep_report``). The metrics
+:mod:`.ray_backend`, :mod:`.runner` (``prepare_sweep``, ``run_sweep``), :mod:`.folder` (``claim``: a
+folder belongs to one sweep or tune), :mod:`.store` (the directory: chunk files, manifest,
+``load_results``), :mod:`.analysis` (ranking, sensitivity, folds, cross-validation),
+:mod:`.robustness`, :mod:`.text`, :mod:`.report` (``sweep_report``), :mod:`.html` (``html_report``:
+the report as one self-contained page) and :mod:`.figures` (its plots). The metrics
 (summary columns, sequence re-combination, lane scoring, worker pools) are
 :mod:`dfrmot_jax.metrics.evaluate`'s. ``dfrmot_jax.sweep.sweep(...)`` is a deprecated alias of
 ``run_sweep`` (one release, with a ``DeprecationWarning``).
@@ -51,11 +53,12 @@ See ``sweeps/README.md`` for the file format. Python use::
 from __future__ import annotations
 
 from ..metrics.evaluate import combine_sequences, summary_columns
-from .analysis import (MINIMISE, OBJECTIVES, class_view, cross_validate, make_folds, objective_on, per_sequence_arrays,
+from .analysis import (MINIMISE, OBJECTIVES, axis_profiles, class_view, cross_validate, make_folds, objective_on, per_sequence_arrays,
                        sensitivity)
 from .backend import LocalBackend, RayBackend, make_backend
 from .checks import SweepConfigError
 from .distortion import DistortionAxes
+from .html import html_report
 from .plan import MAX_MEMORY_GB, DataSettings, check_memory, plan, resolve_data, resolve_data_all
 from .report import SweepReport, sweep_report
 from .robustness import robustness_contrast, robustness_curves, robustness_summary, setting_axes
@@ -75,5 +78,5 @@ __all__ = [
     "resolve_data_all", "class_view", "class_columns", "AVERAGE", "HASH_VERSION", "HashVersionError",
     "hash_version", "SweepDirectoryError", "MAX_CONFIGS", "MAX_MEMORY_GB", "config_count", "check_memory",
     "COMBINED", "RAW_COLUMN", "params_of", "per_sequence_arrays", "objective_on", "LocalBackend", "RayBackend",
-    "make_backend",
+    "make_backend", "html_report", "axis_profiles",
 ]

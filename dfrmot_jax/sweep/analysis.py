@@ -51,6 +51,32 @@ def _axis_groups(comb: pd.DataFrame, axes: list[str]) -> list[tuple[str, ...]]:
     return [tuple(g) for g in groups.values()]
 
 
+def _profile(comb: pd.DataFrame, group: tuple[str, ...], objective: str, bins: int) -> pd.DataFrame:
+    """The objective per value of an axis group (COMBINED rows ``comb``): one row per value (a numeric
+    axis with more than 8 values: per quantile bin) with ``value`` (the bin's median), ``label``,
+    ``best`` (the best config with it), ``mean`` and ``n``."""
+    col = comb[group[0]]
+    numeric = len(group) == 1 and pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col)
+    binned = numeric and col.nunique() > 8
+    key = (pd.qcut(col.rank(method="first"), bins, labels=False) if binned else col).to_numpy()
+    g = comb[objective].groupby(key, sort=True)
+    out = pd.DataFrame({"best": g.max() if objective_direction(objective) > 0 else g.min(), "mean": g.mean(),
+                        "n": g.size()})
+    out["value"] = col.groupby(key, sort=True).median() if binned else out.index
+    first = comb.groupby(key, sort=True)[list(group)].first()
+    out["label"] = [f"~{fmt_value(v)}" for v in out["value"]] if binned else \
+        ["/".join(fmt_value(v) for v in r) for r in first.itertuples(index=False)]
+    return out.reset_index(drop=True)
+
+
+def axis_profiles(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> dict[str, pd.DataFrame]:
+    """Per varied axis (axes that always move together: one, ``a+b+c``) the objective per value
+    (:func:`_profile`: ``value``, ``label``, ``best``, ``mean``, ``n``): what :func:`sensitivity`
+    measures the spread of, for plots."""
+    comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
+    return {"+".join(g): _profile(comb, g, objective, bins) for g in _axis_groups(comb, varied_axes(df))}
+
+
 def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.DataFrame:
     """How much the objective moves with each varied axis (COMBINED rows).
 
@@ -65,19 +91,14 @@ def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.
     """
     comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
     y = comb[objective].to_numpy(np.float64)
-    d = objective_direction(objective)
     best = int(rank_configs(y, objective)[0])
     rows = []
     for group in _axis_groups(comb, varied_axes(df)):
         a = group[0]
         col = comb[a]
         numeric = len(group) == 1 and pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col)
-        key = col
-        if numeric and col.nunique() > 8:
-            key = pd.qcut(col.rank(method="first"), bins, labels=False)
-        g = comb[objective].groupby(key.to_numpy(), sort=True)
-        by_best = g.max() if d > 0 else g.min()
-        by_mean = g.mean()
+        prof = _profile(comb, group, objective, bins)
+        by_best, by_mean = prof["best"], prof["mean"]
         mask = np.ones(len(comb), bool)
         for other in _axis_groups(comb, varied_axes(df)):
             if other != group:
@@ -85,7 +106,7 @@ def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.
                     mask &= (comb[o] == comb.at[best, o]).to_numpy()
         oat = y[mask]
         corr = float(col.rank().corr(comb[objective].rank())) if numeric else float("nan")
-        rows.append({"axis": "+".join(group), "values": int(g.ngroups),
+        rows.append({"axis": "+".join(group), "values": len(prof),
                      "spread_best": float(by_best.max() - by_best.min()),
                      "spread_mean": float(by_mean.max() - by_mean.min()), "corr": corr,
                      "best_value": "/".join(fmt_value(comb.at[best, o]) for o in group) if len(group) > 1

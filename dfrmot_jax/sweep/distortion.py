@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import distort
 from ..config import Options
-from .checks import GRID_KINDS, check_count, check_keys, clean_float, config_error, is_number, positive_int
+from .checks import GRID_KINDS, Table, check_count, clean_float, config_error, is_number
 
 DISTORTION_KEYS = ("kind", "level", "levels", "seeds", "clutter_slots", "burst_dist", "burst_max", "burst_rate",
                    "burst_len")
@@ -138,7 +138,7 @@ def _check_level(kind: str, v, key: str, source, clutter_slots: int, burst_max: 
 def parse_distortion(d, source) -> DistortionAxes | None:
     if d is None:
         return None
-    check_keys(d, DISTORTION_KEYS, "distortion.", source)
+    t = Table(d, "distortion", source, DISTORTION_KEYS)
     kinds_doc = d.get("kind")
     levels_doc = d.get("levels")
     if levels_doc is not None and not isinstance(levels_doc, Mapping):
@@ -167,11 +167,9 @@ def parse_distortion(d, source) -> DistortionAxes | None:
             if k not in {kk for _, kk in kinds}:
                 raise config_error(f"distortion.levels.{k}", f"kind {k!r} is not in distortion.kind "
                                                      f"{[kk for _, kk in kinds]}", source)
-    clutter_slots = positive_int(d, "clutter_slots", 0, source, minimum=0, prefix="distortion.")
-    burst_max = positive_int(d, "burst_max", 30, source, prefix="distortion.")
-    burst_dist = d.get("burst_dist", "fixed")
-    if burst_dist not in distort.BURST_DISTS:
-        raise config_error("distortion.burst_dist", f"{burst_dist!r}: expected one of {list(distort.BURST_DISTS)}", source)
+    clutter_slots = t.integer("clutter_slots", 0, minimum=0)
+    burst_max = t.integer("burst_max", 30)
+    burst_dist = t.choice("burst_dist", "fixed", distort.BURST_DISTS)
     burst_rate = d.get("burst_rate", distort.BURST_RATE)
     if not is_number(burst_rate) or not 0 < float(burst_rate) <= 1:
         raise config_error("distortion.burst_rate", f"{burst_rate!r}: the burst start rate of kind \"burst\" is a "

@@ -45,6 +45,9 @@ class SweepReport:
     cv: dict | None = None
     curves: pd.DataFrame | None = None          # distortion sweeps: robustness_curves(df, objective)
     contrast: list | None = None                # with a contrast: robustness_summary rows (dicts)
+    data: pd.DataFrame | None = None            # the table reported on (every class)
+    view: pd.DataFrame | None = None            # its rows ranked: the report's class (class_view), or all
+    manifest: dict | None = None                # a directory's manifest
 
     def __str__(self) -> str:
         return self.text
@@ -79,7 +82,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         n_expected = manifest.get("configs")
         tune = (d, manifest) if manifest.get("kind") == "tune" else None
     else:
-        df, n_expected, tune = results, None, None
+        df, n_expected, tune, manifest = results, None, None, None
     if isinstance(contrast, Mapping):
         contrast = parse_contrast(dict(contrast), None)
     objective = canonical_objective(objective)
@@ -195,7 +198,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         summary["contrast"] = {**contrast_doc(contrast), "answer": answers}
     lines.append("")
     lines.append(json.dumps(summary))
-    return SweepReport("\n".join(lines), summary, topdf, sens, cv, curves, answers)
+    return SweepReport("\n".join(lines), summary, topdf, sens, cv, curves, answers, full, df, manifest)
 
 
 def _tune_section(d: Path, manifest: dict, objective: str) -> tuple[list[str], dict]:

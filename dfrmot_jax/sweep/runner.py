@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..io.lock import folder_lock
 from .backend import make_backend
 from .checks import SweepConfigError
 from .chunks import progress_bar
@@ -105,6 +106,15 @@ def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds
     log = log if log is not None else (lambda msg: print(msg, file=sys.stderr, flush=True))
     backend.check()             # an unreachable cluster is refused before anything is written
     outdir = Path(out) if out is not None else None
+    if outdir is None:
+        return _run(spec, table, datas, chunks, None, force, backend, progress, log, compact, raw)
+    with folder_lock(outdir, "sweep"):
+        return _run(spec, table, datas, chunks, outdir, force, backend, progress, log, compact, raw)
+
+
+def _run(spec: SweepSpec, table: pd.DataFrame, datas, chunks, outdir: Path | None, force: bool, backend, progress,
+         log, compact: bool, raw: bool) -> pd.DataFrame:
+    """The sweep itself, in its folder (claimed here, locked by the caller) or in memory."""
     done: set[str] = set()
     if outdir is not None:
         legacy = write_manifest(outdir, spec, datas, table, chunks, force=force)

@@ -20,12 +20,13 @@ from ..metrics.table import AB3DMOT_COLUMNS, canonical_objective
 from .checks import (
     GRID_KINDS,
     SweepConfigError,
+    Table,
     check_count,
-    check_keys,
     clean_float,
     config_error,
     is_number,
-    positive_int,
+    is_scalar,
+    type_name,
 )
 from .distortion import DistortionAxes, parse_distortion
 from .lidar_axes import LIDAR_AXES, LidarAxes, parse_lidar
@@ -175,7 +176,7 @@ def read_toml(path, what: str = "sweep file") -> dict:
 
 
 def _check_param_value(name: str, v, key: str, source) -> int | float:
-    problem = param_problem(name, v)
+    problem = param_problem(name, v) if is_number(v) else f"not a number ({type_name(v)})"
     if problem:
         raise config_error(key, f"{v!r}: parameter {name}: {problem}", source)
     return int(round(float(v))) if name in INT_PARAMS else float(v)
@@ -328,7 +329,7 @@ def _parse_sequences(v, key, source) -> tuple[str, ...] | None:
         raise config_error(key, f"expected \"all\", a list of sequence names or a comma-separated string, got {v!r}", source)
     out = []
     for s in v:
-        if isinstance(s, bool) or not isinstance(s, (int, str)):
+        if isinstance(s, bool) or not isinstance(s, (int, str)) or isinstance(s, int) and s < 0:
             raise config_error(key, f"{s!r} is not a sequence name", source)
         out.append(f"{s:04d}" if isinstance(s, int) else s.strip().zfill(4))
     if len(set(out)) != len(out):
@@ -339,26 +340,29 @@ def _parse_sequences(v, key, source) -> tuple[str, ...] | None:
 def parse_contrast(c, source) -> Contrast | None:
     if c is None:
         return None
-    check_keys(c, CONTRAST_KEYS, "report.contrast.", source)
-    axis = c.get("axis")
+    t = Table(c, "report.contrast", source, CONTRAST_KEYS)
+    axis = t.get("axis")
     if axis not in PARAM_NAMES + OPTION_NAMES:
-        raise config_error("report.contrast.axis", f"{axis!r}: expected a parameter or option name", source)
+        raise t.error("axis", f"{axis!r}: expected a parameter or option name")
     groups = []
     for k in ("high", "low"):
-        v = c.get(k)
+        v = t.get(k)
         if v is None:
-            raise config_error(f"report.contrast.{k}", "missing: the axis values of this group", source)
-        v = v if isinstance(v, list) else [v]
-        if not v:
-            raise config_error(f"report.contrast.{k}", "empty list", source)
-        groups.append(tuple(v))
+            raise t.error(k, "missing: the axis values of this group")
+        items = [(f"{k}[{i}]", x) for i, x in enumerate(v)] if isinstance(v, list) else [(k, v)]
+        if not items:
+            raise t.error(k, "empty list")
+        for key, x in items:
+            if not is_scalar(x):
+                raise t.error(key, f"{x!r}: expected a value of {axis}, got {type_name(x)}")
+        groups.append(tuple(x for _, x in items))
     if set(groups[0]) & set(groups[1]):
         raise config_error("report.contrast", f"a value is in both groups: {sorted(set(groups[0]) & set(groups[1]), key=str)}",
                    source)
-    by = c.get("by", [])
+    by = t.get("by", [])
     by = [by] if isinstance(by, str) else by
     if not isinstance(by, list) or any(b not in PARAM_NAMES + OPTION_NAMES or b == axis for b in by):
-        raise config_error("report.contrast.by", f"{by!r}: expected a list of other parameter / option names", source)
+        raise t.error("by", f"{by!r}: expected a list of other parameter / option names")
     return Contrast(axis, groups[0], groups[1], tuple(by))
 
 
@@ -381,21 +385,18 @@ def _parse_classes(v, source) -> tuple[str, ...]:
 
 
 def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
-    """Validate a sweep given as a dict (the parsed TOML); raises :class:`SweepConfigError`."""
-    check_keys(doc, TOP_KEYS, "", source)
-    name = doc.get("name", Path(source).stem if source else "sweep")
-    if not isinstance(name, str) or not name:
-        raise config_error("name", f"{name!r}: expected a non-empty string", source)
-    desc = doc.get("description", "")
-    chunk = positive_int(doc, "chunk", 64, source)
-    samples = positive_int(doc, "samples", 1, source)
-    seed = positive_int(doc, "seed", 0, source, minimum=0)
+    """Validate a sweep given as a dict (the parsed TOML); raises :class:`SweepConfigError`
+    naming the full key (every table is read through a :class:`~.checks.Table`)."""
+    top = Table(doc, "", source, TOP_KEYS)
+    name = top.string("name", Path(source).stem if source else "sweep")
+    desc = top.string("description", "", empty=True)
+    chunk = top.integer("chunk", 64)
+    samples = top.integer("samples", 1)
+    seed = top.integer("seed", 0, minimum=0)
 
-    data = doc.get("data", {})
-    check_keys(data, DATA_KEYS, "data.", source)
+    data = top.table("data", DATA_KEYS)
     for k in ("root", "det2d", "det3d"):
-        if k in data and (not isinstance(data[k], str) or not data[k]):
-            raise config_error(f"data.{k}", f"{data[k]!r}: expected a non-empty string", source)
+        data.string(k, None)
     classes = _parse_classes(data.get("class", "car"), source)
     cls = classes[0]
     root = data.get("root")
@@ -403,20 +404,17 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
         root = str((Path(source).parent / Path(root).expanduser()).resolve())
     sequences = _parse_sequences(data.get("sequences"), "data.sequences", source)
 
-    base = doc.get("baseline", "dfr2023")
+    base = top.get("baseline", "dfr2023")
     base_cls = None
     if isinstance(base, Mapping):
-        check_keys(base, BASELINE_KEYS, "baseline.", source)
-        base_cls = base.get("class")
-        if base_cls is not None and base_cls not in CLASSES:
-            raise config_error("baseline.class", f"{base_cls!r}: expected one of {list(CLASSES)} (every class's "
-                                         f"baseline is the preset as tuned for this class)", source)
-        base = base.get("preset", "dfr2023")
-        bkey = "baseline.preset"
+        bt = top.table("baseline", BASELINE_KEYS)
+        base_cls = bt.get("class")
+        if base_cls is not None and (not isinstance(base_cls, str) or base_cls not in CLASSES):
+            raise bt.error("class", f"{base_cls!r}: expected one of {list(CLASSES)} (every class's baseline is the "
+                                    f"preset as tuned for this class)")
+        base = bt.choice("preset", "dfr2023", sorted(PRESETS), "unknown preset")
     else:
-        bkey = "baseline"
-    if base not in PRESETS:
-        raise config_error(bkey, f"unknown preset {base!r}; expected one of {sorted(PRESETS)}", source)
+        base = top.choice("baseline", "dfr2023", sorted(PRESETS), "unknown preset")
 
     params = _axes(doc.get("params"), "params", "params", source, classes)
     options = _axes(doc.get("options"), "options", "options", source)
@@ -426,45 +424,43 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
         variants.append(Variant("grid", params, options))
     else:
         if not isinstance(variants_doc, list) or not variants_doc:
-            raise config_error("variants", "expected a non-empty array of tables ([[variants]])", source)
+            raise top.error("variants", "expected a non-empty array of tables ([[variants]])")
         for i, v in enumerate(variants_doc):
-            check_keys(v, VARIANT_KEYS, f"variants[{i}].", source)
+            vt = Table(v, f"variants[{i}]", source, VARIANT_KEYS)
+            vname = vt.string("name", f"variant{i}")
             vp = _axes(v.get("params"), "params", f"variants[{i}].params", source, classes)
             vo = _axes(v.get("options"), "options", f"variants[{i}].options", source)
             over_p = {a.name for a in vp}
             over_o = {a.name for a in vo}
-            variants.append(Variant(str(v.get("name", f"variant{i}")),
+            variants.append(Variant(vname,
                                     tuple(a for a in params if a.name not in over_p) + vp,
                                     tuple(a for a in options if a.name not in over_o) + vo))
 
-    rep = doc.get("report", {})
-    check_keys(rep, REPORT_KEYS, "report.", source)
+    rep = top.table("report", REPORT_KEYS)
     try:
-        objective = canonical_objective(rep.get("objective", "HOTA"))
+        objective = canonical_objective(rep.string("objective", "HOTA"))
     except ValueError as e:
-        raise config_error("report.objective", str(e).removeprefix("objective "), source) from None
-    folds = positive_int(rep, "folds", None, source, minimum=2)
-    top = positive_int(rep, "top", 10, source)
+        raise rep.error("objective", str(e).removeprefix("objective ")) from None
+    folds = rep.integer("folds", None, minimum=2)
+    top_n = rep.integer("top", 10)
     contrast = parse_contrast(rep.get("contrast"), source)
     report_class = rep.get("class")
-    if report_class is not None and report_class not in classes + (AVERAGE,):
-        raise config_error("report.class", f"{report_class!r}: expected one of the sweep's classes {list(classes)} or "
-                                   f"{AVERAGE!r}", source)
+    if report_class is not None and (not isinstance(report_class, str) or report_class not in classes + (AVERAGE,)):
+        raise rep.error("class", f"{report_class!r}: expected one of the sweep's classes {list(classes)} or "
+                                 f"{AVERAGE!r}")
     distortion = parse_distortion(doc.get("distortion"), source)
-    ab3dmot = _parse_metrics(doc.get("metrics", {}), objective, folds, source)
-    ab3dmot_columns = doc.get("metrics", {}).get("ab3dmot_columns", "kitti")
-    if ab3dmot_columns not in ("kitti", "kitti-stale"):
-        raise config_error("metrics.ab3dmot_columns", f"{ab3dmot_columns!r}: expected \"kitti\" (rows without their "
-                                                      f"own 3D box unmatched in 3D) or \"kitti-stale\" (they carry "
-                                                      f"their track's last 3D box)", source)
+    metrics = top.table("metrics", METRICS_KEYS)
+    ab3dmot = _parse_metrics(metrics, rep, objective, folds)
+    ab3dmot_columns = metrics.choice("ab3dmot_columns", "kitti", ("kitti", "kitti-stale"),
+                                     "the result columns AB3DMOT's figures score")
     if ab3dmot is not None and distortion is not None:
-        raise config_error("metrics.ab3dmot", "AB3DMOT's figures are not computed in distortion studies yet "
-                                              "(their lanes' 3D rows include clutter)", source)
+        raise metrics.error("ab3dmot", "AB3DMOT's figures are not computed in distortion studies yet (their "
+                                       "lanes' 3D rows include clutter)")
 
-    spec = SweepSpec(name=name, description=str(desc), chunk=chunk, seed=seed, samples=samples, data_root=root,
+    spec = SweepSpec(name=name, description=desc, chunk=chunk, seed=seed, samples=samples, data_root=root,
                      det2d=data.get("det2d", "rrc"), det3d=data.get("det3d", "pointrcnn"), cls=cls,
                      sequences=sequences, baseline=base, variants=tuple(variants), objective=objective,
-                     folds=folds, top=top, distortion=distortion, contrast=contrast, source=source,
+                     folds=folds, top=top_n, distortion=distortion, contrast=contrast, source=source,
                      raw=dict(doc), classes=classes, baseline_class=base_cls, report_class=report_class,
                      ab3dmot=ab3dmot, ab3dmot_columns=ab3dmot_columns, lidar=parse_lidar(doc, source))
     for v in spec.variants:
@@ -475,30 +471,27 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     return spec
 
 
-def _parse_metrics(doc, objective: str, folds: int | None, source) -> str | None:
-    """The [metrics] table: ``ab3dmot = "3d:0.25"`` (or ``"2d:0.5"``, ``true`` for the default) adds
+def _parse_metrics(metrics: Table, rep: Table, objective: str, folds: int | None) -> str | None:
+    """The [metrics] table's ``ab3dmot = "3d:0.25"`` (or ``"2d:0.5"``, ``true`` for the default): adds
     AB3DMOT's figures (``sAMOTA`` ...) to the COMBINED rows; an AB3DMOT objective turns it on."""
-    check_keys(doc, METRICS_KEYS, "metrics.", source)
-    v = doc.get("ab3dmot", objective in AB3DMOT_COLUMNS)
+    v = metrics.get("ab3dmot", objective in AB3DMOT_COLUMNS)
     if v is False:
         if objective in AB3DMOT_COLUMNS:
-            raise config_error("metrics.ab3dmot", f"false, but report.objective = {objective!r} is one of "
-                                                  f"AB3DMOT's figures", source)
+            raise metrics.error("ab3dmot", f"false, but report.objective = {objective!r} is one of AB3DMOT's figures")
         return None
     if v is True:
         v = DEFAULT_AB3DMOT_IOU
     if not isinstance(v, str):
-        raise config_error("metrics.ab3dmot", f"{v!r}: expected true, false or \"2d:T\" / \"3d:T\" "
-                                              f"(the IoU and its threshold, e.g. \"3d:0.25\")", source)
+        raise metrics.error("ab3dmot", f"{v!r}: expected true, false or \"2d:T\" / \"3d:T\" (the IoU and its "
+                                       f"threshold, e.g. \"3d:0.25\")")
     try:
         kind, thres = parse_iou(v)
     except ValueError as e:
-        raise config_error("metrics.ab3dmot", str(e), source) from None
+        raise metrics.error("ab3dmot", str(e)) from None
     if objective in AB3DMOT_COLUMNS and folds is not None:
-        raise config_error("report.folds", f"{folds}: {objective} is not a sum over sequences (AB3DMOT draws its "
-                                           f"recall thresholds from all sequences together), so a sweep's rows "
-                                           f"cannot be re-combined into folds: cross-validate it with a nested "
-                                           f"tune ([tune] folds = {folds})", source)
+        raise rep.error("folds", f"{folds}: {objective} is not a sum over sequences (AB3DMOT draws its recall "
+                                 f"thresholds from all sequences together), so a sweep's rows cannot be re-combined "
+                                 f"into folds: cross-validate it with a nested tune ([tune] folds = {folds})")
     return f"{kind}:{thres:g}"
 
 

@@ -16,9 +16,12 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import platform
 import sys
+import time
 import warnings
 from contextlib import suppress
+from importlib import metadata
 from pathlib import Path
 from typing import Any, NamedTuple, Sequence
 
@@ -27,8 +30,10 @@ import pandas as pd
 
 from ..io.atomic import TMP_NAME, naming, sha256, write_parquet_atomic, write_text_atomic
 from ..metrics.evaluate import RAW_FIELDS, class_average_columns, class_combiner, summary_columns
+from .folder import SweepDirectoryError, claim
 from .plan import Chunk, DataSettings
 from .spec import AVERAGE, LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, SweepSpec, contrast_doc, extra_axes
+from ..version import __version__
 from .table import COMBINED, HASH_VERSION, RAW_COLUMN, class_columns
 
 #: The ledger of a sweep directory (module docstring).
@@ -38,11 +43,6 @@ _NO_RECORD = "no checksum record"
 
 class HashVersionError(ValueError):
     """A sweep directory written with another ``config_hash`` scheme than this version's."""
-
-
-class SweepDirectoryError(ValueError):
-    """The output directory cannot take this sweep: it is a file, its manifest is damaged, or it
-    belongs to another sweep (``run_sweep(force=True)`` / ``--force`` deletes that sweep's files)."""
 
 
 def chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, metrics: dict, res, versions,
@@ -71,6 +71,8 @@ def chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, met
     per_seq = cs[:, offs[1:]] - cs[:, offs[:-1]]
     cols["overflow"] = np.concatenate([per_seq, res.overflow.astype(np.int64)[:, None]], axis=1).reshape(-1)
     cols["peak_tracks"] = np.repeat(res.peak.astype(np.int64), R)
+    # the track slots each lane ran with (``capacity`` is what was asked: 0 = from the data)
+    cols["capacity_used"] = np.repeat(np.asarray(res.capacity, np.int64), R)
     cols["det2d"] = np.repeat(np.array([data.det2d], dtype=object), L * R)
     cols["det3d"] = np.repeat(np.array([data.det3d], dtype=object), L * R)
     cols["class"] = np.repeat(np.array([data.cls], dtype=object), L * R)
@@ -199,6 +201,23 @@ def jsonable(obj):
         return None
 
 
+def environment() -> dict:
+    """The software and machine a directory was last written with (its manifest's ``environment``,
+    shown by the report): versions, Python, OS, CPU model and count, the time."""
+    cpu = platform.processor() or platform.machine()
+    with suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    versions = {}
+    for name in ("jax", "jaxlib", "numpy", "pandas"):
+        with suppress(metadata.PackageNotFoundError):
+            versions[name] = metadata.version(name)
+    return {"dfrmot_jax": __version__, **versions, "python": platform.python_version(), "os": platform.platform(),
+            "cpu": cpu, "cpus": os.cpu_count(), "written": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
+
+
 def hash_version(manifest: dict) -> int:
     """The ``config_hash`` scheme a directory was written with (no ``hash_version``: 1)."""
     return int(manifest.get("hash_version", 1))
@@ -239,7 +258,7 @@ def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings],
                 "data": data.identity(), "lengths": list(data.lengths), "baseline": spec.baseline,
                 "chunk": spec.chunk, "objective": spec.objective, "folds": spec.folds, "top": spec.top,
                 "configs": len(table), "chunks": [c.id for c in chunks], "spec": jsonable(spec.raw),
-                "hash_version": HASH_VERSION, "identity": identity, "ledger": LEDGER}
+                "hash_version": HASH_VERSION, "identity": identity, "ledger": LEDGER, "environment": environment()}
     if len(spec.classes) > 1:
         manifest["classes"] = list(spec.classes)
         manifest["class_data"] = {d.cls: {**d.identity(), "lengths": list(d.lengths)} for d in datas}
@@ -261,31 +280,26 @@ def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings],
 
 def _claim(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings], table: pd.DataFrame,
            chunks: Sequence[Chunk], identity: str, force: bool) -> dict | None:
-    """The manifest ``outdir`` holds if it is this sweep's (None: none, or deleted with ``force``)."""
-    path = outdir / "manifest.json"
-    if not path.is_file():
-        return None
-    try:
-        old = json.loads(path.read_text())
-        if not isinstance(old, dict):
-            raise ValueError("not a JSON object")
-        version = hash_version(old)
-    except ValueError as e:
-        problem = f"has a damaged manifest.json ({e})"
-    else:
-        if version != HASH_VERSION and not force:
-            raise HashVersionError(f"{outdir} was written with config_hash scheme {version}, this version uses "
-                                   f"{HASH_VERSION}: its chunks would not be found (use another --out, or --force "
-                                   f"to delete them)")
-        if version == HASH_VERSION and (old.get("identity") == identity or old.get("chunks") == [c.id for c in chunks]
-                                        and _same_configs(outdir, table)):
-            return old
-        problem = _other_sweep(old, spec, datas, table)
-    if not force:
-        raise SweepDirectoryError(f"{outdir} {problem}: its results would be replaced; use another --out, or --force "
-                                  f"to delete its chunks and results first")
-    _clear(outdir)
-    return None
+    """The manifest ``outdir`` holds if it is this sweep's (None: none, or deleted with ``force``):
+    :func:`.folder.claim` with the sweep's identity (or, for a directory written before it, the
+    same chunks and configs) and its hash scheme."""
+    def version(old: dict) -> int | None:
+        try:
+            return hash_version(old)
+        except (TypeError, ValueError):
+            return None
+
+    def check(old: dict) -> None:
+        if version(old) not in (None, HASH_VERSION) and not force:
+            raise HashVersionError(f"{outdir} was written with config_hash scheme {version(old)}, this version "
+                                   f"uses {HASH_VERSION}: its chunks would not be found (use another --out, or "
+                                   f"--force to delete them)")
+
+    def same(old: dict) -> bool:
+        return version(old) == HASH_VERSION and (old.get("identity") == identity or old.get("chunks") == [
+            c.id for c in chunks] and _same_configs(outdir, table))
+
+    return claim(outdir, "sweep", same, force, other=lambda old: _other_sweep(old, spec, datas, table), check=check)
 
 
 def _same_configs(outdir: Path, table: pd.DataFrame) -> bool:
@@ -301,8 +315,6 @@ def _same_configs(outdir: Path, table: pd.DataFrame) -> bool:
 
 def _other_sweep(old: dict, spec: SweepSpec, datas: Sequence[DataSettings], table: pd.DataFrame) -> str:
     """How the sweep of manifest ``old`` differs from this one (a phrase)."""
-    if old.get("kind", "sweep") != "sweep":
-        return f"holds a {old.get('kind')} ({old.get('name')!r})"
     if (old.get("class_data") or {datas[0].cls: old.get("data")}) != \
             {d.cls: (d.identity() if len(spec.classes) == 1 else {**d.identity(), "lengths": list(d.lengths)}) for d in datas}:
         what = "data"
@@ -310,17 +322,6 @@ def _other_sweep(old: dict, spec: SweepSpec, datas: Sequence[DataSettings], tabl
         what = "configs"
     return (f"holds another sweep ({old.get('name')!r}, {old.get('configs')} configs; this one: {spec.name!r}, "
             f"{len(table)} configs, differs in its {what})")
-
-
-def _clear(outdir: Path) -> None:
-    """Delete the files of the sweep in ``outdir`` (and nothing else)."""
-    chunk_dir = outdir / "chunks"
-    if chunk_dir.is_dir():
-        for p in chunk_dir.iterdir():
-            if p.is_file() and (p.suffix == ".parquet" or TMP_NAME.match(p.name)):
-                p.unlink()
-    for name in ("manifest.json", "configs.parquet", "results.parquet", LEDGER):
-        (outdir / name).unlink(missing_ok=True)
 
 
 def _remove_orphans(outdir: Path) -> None:
@@ -370,7 +371,7 @@ def finish_table(df: pd.DataFrame, classes: Sequence[str] = ()) -> pd.DataFrame:
 def _average_rows(df: pd.DataFrame, classes: Sequence[str]) -> pd.DataFrame:
     """One ``class = "average"``, ``sequence = COMBINED`` row per config that has every class's
     COMBINED row: metric columns the class average (:func:`_class_average_columns`), ``frames``
-    and ``overflow`` summed, ``peak_tracks`` the largest, ``chunk`` empty, the per-alpha column
+    and ``overflow`` summed, ``peak_tracks`` and ``capacity_used`` the largest, ``chunk`` empty, the per-alpha column
     the class average of its fields; the config's other columns as in its rows."""
     comb = df[df["sequence"] == COMBINED]
     parts = [comb[comb["class"] == c].set_index("config") for c in classes]
@@ -384,8 +385,10 @@ def _average_rows(df: pd.DataFrame, classes: Sequence[str]) -> pd.DataFrame:
     metrics = class_average_columns([{c: p[c].to_numpy() for c in p.columns if class_combiner(c)}
                                       for p in parts])
     for f, v in metrics.items():
-        out[f] = v.astype(out[f].dtype) if np.issubdtype(out[f].dtype, np.integer) else v
-    for f, how in (("frames", "sum"), ("overflow", "sum"), ("peak_tracks", "max")):
+        # counts stay integers (AB3DMOT's are nullable Int64: empty on per-sequence rows)
+        out[f] = pd.array(np.asarray(v, np.int64), dtype=out[f].dtype) if pd.api.types.is_integer_dtype(out[f].dtype) \
+            else v
+    for f, how in (("frames", "sum"), ("overflow", "sum"), ("peak_tracks", "max"), ("capacity_used", "max")):
         if f in out.columns:
             stack = np.stack([p[f].to_numpy() for p in parts])
             out[f] = stack.sum(axis=0) if how == "sum" else stack.max(axis=0)

@@ -229,12 +229,9 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     unstable = unstable_rows(table) & (table["output"] == "filtered").to_numpy()
     if unstable.any():
         r = table[unstable].iloc[0]
-        raise config_error("params.gain_beta", f"{int(unstable.sum())} of {len(table)} configs write filtered boxes with "
-                                       f"fixed gains outside the filter's stability region (e.g. config "
-                                       f"{int(r['config'])}: gain_alpha {r['gain_alpha']:.4g}, gain_beta "
-                                       f"{r['gain_beta']:.4g}, gain_gamma {r['gain_gamma']:.4g}): their boxes grow "
-                                       f"without bound; keep gain_gamma small against gain_beta (e.g. gamma <= "
-                                       f"beta / 4) or use [[variants]]", src)
+        raise config_error("params.gain_beta", unstable_message(
+            f"{int(unstable.sum())} of {len(table)} configs", r["gain_alpha"], r["gain_beta"], r["gain_gamma"],
+            f"e.g. config {int(r['config'])}: ", " or use [[variants]]"), src)
     for kl in ["keep_lost"] + [c for c in class_columns(table.columns) if c.endswith(".keep_lost")]:
         bad = table[(table[kl] > 0) & (table["output"] == "detections")]
         if not len(bad):
@@ -246,14 +243,28 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     return table
 
 
+def unstable_gains(fixed, alpha, beta, gamma) -> np.ndarray:
+    """[C] bool: lanes with the fixed-gain filter (``fixed`` [C] bool) and gains ([C] each) it is
+    unstable with (spectral radius > 1, :func:`dfrmot_jax.core.filters.fixed_gain_radius`): their
+    predicted and filtered boxes grow without bound. The one test sweeps, tunes and ``dfrmot track`` use."""
+    return np.asarray(fixed, bool) & (fixed_gain_radius(alpha, beta, gamma) > 1.0 + 1e-9)
+
+
+def unstable_message(what: str, alpha, beta, gamma, example: str = "", more: str = "") -> str:
+    """Why ``what`` ("3 of 9 configs", "--class car") is refused: filtered boxes with unstable fixed gains."""
+    return (f"{what} write filtered boxes with fixed gains outside the filter's stability region ({example}gain_alpha "
+            f"{float(alpha):.4g}, gain_beta {float(beta):.4g}, gain_gamma {float(gamma):.4g}): their boxes grow "
+            f"without bound; keep gain_gamma small against gain_beta (e.g. gamma <= beta / 4){more}")
+
+
 def unstable_rows(table: pd.DataFrame) -> np.ndarray:
-    """[C] bool: rows with the fixed-gain filter and gains it is unstable with (spectral radius >= 1,
-    :func:`dfrmot_jax.core.filters.fixed_gain_radius`; any class's gains)."""
+    """[C] bool: rows with the fixed-gain filter and gains it is unstable with (:func:`unstable_gains`;
+    any class's gains)."""
     out = np.zeros(len(table), bool)
     fixed = (table["filter"] == "fixed_gain").to_numpy()
     for pre in [""] + sorted({c.split(".")[0] + "." for c in class_columns(table.columns) if "gain" in c}):
         cols = [pre + g if pre + g in table.columns else g for g in ("gain_alpha", "gain_beta", "gain_gamma")]
-        out |= fixed & (fixed_gain_radius(*(table[c].to_numpy() for c in cols)) > 1.0 + 1e-9)
+        out |= unstable_gains(fixed, *(table[c].to_numpy() for c in cols))
     return out
 
 

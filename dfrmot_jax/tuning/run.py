@@ -4,33 +4,27 @@
 from __future__ import annotations
 
 import json
-import shutil
 import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Mapping
 
 from ..io.atomic import write_text_atomic
+from ..io.lock import folder_lock
 from ..metrics.ab3dmot import DEFAULT_AB3DMOT_IOU
 from ..metrics.table import AB3DMOT_COLUMNS
 from ..sweep.backend import make_backend
 from ..sweep.plan import resolve_data
 from ..sweep.runner import run_sweep
 from ..sweep.spec import SweepConfigError, SweepSpec
-from ..sweep.store import SweepDirectoryError, jsonable
+from ..sweep.folder import MANIFEST, claim
+from ..sweep.store import environment, jsonable
 from ..sweep.table import HASH_VERSION
 from .nested import nested_cv
 from .once import TuneResult, tune_once
 from .plots import save_plots
 from .settings import RefineSettings, TuneSettings, load_tune, parse_tune_file
 from .space import SearchSpace, search_space
-
-MANIFEST = "manifest.json"
-#: what a tune writes in its directory besides the manifest and the nested folds' fold_F/ (all of it
-#: goes with --force: a study left behind would be resumed as the new tune's)
-TUNE_FILES = ("journal.log", "batches", "results.parquet", "trials.parquet", "chunks", "plots", "nested.json",
-              "heldout", "transfer", "transfer.json", "ledger.jsonl", "configs.parquet")
-
 
 def _load(tune) -> tuple[SweepSpec, TuneSettings]:
     if isinstance(tune, tuple):
@@ -45,34 +39,13 @@ def _identity(spec: SweepSpec, settings: TuneSettings, data) -> dict:
             "tune": settings.identity(), "data": data.identity()}
 
 
-def _claim(outdir: Path, identity: dict, force: bool) -> None:
-    """Make ``outdir`` this tune's (a different tune's directory is refused unless ``force``)."""
-    path = outdir / MANIFEST
-    if path.is_file():
-        try:
-            old = json.loads(path.read_text())
-        except (OSError, ValueError):
-            old = {}
-        if old.get("kind") != "tune" or old.get("identity") != identity:
-            what = "a sweep" if old.get("kind") != "tune" else "another tune"
-            if not force:
-                raise SweepDirectoryError(f"{outdir} holds {what} ({old.get('name', '?')}): use another --out, or "
-                                          f"--force to replace it")
-            for q in [outdir / n for n in TUNE_FILES] + list(outdir.glob("fold_*")):
-                shutil.rmtree(q) if q.is_dir() else q.unlink(missing_ok=True)
-    elif outdir.exists() and not outdir.is_dir():
-        raise SweepDirectoryError(f"--out {outdir} is a file, not a directory")
-    elif outdir.is_dir() and any(outdir.iterdir()) and not force:
-        raise SweepDirectoryError(f"{outdir} is not empty and holds no tune: use another --out, or --force")
-    outdir.mkdir(parents=True, exist_ok=True)
-
-
 def _write_manifest(outdir: Path, spec: SweepSpec, settings: TuneSettings, data, identity: dict) -> None:
     m = {"kind": "tune", "name": spec.name, "description": spec.description, "source": spec.source,
          "data": data.identity(), "lengths": list(data.lengths), "baseline": spec.baseline, "chunk": spec.chunk,
          "objective": settings.objectives[0], "objectives": list(settings.objectives),
          "directions": list(settings.directions), "folds": None, "top": spec.top,
-         "tune": settings.identity(), "identity": identity, "chunks": [], "hash_version": HASH_VERSION}
+         "tune": settings.identity(), "identity": identity, "chunks": [], "hash_version": HASH_VERSION,
+         "environment": environment()}
     write_text_atomic(outdir / MANIFEST, json.dumps(m, indent=1, default=str), parents=False)
 
 
@@ -112,10 +85,18 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
                                f"{' (or randint)' if settings.sampler == 'pairwise' else ''}, not distributions",
                                spec.source)
     outdir = Path(out) if out is not None else None
-    if outdir is not None:
+    if outdir is None:
+        return _run(spec, settings, space, data, None, data_root, backend, progress, log, plots)
+    with folder_lock(outdir, "tune"):
         identity = _identity(spec, settings, data)
-        _claim(outdir, identity, force)
+        claim(outdir, "tune", lambda old: old.get("identity") == identity, force, empty=True)
         _write_manifest(outdir, spec, settings, data, identity)
+        return _run(spec, settings, space, data, outdir, data_root, backend, progress, log, plots)
+
+
+def _run(spec: SweepSpec, settings: TuneSettings, space: SearchSpace, data, outdir: Path | None, data_root, backend,
+         progress: bool, log, plots: bool) -> TuneResult:
+    """The tune itself, once its folder (if any) is claimed and locked."""
     result = tune_once(spec, settings, space, outdir, data_root, backend, progress, log)
     if settings.folds:
         result.nested = nested_cv(spec, settings, space, data, outdir, data_root, backend, progress, log)

@@ -18,14 +18,15 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from functools import partial
 from typing import Mapping
 
 from ..config import param_problem
 from ..metrics.table import canonical_objective
 from ..sweep.analysis import MINIMISE
-from ..sweep.spec import PARAM_NAMES, SweepConfigError, SweepSpec, parse_spec, positive_int, read_toml
+from ..sweep.checks import Table, is_number, type_name
+from ..sweep.spec import PARAM_NAMES, SweepConfigError, SweepSpec, parse_spec, read_toml
 
 SAMPLERS = ("tpe", "cmaes", "gp", "pairwise", "nsga2", "random", "grid")
 TUNE_KEYS = ("sampler", "budget", "batch", "objectives", "folds", "seed", "refine", "transfer")
@@ -79,87 +80,66 @@ class TuneSettings:
         return {"sampler": self.sampler, "batch": self.batch, "objectives": list(self.objectives), "seed": self.seed}
 
 
-#: an integer key of [tune] (the sweep file's check, keys named ``tune.<key>``)
-_int = partial(positive_int, prefix="tune.")
-
-
-def _float(d: Mapping, key: str, default, source, prefix: str = "tune.refine."):
-    v = d.get(key, default)
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
-        raise SweepConfigError(prefix + key, f"{v!r}: expected a number > 0", source)
+def _float(t: Table, key: str, default) -> float:
+    v = t.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0 or not math.isfinite(v):
+        raise t.error(key, f"{v!r}: expected a number > 0")
     return float(v)
 
 
 def parse_tune(doc: Mapping | None, source: str | None = None) -> TuneSettings:
-    """Validate a ``[tune]`` table; raises :class:`SweepConfigError` naming the key."""
-    doc = {} if doc is None else doc
-    if not isinstance(doc, Mapping):
-        raise SweepConfigError("tune", f"expected a table, got {type(doc).__name__}", source)
-    for k in doc:
-        if k not in TUNE_KEYS:
-            raise SweepConfigError(f"tune.{k}", f"unknown key; expected one of {list(TUNE_KEYS)}", source)
-    sampler = doc.get("sampler", "tpe")
-    if sampler not in SAMPLERS:
-        raise SweepConfigError("tune.sampler", f"{sampler!r}: expected one of {list(SAMPLERS)}", source)
-    budget = _int(doc, "budget", DEFAULT_BUDGET, source, minimum=2)
-    batch = _int(doc, "batch", min(DEFAULT_BATCH, budget), source)
-    objs = doc.get("objectives", ["HOTA"])
+    """Validate a ``[tune]`` table; raises :class:`SweepConfigError` naming the full key."""
+    t = Table({} if doc is None else doc, "tune", source, TUNE_KEYS)
+    sampler = t.choice("sampler", "tpe", SAMPLERS)
+    budget = t.integer("budget", DEFAULT_BUDGET, minimum=2)
+    batch = t.integer("batch", min(DEFAULT_BATCH, budget))
+    objs = t.get("objectives", ["HOTA"])
     objs = [objs] if isinstance(objs, str) else objs
-    if not isinstance(objs, list) or not 1 <= len(objs) <= 2:
-        raise SweepConfigError("tune.objectives", f"{objs!r}: expected one or two metric names, e.g. "
-                                                  f"[\"HOTA\"] or [\"HOTA\", \"IDSW\"]", source)
+    if not isinstance(objs, list) or not 1 <= len(objs) <= 2 or not all(isinstance(o, str) for o in objs):
+        raise t.error("objectives", f"{objs!r}: expected one or two metric names, e.g. [\"HOTA\"] or "
+                                    f"[\"HOTA\", \"IDSW\"]")
     try:
         objectives = tuple(canonical_objective(o) for o in objs)
     except ValueError as e:
-        raise SweepConfigError("tune.objectives", str(e).removeprefix("objective "), source) from None
+        raise t.error("objectives", str(e).removeprefix("objective ")) from None
     if len(set(objectives)) != len(objectives):
-        raise SweepConfigError("tune.objectives", "an objective is listed twice", source)
-    folds = _int(doc, "folds", None, source, minimum=2)
-    seed = _int(doc, "seed", 0, source, minimum=0)
+        raise t.error("objectives", "an objective is listed twice")
+    folds = t.integer("folds", None, minimum=2)
+    seed = t.integer("seed", 0, minimum=0)
     refine = None
-    if "refine" in doc:
-        r = doc["refine"]
-        if r is True:
-            r = {}
-        if not isinstance(r, Mapping):
-            raise SweepConfigError("tune.refine", f"{r!r}: expected a table (or true)", source)
-        for k in r:
-            if k not in REFINE_KEYS:
-                raise SweepConfigError(f"tune.refine.{k}", f"unknown key; expected one of {list(REFINE_KEYS)}",
-                                       source)
+    if "refine" in t:
+        if t.get("refine") is True:
+            r = Table({}, "tune.refine", source)
+        elif isinstance(t.get("refine"), Mapping):
+            r = t.table("refine", REFINE_KEYS)
+        else:
+            raise t.error("refine", f"{t.get('refine')!r}: expected a table (or true)")
         if len(objectives) > 1:
-            raise SweepConfigError("tune.refine", "gradient refinement needs one objective", source)
+            raise t.error("refine", "gradient refinement needs one objective")
         d = RefineSettings()
-        refine = RefineSettings(steps=_int(r, "steps", d.steps, source, prefix="tune.refine."),
-                                pairs=_int(r, "pairs", d.pairs, source, prefix="tune.refine."),
-                                sigma=_float(r, "sigma", d.sigma, source),
-                                learning_rate=_float(r, "learning_rate", d.learning_rate, source),
-                                patience=_int(r, "patience", d.patience, source, prefix="tune.refine."))
+        refine = RefineSettings(steps=r.integer("steps", d.steps), pairs=r.integer("pairs", d.pairs),
+                                sigma=_float(r, "sigma", d.sigma),
+                                learning_rate=_float(r, "learning_rate", d.learning_rate),
+                                patience=r.integer("patience", d.patience))
     return TuneSettings(sampler, budget, batch, objectives, folds, seed, refine,
-                        _parse_transfer(doc.get("transfer"), source))
+                        _parse_transfer(t.get("transfer"), source))
 
 
-def _parse_transfer(t, source) -> TransferSettings | None:
-    if t is None:
+def _parse_transfer(doc, source) -> TransferSettings | None:
+    if doc is None:
         return None
-    if not isinstance(t, Mapping):
-        raise SweepConfigError("tune.transfer", f"{t!r}: expected a table", source)
-    for k in t:
-        if k not in TRANSFER_KEYS:
-            raise SweepConfigError(f"tune.transfer.{k}", f"unknown key; expected one of {list(TRANSFER_KEYS)}", source)
+    t = Table(doc, "tune.transfer", source, TRANSFER_KEYS)
     for k in ("det2d", "det3d"):
-        if k in t and (not isinstance(t[k], str) or not t[k]):
-            raise SweepConfigError(f"tune.transfer.{k}", f"{t[k]!r}: expected a detector name", source)
+        t.string(k, None)
     if "det2d" not in t and "det3d" not in t:
         raise SweepConfigError("tune.transfer", "name the other detections: det2d and / or det3d", source)
-    base = t.get("baseline", {})
-    if not isinstance(base, Mapping):
-        raise SweepConfigError("tune.transfer.baseline", f"{base!r}: expected a table of parameters", source)
-    for k, v in base.items():
-        problem = "unknown parameter" if k not in PARAM_NAMES else param_problem(k, v)
+    base = t.table("baseline")
+    for k, v in base.doc.items():
+        problem = "unknown parameter" if k not in PARAM_NAMES else \
+            param_problem(k, v) if is_number(v) else f"not a number ({type_name(v)})"
         if problem:
-            raise SweepConfigError(f"tune.transfer.baseline.{k}", f"{v!r}: {problem}", source)
-    return TransferSettings(t.get("det2d"), t.get("det3d"), tuple(sorted(base.items())))
+            raise base.error(k, f"{v!r}: {problem}")
+    return TransferSettings(t.get("det2d"), t.get("det3d"), tuple(sorted(base.doc.items())))
 
 
 def parse_tune_file(doc: Mapping, source: str | None = None) -> tuple[SweepSpec, TuneSettings]:

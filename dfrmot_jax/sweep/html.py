@@ -1,0 +1,256 @@
+"""``dfrmot report DIR --html OUT.html``: a sweep or tune directory's report as one self-contained
+HTML page (inline CSS and SVG figures; no script, no network, nothing beside the file).
+
+The numbers are the text report's (:func:`~.report.sweep_report`: ranking, baseline, sensitivity,
+cross-validation, robustness curves and contrast, the tune's figures) and the analysis functions'
+(:func:`~.analysis.axis_profiles`, :func:`~.robustness.robustness_contrast`,
+:func:`~.analysis.pareto_front`); the figures are drawn by :mod:`.figures`. Sections: the run's
+identity (sweep file, data, versions, machine), the top configs beside the baseline, sensitivity
+per axis, the objective per sequence of the top configs, the cross-validated figure, and where the
+directory holds them the robustness curves and contrast, the tune's history and Pareto front.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from html import escape
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+import pandas as pd
+
+from ..io.atomic import write_text_atomic
+from ..version import __version__
+from . import figures
+from .analysis import MINIMISE, axis_profiles, fmt_value, pareto_front, varied_axes
+from .report import sweep_report
+from .robustness import robustness_contrast
+from .spec import AVERAGE
+from .store import read_manifest
+from .table import COMBINED
+
+#: settings drawn per kind in the robustness curves (the report's best first)
+CURVES_SHOWN = 6
+CSS = """
+body { font-family: system-ui, -apple-system, 'Segoe UI', Roboto, sans-serif; margin: 0 auto; max-width: 1180px;
+       padding: 0 24px 48px; color: #1d1d1f; line-height: 1.45; }
+h1 { font-size: 1.6em; margin: 28px 0 4px; } h2 { font-size: 1.2em; margin: 34px 0 8px; border-bottom: 1px solid #ddd; }
+p.lead { color: #555; margin-top: 0; } .note { color: #555; font-size: 0.9em; }
+table { border-collapse: collapse; font-size: 0.86em; margin: 8px 0; }
+th, td { padding: 3px 9px; border-bottom: 1px solid #e5e5e5; text-align: right; white-space: nowrap; }
+th { background: #f4f4f6; } td.text, th.text { text-align: left; white-space: normal; }
+table.top tr:last-child td { background: #fff4d6; font-style: italic; }
+table.kv td:first-child { text-align: left; color: #555; } table.kv td { text-align: left; white-space: normal; }
+figure { margin: 12px 0 20px; } figure svg { max-width: 100%; height: auto; }
+figcaption { color: #555; font-size: 0.88em; max-width: 900px; }
+pre { background: #f7f7f9; padding: 10px; overflow-x: auto; font-size: 0.8em; }
+"""
+
+
+def _table(df: pd.DataFrame, css: str = "", digits: int = 3) -> str:
+    def fmt(v):
+        if v is None:
+            return ""
+        if isinstance(v, (float, np.floating)):
+            return "" if np.isnan(v) else f"{v:.{digits}f}"
+        return fmt_value(v)
+
+    return df.to_html(index=False, classes=css or None, border=0, escape=True, na_rep="",
+                      formatters={c: fmt for c in df.columns})
+
+
+def _figure(svg: str, caption: str) -> str:
+    return f'<figure>{svg}<figcaption>{escape(caption)}</figcaption></figure>'
+
+
+def _kv(rows: Mapping[str, object]) -> str:
+    cells = "".join(f"<tr><td>{escape(str(k))}</td><td>{escape(str(v))}</td></tr>" for k, v in rows.items()
+                    if v not in (None, "", [], {}))
+    return f'<table class="kv">{cells}</table>'
+
+
+def _identity(d: Path, m: dict, rep) -> str:
+    df = rep.data
+    data = m.get("data") or {}
+    seqs = data.get("sequences") or []
+    env = m.get("environment") or {}
+    versions = {c: ", ".join(sorted(map(str, pd.unique(df[c])))) for c in ("dfrmot_jax_version", "jax_version")
+                if c in df.columns}
+    rows = {"directory": str(d.resolve()), "kind": m.get("kind", "sweep"), "description": m.get("description"),
+            "sweep file": m.get("source") or "(given as a table, not a file)",
+            "data": f"{data.get('root')} — {data.get('det2d')} + {data.get('det3d')}, class "
+                    f"{', '.join(m.get('classes') or [data.get('class', '?')])}",
+            "sequences": f"{len(seqs)} ({', '.join(seqs)}), {sum(m.get('lengths') or []):,} frames",
+            "configs": f"{m.get('configs', df['config'].nunique()):,}" if not m.get("tune") else
+            f"{df['config'].nunique():,} evaluated",
+            "baseline": m.get("baseline"),
+            "tune": ", ".join(f"{k} {v}" for k, v in (m.get("tune") or {}).items()),
+            "results written by": ", ".join(f"{k.removesuffix('_version')} {v}" for k, v in versions.items()),
+            "last run": env.get("written"),
+            "machine": (f"{env.get('cpu')}, {env.get('cpus')} cores; {env.get('os')}; Python {env.get('python')}"
+                        if env else "not recorded (written before dfrmot_jax recorded it)"),
+            "software": ", ".join(f"{k} {v}" for k, v in env.items() if k in ("dfrmot_jax", "jax", "jaxlib",
+                                                                             "numpy", "pandas")),
+            "this page": f"dfrmot_jax {__version__}, {time.strftime('%Y-%m-%d %H:%M:%S %Z')}"}
+    spec = json.dumps(m.get("spec"), indent=1, default=str) if m.get("spec") is not None else None
+    return (_kv(rows) + (f"<details><summary>the sweep file as run (JSON)</summary><pre>{escape(spec)}</pre></details>"
+                         if spec else ""))
+
+
+def _top(rep, objective: str) -> tuple[str, pd.DataFrame, pd.Series | None]:
+    comb = rep.view[rep.view["sequence"] == COMBINED]
+    base = comb[comb["baseline"]]
+    baseline = base.iloc[0] if len(base) else None
+    view = rep.top.drop(columns=["config_hash"]).copy()
+    if baseline is not None:
+        row = {c: baseline[c] for c in view.columns if c in baseline.index}
+        view = pd.concat([view, pd.DataFrame([{**row, "rank": "baseline"}])], ignore_index=True)
+    best = rep.top.iloc[0]
+    text = (f"<p>Best {escape(objective)} {best[objective]:.3f} (config {int(best['config'])})"
+            + (f", baseline {baseline[objective]:.3f} ({best[objective] - baseline[objective]:+.3f})"
+               if baseline is not None else "") + ". In-sample: ranked on every sequence (COMBINED); the "
+            "cross-validated figure below is the honest estimate for unseen sequences. The baseline is the "
+            "highlighted last row.</p>")
+    return text + _table(view, "top"), comb, baseline
+
+
+def _heatmap(rep, objective: str, baseline) -> str:
+    configs = list(rep.top["config"]) + ([int(baseline["config"])] if baseline is not None and
+                                         int(baseline["config"]) not in set(rep.top["config"]) else [])
+    rows = rep.view
+    if not (rows["sequence"] != COMBINED).any() and "class" in rep.data.columns:        # the class average
+        rows = rep.data[rep.data["class"] != AVERAGE]
+        rows = rows.assign(sequence=rows["class"] + " " + rows["sequence"])
+    rows = rows[(rows["sequence"] != COMBINED) & rows["config"].isin(configs)]
+    if not len(rows):
+        return ""
+    grid = rows.pivot_table(index="config", columns="sequence", values=objective, aggfunc="first", sort=False)
+    grid = grid.reindex(configs)
+    base = None if baseline is None else int(baseline["config"])
+    grid.index = [(f"#{i + 1} " if i < len(rep.top) else "") + ("baseline " if c == base else "") + f"(config {c})"
+                  for i, c in enumerate(configs)]
+    return _figure(figures.heatmap_figure(grid, objective),
+                   f"{objective} per sequence of the top {len(rep.top)} configs (in rank order) and the baseline: "
+                   f"where the best configs win and lose.")
+
+
+def _robustness(rep, objective: str) -> str:
+    out = []
+    rob = rep.summary.get("robustness") or {}
+    shown = {k: list(v["settings"])[:CURVES_SHOWN] for k, v in rob.items()}
+    if rep.curves is not None and shown:
+        out.append(_figure(figures.curves_figure(rep.curves, objective, shown),
+                           f"{objective} (COMBINED) against the distortion level, mean ± standard error over seeds; "
+                           f"the {min(CURVES_SHOWN, max(map(len, shown.values())))} best settings per kind (by their "
+                           f"mean over the levels). Level 0 is the undistorted run."))
+    c = rep.summary.get("contrast")
+    if c:
+        con = robustness_contrast(rep.view, c["axis"], c["high"], c["low"], [objective], by=c["by"])
+        high = f"{c['axis']} in {c['high']}"
+        low = f"{c['axis']} in {c['low']}"
+        out.append(_figure(figures.contrast_figure(con, objective, high, low),
+                           f"Contrast: {high} against {low}" + (f", per {', '.join(c['by'])}" if c["by"] else "")
+                           + f". Top: each group's mean {objective}; bottom: the gap, paired by seed, ± standard "
+                           f"error over seeds (filled: significantly better, one-sided t-test at 5 %; level 0, without seeds: "
+                           f"the sign)."))
+        if c.get("answer"):
+            out.append("<p>Where the contrast stops helping (helps_up_to: the highest level up to which the gap "
+                       "is significantly better at every distorted level; stops_at: the first level where it is "
+                       "not; crossing: the first level where the mean gap changes sign):</p>")
+            out.append(_table(pd.DataFrame(c["answer"])))
+    return "\n".join(out)
+
+
+def _tune(d: Path, m: dict, rep, objective: str) -> str:
+    out = []
+    trials_path = d / "trials.parquet"
+    if not trials_path.is_file():
+        return ""
+    trials = pd.read_parquet(trials_path)
+    first = (m.get("objectives") or [objective])[0]
+    out.append(_figure(figures.history_figure(trials, first, first in MINIMISE),
+                       f"The tune's history: {first} of every trial in the order they were asked, and the best "
+                       f"so far."))
+    objs = m.get("objectives") or []
+    if len(objs) == 2:
+        front = pareto_front(trials, objs, m.get("directions"))
+        out.append(_figure(figures.pareto_figure(trials, front, objs),
+                           f"Every trial's {objs[0]} and {objs[1]}, and the Pareto front: the trials no other beats "
+                           f"on both."))
+        out.append(_table(front[["trial"] + objs + [a for a in varied_axes(rep.data) if a in front.columns]]))
+    tr = (rep.summary.get("tune") or {}).get("transfer")
+    if tr:
+        out.append(f"<p>Transfer: the chosen config unchanged on {escape(tr['det2d'])} + {escape(tr['det3d'])}, "
+                   f"beside that pair's baseline:</p>")
+        out.append(_table(pd.DataFrame({"metric": list(tr["chosen"]), "chosen": list(tr["chosen"].values()),
+                                        "baseline": [tr["baseline"][k] for k in tr["chosen"]]})))
+    return "\n".join(out)
+
+
+def html_report(results, out, *, objective: str | None = None, folds: int | None = None, top: int = 10,
+                contrast=None, cls: str | None = None) -> Path:
+    """Write the report of a sweep or tune directory ``results`` to the HTML file ``out``; returns
+    its path. The arguments are :func:`~.report.sweep_report`'s (``objective`` default: the
+    directory's). Without ``folds`` a sweep is cross-validated with the sweep file's folds, else
+    with min(5, sequences) folds (a tune: its own nested cross-validation, when it ran one)."""
+    d = Path(results)
+    m = read_manifest(d)
+    tune = m.get("kind") == "tune"
+    objective = objective or m.get("objective") or "HOTA"
+    note = ""
+    if folds is None and not tune and not m.get("folds") and len(m.get("lengths") or []) >= 2:
+        folds = min(5, len(m["lengths"]))
+        note = f" ({folds} folds: the sweep file sets none, so this page chose min(5, sequences))"
+    rep = sweep_report(d, objective=objective, folds=folds, top=top, contrast=contrast, cls=cls)
+    objective = rep.summary["objective"]
+    top_html, comb, baseline = _top(rep, objective)
+    name = m.get("name") or d.name
+    body = [f"<h1>{'Tune' if tune else 'Sweep'} {escape(name)}</h1>",
+            f'<p class="lead">{escape(rep.text.splitlines()[0])}</p>',
+            "<h2>The run</h2>", _identity(d, m, rep),
+            f"<h2>Top configs by {escape(objective)}</h2>", top_html]
+    profiles = axis_profiles(rep.view, objective)
+    if profiles:
+        body += ["<h2>Sensitivity per axis</h2>",
+                 _figure(figures.sensitivity_figure(profiles, objective, None if baseline is None else
+                                                    float(baseline[objective])),
+                         f"{objective} against each swept axis: the best config having each value (solid) and the "
+                         f"mean over all configs having it (dashed); numeric axes with more than 8 values in "
+                         f"quantile bins (at their median). Axes that always move together are one panel."),
+                 _table(rep.sensitivity)]
+    heat = _heatmap(rep, objective, baseline)
+    if heat:
+        body += ["<h2>Per sequence</h2>", heat]
+    if rep.cv is not None:
+        body += ["<h2>Cross-validated</h2>",
+                 f"<p>{rep.cv['folds']}-fold cross-validation over sequences{escape(note)}: per fold the best config "
+                 f"is chosen on the other folds and scored on the held-out one. Cross-validated {objective} "
+                 f"{rep.cv['cross_validated']:.3f} against the in-sample best {rep.top.iloc[0][objective]:.3f}.</p>",
+                 _figure(figures.folds_figure(rep.cv, objective, float(rep.top.iloc[0][objective])),
+                         "Per fold: the chosen config on its training folds and on the held-out fold, and the "
+                         "baseline on the held-out fold.")]
+    nested = d / "nested.json"
+    if tune and nested.is_file():
+        n = json.loads(nested.read_text())
+        body += ["<h2>Nested cross-validation</h2>",
+                 f"<p>The tune rerun per fold on the training sequences only, its choice scored on the held-out "
+                 f"fold: {escape(n['objective'])} cross-validated {n['cross_validated']:.3f}, baseline "
+                 f"{n['baseline']:.3f} on the same sequences.</p>",
+                 _figure(figures.folds_figure(n, n["objective"]), "Per fold: the config the tune chose on the "
+                         "training folds, there and on the held-out fold, and the baseline on the held-out fold.")]
+    rob = _robustness(rep, objective)
+    if rob:
+        body += ["<h2>Robustness</h2>", rob]
+    if tune:
+        body += ["<h2>The tune</h2>", _tune(d, m, rep, objective)]
+    body += ["<h2>The text report</h2>",
+             f"<details><summary>dfrmot report, as printed</summary><pre>{escape(rep.text)}</pre></details>"]
+    page = (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+            f'<meta name="viewport" content="width=device-width, initial-scale=1">'
+            f"<title>{escape(name)}: dfrmot report</title><style>{CSS}</style></head>\n<body>\n"
+            + "\n".join(body) + "\n</body></html>\n")
+    out = Path(out)
+    write_text_atomic(out, page)
+    return out
