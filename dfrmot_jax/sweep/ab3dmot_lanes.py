@@ -57,7 +57,10 @@ class Ab3dmotLanes:
             digests.append(h.digest())
         new = [b for b, d in enumerate(digests) if d not in self.memo and d not in digests[:b]]
         if new:
-            out = evaluate_ab3dmot_arrays(self.gt, ids[new], written_boxes(boxes[new]), scores[new], box3d[new],
+            bx = np.array(boxes[new], np.float64)
+            rows = ids[new] >= 0
+            bx[rows] = written_boxes(bx[rows])          # (the rows only: most slots are empty)
+            out = evaluate_ab3dmot_arrays(self.gt, ids[new], bx, scores[new], box3d[new],
                                           self.split.offsets, iou=self.iou)
             for b, r in zip(new, out):
                 self.memo[digests[b]] = ab3dmot_columns(r)

@@ -41,7 +41,10 @@ def _lane_rows(split, table: pd.DataFrame, cls: str, columns: str) -> list[tuple
         scores, box3d = kitti_3d_arrays(split, res.frames, res.options, res.ids, res.src3, res.own3, res.box3,
                                         columns=columns)
         for j, p in enumerate(pos):
-            out[p] = (res.ids[j], written_boxes(boxes[j]), scores[j], box3d[j])
+            bx = np.array(boxes[j], np.float64)
+            rows = res.ids[j] >= 0
+            bx[rows] = written_boxes(bx[rows])
+            out[p] = (res.ids[j], bx, scores[j], box3d[j])
     return out
 
 
