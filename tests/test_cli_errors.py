@@ -154,6 +154,7 @@ _BOOM = ("import sys, dfrmot_jax.cli.track as t\n"
          "t.run = boom\nfrom dfrmot_jax.cli import main\nsys.exit(main(sys.argv[1:]))\n")
 
 
+@pytest.mark.slow
 def test_traceback_only_with_debug_in_a_real_process():
     plain = subprocess.run([sys.executable, "-c", _BOOM, "track", "--out", "x"], capture_output=True, text=True,
                            timeout=300)

@@ -1,3 +1,4 @@
+import pytest
 """Importing the package changes nothing; the first tracking call asks for one device per core."""
 
 import subprocess
@@ -45,6 +46,7 @@ def test_import_changes_no_environment():
     assert _run(SCRIPT_IMPORT) == "ok"
 
 
+@pytest.mark.slow
 def test_first_tracking_call_uses_one_device_per_core():
     import os
     assert _run(SCRIPT_TRACK) == str(min(os.cpu_count() or 1, 8))

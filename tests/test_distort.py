@@ -131,6 +131,7 @@ def test_level_zero_without_clutter_slots():
         assert_identical(lane(out, b), frames)
 
 
+@pytest.mark.slow
 def test_level_zero_is_bit_identical_kitti(kitti):
     _, frames, gid2, gid3, spec = kitti
     dps = [D.level_params(kind, 0.0, seed=11) for kind in D.KINDS]

@@ -130,6 +130,7 @@ def _run(seqs, name):
     return mine, theirs
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["dfr2023", "dfr_head"])
 def test_2d_corners_of_lost_tracks_decide_as_the_cxx(name):
     cases = _cases_2d()

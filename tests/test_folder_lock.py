@@ -66,6 +66,7 @@ def _tune_file(tmp_path: Path, root: Path) -> Path:
     return f
 
 
+@pytest.mark.slow
 def test_a_folder_in_use_is_refused_at_once_naming_it_and_the_other_process(scene, tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()
@@ -96,6 +97,7 @@ def test_a_folder_in_use_is_refused_at_once_naming_it_and_the_other_process(scen
         holder.wait(timeout=30)
 
 
+@pytest.mark.slow
 def test_the_lock_goes_with_its_process_and_a_killed_ones_record_is_taken_over(scene, tmp_path):
     out = tmp_path / "out"
     done = _holder(out, "exit")                       # a normal exit releases and clears the record
@@ -120,6 +122,7 @@ def test_the_lock_goes_with_its_process_and_a_killed_ones_record_is_taken_over(s
     assert df["config"].nunique() == 7 and lock_holder(out) is None
 
 
+@pytest.mark.slow
 def test_a_sweep_killed_mid_run_leaves_no_lock_in_the_way(scene, tmp_path):
     """A real ``dfrmot sweep`` killed (-9) after its first chunk: the rerun takes the folder over,
     says so, and finishes."""

@@ -164,6 +164,7 @@ def test_random_options_with_hungarian_match_the_oracle(scene):
 KITTI_SEQS = ["0004", "0014"]
 
 
+@pytest.mark.slow
 def test_kitti_sequences_with_hungarian_match_the_oracle(kitti_root):
     seqs = load_sequences(kitti_root, "rrc", "pointrcnn", "car", KITTI_SEQS)
     split = pack(seqs)

@@ -46,6 +46,7 @@ def test_dfr2023_authors_columns_are_byte_identical_to_the_published_files(kitti
     assert (len(seqs), lines) == (20, 28812)
 
 
+@pytest.mark.slow
 def test_dfr2023_output_scores_the_published_figures_with_trackeval(kitti_root, tmp_path):
     compat = pytest.importorskip("dfrmot_jax.testing.trackeval_adapter")
     pytest.importorskip("trackeval")
@@ -74,6 +75,7 @@ def all21(kitti_root):
     return seqs, pack(seqs)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["dfr2023", "dfr_head"])
 def test_presets_match_the_reference_on_all_21_sequences(all21, pool, name):
     seqs, split = all21

@@ -60,6 +60,7 @@ def pages(folders, tmp_path_factory) -> dict[str, Path]:
     return {k: out / f"{k}.html" for k in folders}
 
 
+@pytest.mark.slow
 def test_report_html_writes_one_self_contained_page_per_folder(folders, pages, capsys):
     for name, d in folders.items():
         status, stdout, err = run_cli(capsys, ["report", d, "--html", pages[name]])
@@ -78,7 +79,11 @@ def test_report_html_writes_one_self_contained_page_per_folder(folders, pages, c
         assert len(ids) == len(set(ids)), "ids repeat across figures"
 
 
-def test_the_pages_numbers_are_the_reports(folders, pages):
+@pytest.mark.slow
+def test_the_pages_numbers_are_the_reports(folders, pages, capsys):
+    for name, d in folders.items():          # (each test writes the pages it reads when they are not there)
+        if not pages[name].is_file():
+            assert run_cli(capsys, ["report", d, "--html", pages[name]])[0] == 0
     grid = sweep_report(folders["grid"], folds=3)
     page = pages["grid"].read_text()
     assert f"Cross-validated HOTA {grid.cv['cross_validated']:.3f}" in page
@@ -101,6 +106,7 @@ def _chromium():
     return browser, driver
 
 
+@pytest.mark.slow
 def test_every_figure_renders_in_headless_chromium(folders, pages, tmp_path, capsys):
     webdriver = pytest.importorskip("selenium.webdriver", reason="selenium is a dev dependency: pip install -e .[dev]")
     from selenium.webdriver.chrome.service import Service

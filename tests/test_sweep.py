@@ -467,6 +467,7 @@ def test_an_option_capacity_past_the_maximum_is_refused_naming_the_key():
     assert MAX_CAPACITY == 4096
 
 
+@pytest.mark.slow
 def test_the_table_records_the_capacity_asked_and_the_one_each_lane_used(scene):
     """Issue 23, bug 4: ``options.capacity = 1`` runs (overflowing lanes re-run larger); the table
     says what was asked (``capacity``: 1; 0 = from the data) and what each lane ran with."""

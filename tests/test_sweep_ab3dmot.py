@@ -52,6 +52,7 @@ def _file_figures(root, table: pd.DataFrame, rows, out: Path, iou: str, columns:
     return [figures[p] for p in rows]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("iou, columns", [("3d:0.25", "kitti"), ("2d:0.5", "kitti"), ("3d:0.25", "kitti-stale")])
 def test_a_sweep_scores_ab3dmot_as_its_written_files(scene, tmp_path, iou, columns):
     spec = _spec(scene, metrics={"ab3dmot": iou, "ab3dmot_columns": columns})
@@ -96,6 +97,7 @@ def test_metrics_settings_are_checked_and_keep_other_chunk_ids(scene):
     assert not set(before) & {c.id for c in plan(table, data, 4, None, "3d:0.25")}
 
 
+@pytest.mark.slow
 def test_a_nested_tune_of_samota_scores_each_fold_as_its_files(scene, tmp_path):
     spec = _spec(scene)
     del spec["report"]

@@ -58,6 +58,7 @@ def check_rows(table, root, det3d, lift_of, n_expected):
                                           err_msg=f"{col} (config {row['config']})")
 
 
+@pytest.mark.slow
 def test_a_shrink_sweep_equals_separate_track_runs(scene):
     root, scans = scene
     spec = spec_of(root, f"lidar:{scans}", lift={"shrink": [0.0, 0.3]})

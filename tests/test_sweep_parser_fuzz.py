@@ -121,6 +121,7 @@ def _check(doc, parse, path, value):
             f"{where} = {value!r}: the error names {e.key!r}: {e}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["sweep", "tune"])
 @settings(max_examples=1500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())

@@ -159,6 +159,7 @@ def test_nested_cv_tunes_without_the_held_out_sequences(scene, tmp_path):
     assert lo - 1e-9 <= n["cross_validated"] <= hi + 1e-9
 
 
+@pytest.mark.slow
 def test_two_objectives_give_a_pareto_front(scene, tmp_path):
     res = run_tune(_write(tmp_path, _tune_text(scene, budget=8, batch=4, sampler="nsga2",
                                                objectives='["HOTA", "IDSW"]')), tmp_path / "mo", **_quiet())
@@ -211,6 +212,7 @@ def test_bad_tune_tables_name_the_key(scene, tmp_path, capsys, tune_table, key):
     assert key in err and "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_cli_tune_prints_the_summary_and_refuses_another_tunes_directory(scene, tmp_path, capsys):
     path = _write(tmp_path, _tune_text(scene, budget=4, batch=4))
     assert main(["tune", str(path), "--out", str(tmp_path / "c"), "--no-progress", "--workers", "0"]) == 0
