@@ -121,28 +121,28 @@ def row_3d_values(split: Split, rows: LaneRows) -> dict:
     return out
 
 
-def kitti_3d_arrays(split: Split, frames: Frames, options: Options, ids: np.ndarray, src3: np.ndarray,
-                    own3: np.ndarray | None = None, box3: np.ndarray | None = None,
-                    columns: str = "kitti") -> tuple[np.ndarray, np.ndarray]:
-    """The score and 3D box each row of B lanes carries in a ``--columns kitti`` result file, as
-    arrays (for 3D metrics from the tracker's output without writing files).
+def kitti_row_arrays(split: Split, res, columns: str = "kitti") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The image box, score and 3D box each row of B lanes carries in a ``--columns kitti`` (or
+    ``kitti-stale``) result file, as arrays: 3D metrics from the tracker's output without writing files.
 
-    ids [B, T, K] (-1: no row), src3 [B, T, K] (global 3D index, -1 none), own3 [B, T, K] bool,
-    box3 [B, T, K, 6] (output "filtered": the tracks' filtered corners) -- ``track(detail=True)``'s
-    outputs. Returns scores [B, T, K] float64 and box3d [B, T, K, 7] float64 ``h w l x y z rot_y``
-    (NaN where there is no row). The rules are :func:`dfrmot_jax.io.columns.kitti_values`': a row
-    carrying its own 3D detection (output "detections"; any 3D detection with "filtered") has that
-    detection's rot_y and score; its box is the detection's (``h w l x y z``), or with "filtered"
+    res: a ``track(detail=True)`` result of ``split`` (ids [B, T, K], -1 no row; boxes; src3 [B, T, K]
+    global 3D index, -1 none; own3 [B, T, K]; box3 [B, T, K, 6] with output "filtered"; frames;
+    options). Returns boxes [B, T, K, 4], scores [B, T, K] and box3d [B, T, K, 7] ``h w l x y z
+    rot_y``, float64, NaN where there is no row. The rules are :func:`dfrmot_jax.io.columns.kitti_values`':
+    a row carrying its own 3D detection (output "detections"; any 3D detection with "filtered") has
+    that detection's rot_y and score; its box is the detection's (``h w l x y z``), or with "filtered"
     the track's filtered box written to 7 significant digits as the file has it; every other row the
     placeholders ``-1 -1 -1 -1000 -1000 -1000``, rot_y -10 and its 2D detection's score (1 unknown).
     ``columns="kitti-stale"``: a row carrying the matched track's stale 3D detection has its box and
-    rot_y too (score still the 2D detection's). The values equal what the written file reads back as.
+    rot_y too (score still the 2D detection's). Every value equals what the written file reads back as
+    (image boxes to 6 significant digits, ``io.columns.fmt_g``).
     """
-    ids = np.asarray(ids)
+    frames, options = res.frames, res.options
+    ids = np.asarray(res.ids)
     b, t, k = np.nonzero(ids >= 0)
-    src = np.asarray(src3)[b, t, k].astype(np.int64)
+    src = np.asarray(res.src3)[b, t, k].astype(np.int64)
     has3 = src >= 0
-    own = has3 if own3 is None else np.asarray(own3)[b, t, k].astype(bool) & has3
+    own = has3 if res.own3 is None else np.asarray(res.own3)[b, t, k].astype(bool) & has3
     filtered = options.output == "filtered"
     carry = has3 if filtered else own
     box_carry = has3 if columns == "kitti-stale" else carry
@@ -157,30 +157,22 @@ def kitti_3d_arrays(split: Split, frames: Frames, options: Options, ids: np.ndar
     dims = np.full((n, 3), PLACEHOLDER_DIMS)
     loc = np.full((n, 3), PLACEHOLDER_LOC)
     if filtered:
-        rows3 = np.asarray(box3, np.float64)[b, t, k]
+        rows3 = np.asarray(res.box3, np.float64)[b, t, k]
         ok = has3 & np.all(np.isfinite(rows3), axis=1)
         d, l = invert_box3d_extent(rows3[ok, :3], rows3[ok, 3:], options.centroid)
-        dims[ok], loc[ok] = _as_estimate(d), _as_estimate(l)
+        dims[ok], loc[ok] = _as_written(d, 7), _as_written(l, 7)
     else:
         dims[box_carry] = split.dims3d[tt[box_carry], jj[box_carry]]
         loc[box_carry] = split.loc3d[tt[box_carry], jj[box_carry]]
+    written = output_boxes(frames, options, res.boxes)
+    rows2 = written[t, k] if written.ndim == 3 else written[b, t, k]
+    boxes = np.full(ids.shape + (4,), np.nan)
+    boxes[b, t, k] = _as_written(np.asarray(rows2, np.float64), 6)
     scores = np.full(ids.shape, np.nan)
     scores[b, t, k] = score
     box3d = np.full(ids.shape + (7,), np.nan)
     box3d[b, t, k] = np.concatenate([dims, loc, rot_y[:, None]], axis=1)
-    return scores, box3d
-
-
-def written_boxes(boxes: np.ndarray) -> np.ndarray:
-    """Image boxes [..., 4] as a kitti file reads them back: integers as they are, others to 6
-    significant digits (``io.columns.fmt_g``); float64."""
-    return _as_written(np.asarray(boxes, np.float64), 6)
-
-
-def _as_estimate(v: np.ndarray) -> np.ndarray:
-    """Filtered 3D values as a kitti file reads back: integers as they are, others to 7 significant
-    digits (``io.columns.fmt_estimate``)."""
-    return _as_written(np.asarray(v, np.float64), 7)
+    return boxes, scores, box3d
 
 
 def _as_written(v: np.ndarray, digits: int) -> np.ndarray:

@@ -2,9 +2,9 @@
 an AB3DMOT objective in a sweep or tune).
 
 Each lane is scored on the values its ``--columns kitti`` result file would carry
-(:func:`dfrmot_jax.results.kitti_3d_arrays` and ``written_boxes``: the row's own 3D detection, or
-the filtered box with ``output = "filtered"``; rows without one count as unmatched in 3D; every
-value as the file reads it back), against the class's
+(:func:`dfrmot_jax.results.kitti_row_arrays`: the row's own 3D detection, or the filtered box with
+``output = "filtered"``; rows without one count as unmatched in 3D; every value as the file reads
+it back), against the class's
 ground truth over the split's sequences together (:func:`dfrmot_jax.metrics.ab3dmot_arrays.
 evaluate_ab3dmot_arrays`): the same figures as ``dfrmot eval --metrics ab3dmot`` of the written
 files. AB3DMOT's figures exist for a whole sequence list only, so they fill a config's ``COMBINED``
@@ -26,7 +26,7 @@ from ..metrics.ab3dmot_arrays import evaluate_ab3dmot_arrays
 from ..metrics.ab3dmot_prep import Ab3dGT
 from ..metrics.ab3dmot_table import ab3dmot_columns
 from ..metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
-from ..results import kitti_3d_arrays, output_boxes, written_boxes
+from ..results import kitti_row_arrays
 from .table import COMBINED
 
 
@@ -44,24 +44,18 @@ class Ab3dmotLanes:
     def score(self, res: TrackResult) -> list[dict]:
         """{column: value} of AB3DMOT's figures for each lane of ``res`` (``track(detail=True)``)."""
         ids = res.ids
-        boxes = output_boxes(res.frames, res.options, res.boxes)
-        boxes = np.broadcast_to(boxes, ids.shape + (4,)) if boxes.ndim == 3 else boxes
-        scores, box3d = kitti_3d_arrays(self.split, res.frames, res.options, ids, res.src3, res.own3, res.box3,
-                                        columns=self.columns)
+        boxes, scores, box3d = kitti_row_arrays(self.split, res, self.columns)
         digests = []
         for b in range(ids.shape[0]):
             rows = ids[b] >= 0
             h = hashlib.sha1(np.ascontiguousarray(ids[b]).tobytes())
             for a in (boxes[b][rows], scores[b][rows], box3d[b][rows]):
-                h.update(np.ascontiguousarray(a, np.float64).tobytes())
+                h.update(np.ascontiguousarray(a).tobytes())
             digests.append(h.digest())
         new = [b for b, d in enumerate(digests) if d not in self.memo and d not in digests[:b]]
         if new:
-            bx = np.array(boxes[new], np.float64)
-            rows = ids[new] >= 0
-            bx[rows] = written_boxes(bx[rows])          # (the rows only: most slots are empty)
-            out = evaluate_ab3dmot_arrays(self.gt, ids[new], bx, scores[new], box3d[new],
-                                          self.split.offsets, iou=self.iou)
+            out = evaluate_ab3dmot_arrays(self.gt, ids[new], boxes[new], scores[new], box3d[new], self.split.offsets,
+                                          iou=self.iou)
             for b, r in zip(new, out):
                 self.memo[digests[b]] = ab3dmot_columns(r)
         return [self.memo[d] for d in digests]
@@ -74,11 +68,7 @@ def add_columns(df: pd.DataFrame, per_config: Sequence[dict]) -> pd.DataFrame:
     if comb.sum() != len(per_config):
         raise RuntimeError("one COMBINED row per config expected")
     for col in AB3DMOT_COLUMNS:
-        values = np.array([c[col] for c in per_config], np.float64)
         full = np.full(len(df), np.nan)
-        full[comb] = values
-        df[col] = pd.array(np.where(comb, full, 0).astype(np.int64), dtype="Int64") if col in AB3DMOT_COUNT_COLUMNS \
-            else full
-        if col in AB3DMOT_COUNT_COLUMNS:
-            df.loc[~comb, col] = pd.NA
+        full[comb] = [c[col] for c in per_config]
+        df[col] = pd.Series(full, index=df.index).astype("Int64") if col in AB3DMOT_COUNT_COLUMNS else full
     return df

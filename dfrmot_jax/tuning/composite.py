@@ -4,7 +4,7 @@ AB3DMOT's figures are not sums over sequences: its recall thresholds come from t
 sequences together, so a figure over a set of sequences must be computed on that set's rows at
 once (a table's per-sequence rows cannot be re-combined, as TrackEval's can). Here each chosen
 config and the baseline are tracked once over the whole split (``track(detail=True)``), their rows
-turned into the values a ``--columns kitti`` file carries (:func:`dfrmot_jax.results.kitti_3d_arrays`),
+turned into the values a ``--columns kitti`` file carries (:func:`dfrmot_jax.results.kitti_row_arrays`),
 and scored with :func:`dfrmot_jax.metrics.ab3dmot_arrays.evaluate_ab3dmot_arrays`:
 
 - ``held_out`` of fold f: config f on fold f's sequences together;
@@ -25,7 +25,7 @@ from ..data import cached_split
 from ..metrics.ab3dmot_arrays import evaluate_ab3dmot_arrays
 from ..metrics.ab3dmot_prep import cached_ab3dmot_gt
 from ..metrics.ab3dmot_table import ab3dmot_columns
-from ..results import kitti_3d_arrays, output_boxes, written_boxes
+from ..results import kitti_row_arrays
 from ..sweep.plan import DataSettings, option_groups
 from ..sweep.table import params_of
 
@@ -36,15 +36,9 @@ def _lane_rows(split, table: pd.DataFrame, cls: str, columns: str) -> list[tuple
     for options, rows in option_groups(table).items():
         pos = [int(np.flatnonzero(table["config"].to_numpy() == r)[0]) for r in rows]
         res = track(split, params_of(table, pos, cls), options, detail=True)
-        boxes = output_boxes(res.frames, res.options, res.boxes)
-        boxes = np.broadcast_to(boxes, res.ids.shape + (4,)) if boxes.ndim == 3 else boxes
-        scores, box3d = kitti_3d_arrays(split, res.frames, res.options, res.ids, res.src3, res.own3, res.box3,
-                                        columns=columns)
+        boxes, scores, box3d = kitti_row_arrays(split, res, columns)
         for j, p in enumerate(pos):
-            bx = np.array(boxes[j], np.float64)
-            rows = res.ids[j] >= 0
-            bx[rows] = written_boxes(bx[rows])
-            out[p] = (res.ids[j], bx, scores[j], box3d[j])
+            out[p] = (res.ids[j], boxes[j], scores[j], box3d[j])
     return out
 
 
