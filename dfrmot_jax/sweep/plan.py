@@ -133,9 +133,9 @@ def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk
 
     A chunk's id hashes the data settings (its class's), its config hashes and (distortion sweeps)
     the distortion settings (``DistortionAxes.identity``) and, when the chunks also carry AB3DMOT's
-    figures, their IoU setting ``ab3dmot`` (``"3d:0.25"``). ``data``: one class's settings or, for a
-    sweep over several classes, every class's (:func:`resolve_data_all`): the chunks of each class
-    in turn, every config in every class."""
+    figures, their setting ``ab3dmot`` (``SweepSpec.metrics_identity``: ``"3d:0.25"``). ``data``: one
+    class's settings or, for a sweep over several classes, every class's (:func:`resolve_data_all`):
+    the chunks of each class in turn, every config in every class."""
     if not isinstance(data, DataSettings):
         return [c for d in data for c in plan(table, d, chunk, distortion, ab3dmot)]
     if data.lidar is not None:      # this LiDAR setting's configs only

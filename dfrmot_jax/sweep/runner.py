@@ -56,9 +56,7 @@ def prepare_sweep(spec, *, data_root=None, chunk: int | None = None, folds: int 
     if spec.folds is not None and not 2 <= spec.folds <= n_seq:
         raise SweepConfigError("folds", f"{spec.folds}: expected 2 .. {n_seq} (the sequences"
                                + (" of the class with the fewest)" if len(datas) > 1 else ")"), spec.source)
-    metrics = None if spec.ab3dmot is None else spec.ab3dmot + ("" if spec.ab3dmot_columns == "kitti" else
-                                                                " " + spec.ab3dmot_columns)
-    chunks = plan(table, datas, spec.chunk, spec.distortion, metrics)
+    chunks = plan(table, datas, spec.chunk, spec.distortion, spec.metrics_identity())
     check_memory(chunks, datas, spec.distortion, max_memory, spec.source)
     return PreparedSweep(spec, table, tuple(datas), tuple(chunks))
 

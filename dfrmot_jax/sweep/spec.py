@@ -129,6 +129,13 @@ class SweepSpec:
         if not self.classes:
             object.__setattr__(self, "classes", (self.cls,))
 
+    def metrics_identity(self) -> str | None:
+        """What the chunks' metric columns depend on beyond the 2D metrics (part of the chunk ids):
+        AB3DMOT's IoU setting and, when not "kitti", the result columns it scores; None without it."""
+        if self.ab3dmot is None:
+            return None
+        return self.ab3dmot if self.ab3dmot_columns == "kitti" else f"{self.ab3dmot} {self.ab3dmot_columns}"
+
     name: str
     description: str = ""
     chunk: int = 64
