@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files
-from dfrmot_jax.metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
+from dfrmot_jax.metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, name_list
 
 __all__ = ["METRIC_FAMILIES", "AB3DMOT_COLUMNS", "RATIO_SCALE", "parse_metric_families", "ab3dmot_columns",
            "ab3dmot_class_average", "evaluate_ab3dmot_classes", "ab3dmot_table", "add_ab3dmot_columns"]
@@ -37,19 +37,9 @@ RATIO_SCALE = 100.0
 def parse_metric_families(text) -> tuple:
     """``'kitti2d,ab3dmot'`` (or a list) -> ``('kitti2d', 'ab3dmot')`` in the given order, lower
     case, duplicates dropped; ValueError naming the families for anything else or nothing."""
-    items = text.split(",") if isinstance(text, str) else list(text)
-    out = []
-    for m in items:
-        m = str(m).strip().lower()
-        if not m:
-            continue
-        if m not in METRIC_FAMILIES:
-            raise ValueError(f"metric family {m!r}: expected {', '.join(METRIC_FAMILIES)} (comma-separated)")
-        if m not in out:
-            out.append(m)
-    if not out:
-        raise ValueError(f"no metric family given (expected {', '.join(METRIC_FAMILIES)})")
-    return tuple(out)
+    return name_list(text, METRIC_FAMILIES,
+                     lambda m: f"metric family {m!r}: expected {', '.join(METRIC_FAMILIES)} (comma-separated)",
+                     f"no metric family given (expected {', '.join(METRIC_FAMILIES)})")
 
 
 def ab3dmot_columns(res: Mapping[str, object]) -> dict:

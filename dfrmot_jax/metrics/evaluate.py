@@ -128,21 +128,8 @@ def parse_classes(classes) -> tuple:
     """``'car,pedestrian'`` / ``['Car', 'pedestrian']`` -> ``('car', 'pedestrian')`` (lower case, in
     the given order, duplicates dropped). Raises ValueError for an empty list or a class TrackEval's
     KITTI 2D box cannot evaluate (only ``car`` and ``pedestrian``)."""
-    if isinstance(classes, str):
-        classes = classes.split(",")
-    out = []
-    for c in classes:
-        c = str(c).strip().lower()
-        if not c:
-            continue
-        if c not in EVAL_CLASSES:
-            raise ValueError(f"class {c!r} is not evaluatable (TrackEval's KITTI 2D box: "
-                             f"{', '.join(EVAL_CLASSES)})")
-        if c not in out:
-            out.append(c)
-    if not out:
-        raise ValueError("no class given")
-    return tuple(out)
+    return table.name_list(classes, EVAL_CLASSES, lambda c: f"class {c!r} is not evaluatable (TrackEval's KITTI 2D "
+                                                            f"box: {', '.join(EVAL_CLASSES)})", "no class given")
 
 
 def class_average(per_class: Mapping[str, Mapping[str, object]]) -> dict[str, object]:

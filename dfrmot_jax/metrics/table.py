@@ -92,6 +92,23 @@ def classes_table(results_by_class: Mapping[str, Mapping[str, Mapping[str, objec
     return out
 
 
+def name_list(text, allowed, unknown, empty: str) -> tuple:
+    """``'a,b'`` or a list -> the names, stripped and lower case, in the given order, duplicates
+    dropped. ValueError(``unknown(name)``) for a name not in ``allowed``, ValueError(``empty``) for none."""
+    out = []
+    for name in (text.split(",") if isinstance(text, str) else list(text)):
+        name = str(name).strip().lower()
+        if not name:
+            continue
+        if name not in allowed:
+            raise ValueError(unknown(name))
+        if name not in out:
+            out.append(name)
+    if not out:
+        raise ValueError(empty)
+    return tuple(out)
+
+
 def canonical_objective(objective) -> str:
     """A metric name in any case (``hota``, ``idf1``) -> its column name (``HOTA``, ``IDF1``);
     ValueError naming the metrics when it is none of them."""
