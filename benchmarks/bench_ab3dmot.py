@@ -62,7 +62,7 @@ def main() -> None:
     load_before = os.getloadavg()
 
     def cold(iou):
-        ab3dmot_prep._GT_CACHE.clear()
+        ab3dmot_prep.clear_cache()
         return evaluate_ab3dmot_files(folder, root, "car", seqs, iou=iou)
 
     cold_t, res = _times(lambda: cold(args.iou), args.repeats)

@@ -54,7 +54,7 @@ from dfrmot_jax.metrics.fields3d import PLACEHOLDER_DIMS, PLACEHOLDER_LOC, box3d
 from dfrmot_jax.metrics.pairs import segment_starts
 
 __all__ = ["AB3D_CLASSES", "Ab3dGT", "Ab3dTracker", "prepare_ab3dmot_gt", "cached_ab3dmot_gt",
-           "read_ab3dmot_results", "read_seqmap", "PLACEHOLDER_DIMS", "PLACEHOLDER_LOC"]
+           "read_ab3dmot_results", "read_seqmap", "clear_cache", "PLACEHOLDER_DIMS", "PLACEHOLDER_LOC"]
 
 #: evaluated class -> (names a type must contain to be loaded, the neighbouring class's type)
 AB3D_CLASSES = {"car": (("car", "van", "dontcare"), "van"),
