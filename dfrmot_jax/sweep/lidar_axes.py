@@ -24,7 +24,7 @@ import pandas as pd
 
 from ..config import CLASSES, Params
 from ..lidar import LIFT_SETTINGS, LiftSettings, SimSettings, lidar_dir, tie_scores, with_setting
-from .checks import config_error, is_number
+from .checks import Table, config_error, is_number
 
 __all__ = ["LIFT_COLUMNS", "SIM_COLUMNS", "LIDAR_AXES", "LidarAxes", "parse_lidar", "lidar_key", "key_settings",
            "tie_table_scores", "describe_key"]
@@ -147,12 +147,9 @@ def parse_lidar(doc: Mapping, source=None) -> LidarAxes | None:
     for name, tdoc, keys, parse in (("lift", lift, LIFT_SETTINGS, _lift_axis), ("simulate", sim, SIM_KEYS, _sim_axis)):
         if tdoc is None:
             continue
-        if not isinstance(tdoc, Mapping):
-            raise config_error(name, f"expected a table, got {type(tdoc).__name__}", source)
-        for k, v in tdoc.items():
-            if k not in keys:
-                raise config_error(f"{name}.{k}", f"unknown {name} setting; expected one of {list(keys)}", source)
-            axes.append((f"{name}.{k}", parse(k, v, f"{name}.{k}", source)))
+        t = Table(tdoc, name, source, keys)       # (a table, its keys known, errors naming the full key)
+        for k, v in t.doc.items():
+            axes.append((t.key(k), parse(k, v, t.key(k), source)))
     out = LidarAxes(tuple(axes), simulate=sim is not None)
     for s in out.settings():            # the settings together (a crop corner above the other)
         try:
