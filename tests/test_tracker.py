@@ -49,21 +49,25 @@ def test_random_settings_match_reference(scene):
 def test_small_frames_track_like_the_oracle_and_like_one_size(scene):
     """Frames with few detections run on a smaller copy of the step (``core.run.small_frames``, on
     for long splits; forced here): the oracle's tracks id for id, and the same arrays as one size,
-    for random settings (the KITTI parity tests run it on all 21 sequences, where it is on)."""
+    for random settings, the rows' 3D sources (``detail``) included (the KITTI parity tests run it
+    on all 21 sequences, where it is on)."""
     _, seqs, split = scene
     frames = prepare_frames(split, Options())
     found = tracker.small_frames(frames, Options(), min_frames=0)
     assert found is not None and 0 < found[1].mean() < 1, "the scene has no small frames to run"
     rng = np.random.default_rng(31)
-    for params, options in random_settings(rng, 2):
+    carried = 0
+    for params, options in random_settings(rng, 2) + [(Params(), Options()), (Params(), Options(output="filtered"))]:
         batch = stack_params([params, random_params(rng, options.output)])
-        small = track(split, batch, options, small_frames_min=0)
+        small = track(split, batch, options, small_frames_min=0, detail=True)
         mm = lane_mismatches(split, small, 0, reference_rows(seqs, params, options))
         assert (mm["missing"], mm["extra"], mm["id"], mm["box"]) == (0, 0, 0, 0), (options, params, mm)
-        one = track(split, batch, options, small_frames_min=None)
+        one = track(split, batch, options, small_frames_min=None, detail=True)
+        carried += int(np.sum(one.src3 >= 0))
         for a, b in zip(small, one):
             if isinstance(a, np.ndarray):
                 np.testing.assert_array_equal(a, b)
+    assert carried > 0, "no row carries a 3D detection: the 3D sources were not compared"
 
 
 @pytest.mark.slow

@@ -43,7 +43,7 @@ class FrameHook(NamedTuple):
 SMALL_FRAMES_MIN_T = 2000
 
 
-def small_frames(frames: Frames, options: Options, detail: bool = False, min_frames: int | None = SMALL_FRAMES_MIN_T):
+def small_frames(frames: Frames, options: Options, min_frames: int | None = SMALL_FRAMES_MIN_T):
     """((m2, m3), flags [T] bool) for the small-frame step, or None when it would not pay (fewer
     than ``min_frames`` frames (None: never), or less than 15 % fewer slots per step).
 
@@ -51,10 +51,11 @@ def small_frames(frames: Frames, options: Options, detail: bool = False, min_fra
     chosen among quantiles of the frames' last valid slots to minimise the expected slots per step;
     it depends on the data only (``valid2``, ``valid3``), so every batch on the same frames shares
     one compilation. Not with the Hungarian assignment (its choice among equal optima depends on
-    the matrix size) nor with ``detail`` (its 3D sources are indices into the full slot layout).
+    the matrix size). With ``detail`` too: the 3D sources keep the full layout's flat index
+    (``step``'s ``stride3``) and a small frame's rows are padded back like its ids.
     """
     v2, v3 = np.asarray(frames.valid2), np.asarray(frames.valid3)
-    if min_frames is None or detail or options.assign == "hungarian" or v2.shape[0] < min_frames:
+    if min_frames is None or options.assign == "hungarian" or v2.shape[0] < min_frames:
         return None
     big2, big3 = v2.shape[1], v3.shape[1]
 
@@ -111,14 +112,14 @@ def run(params: Params, frames: Frames, options: Options, capacity: int, hook: F
     hook: each frame is first transformed by ``hook.fn``; the written boxes are then the lane's own
     (``StepOutput.boxes`` [K, 4]), else [K, 0] (output "detections": the data's, ``data.object_boxes``).
     detail: see ``step``. small: (m2, m3) static and small_flags [T] bool (``small_frames``; not
-    with a hook nor ``detail``): flagged frames run on their first m2 / m3 detection slots.
+    with a hook): flagged frames run on their first m2 / m3 detection slots.
     """
     t = jnp.arange(frames.reset.shape[0], dtype=jnp.int32)
     xs = None if hook is None else hook.xs
     big2, big3 = frames.valid2.shape[1], frames.valid3.shape[1]
 
     def one(m, frame, ti):
-        m, out = step(params, m, frame, options, detail=detail, t=ti)
+        m, out = step(params, m, frame, options, detail=detail, t=ti, stride3=big3)
         if hook is None and options.output == "detections":
             out = out._replace(boxes=out.boxes[:, :0])    # the data's boxes: not computed per lane
         return m, out
@@ -228,7 +229,7 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
         small = flags = None
         if hook is None:
             fn, lanes, xs = None, jnp.zeros(b + pad, jnp.int32), None
-            found = small_frames(frames, options, detail, small_frames_min)
+            found = small_frames(frames, options, small_frames_min)
             if found is not None:
                 small, flags = found[0], jnp.asarray(found[1])
         else:

@@ -111,11 +111,14 @@ def _objects(params: Params, frame: Frames, options: Options):
             jnp.concatenate([memory.gather_rows(pair.T, slots3), slots3]))
 
 
-def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: bool = False, t=0):
+def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: bool = False, t=0,
+         stride3: int | None = None):
     """One frame: de-duplicate, associate, update memory and filters, write, age. Returns (mem, out).
 
     detail (static): also the 3D detection each row carries (``StepOutput.src3``); t: the frame's
-    global index. Runs under ``jax.enable_x64``: arithmetic and parameters in float64, scores
+    global index; stride3 (static): the split's 3D slots per frame M3, the stride of ``src3``'s flat
+    index ``t * M3 + slot`` (default: this frame's slots; a frame cut to its first slots passes the
+    full count). Runs under ``jax.enable_x64``: arithmetic and parameters in float64, scores
     compared in float32.
     """
     kind = options.filter
@@ -167,7 +170,8 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: b
     alive = mem.alive | born
     last3 = mem.last3
     if detail:
-        z_src3 = memory.gather_rows(assign, t * frame.valid3.shape[0] + slot3)
+        m3 = frame.valid3.shape[0] if stride3 is None else stride3
+        z_src3 = memory.gather_rows(assign, t * m3 + slot3)
         last3 = jnp.where(observed & z_has3, z_src3, jnp.where(born, -1, last3))
     mem = Memory(alive=alive, tid=tid, age=age, hits=hits, has3d=had3 | z_has3, filt=filt,
                  next_id=mem.next_id + jnp.sum(newborn, dtype=jnp.int32), overflow=mem.overflow + dropped,
