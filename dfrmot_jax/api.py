@@ -151,14 +151,23 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
                             small_frames_min=small_frames_min)
             if dropped is None:
                 dropped = np.empty((b,) + out.dropped.shape[1:], np.int32)
+            # contiguous lanes (every first pass) are written through a slice: no fancy-index copy
+            at = slice(lanes[0], lanes[-1] + 1) if lanes[-1] - lanes[0] + 1 == lanes.size else lanes
             for name in per_slot:
                 v = getattr(out, name)
+                if name not in got and lanes.size == b:
+                    got[name] = v                     # the whole batch in one call: kept as it is
+                    continue
                 if name not in got:
                     got[name] = np.empty((b,) + v.shape[1:], v.dtype)
                 # a lane re-run with more track slots ("filtered": slots are tracks) widens axis 2
                 got[name] = _widen(got[name], v.shape[2], fill.get(name, 0))
-                got[name][lanes] = fill.get(name, 0)
-                got[name][lanes, :, :v.shape[2]] = v
+                if not got[name].flags.writeable:
+                    got[name] = got[name].copy()
+                k = v.shape[2]
+                got[name][at, :, :k] = v
+                if got[name].shape[2] > k:
+                    got[name][at, :, k:] = fill.get(name, 0)
             dropped[lanes] = out.dropped; overflow[lanes] = out.overflow; peak[lanes] = out.peak
             capacity[lanes] = cap
             if progress is not None and cap == cap0:
