@@ -121,28 +121,53 @@ def row_3d_values(split: Split, rows: LaneRows) -> dict:
     return out
 
 
-def kitti_row_arrays(split: Split, res, columns: str = "kitti") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The image box, score and 3D box each row of B lanes carries in a ``--columns kitti`` (or
-    ``kitti-stale``) result file, as arrays: 3D metrics from the tracker's output without writing files.
+class KittiRows(NamedTuple):
+    """The rows of B lanes' ``--columns kitti`` result files as flat arrays, in (lane, frame, slot)
+    order (the order of a file's lines): lane [R], t [R] frame along the split, slot [R] output slot,
+    ids [R] track id, box [R, 4] image box, score [R], box3d [R, 7] ``h w l x y z rot_y`` (the
+    2D-only placeholder where the row carries no 3D box), n_lanes B, n_frames T. box_key / box3d_key [R] int64
+    or None: rows of one frame with equal keys carry equal image boxes / 3D boxes (the object slot,
+    the 3D detection's index; None with output "filtered", whose boxes are each lane's own), so a
+    scorer finds the distinct values from the keys instead of the values' bits."""
 
-    res: a ``track(detail=True)`` result of ``split`` (ids [B, T, K], -1 no row; boxes; src3 [B, T, K]
-    global 3D index, -1 none; own3 [B, T, K]; box3 [B, T, K, 6] with output "filtered"; frames;
-    options). Returns boxes [B, T, K, 4], scores [B, T, K] and box3d [B, T, K, 7] ``h w l x y z
-    rot_y``, float64, NaN where there is no row. The rules are :func:`dfrmot_jax.io.columns.kitti_values`':
-    a row carrying its own 3D detection (output "detections"; any 3D detection with "filtered") has
-    that detection's rot_y and score; its box is the detection's (``h w l x y z``), or with "filtered"
-    the track's filtered box written to 7 significant digits as the file has it; every other row the
-    placeholders ``-1 -1 -1 -1000 -1000 -1000``, rot_y -10 and its 2D detection's score (1 unknown).
-    ``columns="kitti-stale"``: a row carrying the matched track's stale 3D detection has its box and
-    rot_y too (score still the 2D detection's). Every value equals what the written file reads back as
-    (image boxes to 6 significant digits, ``io.columns.fmt_g``).
+    lane: np.ndarray
+    t: np.ndarray
+    slot: np.ndarray
+    ids: np.ndarray
+    box: np.ndarray
+    score: np.ndarray
+    box3d: np.ndarray
+    n_lanes: int
+    n_frames: int
+    box_key: np.ndarray | None = None
+    box3d_key: np.ndarray | None = None
+
+
+def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRows:
+    """The image box, score and 3D box each row of a ``track(detail=True)`` result carries in a
+    ``--columns kitti`` (or ``kitti-stale``) result file, as flat arrays (:class:`KittiRows`): 3D
+    metrics from the tracker's output without writing files. ``lanes``: only these lanes of ``res``
+    (renumbered 0..len-1 in that order; default all).
+
+    res: ids [B, T, K], -1 no row; boxes; src3 [B, T, K] global 3D index, -1 none; own3 [B, T, K];
+    box3 [B, T, K, 6] with output "filtered"; frames; options. The rules are
+    :func:`dfrmot_jax.io.columns.kitti_values`': a row carrying its own 3D detection (output
+    "detections"; any 3D detection with "filtered") has that detection's rot_y and score; its box is
+    the detection's (``h w l x y z``), or with "filtered" the track's filtered box written to 7
+    significant digits as the file has it; every other row the placeholders ``-1 -1 -1 -1000 -1000
+    -1000``, rot_y -10 and its 2D detection's score (1 unknown). ``columns="kitti-stale"``: a row
+    carrying the matched track's stale 3D detection has its box and rot_y too (score still the 2D
+    detection's). Every value equals what the written file reads back as (image boxes to 6
+    significant digits, ``io.columns.fmt_g``).
     """
     frames, options = res.frames, res.options
     ids = np.asarray(res.ids)
-    b, t, k = np.nonzero(ids >= 0)
-    src = np.asarray(res.src3)[b, t, k].astype(np.int64)
+    chosen = np.arange(ids.shape[0]) if lanes is None else np.asarray(lanes, np.int64)
+    b, t, k = np.nonzero(ids[chosen] >= 0) if lanes is not None else np.nonzero(ids >= 0)
+    at = (chosen[b], t, k)                              # the rows in res' own lanes
+    src = np.asarray(res.src3)[at].astype(np.int64)
     has3 = src >= 0
-    own = has3 if res.own3 is None else np.asarray(res.own3)[b, t, k].astype(bool) & has3
+    own = has3 if res.own3 is None else np.asarray(res.own3)[at].astype(bool) & has3
     filtered = options.output == "filtered"
     carry = has3 if filtered else own
     box_carry = has3 if columns == "kitti-stale" else carry
@@ -156,22 +181,37 @@ def kitti_row_arrays(split: Split, res, columns: str = "kitti") -> tuple[np.ndar
     rot_y[box_carry] = split.rot_y3d[tt[box_carry], jj[box_carry]]
     dims = np.full((n, 3), PLACEHOLDER_DIMS)
     loc = np.full((n, 3), PLACEHOLDER_LOC)
+    box_key = box3d_key = None
     if filtered:
-        rows3 = np.asarray(res.box3, np.float64)[b, t, k]
+        rows3 = np.asarray(res.box3)[at].astype(np.float64)
         ok = has3 & np.all(np.isfinite(rows3), axis=1)
         d, l = invert_box3d_extent(rows3[ok, :3], rows3[ok, 3:], options.centroid)
         dims[ok], loc[ok] = _as_written(d, 7), _as_written(l, 7)
+        box = _as_written(np.asarray(res.boxes)[at].astype(np.float64), 6)
     else:
         dims[box_carry] = split.dims3d[tt[box_carry], jj[box_carry]]
         loc[box_carry] = split.loc3d[tt[box_carry], jj[box_carry]]
-    written = output_boxes(frames, options, res.boxes)
-    rows2 = written[t, k] if written.ndim == 3 else written[b, t, k]
-    boxes = np.full(ids.shape + (4,), np.nan)
-    boxes[b, t, k] = _as_written(np.asarray(rows2, np.float64), 6)
-    scores = np.full(ids.shape, np.nan)
-    scores[b, t, k] = score
-    box3d = np.full(ids.shape + (7,), np.nan)
-    box3d[b, t, k] = np.concatenate([dims, loc, rot_y[:, None]], axis=1)
+        K = ids.shape[2]
+        box_key = t.astype(np.int64) * K + k
+        box3d_key = np.where(box_carry, src, -1)
+        # the objects' boxes are every lane's: written once per object slot, then gathered
+        box = _as_written(np.asarray(output_boxes(frames, options), np.float64).reshape(-1, 4), 6)[box_key]
+    box3d = np.concatenate([dims, loc, rot_y[:, None]], axis=1)
+    return KittiRows(b.astype(np.int64), t.astype(np.int64), k.astype(np.int64), ids[at].astype(np.int64), box,
+                     score, box3d, len(chosen), ids.shape[1], box_key, box3d_key)
+
+
+def kitti_row_arrays(split: Split, res, columns: str = "kitti") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`kitti_rows` as padded arrays: boxes [B, T, K, 4], scores [B, T, K] and box3d
+    [B, T, K, 7], float64, NaN where there is no row."""
+    r = kitti_rows(split, res, columns)
+    shape = np.asarray(res.ids).shape
+    boxes = np.full(shape + (4,), np.nan)
+    boxes[r.lane, r.t, r.slot] = r.box
+    scores = np.full(shape, np.nan)
+    scores[r.lane, r.t, r.slot] = r.score
+    box3d = np.full(shape + (7,), np.nan)
+    box3d[r.lane, r.t, r.slot] = r.box3d
     return boxes, scores, box3d
 
 

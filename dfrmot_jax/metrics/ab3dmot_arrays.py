@@ -42,7 +42,7 @@ from dfrmot_jax.metrics.fields3d import box3d_problem, no_box_rows
 from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.similarity import row_ids
 
-__all__ = ["evaluate_ab3dmot_arrays", "tracker_rows_from_arrays"]
+__all__ = ["evaluate_ab3dmot_arrays", "evaluate_ab3dmot_rows", "tracker_rows_from_arrays"]
 
 
 def _where(gt: Ab3dGT, b: int, g: int, k: int) -> str:
@@ -76,9 +76,9 @@ class _Rows(NamedTuple):
                            seq=np.searchsorted(gt.offsets, frame, side="right") - 1, paths=())
 
 
-def _flat_rows(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None) -> _Rows:
-    """[B, T, K] padded output -> :class:`_Rows` (checked: finite image boxes and scores, no id
-    twice in a frame, 3D boxes or the placeholder; ValueError naming config, sequence, frame, slot)."""
+def _padded_rows(ids, boxes, scores, box3d=None) -> dict:
+    """[B, T, K] padded output -> the keyword arguments of :func:`_flat_rows` (rows in (lane, frame,
+    slot) order)."""
     ids = np.asarray(ids)
     if ids.ndim != 3:
         raise ValueError(f"ids must be [B, T, K], got shape {ids.shape}")
@@ -89,6 +89,18 @@ def _flat_rows(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None) -> 
                            ("box3d", None if box3d is None else np.asarray(box3d), (B, T, K, 7))):
         if a is not None and a.shape != shape:
             raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
+    b, t, k = np.nonzero(ids >= 0)
+    b3 = None if box3d is None else np.asarray(box3d, dtype=np.float64)[b, t, k]
+    return dict(lane=b, t=t, slot=k, ids=ids[b, t, k], box=boxes[b, t, k], score=scores[b, t, k], box3d=b3,
+                n_lanes=B, n_frames=T)
+
+
+def _flat_rows(gt: Ab3dGT, lane, t, slot, ids, box, score, box3d, n_lanes: int, n_frames: int, seq_offsets=None,
+               box_key=None, box3d_key=None) -> tuple[_Rows, np.ndarray | None, np.ndarray | None]:
+    """Flat rows (in (lane, t, slot) order) -> (:class:`_Rows`, box_key, box3d_key of its rows)
+    (checked: finite image boxes and scores, no id twice in a frame, 3D boxes or the placeholder;
+    ValueError naming config, sequence, frame, slot). Rows on frames of no sequence are dropped."""
+    B, T = n_lanes, n_frames
     S = len(gt.sequences)
     seq_offsets = gt.offsets[:-1] if seq_offsets is None else np.asarray(seq_offsets, dtype=np.int64).reshape(-1)
     if seq_offsets.shape != (S,):
@@ -98,13 +110,20 @@ def _flat_rows(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None) -> 
     gmap = np.full(T, -1, dtype=np.int64)
     for s in range(S):
         gmap[seq_offsets[s]:seq_offsets[s] + gt.lengths[s]] = np.arange(gt.offsets[s], gt.offsets[s + 1])
-    b, t, k = np.nonzero((ids >= 0) & (gmap >= 0)[None, :, None])
-    g = gmap[t]
+    b, k = np.asarray(lane, np.int64), np.asarray(slot, np.int64)
+    g = gmap[np.asarray(t, np.int64)]
+    keep = np.flatnonzero(g >= 0)
+    if len(keep) == len(g):
+        keep = slice(None)
+    b, k, g = b[keep], k[keep], g[keep]
     if np.any(np.diff(gmap[gmap >= 0]) < 0):                 # sequences out of order along T
         o = np.lexsort((k, g, b))
-        b, t, k, g = b[o], t[o], k[o], g[o]
-    tid = ids[b, t, k].astype(np.int64)
-    box, score = boxes[b, t, k], scores[b, t, k]
+        keep = np.arange(len(lane))[keep][o]
+        b, k, g = b[o], k[o], g[o]
+    tid = np.asarray(ids)[keep].astype(np.int64)
+    box, score = np.asarray(box, np.float64)[keep], np.asarray(score, np.float64)[keep]
+    box_key = None if box_key is None else np.asarray(box_key)[keep]
+    box3d_key = None if box3d_key is None else np.asarray(box3d_key)[keep]
     bad = ~np.isfinite(box).all(axis=1) | ~np.isfinite(score)
     if bad.any():
         i = int(np.argmax(bad))
@@ -131,18 +150,18 @@ def _flat_rows(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None) -> 
     # rows come lane by lane, so each lane's new codes are one contiguous range
     track_start = np.zeros(B + 1, dtype=np.int64)
     n_tracks = np.zeros(B, dtype=np.int64)
-    for lane in range(B):
-        i, j = lane_start[lane], lane_start[lane + 1]
-        if j > i:
-            track_start[lane] = codes[i:j].min()
-            n_tracks[lane] = codes[i:j].max() + 1 - track_start[lane]
+    filled = np.flatnonzero(np.diff(lane_start) > 0)
+    if R:
+        lo = np.minimum.reduceat(codes, lane_start[filled])
+        track_start[filled] = lo
+        n_tracks[filled] = np.maximum.reduceat(codes, lane_start[filled]) + 1 - lo
     track_start[B] = int(codes.max(initial=-1)) + 1
     track = codes - track_start[b]
     if box3d is None:
         b3 = np.full((R, 7), np.nan)
         has3d = np.zeros(R, dtype=bool)
     else:
-        b3 = np.asarray(box3d, dtype=np.float64)[b, t, k]
+        b3 = np.asarray(box3d, dtype=np.float64)[keep]
         none = no_box_rows(b3)
         bad = box3d_problem(b3, ~none)
         if bad is not None:
@@ -150,8 +169,9 @@ def _flat_rows(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None) -> 
             raise ValueError(f"{_where(gt, int(b[i]), int(g[i]), int(k[i]))}: 3D box {b3[i].tolist()} is not a box "
                              f"(finite, h > 0, w and l non-zero and of one sign) nor the 2D-only placeholder")
         has3d = ~none
-    return _Rows(lane=b.astype(np.int64), frame=g, slot=k.astype(np.int64), track=track, box=box, score=score,
-                 box3d=b3, has3d=has3d, lane_start=lane_start, n_tracks=n_tracks, track_start=track_start)
+    rows = _Rows(lane=b, frame=g, slot=k, track=track, box=box, score=score, box3d=b3, has3d=has3d,
+                 lane_start=lane_start, n_tracks=n_tracks, track_start=track_start)
+    return rows, box_key, box3d_key
 
 
 def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None) -> list[Ab3dTracker]:
@@ -160,25 +180,31 @@ def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_off
     ids [B, T, K] int (negative: empty slot; ids per sequence); boxes [B, T, K, 4] image boxes;
     scores [B, T, K]; box3d [B, T, K, 7] or None (2D IoU only); seq_offsets [S] first frame along T
     of each of ``gt.sequences`` (default back to back; other frames of T are ignored)."""
-    rows = _flat_rows(gt, ids, boxes, scores, box3d, seq_offsets)
+    rows = _flat_rows(gt, **_padded_rows(ids, boxes, scores, box3d), seq_offsets=seq_offsets)[0]
     return [rows.tracker(gt, b) for b in range(len(rows.n_tracks))]
 
 
-def _distinct(frame: np.ndarray, vals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct (frame, value row) of [R] frames and [R, C] rows -> (first row of each [U], id of each row [R])."""
-    ids = row_ids(np.concatenate([frame[:, None].astype(np.float64), vals], axis=1))
+def _distinct(frame: np.ndarray, vals: np.ndarray, key: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct (frame, value row) of [R] frames and [R, C] rows -> (first row of each [U], id of each
+    row [R]); with ``key`` [R] (equal keys in a frame: equal values; non-negative) the distinct
+    (frame, key) instead, without reading the values."""
+    if key is not None and len(key):
+        ids = pd.factorize(frame.astype(np.int64) * (int(key.max()) + 1) + key)[0].astype(np.int64)
+    else:
+        ids = row_ids(np.concatenate([frame[:, None].astype(np.float64), vals], axis=1))
     first = np.full(int(ids.max(initial=-1)) + 1, -1, dtype=np.int64)
     first[ids[::-1]] = np.arange(len(ids))[::-1]
     return first, ids
 
 
-def _pairs(gt: Ab3dGT, rows: _Rows, kind: str, threshold: float) -> list:
+def _pairs(gt: Ab3dGT, rows: _Rows, kind: str, threshold: float, key: np.ndarray | None = None) -> list:
     """Candidate pairs of every output (by frame, object, row within each): the distinct (frame, box)
-    values' pairs with the ground truth (IoU once each), joined back to every output's rows."""
+    values' pairs with the ground truth (IoU once each), joined back to every output's rows.
+    ``key`` [R]: the rows' value keys (:func:`_distinct`), or None."""
     B = len(rows.n_tracks)
     vals, live = (rows.box, np.ones(len(rows.frame), dtype=bool)) if kind == "2d" else (rows.box3d, rows.has3d)
     sel = np.flatnonzero(live)
-    first, uid = _distinct(rows.frame[sel], vals[sel])
+    first, uid = _distinct(rows.frame[sel], vals[sel], None if key is None else key[sel])
     ufr = rows.frame[sel[first]]
     o = np.argsort(ufr, kind="stable")                  # distinct values by frame
     rank = np.empty(len(o), dtype=np.int64)
@@ -221,16 +247,31 @@ def evaluate_ab3dmot_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offs
     gt: :func:`~dfrmot_jax.metrics.ab3dmot_prep.prepare_ab3dmot_gt`; ids [B, T, K]; boxes
     [B, T, K, 4]; scores [B, T, K]; box3d [B, T, K, 7] (needed for ``3d`` IoU); iou ``'3d:0.25'``,
     ``'2d:0.5'``, ...; seq_offsets as in :func:`tracker_rows_from_arrays`."""
-    kind, thr = parse_iou(iou)
+    kind, _ = parse_iou(iou)
     if kind == "3d" and box3d is None:
         raise ValueError("3D IoU needs box3d [B, T, K, 7] (h w l x y z rot_y per slot)")
-    rows = _flat_rows(gt, ids, boxes, scores, box3d if kind == "3d" else None, seq_offsets)
+    return evaluate_ab3dmot_rows(gt, **_padded_rows(ids, boxes, scores, box3d if kind == "3d" else None),
+                                 seq_offsets=seq_offsets, iou=iou)
+
+
+def evaluate_ab3dmot_rows(gt: Ab3dGT, lane, t, slot, ids, box, score, box3d, n_lanes: int, n_frames: int,
+                          seq_offsets=None, iou="3d:0.25", box_key=None, box3d_key=None) -> list[dict]:
+    """:func:`evaluate_ab3dmot_arrays` of B outputs given as their rows, flat, in (lane, t, slot)
+    order (the fields of :class:`dfrmot_jax.results.KittiRows`): lane, t (frame along the T frames),
+    slot, ids [R]; box [R, 4]; score [R]; box3d [R, 7] or None; n_lanes B; n_frames T. box_key /
+    box3d_key [R] int64 or None: equal keys within a frame mean equal image / 3D boxes (the distinct
+    values are then taken from the keys); any key of a row without a 3D box."""
+    kind, thr = parse_iou(iou)
+    if kind == "3d" and box3d is None:
+        raise ValueError("3D IoU needs box3d [R, 7] (h w l x y z rot_y per row)")
+    rows, box_key, box3d_key = _flat_rows(gt, lane, t, slot, ids, box, score, box3d if kind == "3d" else None,
+                                          n_lanes, n_frames, seq_offsets, box_key, box3d_key)
     B = len(rows.n_tracks)
     if not B:
         return []
-    pairs = _pairs(gt, rows, kind, thr)
+    pairs = _pairs(gt, rows, kind, thr, box_key if kind == "2d" else box3d_key)
     # the static ignore rule once per distinct (frame, image box); track means in one call
-    first, bid = _distinct(rows.frame, rows.box)
+    first, bid = _distinct(rows.frame, rows.box, box_key)
     static = static_ignore(gt, rows.frame[first], rows.box[first], np.zeros(len(first), dtype=bool))[bid]
     gtrack = rows.track_start[rows.lane] + rows.track
     n_all = int(rows.track_start[-1])

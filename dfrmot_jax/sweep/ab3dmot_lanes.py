@@ -2,14 +2,14 @@
 an AB3DMOT objective in a sweep or tune).
 
 Each lane is scored on the values its ``--columns kitti`` result file would carry
-(:func:`dfrmot_jax.results.kitti_row_arrays`: the row's own 3D detection, or the filtered box with
+(:func:`dfrmot_jax.results.kitti_rows`: the row's own 3D detection, or the filtered box with
 ``output = "filtered"``; rows without one count as unmatched in 3D; every value as the file reads
 it back), against the class's
 ground truth over the split's sequences together (:func:`dfrmot_jax.metrics.ab3dmot_arrays.
-evaluate_ab3dmot_arrays`): the same figures as ``dfrmot eval --metrics ab3dmot`` of the written
+evaluate_ab3dmot_rows`): the same figures as ``dfrmot eval --metrics ab3dmot`` of the written
 files. AB3DMOT's figures exist for a whole sequence list only, so they fill a config's ``COMBINED``
-row; its per-sequence rows hold NaN. Identical outputs (the same rows, boxes and scores) are
-scored once.
+row; its per-sequence rows hold NaN. Identical outputs (the same ids and 3D sources per row; with
+output "filtered" the same boxes too) are scored once, and only their rows are built.
 """
 
 from __future__ import annotations
@@ -22,11 +22,11 @@ import pandas as pd
 
 from ..api import TrackResult
 from ..data import Split
-from ..metrics.ab3dmot_arrays import evaluate_ab3dmot_arrays
+from ..metrics.ab3dmot_arrays import evaluate_ab3dmot_rows
 from ..metrics.ab3dmot_prep import Ab3dGT
 from ..metrics.ab3dmot_table import ab3dmot_columns
 from ..metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
-from ..results import kitti_row_arrays
+from ..results import kitti_rows
 from .table import COMBINED
 
 
@@ -41,21 +41,34 @@ class Ab3dmotLanes:
         self.gt, self.split, self.iou, self.columns = gt, split, iou, columns
         self.memo: dict[bytes, dict] = {}
 
+    def digests(self, res: TrackResult) -> list[bytes]:
+        """One digest per lane of what its rows carry: the options, ids and, per row, the 3D source
+        (``src3``, ``own3``); with output "filtered" also the lane's own image and 3D boxes. (With
+        output "detections" a row's image box, score and 3D box follow from the options, its slot and
+        its 3D source, on the one split.)"""
+        ids = np.asarray(res.ids)
+        rows = ids >= 0
+        src = np.where(rows, res.src3, -2).astype(np.int32)
+        own = rows & np.asarray(res.own3, bool)
+        extra = (res.boxes, res.box3) if res.options.output == "filtered" else ()
+        out = []
+        for b in range(ids.shape[0]):
+            h = hashlib.sha1(repr(res.options).encode())
+            h.update(np.ascontiguousarray(ids[b]).tobytes())
+            h.update(src[b].tobytes())
+            h.update(np.packbits(own[b]).tobytes())
+            for a in extra:
+                h.update(np.ascontiguousarray(np.asarray(a)[b][rows[b]]).tobytes())
+            out.append(h.digest())
+        return out
+
     def score(self, res: TrackResult) -> list[dict]:
         """{column: value} of AB3DMOT's figures for each lane of ``res`` (``track(detail=True)``)."""
-        ids = res.ids
-        boxes, scores, box3d = kitti_row_arrays(self.split, res, self.columns)
-        digests = []
-        for b in range(ids.shape[0]):
-            rows = ids[b] >= 0
-            h = hashlib.sha1(np.ascontiguousarray(ids[b]).tobytes())
-            for a in (boxes[b][rows], scores[b][rows], box3d[b][rows]):
-                h.update(np.ascontiguousarray(a).tobytes())
-            digests.append(h.digest())
+        digests = self.digests(res)
         new = [b for b, d in enumerate(digests) if d not in self.memo and d not in digests[:b]]
         if new:
-            out = evaluate_ab3dmot_arrays(self.gt, ids[new], boxes[new], scores[new], box3d[new], self.split.offsets,
-                                          iou=self.iou)
+            rows = kitti_rows(self.split, res, self.columns, lanes=new)
+            out = evaluate_ab3dmot_rows(self.gt, **rows._asdict(), seq_offsets=self.split.offsets, iou=self.iou)
             for b, r in zip(new, out):
                 self.memo[digests[b]] = ab3dmot_columns(r)
         return [self.memo[d] for d in digests]
