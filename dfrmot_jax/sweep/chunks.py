@@ -15,6 +15,7 @@ import sys
 import time
 import warnings
 from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
@@ -89,7 +90,11 @@ class Pending:
     todo: list
     future: Any = None
     result: Any = None
-    ab3dmot: list | None = None       # AB3DMOT's columns of each lane (metrics.ab3dmot)
+    ab3dmot: list | Future | None = None    # AB3DMOT's columns of each lane (metrics.ab3dmot), or their future
+
+    def ready(self) -> bool:
+        """Its scores are in (nothing left to wait for)."""
+        return all(f is None or not hasattr(f, "done") or f.done() for f in (self.future, self.ab3dmot))
 
 
 def distort_of(table: pd.DataFrame, rows: Sequence[int], dist: DistortionAxes):
@@ -113,7 +118,10 @@ class ChunkRunner:
     """The run loop of one class's chunks: tracking, metrics (in-process or a worker pool beside the
     tracker; chunks complete in submission order, a chunk may rely on an earlier one's scores) and
     the chunk tables. Its state is explicit: per option group the track capacity (``caps``) and the
-    distortion spec (``dspecs``), the chunks in flight, the timings.
+    distortion spec (``dspecs``), the chunks in flight, the timings. AB3DMOT's figures
+    (``metrics.ab3dmot``) are computed in a thread of this process while the next chunk tracks (the
+    tracker's compiled code runs without Python's lock, so the two overlap; one thread, so chunks
+    are scored in order and share one memo).
 
     ``workers``: metric processes (None: 2 for large runs, 0: in-process). ``compact``: track on the
     split compacted to the table's loosest score thresholds (:func:`dfrmot_jax.data.compact_split`:
@@ -129,6 +137,7 @@ class ChunkRunner:
     dspecs: dict = field(default_factory=dict)
     inflight: deque = field(default_factory=deque)
     timing: Timing = field(default_factory=Timing)
+    ab3dmot_thread: ThreadPoolExecutor | None = None
 
     def setup(self, todo: Sequence[Chunk], split=None, gt=None) -> None:
         """Load (or take) the class's split and prepared ground truth; ``todo``: the chunks to run."""
@@ -160,11 +169,12 @@ class ChunkRunner:
         self.setup(todo)
         self.timing.setup = time.perf_counter() - t0
         pool = worker_pool(self.gt, self.workers) if self.workers > 0 else None
+        self.ab3dmot_thread = ThreadPoolExecutor(1, "ab3dmot") if self.ab3dmot is not None else None
         try:
             for c in todo:
                 self.inflight.append(self.start(c, self.frames_of(c.options), pool))
                 # complete in submission order (a chunk may rely on an earlier one's scores)
-                while self.inflight and (self.inflight[0].future is None or self.inflight[0].future.done()):
+                while self.inflight and self.inflight[0].ready():
                     self.complete(self.inflight.popleft(), keep, bar)
                 while len(self.inflight) > max(1, self.workers):
                     self.complete(self.inflight.popleft(), keep, bar)
@@ -173,6 +183,9 @@ class ChunkRunner:
         finally:
             if pool is not None:
                 pool.shutdown(wait=True, cancel_futures=True)
+            if self.ab3dmot_thread is not None:
+                self.ab3dmot_thread.shutdown(wait=True, cancel_futures=True)
+                self.ab3dmot_thread = None
         dt = time.perf_counter() - t0
         n = sum(len(c.configs) for c in todo)
         tm = self.timing
@@ -231,9 +244,12 @@ class ChunkRunner:
         slim = res._replace(ids=None, boxes=None, frames=None, src3=None, own3=None, box3=None)
         p = Pending(c, slim, digests, self.scorer.new_lanes(digests, busy))
         if self.ab3dmot is not None:
-            tm = time.perf_counter()
-            p.ab3dmot = self.ab3dmot.score(res)
-            self.timing.metrics += time.perf_counter() - tm
+            if self.ab3dmot_thread is not None:
+                p.ab3dmot = self.ab3dmot_thread.submit(self.ab3dmot.score, res)
+            else:
+                tm = time.perf_counter()
+                p.ab3dmot = self.ab3dmot.score(res)
+                self.timing.metrics += time.perf_counter() - tm
         if p.todo:
             dets = self.scorer.dets(res.ids, res.boxes, p.todo)
             if pool is not None:
@@ -254,6 +270,8 @@ class ChunkRunner:
         tw = time.perf_counter()
         if p.future is not None:
             p.result = p.future.result()
+        if isinstance(p.ab3dmot, Future):
+            p.ab3dmot = p.ab3dmot.result()
         self.timing.wait += time.perf_counter() - tw
         if p.todo:
             self.scorer.store(p.digests, p.todo, p.result)
