@@ -3,7 +3,11 @@ training split (RRC + PointRCNN), every config tracked and scored (TrackEval-ide
 Identity) and written as Parquet chunks, from a cold start (data loading, ground truth, compilation
 included), then the report with k-fold cross-validation.
 
-    python benchmarks/bench_sweep.py [--sweep FILE] [--folds 5] [--out DIR] [--workers N]
+    python benchmarks/bench_sweep.py [--sweep FILE] [--folds 5] [--out DIR] [--workers N] [--ab3dmot 3d:0.25]
+
+``--ab3dmot IOU``: the same sweep with AB3DMOT's figures too (``[metrics] ab3dmot = IOU``); with
+``--both`` the sweep runs twice back to back, without and then with them, and the JSON line adds
+``plain_seconds`` and ``ab3dmot_added_s`` (what sAMOTA costs the sweep, measured in one run).
 
 The last line of the output is one JSON object: configs, seconds, configs_per_s,
 config_frames_per_s, frames, sequences, baseline / best_in_sample / best_cross_validated (HOTA),
@@ -18,9 +22,10 @@ import os
 import shutil
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
-from machine import cold_output_dir, cpu_time, machine_info
+from machine import cold_output_dir, cpu_time, machine_info, peak_rss_mb
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_SWEEP = HERE.parent / "sweeps" / "kitti_dfr_grid.toml"
@@ -34,6 +39,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", help="keep the results here (default: a temporary directory, removed)")
     ap.add_argument("--workers", type=int, default=None, help="metric processes (default: the sweep's choice)")
     ap.add_argument("--progress", action="store_true", help="show the progress bar")
+    ap.add_argument("--ab3dmot", default=None, help="also AB3DMOT's figures at this IoU (e.g. 3d:0.25)")
+    ap.add_argument("--both", action="store_true", help="with --ab3dmot: run without it first, then with it")
     args = ap.parse_args(argv)
 
     from dfrmot_jax.paths import data_available, default_data_root
@@ -46,6 +53,17 @@ def main(argv=None) -> int:
         print(json.dumps({"configs": len(expand(spec)), "seconds": None, "skipped": "no KITTI data", **machine}))
         return 0
 
+    plain_seconds = None
+    if args.ab3dmot and args.both:
+        plain_out = cold_output_dir(None, "dfrmot_bench_sweep_plain_")
+        try:
+            t0 = time.perf_counter()
+            run_sweep(spec, plain_out, progress=args.progress, workers=args.workers)
+            plain_seconds = time.perf_counter() - t0
+        finally:
+            shutil.rmtree(plain_out, ignore_errors=True)
+    if args.ab3dmot:
+        spec = replace(spec, ab3dmot=args.ab3dmot)
     out = cold_output_dir(args.out, "dfrmot_bench_sweep_")
 
     load0 = os.getloadavg()[0]
@@ -75,8 +93,14 @@ def main(argv=None) -> int:
         "cores_used": round(cpu_seconds / seconds, 2), "load_avg_1min": [round(load0, 2), round(load1, 2)],
         "objective": s["objective"], "baseline": s["baseline"], "best_in_sample": s["best_in_sample"],
         "best_cross_validated": s.get("best_cross_validated"), "folds": s.get("folds"),
-        "best_config": s["best_config"], "overflow_configs": int((comb["overflow"] > 0).sum()), **machine,
+        "best_config": s["best_config"], "overflow_configs": int((comb["overflow"] > 0).sum()),
+        "ab3dmot": args.ab3dmot, "peak_rss_mb": round(peak_rss_mb(), 1), **machine,
     }
+    if args.ab3dmot:
+        best = comb.loc[comb["sAMOTA"].idxmax()]
+        result.update(best_samota=float(best["sAMOTA"]), best_samota_config=int(best["config"]))
+    if plain_seconds is not None:
+        result.update(plain_seconds=round(plain_seconds, 2), ab3dmot_added_s=round(seconds - plain_seconds, 2))
     print(json.dumps(result))
     return 0
 

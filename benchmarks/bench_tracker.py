@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import sys
 import time
 
@@ -31,7 +30,7 @@ from dfrmot_jax.data import compact_split, load_sequences, pack, prepare_frames
 from dfrmot_jax.config import Params, preset, stack_params
 from dfrmot_jax.paths import default_data_root
 from dfrmot_jax.testing.reference import track_sequence
-from machine import machine_info
+from machine import machine_info, peak_rss_mb
 
 
 def settings(b: int, seed: int = 0) -> Params:
@@ -41,10 +40,6 @@ def settings(b: int, seed: int = 0) -> Params:
     return stack_params([base._replace(a_l=float(rng.uniform(4, 12)), alpha_c=float(rng.uniform(0.3, 0.7)),
                                        score_2d=float(rng.uniform(0.3, 0.6)), epsilon=int(rng.integers(10, 40)))
                          for _ in range(b)])
-
-
-def rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def main() -> int:
@@ -101,7 +96,7 @@ def main() -> int:
             overflow = int(sum(int(r.overflow.sum()) for r in res))
             rate = b * T / dt
             print(f"{prefix or 'full '}B={b:5d}: {rate:12,.0f} config-frames/s  ({dt:7.2f} s; overflow {overflow}; "
-                  f"peak RSS {rss_mb():,.0f} MB)", flush=True)
+                  f"peak RSS {peak_rss_mb():,.0f} MB)", flush=True)
             key = f"{prefix}b1_frames_per_s" if b == 1 else f"{prefix}b{b}_config_frames_per_s"
             out[key] = round(rate, 1)
             del first, res
@@ -113,7 +108,7 @@ def main() -> int:
     # compile time of one program: B = 1's first call minus its steady run time
     out["compile_s"] = round(compile_s[sizes[0]] - (sizes[0] * T / out.get("b1_frames_per_s", 1e18)), 2)
     out["compile_s_by_b"] = {str(k): round(v, 2) for k, v in compile_s.items()}
-    out["peak_rss_mb"] = round(rss_mb(), 1)
+    out["peak_rss_mb"] = round(peak_rss_mb(), 1)
     out.update(machine)
     print(json.dumps(out))
     return 0

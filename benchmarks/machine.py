@@ -60,3 +60,10 @@ def cold_output_dir(out: str | None, prefix: str) -> Path:
     if path.exists():
         shutil.rmtree(path)
     return path
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process so far, MB (``ru_maxrss``; the metric workers not included)."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
