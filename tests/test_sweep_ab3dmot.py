@@ -182,3 +182,28 @@ def test_car_and_pedestrian_on_kitti_with_their_class_average(kitti_root, tmp_pa
     avg = comb.loc["average"]
     assert avg["sAMOTA"] == pytest.approx((comb.loc["car", "sAMOTA"] + comb.loc["pedestrian", "sAMOTA"]) / 2)
     assert avg["ab3dmot_FP"] == comb.loc["car", "ab3dmot_FP"] + comb.loc["pedestrian", "ab3dmot_FP"]
+
+
+@pytest.mark.parametrize("output, columns", [("detections", "kitti"), ("detections", "kitti-stale"),
+                                             ("filtered", "kitti")])
+def test_rows_scored_by_their_keys_equal_rows_scored_by_their_values(scene, output, columns):
+    """The sweep's AB3DMOT lanes find distinct boxes from slot / 3D-source keys (results.kitti_rows):
+    the same figures as finding them from the values' bits, and as the padded arrays, some lanes only too."""
+    from dfrmot_jax.config import Options, Params, stack_params
+    from dfrmot_jax.metrics.ab3dmot_arrays import evaluate_ab3dmot_arrays, evaluate_ab3dmot_rows
+    from dfrmot_jax.metrics.ab3dmot_prep import prepare_ab3dmot_gt
+    from dfrmot_jax.results import kitti_row_arrays, kitti_rows
+
+    split = load_split(scene, "synth2d", "synth3d", "car")
+    gt = prepare_ab3dmot_gt(scene, "car", list(split.names))
+    params = stack_params([Params(a_l=4.0, score_3d=0.3), Params(a_l=8.0), Params(epsilon=2, score_2d=0.6)])
+    res = track(split, params, Options(output=output), detail=True)
+    rows = kitti_rows(split, res, columns)
+    assert (rows.box_key is None) == (output == "filtered")
+    by_keys = evaluate_ab3dmot_rows(gt, **rows._asdict(), seq_offsets=split.offsets)
+    by_values = evaluate_ab3dmot_rows(gt, **rows._replace(box_key=None, box3d_key=None)._asdict(), seq_offsets=split.offsets)
+    padded = evaluate_ab3dmot_arrays(gt, res.ids, *kitti_row_arrays(split, res, columns), seq_offsets=split.offsets)
+    assert by_keys == by_values == padded
+    assert len({r["sAMOTA"] for r in by_keys}) > 1
+    some = kitti_rows(split, res, columns, lanes=[2, 0])
+    assert evaluate_ab3dmot_rows(gt, **some._asdict(), seq_offsets=split.offsets) == [by_keys[2], by_keys[0]]
