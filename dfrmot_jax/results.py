@@ -162,12 +162,21 @@ def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRo
     """
     frames, options = res.frames, res.options
     ids = np.asarray(res.ids)
+    _, T, K = ids.shape
     chosen = np.arange(ids.shape[0]) if lanes is None else np.asarray(lanes, np.int64)
-    b, t, k = np.nonzero(ids[chosen] >= 0) if lanes is not None else np.nonzero(ids >= 0)
-    at = (chosen[b], t, k)                              # the rows in res' own lanes
-    src = np.asarray(res.src3)[at].astype(np.int64)
+    flat = np.flatnonzero((ids if lanes is None else ids[chosen]) >= 0)
+    b, tk = np.divmod(flat, T * K)
+    t, k = np.divmod(tk, K)
+    at = flat if lanes is None else chosen[b] * (T * K) + tk     # the rows in res' own lanes, flat
+
+    def rows_of(a: np.ndarray) -> np.ndarray:
+        """The rows' values of a [B, T, K, ...] array."""
+        a = np.asarray(a)
+        return a.reshape((-1,) + a.shape[3:])[at]
+
+    src = rows_of(res.src3).astype(np.int64)
     has3 = src >= 0
-    own = has3 if res.own3 is None else np.asarray(res.own3)[at].astype(bool) & has3
+    own = has3 if res.own3 is None else rows_of(res.own3).astype(bool) & has3
     filtered = options.output == "filtered"
     carry = has3 if filtered else own
     box_carry = has3 if columns == "kitti-stale" else carry
@@ -183,22 +192,20 @@ def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRo
     loc = np.full((n, 3), PLACEHOLDER_LOC)
     box_key = box3d_key = None
     if filtered:
-        rows3 = np.asarray(res.box3)[at].astype(np.float64)
+        rows3 = rows_of(res.box3).astype(np.float64)
         ok = has3 & np.all(np.isfinite(rows3), axis=1)
         d, l = invert_box3d_extent(rows3[ok, :3], rows3[ok, 3:], options.centroid)
         dims[ok], loc[ok] = _as_written(d, 7), _as_written(l, 7)
-        box = _as_written(np.asarray(res.boxes)[at].astype(np.float64), 6)
+        box = _as_written(rows_of(res.boxes).astype(np.float64), 6)
     else:
         dims[box_carry] = split.dims3d[tt[box_carry], jj[box_carry]]
         loc[box_carry] = split.loc3d[tt[box_carry], jj[box_carry]]
-        K = ids.shape[2]
-        box_key = t.astype(np.int64) * K + k
+        box_key = tk
         box3d_key = np.where(box_carry, src, -1)
         # the objects' boxes are every lane's: written once per object slot, then gathered
         box = _as_written(np.asarray(output_boxes(frames, options), np.float64).reshape(-1, 4), 6)[box_key]
     box3d = np.concatenate([dims, loc, rot_y[:, None]], axis=1)
-    return KittiRows(b.astype(np.int64), t.astype(np.int64), k.astype(np.int64), ids[at].astype(np.int64), box,
-                     score, box3d, len(chosen), ids.shape[1], box_key, box3d_key)
+    return KittiRows(b, t, k, rows_of(ids).astype(np.int64), box, score, box3d, len(chosen), T, box_key, box3d_key)
 
 
 def kitti_row_arrays(split: Split, res, columns: str = "kitti") -> tuple[np.ndarray, np.ndarray, np.ndarray]:

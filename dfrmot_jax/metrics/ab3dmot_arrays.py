@@ -96,10 +96,11 @@ def _padded_rows(ids, boxes, scores, box3d=None) -> dict:
 
 
 def _flat_rows(gt: Ab3dGT, lane, t, slot, ids, box, score, box3d, n_lanes: int, n_frames: int, seq_offsets=None,
-               box_key=None, box3d_key=None) -> tuple[_Rows, np.ndarray | None, np.ndarray | None]:
+               box_key=None, box3d_key=None, check_ids: bool = True) -> tuple[_Rows, np.ndarray | None, np.ndarray | None]:
     """Flat rows (in (lane, t, slot) order) -> (:class:`_Rows`, box_key, box3d_key of its rows)
-    (checked: finite image boxes and scores, no id twice in a frame, 3D boxes or the placeholder;
-    ValueError naming config, sequence, frame, slot). Rows on frames of no sequence are dropped."""
+    (checked: finite image boxes and scores, no id twice in a frame (unless ``check_ids`` is False),
+    3D boxes or the placeholder; ValueError naming config, sequence, frame, slot). Rows on frames of
+    no sequence are dropped."""
     B, T = n_lanes, n_frames
     S = len(gt.sequences)
     seq_offsets = gt.offsets[:-1] if seq_offsets is None else np.asarray(seq_offsets, dtype=np.int64).reshape(-1)
@@ -131,7 +132,9 @@ def _flat_rows(gt: Ab3dGT, lane, t, slot, ids, box, score, box3d, n_lanes: int, 
     R = len(b)
     lane_frame = b * max(gt.n_frames, 1) + g
     top = int(tid.max(initial=0)) + 1
-    if B * max(gt.n_frames, 1) * top < 2**62:
+    if not check_ids:
+        dup = np.zeros(0, dtype=bool)
+    elif B * max(gt.n_frames, 1) * top < 2**62:
         dup = pd.Series(lane_frame * top + tid).duplicated().to_numpy()
     else:
         dup = np.zeros(R, dtype=bool)
@@ -255,17 +258,19 @@ def evaluate_ab3dmot_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offs
 
 
 def evaluate_ab3dmot_rows(gt: Ab3dGT, lane, t, slot, ids, box, score, box3d, n_lanes: int, n_frames: int,
-                          seq_offsets=None, iou="3d:0.25", box_key=None, box3d_key=None) -> list[dict]:
+                          seq_offsets=None, iou="3d:0.25", box_key=None, box3d_key=None,
+                          check_ids: bool = True) -> list[dict]:
     """:func:`evaluate_ab3dmot_arrays` of B outputs given as their rows, flat, in (lane, t, slot)
     order (the fields of :class:`dfrmot_jax.results.KittiRows`): lane, t (frame along the T frames),
     slot, ids [R]; box [R, 4]; score [R]; box3d [R, 7] or None; n_lanes B; n_frames T. box_key /
     box3d_key [R] int64 or None: equal keys within a frame mean equal image / 3D boxes (the distinct
-    values are then taken from the keys); any key of a row without a 3D box."""
+    values are then taken from the keys); any key of a row without a 3D box. check_ids: refuse an id
+    twice in a lane's frame (False: the caller vouches for it, as the tracker's own rows do)."""
     kind, thr = parse_iou(iou)
     if kind == "3d" and box3d is None:
         raise ValueError("3D IoU needs box3d [R, 7] (h w l x y z rot_y per row)")
     rows, box_key, box3d_key = _flat_rows(gt, lane, t, slot, ids, box, score, box3d if kind == "3d" else None,
-                                          n_lanes, n_frames, seq_offsets, box_key, box3d_key)
+                                          n_lanes, n_frames, seq_offsets, box_key, box3d_key, check_ids)
     B = len(rows.n_tracks)
     if not B:
         return []

@@ -41,34 +41,43 @@ class Ab3dmotLanes:
         self.gt, self.split, self.iou, self.columns = gt, split, iou, columns
         self.memo: dict[bytes, dict] = {}
 
-    def digests(self, res: TrackResult) -> list[bytes]:
+    def digests(self, res: TrackResult, base: Sequence[bytes] | None = None) -> list[bytes]:
         """One digest per lane of what its rows carry: the options, ids and, per row, the 3D source
         (``src3``, ``own3``); with output "filtered" also the lane's own image and 3D boxes. (With
         output "detections" a row's image box, score and 3D box follow from the options, its slot and
-        its 3D source, on the one split.)"""
+        its 3D source, on the one split.) ``base``: the lanes' digests of ids and own image boxes
+        (:meth:`dfrmot_jax.metrics.evaluate.LaneScorer.digests`), extended here instead of
+        hashing them again."""
         ids = np.asarray(res.ids)
         rows = ids >= 0
-        src = np.where(rows, res.src3, -2).astype(np.int32)
-        own = rows & np.asarray(res.own3, bool)
-        extra = (res.boxes, res.box3) if res.options.output == "filtered" else ()
+        filtered = res.options.output == "filtered"
+        src, own = np.asarray(res.src3), np.asarray(res.own3)
         out = []
         for b in range(ids.shape[0]):
+            r = rows[b]
             h = hashlib.sha1(repr(res.options).encode())
-            h.update(np.ascontiguousarray(ids[b]).tobytes())
-            h.update(src[b].tobytes())
-            h.update(np.packbits(own[b]).tobytes())
-            for a in extra:
-                h.update(np.ascontiguousarray(np.asarray(a)[b][rows[b]]).tobytes())
+            if base is None:
+                h.update(np.ascontiguousarray(ids[b]).tobytes())
+                if filtered:
+                    h.update(np.ascontiguousarray(np.asarray(res.boxes)[b][r]).tobytes())
+            else:
+                h.update(base[b])
+            h.update(src[b][r].astype(np.int32).tobytes())
+            h.update(np.packbits(own[b][r]).tobytes())
+            if filtered:
+                h.update(np.ascontiguousarray(np.asarray(res.box3)[b][r]).tobytes())
             out.append(h.digest())
         return out
 
-    def score(self, res: TrackResult) -> list[dict]:
-        """{column: value} of AB3DMOT's figures for each lane of ``res`` (``track(detail=True)``)."""
-        digests = self.digests(res)
+    def score(self, res: TrackResult, base: Sequence[bytes] | None = None) -> list[dict]:
+        """{column: value} of AB3DMOT's figures for each lane of ``res`` (``track(detail=True)``);
+        ``base`` as in :meth:`digests`."""
+        digests = self.digests(res, base)
         new = [b for b, d in enumerate(digests) if d not in self.memo and d not in digests[:b]]
         if new:
             rows = kitti_rows(self.split, res, self.columns, lanes=new)
-            out = evaluate_ab3dmot_rows(self.gt, **rows._asdict(), seq_offsets=self.split.offsets, iou=self.iou)
+            out = evaluate_ab3dmot_rows(self.gt, **rows._asdict(), seq_offsets=self.split.offsets, iou=self.iou,
+                                        check_ids=False)
             for b, r in zip(new, out):
                 self.memo[digests[b]] = ab3dmot_columns(r)
         return [self.memo[d] for d in digests]

@@ -245,10 +245,10 @@ class ChunkRunner:
         p = Pending(c, slim, digests, self.scorer.new_lanes(digests, busy))
         if self.ab3dmot is not None:
             if self.ab3dmot_thread is not None:
-                p.ab3dmot = self.ab3dmot_thread.submit(self.ab3dmot.score, res)
+                p.ab3dmot = self.ab3dmot_thread.submit(self.ab3dmot.score, res, digests)
             else:
                 tm = time.perf_counter()
-                p.ab3dmot = self.ab3dmot.score(res)
+                p.ab3dmot = self.ab3dmot.score(res, digests)
                 self.timing.metrics += time.perf_counter() - tm
         if p.todo:
             dets = self.scorer.dets(res.ids, res.boxes, p.todo)
