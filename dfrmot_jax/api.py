@@ -19,7 +19,7 @@ from .data import Frames, Split, object_slots, prepare_frames
 from .config import MAX_CAPACITY, MIN_CAPACITY, Options, Params, as_arrays, batch_size, validate_params
 from .results import output_boxes
 from .core.associate import MAX_ROWS
-from .core.run import SMALL_FRAMES_MIN_T, BatchOutput, FrameHook, run_batch
+from .core.run import SMALL_FRAMES_MIN_T, BatchOutput, FrameHook, run_batch, split_objects
 
 #: objects (detection slots) per frame the greedy order keys can tell apart (core.associate.MAX_ROWS)
 MAX_OBJECTS = MAX_ROWS
@@ -142,13 +142,16 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     overflow = np.zeros(b, np.int64); peak = np.zeros(b, np.int64); capacity = np.full(b, cap0, np.int64)
     todo = np.arange(b)
     cap = cap0
+    keys = None if extra is not None else merge_keys(params)
+    objs: dict = {}
     while todo.size:
-        for start in range(0, todo.size, chunk):
-            lanes = todo[start:start + chunk]
+        for lanes, key in _calls(todo, chunk, keys):
             hook = None if extra is None else FrameHook(distort.FrameDistortion(extra[0]), _take(distortion, lanes),
                                                         extra[1:])
+            if key is not None and key not in objs:
+                objs[key] = split_objects(_take(params, lanes[:1]), frames, options)
             out = run_batch(_take(params, lanes), frames, options, cap, hook=hook, detail=detail,
-                            small_frames_min=small_frames_min)
+                            small_frames_min=small_frames_min, objs=None if key is None else objs[key])
             if dropped is None:
                 dropped = np.empty((b,) + out.dropped.shape[1:], np.int32)
             # contiguous lanes (every first pass) are written through a slice: no fancy-index copy
@@ -184,6 +187,40 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     return TrackResult(ids=got["ids"], boxes=boxes, dropped=dropped, overflow=overflow, peak=peak,
                        src3=got.get("src3"), own3=got.get("own3"), box3=got.get("box3"), capacity=capacity,
                        frames=frames, options=options)
+
+
+#: a batch's lanes share objects made once outside the scan (``core.run.split_objects``) when its
+#: distinct (score_2d, score_3d, merge_iou) settings have this many lanes each on average (or there
+#: is one): fewer lanes per setting would mean many small compiled calls
+SHARED_OBJECTS_MIN_LANES = 8
+
+
+def merge_keys(params: Params) -> np.ndarray | None:
+    """[B] ids of the lanes' distinct (score_2d, score_3d, merge_iou), the settings a frame's
+    objects depend on (``core.step.objects``), or None when objects are better made in the scan
+    (too few lanes per setting, ``SHARED_OBJECTS_MIN_LANES``)."""
+    b = batch_size(params)
+    triple = np.stack([np.broadcast_to(np.asarray(v, np.float64), (b,))
+                       for v in (params.score_2d, params.score_3d, params.merge_iou)], axis=1)
+    _, first, inv = np.unique(triple, axis=0, return_index=True, return_inverse=True)
+    n = len(first)
+    if n > 1 and b < SHARED_OBJECTS_MIN_LANES * n:
+        return None
+    return first[inv.reshape(-1)]            # the first lane of each setting names it
+
+
+def _calls(todo: np.ndarray, chunk: int, keys: np.ndarray | None):
+    """(lanes, key) of each compiled call: ``todo``'s lanes in chunks of at most ``chunk``; with
+    ``keys``, the lanes of one call share their key (key None: objects made in the scan)."""
+    if keys is None:
+        for start in range(0, todo.size, chunk):
+            yield todo[start:start + chunk], None
+        return
+    k = keys[todo]
+    for key in k[np.sort(np.unique(k, return_index=True)[1])]:
+        group = todo[k == key]
+        for start in range(0, group.size, chunk):
+            yield group[start:start + chunk], int(key)
 
 
 def _widen(a: np.ndarray, k: int, fill=0) -> np.ndarray:

@@ -236,3 +236,30 @@ def test_too_many_objects_per_frame_is_refused_up_front():
                 np.zeros((T, m3), bool), np.zeros((T, m3, 3), np.float32), np.zeros((T, m3, 3), np.float32))
     with pytest.raises(ValueError, match=f"at most {MAX_OBJECTS} objects per frame"):
         track(fr, stack_params([Params()]), Options())
+
+
+@pytest.mark.parametrize("options", [Options(), Options(output="filtered", filter="kalman"), Options(modality="3d"),
+                                     Options(merge="calib_projection", modality="2d")])
+def test_lanes_sharing_merge_settings_share_objects_made_outside_the_scan(scene, options, monkeypatch):
+    """Lanes with the same score_2d / score_3d / merge_iou share their objects, made once outside the
+    scan (``core.run.split_objects``): the same arrays as each step making its own, detail included."""
+    from dfrmot_jax import api
+
+    _, _, split = scene
+    rng = np.random.default_rng(17)
+    triples = [random_params(rng) for _ in range(2)]
+    lanes = []
+    for i in range(16):
+        p = random_params(rng, options.output)
+        t = triples[i % 2]
+        lanes.append(p._replace(score_2d=t.score_2d, score_3d=t.score_3d, merge_iou=t.merge_iou))
+    batch = stack_params(lanes)
+    assert api.merge_keys(batch) is not None
+    shared = track(split, batch, options, detail=True, small_frames_min=0)
+    monkeypatch.setattr(api, "SHARED_OBJECTS_MIN_LANES", 10**6)
+    assert api.merge_keys(batch) is None
+    in_scan = track(split, batch, options, detail=True, small_frames_min=0)
+    assert np.any(shared.ids >= 0)
+    for a, b in zip(shared, in_scan):
+        if isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(a, b)

@@ -22,7 +22,7 @@ from jax.sharding import PartitionSpec as P
 
 from ..config import Options, Params
 from .devices import setup_host_devices
-from .step import Frames, init, step
+from .step import Frames, Objects, init, objects, step
 
 
 class FrameHook(NamedTuple):
@@ -85,6 +85,32 @@ def _slots(frame: Frames, m2: int, m3: int) -> Frames:
                   frame.score3[:m3], frame.valid3[:m3], frame.lo3[:m3], frame.hi3[:m3])
 
 
+def _object_slots(objs: Objects | None, options: Options, m2: int, m3: int, big2: int) -> Objects | None:
+    """The objects of a frame's first m2 2D and m3 3D slots (the objects ``step`` makes of ``_slots``)."""
+    if objs is None:
+        return None
+    if options.modality == "2d":
+        return Objects(*(x[:m2] for x in objs))
+    if options.modality == "3d":
+        return Objects(*(x[:m3] for x in objs))
+    return Objects(*(jnp.concatenate([x[:m2], x[big2:big2 + m3]]) for x in objs))
+
+
+def split_objects(params: Params, frames: Frames, options: Options) -> Objects:
+    """The :class:`~dfrmot_jax.core.step.Objects` of every frame ([T, O, ...]) for one setting of
+    ``score_2d``, ``score_3d``, ``merge_iou`` (``params``: scalars; the other fields are not read),
+    made in one vmapped call outside the scan, once for every lane that shares them."""
+    fn = _OBJECT_PROGRAMS.get(options)
+    if fn is None:
+        fn = _OBJECT_PROGRAMS[options] = jax.jit(jax.vmap(lambda p, f: objects(p, f, options), in_axes=(None, 0)))
+    with jax.enable_x64(True):
+        p = Params(*(jnp.asarray(v, jnp.int32 if np.asarray(v).dtype.kind in "iub" else jnp.float64) for v in params))
+        return fn(p, Frames(*(jnp.asarray(x) for x in frames)))
+
+
+_OBJECT_PROGRAMS: dict = {}
+
+
 def _padded(out, options: Options, m2: int, m3: int, big2: int, big3: int):
     """A small frame's output in the full object-slot layout (output "detections"; the padding is
     what an empty slot writes: no id, no 3D source)."""
@@ -106,7 +132,7 @@ def _padded(out, options: Options, m2: int, m3: int, big2: int, big3: int):
 
 
 def run(params: Params, frames: Frames, options: Options, capacity: int, hook: FrameHook | None = None,
-        detail: bool = False, small=None, small_flags=None):
+        detail: bool = False, small=None, small_flags=None, objs: Objects | None = None):
     """One lane over all frames: (final Memory, StepOutput stacked [T, ...]).
 
     hook: each frame is first transformed by ``hook.fn``; the written boxes are then the lane's own
@@ -118,27 +144,27 @@ def run(params: Params, frames: Frames, options: Options, capacity: int, hook: F
     xs = None if hook is None else hook.xs
     big2, big3 = frames.valid2.shape[1], frames.valid3.shape[1]
 
-    def one(m, frame, ti):
-        m, out = step(params, m, frame, options, detail=detail, t=ti, stride3=big3)
+    def one(m, frame, ti, obj):
+        m, out = step(params, m, frame, options, detail=detail, t=ti, stride3=big3, objs=obj)
         if hook is None and options.output == "detections":
             out = out._replace(boxes=out.boxes[:, :0])    # the data's boxes: not computed per lane
         return m, out
 
     def body(m, inputs):
-        frame, x, ti, flag = inputs
+        frame, x, ti, flag, obj = inputs
         if hook is not None:
             frame = hook.fn(frame, hook.lane, x, ti)
         if small is None:
-            return one(m, frame, ti)
+            return one(m, frame, ti, obj)
         m2, m3 = small
 
         def on_first_slots(mm):
-            mm, out = one(mm, _slots(frame, m2, m3), ti)
+            mm, out = one(mm, _slots(frame, m2, m3), ti, _object_slots(obj, options, m2, m3, big2))
             return mm, _padded(out, options, m2, m3, big2, big3)
 
-        return jax.lax.cond(flag, on_first_slots, lambda mm: one(mm, frame, ti), m)
+        return jax.lax.cond(flag, on_first_slots, lambda mm: one(mm, frame, ti, obj), m)
 
-    return jax.lax.scan(body, init(options, capacity, params), (frames, xs, t, small_flags))
+    return jax.lax.scan(body, init(options, capacity, params), (frames, xs, t, small_flags, objs))
 
 
 class BatchOutput(NamedTuple):
@@ -159,13 +185,14 @@ class BatchOutput(NamedTuple):
 _PROGRAMS: dict[tuple, Any] = {}
 
 
-def compiled(options: Options, capacity: int, n_devices: int, hook_fn=None, detail: bool = False, small=None):
+def compiled(options: Options, capacity: int, n_devices: int, hook_fn=None, detail: bool = False, small=None,
+             shared_objects: bool = False):
     """The jitted batch program of one static setting, built once and kept (``_PROGRAMS``).
 
     Called with (params [B], frames, hook lanes [B] or None, hook xs or None, small-frame flags [T]
-    or None).
+    or None, the lanes' shared objects [T, O, ...] or None (``shared_objects``)).
     """
-    key = (options, capacity, n_devices, hook_fn, detail, small)
+    key = (options, capacity, n_devices, hook_fn, detail, small, shared_objects)
     if key not in _PROGRAMS:
         _PROGRAMS[key] = _build(*key)
     return _PROGRAMS[key]
@@ -177,18 +204,18 @@ def compilations() -> int:
     return sum(max(1, fn._cache_size()) for fn in _PROGRAMS.values())
 
 
-def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: bool, small):
-    def lane(params, frames, hook_lane, hook_xs, flags):
+def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: bool, small, shared_objects: bool):
+    def lane(params, frames, hook_lane, hook_xs, flags, objs):
         hook = None if hook_fn is None else FrameHook(hook_fn, hook_lane, hook_xs)
-        mem, out = run(params, frames, options, capacity, hook, detail, small, flags)
+        mem, out = run(params, frames, options, capacity, hook, detail, small, flags, objs)
         return out, mem.overflow, mem.peak
 
-    batched = jax.vmap(lane, in_axes=(0, None, 0, None, None))
+    batched = jax.vmap(lane, in_axes=(0, None, 0, None, None, None))
     if n_devices == 1:
         return jax.jit(batched)
 
     mesh = Mesh(np.array(jax.devices()[:n_devices]), ("b",))
-    sharded = jax.shard_map(batched, mesh=mesh, in_specs=(P("b"), P(), P("b"), P(), P()), out_specs=P("b"),
+    sharded = jax.shard_map(batched, mesh=mesh, in_specs=(P("b"), P(), P("b"), P(), P(), P()), out_specs=P("b"),
                             check_vma=False)
     return jax.jit(sharded)
 
@@ -211,13 +238,15 @@ def _lanes(tree, b: int, pad: int, float_dtype):
 
 def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n_devices: int | None = None,
               hook: FrameHook | None = None, detail: bool = False,
-              small_frames_min: int | None = SMALL_FRAMES_MIN_T) -> BatchOutput:
+              small_frames_min: int | None = SMALL_FRAMES_MIN_T, objs: Objects | None = None) -> BatchOutput:
     """All lanes of a ``Params`` batch [B] over the split; the batch is split over ``n_devices``.
 
     hook: a ``FrameHook`` whose ``lane`` leaves are [B] (float leaves as float32) and ``xs`` leaves
     [T, ...]; detail: also the rows' 3D detections (``StepOutput.src3``; for result files).
     small_frames_min: run frames with few detections on a smaller copy of the step on splits of at
     least this many frames (``small_frames``; None: one size; the results are the same).
+    objs: every lane's objects, made once outside the scan (``split_objects``; the lanes must share
+    ``score_2d``, ``score_3d`` and ``merge_iou``; not with a hook); None: each step makes them.
     Returns BatchOutput (numpy). Lanes are padded to a multiple of the device count and trimmed.
     """
     b = max(np.atleast_1d(np.asarray(v)).shape[0] for v in params)
@@ -234,8 +263,10 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
                 small, flags = found[0], jnp.asarray(found[1])
         else:
             fn, lanes, xs = hook.fn, _lanes(hook.lane, b, pad, jnp.float32), jax.tree.map(jnp.asarray, hook.xs)
-        program = compiled(options, capacity, n_dev, fn, detail, small)
-        out, overflow, peak = program(p, Frames(*(jnp.asarray(x) for x in frames)), lanes, xs, flags)
+        if objs is not None and hook is not None:
+            raise ValueError("objects made outside the scan cannot follow a frame hook")
+        program = compiled(options, capacity, n_dev, fn, detail, small, objs is not None)
+        out, overflow, peak = program(p, Frames(*(jnp.asarray(x) for x in frames)), lanes, xs, flags, objs)
     out = jax.tree.map(lambda x: np.asarray(x)[:b], out)
     return BatchOutput(out.ids, out.boxes, out.dropped, np.asarray(overflow)[:b], np.asarray(peak)[:b],
                        out.src3, out.own3, out.box3)

@@ -84,9 +84,22 @@ def kalman_noise(params: Params):
     return jnp.where(_IS_2D, q, q3), jnp.where(_IS_2D, r, r3)
 
 
-def _objects(params: Params, frame: Frames, options: Options):
-    """This frame's objects: box [O, 4], z3 [O, 6] (3D min, max corners), has3d [O], valid [O],
-    slot3 [O] int32 the 3D detection slot of each object (meaningful where has3d).
+class Objects(NamedTuple):
+    """A frame's objects after the 2D/3D de-duplication (leading axis T when made for a whole split,
+    ``core.run.split_objects``): box [O, 4] float64, z3 [O, 6] float64 (3D min, max corners), has3
+    [O] bool, valid [O] bool, slot3 [O] int32 the 3D detection slot of each object (meaningful where
+    has3). O: the 2D slots then the 3D slots (fused), or the one modality's slots."""
+
+    box: jnp.ndarray
+    z3: jnp.ndarray
+    has3: jnp.ndarray
+    valid: jnp.ndarray
+    slot3: jnp.ndarray
+
+
+def objects(params: Params, frame: Frames, options: Options) -> Objects:
+    """This frame's :class:`Objects`. They depend on ``score_2d``, ``score_3d`` and ``merge_iou``
+    only: lanes sharing those share them (``core.run`` then makes them once, outside the scan).
 
     Scores are compared in float32 (as parsed); boxes and corners come out in float64.
     """
@@ -97,33 +110,34 @@ def _objects(params: Params, frame: Frames, options: Options):
     z3 = jnp.concatenate([frame.lo3, frame.hi3], axis=-1).astype(jnp.float64)
     slots3 = jnp.arange(keep3.shape[0], dtype=jnp.int32)
     if options.modality == "2d":
-        return (box2, jnp.zeros((keep2.shape[0], 6), jnp.float64), jnp.zeros_like(keep2), keep2,
-                jnp.zeros(keep2.shape, jnp.int32))
+        return Objects(box2, jnp.zeros((keep2.shape[0], 6), jnp.float64), jnp.zeros_like(keep2), keep2,
+                       jnp.zeros(keep2.shape, jnp.int32))
     if options.modality == "3d":
-        return box3, z3, keep3, keep3, slots3
+        return Objects(box3, z3, keep3, keep3, slots3)
     pair = associate.greedy_max(boxes.iou_matrix(box2, box3),
                                 keep2[:, None] & keep3[None, :], params.merge_iou)
     paired2 = jnp.any(pair, axis=1)
     lone3 = keep3 & ~jnp.any(pair, axis=0)
     z3_of_2 = memory.gather_rows(pair.T, z3)                       # [M2, 6], zeros where unpaired
-    return (jnp.concatenate([box2, box3]), jnp.concatenate([z3_of_2, z3]),
-            jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]),
-            jnp.concatenate([memory.gather_rows(pair.T, slots3), slots3]))
+    return Objects(jnp.concatenate([box2, box3]), jnp.concatenate([z3_of_2, z3]),
+                   jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]),
+                   jnp.concatenate([memory.gather_rows(pair.T, slots3), slots3]))
 
 
 def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: bool = False, t=0,
-         stride3: int | None = None):
+         stride3: int | None = None, objs: Objects | None = None):
     """One frame: de-duplicate, associate, update memory and filters, write, age. Returns (mem, out).
 
     detail (static): also the 3D detection each row carries (``StepOutput.src3``); t: the frame's
     global index; stride3 (static): the split's 3D slots per frame M3, the stride of ``src3``'s flat
     index ``t * M3 + slot`` (default: this frame's slots; a frame cut to its first slots passes the
-    full count). Runs under ``jax.enable_x64``: arithmetic and parameters in float64, scores
+    full count); objs: the frame's :class:`Objects` when made outside (they must be ``objects`` of
+    these params and this frame), else made here. Runs under ``jax.enable_x64``: arithmetic and parameters in float64, scores
     compared in float32.
     """
     kind = options.filter
     mem = memory.reset(mem, frame.reset)
-    box, z3, has3, valid, slot3 = _objects(params, frame, options)
+    box, z3, has3, valid, slot3 = objects(params, frame, options) if objs is None else objs
 
     # Association on the tracks' predictions.
     f = mem.filt
