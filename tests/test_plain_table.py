@@ -8,6 +8,8 @@ file, and the same outcome (arrays or the located error) on malformed files.
 
 from __future__ import annotations
 
+from decimal import Decimal
+
 import numpy as np
 import pytest
 
@@ -185,3 +187,26 @@ def test_plain_columns_reads_fields_or_says_no():
                       (b"1 a inf\n", None), (b"1 a x\n", None), (b"1  2\n", None), (b"1 a 2\n\n3 b 4\n", None),
                       (b"1,,2\n", ","), (b"1, a,2\n", ","), (b"1,a,2,\n", ","), (b"1 a 2 \n", None)):
         assert plain_columns(data, sep, 3, (1,)) is None, data
+
+
+def test_numbers_are_read_as_pythons_float_reads_them():
+    """pyarrow's numbers are the line reader's (Python's ``float``, numpy's conversion) bit for bit:
+    random decimal strings of up to 25 digits with and without exponents and signs, and the
+    halfway points between neighbouring doubles (where a parser that is not correctly rounded errs)."""
+    rng = np.random.default_rng(7)
+    toks = []
+    for _ in range(20000):
+        digits = "".join(map(str, rng.integers(0, 10, rng.integers(1, 26))))
+        k = int(rng.integers(0, len(digits) + 1))
+        s = digits[:k] + "." + digits[k:] if rng.random() < 0.8 and len(digits) > 1 else digits
+        if rng.random() < 0.3:
+            s += f"{'eE'[int(rng.integers(2))]}{['', '+', '-'][int(rng.integers(3))]}{int(rng.integers(0, 280))}"
+        toks.append(["", "+", "-"][int(rng.integers(3))] + s)
+    for _ in range(2000):
+        x = float(rng.random() * 10.0 ** int(rng.integers(-300, 300)))
+        toks.append(str((Decimal(x) + Decimal(np.nextafter(x, np.inf))) / 2))
+    toks += ["2.2250738585072011e-308", "4.9e-324", "1e-400", "-0", "0.30000000000000004", "9007199254740993"]
+    (col,) = plain_columns("\n".join(toks).encode(), None, 1)
+    want = np.array([float(t) for t in toks])
+    assert col.view(np.int64).tolist() == want.view(np.int64).tolist()
+    assert want.view(np.int64).tolist() == np.array(toks, dtype=np.float64).view(np.int64).tolist()
