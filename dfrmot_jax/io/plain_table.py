@@ -82,7 +82,7 @@ def plain_columns(data: bytes, sep: str | None, ncols: int, string_columns: Sequ
             convert_options=pacsv.ConvertOptions(column_types=types, null_values=[], strings_can_be_null=False,
                                                  quoted_strings_can_be_null=False),
         )
-    except pa.ArrowInvalid:
+    except pa.ArrowException:      # whatever pyarrow refuses, the line reader reads (and names)
         return None
     out = []
     for i in range(ncols):
