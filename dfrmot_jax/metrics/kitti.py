@@ -116,7 +116,7 @@ def _class_ids(types: np.ndarray, path, kio, rows: np.ndarray | None = None) -> 
 def _distinct(types: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """[R] object type names -> ([R] int64 index into the names, [U] str the distinct names in order of
     appearance). pandas' hashing factorize: over all KITTI labels ~1 ms, np.unique ~6 ms, np.char.lower ~12 ms."""
-    code, uniq = pd.factorize(types)
+    code, uniq = pd.factorize(types, use_na_sentinel=False)   # every value its own name (no -1 for missing)
     return code.astype(np.int64), np.asarray(uniq, dtype=str).reshape(-1)
 
 
