@@ -9,6 +9,7 @@ import pytest
 
 from dfrmot_jax.io.kitti import KittiFormatError
 from dfrmot_jax.metrics import DuplicateIdError, evaluate_arrays, evaluate_files, prepare_gt
+from dfrmot_jax.metrics.kitti import class_sequences
 
 ROW = "{f} {i} {t} -1 -1 -10 {x1} {y1} {x2} {y2} -1 -1 -1 -1000 -1000 -1000 -10 1\n"
 
@@ -57,6 +58,27 @@ def test_non_numeric_id(tmp_path, gt0):
 def test_unknown_class(tmp_path, gt0):
     text = _row(0) + _row(1, t="Person_sitting")
     _raises(_write(tmp_path, text), gt0, "type", 2)
+
+
+def test_unknown_classes_the_first_by_name_is_named_at_its_first_row(tmp_path, gt0):
+    text = _row(0) + _row(1, t="Zebra") + _row(1, i=2, t="Bus") + _row(2, t="Bus")
+    e = _raises(_write(tmp_path, text), gt0, "type", 3)
+    assert "unknown class" in str(e) and "Bus" in str(e) and "Zebra" not in str(e), str(e)
+
+
+def test_ground_truth_type_names_in_any_case(tmp_path):
+    label = "{f} {i} {t} 0 0 -10 {x} 100 {x2} 180 1.5 1.6 4 1 1.8 20 0\n"
+    rows = [(0, -1, "DontCare"), (0, -1, "dontcare"), (0, 1, "CAR"), (1, 2, "car"), (1, 3, "Van"),
+            (1, 4, "DONTCARE"), (2, 5, "Pedestrian"), (2, -1, "Person_sitting")]
+    (tmp_path / "label_02").mkdir()
+    (tmp_path / "label_02" / "0000.txt").write_text("".join(label.format(f=f, i=i, t=t, x=100 + 10 * k, x2=200 + 10 * k)
+                                                            for k, (f, i, t) in enumerate(rows)))
+    gt = prepare_gt(tmp_path, "car", ["0000"])
+    assert len(gt.dc_box) == 3 and gt.dc_box[:, 0].tolist() == [100, 110, 150]   # DontCare whatever its case or id
+    assert int(gt.n_gt_dets.sum()) == 2 and gt.row_eval.tolist() == [True, True, False]   # CAR, car; the Van
+    assert class_sequences(tmp_path, "car") == ("0000",) and class_sequences(tmp_path, "pedestrian") == ("0000",)
+    (tmp_path / "label_02" / "0000.txt").write_text(label.format(f=0, i=1, t="Van", x=1, x2=2))
+    assert class_sequences(tmp_path, "car") == ()
 
 
 def test_duplicate_id_in_frame(tmp_path, gt0):

@@ -16,6 +16,7 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .columns import format_lines
+from .plain_table import first_line, plain_columns, plain_text
 
 __all__ = [
     "KittiFormatError",
@@ -198,17 +199,26 @@ def _parse_table(path, layouts: dict, check_dims: bool) -> tuple[tuple[str, ...]
     ``layouts`` maps ``(separator, column count)`` (separator ``","`` or ``None`` for whitespace)
     to the field names of that layout. Returns the field names of the layout found and a dict
     field -> array ([R] float64, [R] int64 for frame/track_id, [R] object for string fields).
+    A plain file (:mod:`dfrmot_jax.io.plain_table`) is read in one pass and checked by the same
+    :func:`_checked_columns`; any problem, or any other file, is read line by line (located errors).
     """
+    data = plain_text(path)
+    sep, ncols, fields = (None, 0, None) if data is None else _layout(first_line(data), layouts)
+    cols = fields and plain_columns(data, sep, ncols, [i for i, n in enumerate(fields) if n in _STRING_FIELDS])
+    if cols is not None:           # any problem: the line reader below names the first (its messages need tokens)
+        values = np.column_stack([c for c, n in zip(cols, fields) if n not in _STRING_FIELDS])
+        strings = {n: c for c, n in zip(cols, fields) if n in _STRING_FIELDS}
+        columns, problems = _checked_columns(fields, values, None, strings, lambda r, name: "", check_dims)
+        if not problems:
+            return fields, columns
+
     text = read_text_file(path)
     lines = text.lines
     if not lines:
         fields = next(iter(layouts.values()))
         return fields, _empty_columns(fields)
 
-    first = lines[0]
-    sep = "," if ("," in first and any(s == "," for (s, _) in layouts)) else None
-    ncols = first.count(",") + 1 if sep == "," else len(first.split())
-    fields = layouts.get((sep, ncols))
+    sep, ncols, fields = _layout(lines[0], layouts)
     if fields is None:
         raise KittiFormatError(text.path, text.line_numbers[0], "columns", _columns_message(layouts, sep, ncols))
 
@@ -235,6 +245,13 @@ def _parse_table(path, layouts: dict, check_dims: bool) -> tuple[tuple[str, ...]
             text.path, text.line_numbers[bad], "columns", _columns_message({(sep, ncols): fields}, sep, counts[bad])
         )
     return fields, columns
+
+
+def _layout(first: str, layouts: dict) -> tuple[str | None, int, tuple | None]:
+    """(separator, column count, field names or None) of a table whose first non-blank line is ``first``."""
+    sep = "," if ("," in first and any(s == "," for (s, _) in layouts)) else None
+    ncols = first.count(",") + 1 if sep == "," else len(first.split())
+    return sep, ncols, layouts.get((sep, ncols))
 
 
 def _first_mismatch(counts: list[int], n: int) -> int | None:
@@ -276,11 +293,25 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
                         unparsable = np.zeros(values.shape, dtype=bool)
                     unparsable[r, j] = True
 
+    strings = {}
+    for i, name in enumerate(fields):
+        if name in _STRING_FIELDS:
+            strings[name] = np.empty(nrows, dtype=object)
+            strings[name][:] = [s.strip() for s in tokens[i::ncols]]
+    out, problems = _checked_columns(fields, values, unparsable, strings,
+                                     lambda r, name: tokens[r * ncols + fields.index(name)], check_dims)
+    if problems:
+        r, _, name, message = min(problems, key=lambda p: (p[0], p[1]))
+        raise KittiFormatError(text.path, text.line_numbers[r], name, message)
+    return out
+
+
+def _checked_columns(fields: Sequence[str], values: np.ndarray, unparsable: np.ndarray | None, strings: dict,
+                     token, check_dims: bool) -> tuple[dict[str, np.ndarray], list]:
+    """(columns, problems ``(row, priority, field, message)``) of a table. values: [R, K] float64 the numeric
+    fields (NaN where ``unparsable`` [R, K] or None); strings: field -> [R] object str; token(r, name): its text."""
+    numeric = [i for i, name in enumerate(fields) if name not in _STRING_FIELDS]
     problems: list[tuple[int, int, str, str]] = []
-
-    def token(r: int, name: str) -> str:
-        return tokens[r * ncols + fields.index(name)]
-
     nonfinite = ~np.isfinite(values)
     if nonfinite.any():
         r, j = divmod(int(np.argmax(nonfinite)), values.shape[1])
@@ -303,9 +334,7 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
             problems.append((r, 1, name, f"too large (at most {most}): {quoted(token(r, name))}"))
 
     def first(mask: np.ndarray) -> int | None:
-        if mask.any():
-            return int(np.argmax(mask))
-        return None
+        return int(np.argmax(mask)) if mask.any() else None
 
     for name in _INT_FIELDS:
         if name in col:
@@ -340,21 +369,12 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
             name = _DIM_FIELDS[j]
             problems.append((r, 6, name, f"negative 3D size {name} = {quoted(token(r, name))}"))
 
-    strings = {}
-    for i, name in enumerate(fields):
-        if name in _STRING_FIELDS:
-            vals = [s.strip() for s in tokens[i::ncols]]
-            r = next((k for k, s in enumerate(vals) if not s), None)
-            if r is not None:
-                problems.append((r, 7, name, "empty"))
-            arr = np.empty(nrows, dtype=object)
-            arr[:] = vals
-            strings[name] = arr
-
+    for name, vals in strings.items():
+        r = first(vals == "")
+        if r is not None:
+            problems.append((r, 7, name, "empty"))
     if problems:
-        r, _, name, message = min(problems, key=lambda p: (p[0], p[1]))
-        raise KittiFormatError(text.path, text.line_numbers[r], name, message)
-
+        return {}, problems
     out: dict[str, np.ndarray] = {}
     for name in fields:
         if name in strings:
@@ -363,7 +383,7 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
             out[name] = col[name].astype(np.int64)
         else:
             out[name] = col[name]
-    return out
+    return out, problems
 
 
 def _stack(c: dict[str, np.ndarray], names: Sequence[str]) -> np.ndarray:

@@ -33,6 +33,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .kitti import KittiFormatError, quoted, read_text_file
+from .plain_table import first_line, plain_columns, plain_text
 
 __all__ = ["ResultRows", "read_result_rows", "parse_floats", "MIN_COLUMNS"]
 
@@ -85,8 +86,23 @@ def read_result_rows(path) -> ResultRows:
     """Read a KITTI tracking result file by TrackEval's rules (module docstring).
 
     Returns the kept rows (:class:`ResultRows`); raises :class:`KittiFormatError` naming file,
-    line and field for what TrackEval cannot read or score.
+    line and field for what TrackEval cannot read or score. A plain file
+    (:mod:`dfrmot_jax.io.plain_table`) is read in one pass and checked by the same :func:`_kept_rows`;
+    any problem, or any other file, is read line by line.
     """
+    data = plain_text(path)
+    first = "" if data is None else first_line(data)
+    sep = "," if "," in first else None
+    width = len(first.split(sep))
+    cols = plain_columns(data, sep, width, (2,)) if width >= MIN_COLUMNS else None
+    if cols is not None:       # any problem: the line reader below names the first (its messages need tokens)
+        n = len(cols[0])
+        kept, problems = _kept_rows(np.full(n, width), lambda j, rows: (cols[j][rows], np.ones(len(rows), bool)),
+                                    lambda r, j: "", range(1, n + 1))
+        if not problems:
+            frame, track_id, box, keep = kept
+            return ResultRows(frame, track_id, cols[2][keep], box, keep)
+
     text = read_text_file(path)
     lines = text.lines
     sep = "," if lines and "," in lines[0] else None
@@ -101,22 +117,40 @@ def read_result_rows(path) -> ResultRows:
         tok = np.empty((len(split), width), dtype=object)
         for k, r in enumerate(split):
             tok[k] = r + [""] * (width - len(r))
+    kept, problems = _kept_rows(count, lambda j, rows: parse_floats(tok[rows, j]), lambda r, j: tok[r, j],
+                                text.line_numbers)
+    if problems:
+        r, _, name, message = min(problems, key=lambda p: (p[0], p[1]))
+        raise KittiFormatError(text.path, text.line_numbers[r], name, message)
+    kf, kt, box, keep = kept
+    types = np.empty(len(keep), dtype=object)
+    types[:] = [str(s).strip() for s in tok[keep, 2]]
+    return ResultRows(kf, kt, types, box, keep)
 
+
+def _kept_rows(count: np.ndarray, floats, token, line_numbers) -> tuple[tuple, list]:
+    """((frame, track_id, box, kept row indices), problems ``(row, column, field, message)``) of a table.
+
+    count: [n] fields per row; floats(j, rows): ([len(rows)] float64 of field j at row indices
+    ``rows``, NaN where not read; [len(rows)] bool read); token(r, j): the text of a field and
+    line_numbers[r] a row's line, for the messages.
+    """
     problems: list[tuple[int, int, str, str]] = []           # (row, column, field, message)
+    width = int(count.max(initial=0))
 
     def flag(mask: np.ndarray, rows: np.ndarray, j: int, message) -> None:
         if mask.any():
             r = int(rows[np.argmax(mask)])
             problems.append((r, j, _field(j) if j >= 0 else "columns", message(r)))
 
-    every = np.arange(len(split))
+    every = np.arange(len(count))
     flag(count < 3, every, -1, lambda r: f"expected at least 3 columns ({MIN_COLUMNS} on a row with an id >= 0), "
                                          f"got {count[r]}")
-    frame, frame_ok = parse_floats(tok[:, 0])
-    tid, id_ok = parse_floats(tok[:, 1])
+    frame, frame_ok = floats(0, every)
+    tid, id_ok = floats(1, every)
     for j, v, ok in ((0, frame, frame_ok), (1, tid, id_ok)):
-        flag(~ok, every, j, lambda r, j=j: f"not a number: {quoted(tok[r, j])}")
-        flag(ok & ~np.isfinite(v), every, j, lambda r, j=j: f"not finite: {quoted(tok[r, j])}")
+        flag(~ok, every, j, lambda r, j=j: f"not a number: {quoted(token(r, j))}")
+        flag(ok & ~np.isfinite(v), every, j, lambda r, j=j: f"not finite: {quoted(token(r, j))}")
     with np.errstate(invalid="ignore"):
         frame, tid = np.trunc(frame), np.trunc(tid)
         keep = np.flatnonzero(id_ok & np.isfinite(tid) & (tid >= 0) & (count >= 3))
@@ -124,17 +158,17 @@ def read_result_rows(path) -> ResultRows:
     flag(kc < MIN_COLUMNS, keep, -1, lambda r: f"expected at least {MIN_COLUMNS} columns (frame id type truncated "
                                                f"occluded alpha x1 y1 x2 y2 ...), got {count[r]}")
     kf, kt = frame[keep], tid[keep]
-    flag(kt > _ID_MAX, keep, 1, lambda r: f"too large (at most {_ID_MAX}): {quoted(tok[r, 1])}")
-    flag(np.isfinite(kf) & (kf < 0), keep, 0, lambda r: f"negative frame {quoted(tok[r, 0])}")
+    flag(kt > _ID_MAX, keep, 1, lambda r: f"too large (at most {_ID_MAX}): {quoted(token(r, 1))}")
+    flag(np.isfinite(kf) & (kf < 0), keep, 0, lambda r: f"negative frame {quoted(token(r, 0))}")
     flag(np.isfinite(kf) & (kf > _FRAME_MAX), keep, 0, lambda r: f"too large (at most {_FRAME_MAX}): "
-                                                                 f"{quoted(tok[r, 0])}")
+                                                                 f"{quoted(token(r, 0))}")
     box = np.zeros((len(keep), 4))
     for j in range(3, width):
         has = kc > j
-        v, ok = parse_floats(tok[keep[has], j])
-        flag(~ok, keep[has], j, lambda r, j=j: f"not a number: {quoted(tok[r, j])}")
+        v, ok = floats(j, keep[has])
+        flag(~ok, keep[has], j, lambda r, j=j: f"not a number: {quoted(token(r, j))}")
         if _BOX.start <= j < _BOX.stop:
-            flag(ok & ~np.isfinite(v), keep[has], j, lambda r, j=j: f"not finite: {quoted(tok[r, j])}")
+            flag(ok & ~np.isfinite(v), keep[has], j, lambda r, j=j: f"not finite: {quoted(token(r, j))}")
             box[has, j - _BOX.start] = v
     # TrackEval stacks the kept rows of a frame into one array: they must have the same length. Of a
     # frame whose rows differ, the rows off the file's own count (its most common one among kept
@@ -163,12 +197,9 @@ def read_result_rows(path) -> ResultRows:
         def ragged(r):
             j = int(np.flatnonzero(keep == r)[0])
             o = other[group[j]]
-            return (f"{count[r]} columns, but the file's rows have {usual} (line {text.line_numbers[o]} of the same "
+            return (f"{count[r]} columns, but the file's rows have {usual} (line {line_numbers[o]} of the same "
                     f"frame has {count[o]})")
         flag(odd, keep, -1, ragged)
     if problems:
-        r, _, name, message = min(problems, key=lambda p: (p[0], p[1]))
-        raise KittiFormatError(text.path, text.line_numbers[r], name, message)
-    types = np.empty(len(keep), dtype=object)
-    types[:] = [str(s).strip() for s in tok[keep, 2]]
-    return ResultRows(kf.astype(np.int64), kt.astype(np.int64), types, box, keep.astype(np.int64))
+        return (), problems
+    return (kf.astype(np.int64), kt.astype(np.int64), box, keep.astype(np.int64)), problems

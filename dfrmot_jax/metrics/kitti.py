@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import NamedTuple, Sequence
 
 import numpy as np
+import pandas as pd
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.io.result_rows import read_result_rows
@@ -97,21 +98,26 @@ def _class_ids(types: np.ndarray, path, kio, rows: np.ndarray | None = None) -> 
 
     ``rows`` [R]: file row of each entry (for the error's line number); default 0..R-1.
     """
-    out = np.zeros(len(types), dtype=np.int64)
-    if len(types) == 0:
-        return out
-    uniq, inv = np.unique(types.astype(str), return_inverse=True)
+    code, uniq = _distinct(types)
     ids = np.empty(len(uniq), dtype=np.int64)
-    for k, name in enumerate(uniq):
+    for k in np.argsort(uniq, kind="stable"):        # names in sorted order: the first unknown one is named
+        name = uniq[k]
         cid = CLASS_NAME_TO_ID.get(name.lower())
         if cid is None:
-            r = int(np.flatnonzero(inv.reshape(-1) == k)[0])
+            r = int(np.flatnonzero(code == k)[0])
             r = r if rows is None else int(rows[r])
             raise kio.KittiFormatError(path, kio.line_of_row(path, r) or r + 1, "type",
                                        f"unknown class {name!r} (TrackEval accepts "
                                        f"{', '.join(sorted(CLASS_NAME_TO_ID))}; case-insensitive)")
         ids[k] = cid
-    return ids[inv.reshape(-1)]
+    return ids[code]
+
+
+def _distinct(types: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[R] object type names -> ([R] int64 index into the names, [U] str the distinct names in order of
+    appearance). pandas' hashing factorize: over all KITTI labels ~1 ms, np.unique ~6 ms, np.char.lower ~12 ms."""
+    code, uniq = pd.factorize(types, use_na_sentinel=False)   # every value its own name (no -1 for missing)
+    return code.astype(np.int64), np.asarray(uniq, dtype=str).reshape(-1)
 
 
 @dataclass(eq=False)
@@ -209,9 +215,9 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
         lab = kio.read_tracking_labels(path)
         length = int(lab.frame.max()) + 1 if lab.frame.size else 0
         lengths.append(length)
-        types = np.char.lower(lab.type.astype(str)) if lab.type.size else np.zeros(0, dtype=str)
-        is_dc = types == "dontcare"
-        cid = np.zeros(len(types), dtype=np.int64)
+        code, uniq = _distinct(lab.type)
+        is_dc = (np.char.lower(uniq) == "dontcare")[code]
+        cid = np.zeros(len(code), dtype=np.int64)
         nd = ~is_dc & (lab.track_id >= 0)  # TrackEval skips negative ids before mapping class names
         cid[nd] = _class_ids(lab.type[nd], path, kio, np.flatnonzero(nd))
         use = nd & np.isin(cid, classes)
@@ -294,8 +300,8 @@ def class_sequences(root, cls: str = "car", sequences: Sequence | None = None) -
         cand = [_seq_name(s) for s in sequences]
     out = []
     for name in cand:
-        types = kio.read_tracking_labels(label_dir / f"{name}.txt").type
-        if types.size and np.isin(np.char.lower(types.astype(str)), list(names_of_cls)).any():
+        uniq = _distinct(kio.read_tracking_labels(label_dir / f"{name}.txt").type)[1]
+        if np.isin(np.char.lower(uniq), list(names_of_cls)).any():
             out.append(name)
     return tuple(out)
 
