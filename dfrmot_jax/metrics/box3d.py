@@ -21,7 +21,11 @@ across it (KITTI devkit ``computeBox3D``, AB3DMOT ``Box3D.box2corners3d_camcoord
   area_b)]``, snapped to the smaller area when within 1e-9 of it (nested and identical boxes are
   exact: identical boxes give IoU 1, where AB3DMOT's polygon clipping divides by zero) and to 0
   when below 1e-9 of the larger area (touching boxes give 0). The height overlap is snapped to
-  the shorter height likewise, so that identical boxes give exactly 1.
+  the shorter height likewise, so that identical boxes give exactly 1. The price of the
+  tolerance: a corner lying within it outside the other box counts as inside, so a nearly
+  degenerate pair (a long thin box turned by 1e-7 rad) may be off by a sliver of at most
+  tolerance x longest edge (IoU within ``1e-9 + 8e-9 * size**2 / union`` of exact; measured
+  2e-9 on a 6 m x 0.2 m box; elsewhere within 1e-9 of Shapely).
 * **IoU**: ``I / (V_a + V_b - I)`` with ``I = area * height overlap`` (3D) or ``I = area`` (BEV),
   AB3DMOT's formula and order of operations; 0 when the union is 0 (two zero-volume boxes).
   Pairs whose circumscribed circles or height ranges are apart are 0 without the polygon work.
