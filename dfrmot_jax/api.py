@@ -15,7 +15,7 @@ import numpy as np
 
 from . import distort
 from .core.devices import setup_host_devices
-from .data import Frames, Split, object_slots, prepare_frames
+from .data import Frames, Split, compact_slots, object_slots, prepare_frames
 from .config import MAX_CAPACITY, MIN_CAPACITY, Options, Params, as_arrays, batch_size, validate_params
 from .results import output_boxes
 from .core.associate import MAX_ROWS
@@ -97,7 +97,7 @@ def prepare_distortion(split: Split, frames: Frames, options: Options, dps: dist
 def track(split: Split | Frames, params: Params, options: Options = Options(), *, chunk: int = 64,
           grow: bool = True, progress=None, distortion: distort.DistortParams | None = None,
           spec: distort.DistortSpec | None = None, clutter_slots: int = 0, detail: bool = False,
-          small_frames_min: int | None = SMALL_FRAMES_MIN_T) -> TrackResult:
+          small_frames_min: int | None = SMALL_FRAMES_MIN_T, compact: bool = True) -> TrackResult:
     """Track every lane of ``params`` (leaves scalar or [B]) over the split.
 
     chunk: lanes per compiled call (memory: chunk x T x K int32 ids); progress: a callable(n) told
@@ -109,6 +109,10 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     result files with 3D fields; costs memory per lane, so sweeps leave it off.
     small_frames_min: frames with few detections run on a smaller copy of the step on splits of at
     least this many frames (None: one size); the results are the same, only the speed differs.
+    compact: track a ``Split`` compacted to the batch's loosest score thresholds
+    (:func:`dfrmot_jax.data.compact_slots`: the detections no lane keeps dropped, the rest packed to
+    the front) and give the output back in the split's own slot layout: the same result, fewer dead
+    slots per step (not with a distortion or the Hungarian assignment).
     """
     setup_host_devices()          # before this call's first JAX operation
     options = options.validate()
@@ -118,6 +122,12 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
         raise ValueError("parameter keep_lost > 0 writes lost tracks' predicted boxes: it needs output='filtered'")
     frames = prepare_frames(split, options) if isinstance(split, Split) else split
     b = batch_size(params)
+    packed = None
+    if compact and isinstance(split, Split) and distortion is None and options.assign != "hungarian":
+        packed = _compacted(split, params, options)
+    full_frames = frames
+    if packed is not None:
+        frames = packed[0]
     extra = None
     if distortion is not None:
         if not isinstance(split, Split):
@@ -183,10 +193,49 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
         bad = np.flatnonzero(overflow > 0)
         warnings.warn(f"track memory overflow in {bad.size} lane(s) (e.g. lane {bad[0]}: {overflow[bad[0]]} births "
                       f"dropped at capacity {capacity[bad[0]]}); raise Options.capacity", RuntimeWarning, stacklevel=2)
+    if packed is not None:
+        got = _full_layout(got, packed[1], packed[2], full_frames, options)
+        frames = full_frames
     boxes = got["boxes"] if per_lane_boxes else output_boxes(frames, options)
     return TrackResult(ids=got["ids"], boxes=boxes, dropped=dropped, overflow=overflow, peak=peak,
                        src3=got.get("src3"), own3=got.get("own3"), box3=got.get("box3"), capacity=capacity,
                        frames=frames, options=options)
+
+
+def _compacted(split: Split, params: Params, options: Options):
+    """(frames of the split compacted to the lanes' loosest thresholds, order2, order3), or None
+    when that saves no slot (:func:`dfrmot_jax.data.compact_slots`)."""
+    s2 = float(np.min(np.asarray(params.score_2d)))
+    s3 = float(np.min(np.asarray(params.score_3d)))
+    packed, order2, order3 = compact_slots(split, s2, s3)
+    if order2.shape[1] + order3.shape[1] >= split.valid2d.shape[1] + split.valid3d.shape[1]:
+        return None
+    return prepare_frames(packed, options), order2, order3
+
+
+def _full_layout(got: dict, order2: np.ndarray, order3: np.ndarray, frames: Frames, options: Options) -> dict:
+    """Outputs of a compacted split (``got``: ids, src3, own3 [B, T, K'], ...) in the layout of the
+    split's own ``frames``: object slots moved back to their original slots (output "detections";
+    slots no lane keeps hold nothing), 3D sources renumbered to the original [T, M3] index."""
+    out = dict(got)
+    T, m3c = order3.shape
+    m2, m3 = frames.valid2.shape[1], frames.valid3.shape[1]
+    if "src3" in out:
+        src = out["src3"]
+        t, j = np.divmod(np.maximum(src, 0), m3c)
+        out["src3"] = np.where(src >= 0, t * m3 + order3[t, j], -1).astype(src.dtype)
+    if options.output == "detections":
+        # [T, K'] the original object slot of each (fused: the 2D slots, then the 3D slots)
+        omap = object_slots(options, order2, order3 + (m2 if options.modality == "fused" else 0))
+        k = object_slots(options, frames.valid2[:1], frames.valid3[:1]).shape[1]
+        rows = np.arange(T)[:, None]
+        for name, fill in (("ids", -1), ("src3", -1), ("own3", False)):
+            if name in out:
+                a = out[name]
+                full = np.full(a.shape[:2] + (k,) + a.shape[3:], fill, a.dtype)
+                full[:, rows, omap] = a
+                out[name] = full
+    return out
 
 
 #: a batch's lanes share objects made once outside the scan (``core.run.split_objects``) when its

@@ -310,14 +310,24 @@ def compact_split(split: Split, score_2d: float, score_3d: float) -> Split:
     detections (scores compared in float32, as the step does), and every tie-break orders by slot,
     which packing preserves. A batch's [objects, tracks] work shrinks with M2' + M3' (KITTI car at
     the grid's loosest thresholds: 14 + 19 slots -> 14 + 13). Output "detections" slots then index
-    the compacted split (``row2d`` / ``row3d`` still name the file rows).
+    the compacted split (``row2d`` / ``row3d`` still name the file rows; :func:`compact_slots` gives
+    the original slot of each).
     """
+    return compact_slots(split, score_2d, score_3d)[0]
+
+
+def compact_slots(split: Split, score_2d: float, score_3d: float) -> tuple[Split, np.ndarray, np.ndarray]:
+    """:func:`compact_split` and where its slots come from: (split', order2 [T, M2'], order3
+    [T, M3']), ``order[t, j]`` the original slot of frame t's compacted slot j (every original slot
+    at most once per frame; padding slots name slots no setting keeps)."""
     fields: dict = {}
+    orders = []
     for keep, valid_name, pads in (
             (split.valid2d & (split.score2d.astype(np.float32) >= np.float32(score_2d)), "valid2d", _PAD_2D),
             (split.valid3d & (split.score3d.astype(np.float32) >= np.float32(score_3d)), "valid3d", _PAD_3D)):
         m = max(1, int(keep.sum(axis=1).max(initial=0)))
         order = np.argsort(~keep, axis=1, kind="stable")[:, :m]          # kept slots first, in slot order
+        orders.append(order)
         valid = np.take_along_axis(keep, order, axis=1)
         fields[valid_name] = valid
         for name, pad in pads.items():
@@ -325,7 +335,7 @@ def compact_split(split: Split, score_2d: float, score_3d: float) -> Split:
             extra = (1,) * (a.ndim - 2)
             v = np.take_along_axis(a, order.reshape(order.shape + extra), axis=1)
             fields[name] = np.where(valid.reshape(valid.shape + extra), v, np.asarray(pad, a.dtype))
-    return split._replace(**fields)
+    return split._replace(**fields), orders[0], orders[1]
 
 
 # ---------------------------------------------------------------------------------------------

@@ -263,3 +263,26 @@ def test_lanes_sharing_merge_settings_share_objects_made_outside_the_scan(scene,
     for a, b in zip(shared, in_scan):
         if isinstance(a, np.ndarray):
             np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("options", [Options(), Options(output="filtered"), Options(modality="3d"),
+                                     Options(modality="2d")])
+def test_track_compacts_the_split_and_gives_the_output_back_in_its_own_layout(scene, options):
+    """``track(split)`` runs on the split compacted to the batch's loosest thresholds and moves the
+    output back to the split's own slots: every array equal to tracking the split as it is."""
+    from dfrmot_jax import api
+
+    _, _, split = scene
+    rng = np.random.default_rng(23)
+    batch = stack_params([random_params(rng, options.output)._replace(score_2d=0.6, score_3d=5.0)
+                          for _ in range(3)])
+    assert api._compacted(split, batch, options) is not None, "nothing to compact: the test would prove nothing"
+    packed = track(split, batch, options, detail=True)
+    plain = track(split, batch, options, detail=True, compact=False)
+    assert np.any(packed.ids >= 0) and packed.ids.shape == plain.ids.shape
+    if options.modality != "2d":
+        assert np.any(packed.src3 >= 0)
+    for name in ("ids", "boxes", "src3", "own3", "box3", "dropped", "overflow", "peak"):
+        a, b = getattr(packed, name), getattr(plain, name)
+        if a is not None:
+            np.testing.assert_array_equal(a, b, err_msg=name)
