@@ -40,7 +40,7 @@ from dfrmot_jax.metrics.ab3dmot_prep import Ab3dGT, Ab3dTracker
 from dfrmot_jax.metrics.box3d import iou_3d
 from dfrmot_jax.metrics.fields3d import box3d_problem, no_box_rows
 from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
-from dfrmot_jax.metrics.similarity import row_ids
+from dfrmot_jax.metrics.similarity import distinct_rows
 
 __all__ = ["evaluate_ab3dmot_arrays", "tracker_rows_from_arrays"]
 
@@ -164,21 +164,13 @@ def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_off
     return [rows.tracker(gt, b) for b in range(len(rows.n_tracks))]
 
 
-def _distinct(frame: np.ndarray, vals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct (frame, value row) of [R] frames and [R, C] rows -> (first row of each [U], id of each row [R])."""
-    ids = row_ids(np.concatenate([frame[:, None].astype(np.float64), vals], axis=1))
-    first = np.full(int(ids.max(initial=-1)) + 1, -1, dtype=np.int64)
-    first[ids[::-1]] = np.arange(len(ids))[::-1]
-    return first, ids
-
-
 def _pairs(gt: Ab3dGT, rows: _Rows, kind: str, threshold: float) -> list:
     """Candidate pairs of every output (by frame, object, row within each): the distinct (frame, box)
     values' pairs with the ground truth (IoU once each), joined back to every output's rows."""
     B = len(rows.n_tracks)
     vals, live = (rows.box, np.ones(len(rows.frame), dtype=bool)) if kind == "2d" else (rows.box3d, rows.has3d)
     sel = np.flatnonzero(live)
-    first, uid = _distinct(rows.frame[sel], vals[sel])
+    first, uid = distinct_rows(rows.frame[sel], vals[sel])
     ufr = rows.frame[sel[first]]
     o = np.argsort(ufr, kind="stable")                  # distinct values by frame
     rank = np.empty(len(o), dtype=np.int64)
@@ -230,7 +222,7 @@ def evaluate_ab3dmot_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offs
         return []
     pairs = _pairs(gt, rows, kind, thr)
     # the static ignore rule once per distinct (frame, image box); track means in one call
-    first, bid = _distinct(rows.frame, rows.box)
+    first, bid = distinct_rows(rows.frame, rows.box)
     static = static_ignore(gt, rows.frame[first], rows.box[first], np.zeros(len(first), dtype=bool))[bid]
     gtrack = rows.track_start[rows.lane] + rows.track
     n_all = int(rows.track_start[-1])
