@@ -51,9 +51,10 @@ import numpy as np
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.io.result_rows import read_result_rows
-from dfrmot_jax.metrics.boxes import EPS, columns, gather_iou, pair_ioa
+from dfrmot_jax.metrics.box_table import box_table, candidate_pairs, table_iou
+from dfrmot_jax.metrics.boxes import EPS, columns, pair_ioa
 from dfrmot_jax.metrics.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows, read_box3d_columns
-from dfrmot_jax.metrics.pairs import assign_frames, enumerate_pairs, nontrivial_segments, segment_starts
+from dfrmot_jax.metrics.pairs import enumerate_pairs, nontrivial_segments, segment_starts, solve_blocks
 from dfrmot_jax.metrics.similarity import pair_similarity_3d, parse_similarity
 
 __all__ = [
@@ -558,22 +559,32 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     nd = np.bincount(lf, minlength=L * F).astype(np.int64)
     d_start = segment_starts(nd)
     g_of_lf = np.tile(np.arange(F, dtype=np.int64), L)
-    ng_all = np.diff(gt.row_start)[g_of_lf]
-    seg, row, col, pstart = enumerate_pairs(ng_all, gt.row_start[g_of_lf], nd, d_start)
+    # IoU of each distinct (frame, box) with the frame's class rows, once for all lanes
+    tab = box_table(gt.row_start, gt.row_cols, dets.frame, dets.box)
 
-    # --- step 2: match to class + distractor GT, drop boxes matched to distractors
-    iou = gather_iou(gt.row_cols, row, columns(dets.box), col)
-    pos = iou >= 0.5 - EPS
-    lane_of_pair = seg // F
-    rowkey = lane_of_pair * max(len(gt.row_eval), 1) + row
-    matched = pos.copy()
-    hard = nontrivial_segments(seg, rowkey, col, pos)
-    assign_frames(hard, pstart, ng_all, nd, np.where(pos, iou, 0.0), matched, 0 + EPS)
+    # --- step 2: match to class + distractor GT, drop boxes matched to distractors. Only pairs with
+    # IoU >= 0.5 - eps score; a lane-frame whose such pairs share no row or column keeps them all,
+    # the others are solved on TrackEval's full [class rows, boxes] matrix (zeros elsewhere)
+    c_det, c_row, c_iou = candidate_pairs(tab)
+    c_lf = lf[c_det]
+    matched = np.ones(len(c_det), dtype=bool)
+    hard = nontrivial_segments(c_lf, dets.lane[c_det] * max(len(gt.row_eval), 1) + c_row, c_det, matched)
+    if hard.size:
+        ng_all = np.diff(gt.row_start)[g_of_lf]
+        size = ng_all * nd
+        block = np.full(len(size), -1, dtype=np.int64)
+        block[hard] = np.arange(len(hard))
+        b_start = segment_starts(size[hard])
+        ch = np.flatnonzero(block[c_lf] >= 0)
+        f = c_lf[ch]
+        at = b_start[block[f]] + (c_row[ch] - gt.row_start[f % F]) * nd[f] + (c_det[ch] - d_start[f])
+        vals = np.zeros(int(b_start[-1]))
+        vals[at] = c_iou[ch]
+        matched[ch] = solve_blocks(ng_all[hard], nd[hard], vals)[at] & (c_iou[ch] > 0 + EPS)
     det_matched = np.zeros(M, dtype=bool)
-    det_matched[col[matched]] = True
+    det_matched[c_det[matched]] = True
     to_remove = np.zeros(M, dtype=bool)
-    mm = matched & ~gt.row_eval[row]
-    to_remove[col[mm]] = True
+    to_remove[c_det[matched & ~gt.row_eval[c_row]]] = True
 
     # --- step 3: unmatched boxes too small or mostly inside DontCare
     unmatched = ~det_matched
@@ -616,19 +627,15 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
             raise _duplicate_error(gt, dets, int(kidx[o2[1:][dup][0]]))
     nk = np.bincount(k_lf, minlength=L * F).astype(np.int64)
 
-    # --- metric pairs: eval GT x kept dets (a sub-grid of each lane-frame's pair grid)
-    ev_row = gt.row_eval_index[row]
-    kpos = np.cumsum(keep) - 1
-    sel = (ev_row >= 0) & keep[col]
-    p_lf = seg[sel]
-    p_e = ev_row[sel]
-    p_k = kpos[col[sel]]
-    if similarity == "2d":
-        sim = iou[sel]
-    else:
-        sim = pair_similarity_3d(gt.row_box3d, gt.row_has3d, row[sel], dets.box3d, dets.has3d, col[sel], similarity)
+    # --- metric pairs: eval GT x kept dets of each lane-frame, row-major; IoU looked up in the table
     ng_e = gt.eval_count[g_of_lf]
-    pair_start = segment_starts(ng_e * nk)
+    p_lf, p_e, p_k, pair_start = enumerate_pairs(ng_e, gt.eval_start[g_of_lf], nk, segment_starts(nk)[:-1])
+    p_row = np.flatnonzero(gt.row_eval)[p_e]         # class row of each eval row
+    p_det = kidx[p_k]
+    if similarity == "2d":
+        sim = table_iou(tab, gt.row_start, p_lf % F, p_row, p_det)
+    else:
+        sim = pair_similarity_3d(gt.row_box3d, gt.row_has3d, p_row, dets.box3d, dets.has3d, p_det, similarity)
     n_tr_dets = np.bincount(grp, minlength=L * S).reshape(L, S).astype(np.int64)
     n_tr_ids = np.bincount(tid_grp, minlength=L * S).reshape(L, S).astype(np.int64)
     return EvalBatch(gt=gt, n_lanes=L, det_lf=k_lf, det_gid=det_gid, det_start=segment_starts(nk), det_count=nk,
