@@ -5,8 +5,9 @@ frame by frame. :func:`box_table` finds the distinct (frame, box) values of the 
 (:func:`~dfrmot_jax.metrics.similarity.distinct_rows`), computes their IoU with every class row of
 the frame's ground truth once (TrackEval's formula bit for bit, :func:`~dfrmot_jax.metrics.boxes.gather_iou`),
 and keeps, per distinct value, its candidate rows (IoU >= 0.5 - eps, the preprocessing's matching
-threshold). :func:`table_iou` looks pairs up; :func:`candidate_pairs` joins the candidates back
-to the rows.
+threshold) and whether it lies mostly inside a DontCare region (intersection over its own area
+> 0.5 + eps with any, :func:`~dfrmot_jax.metrics.boxes.pair_ioa`). :func:`table_iou` looks pairs
+up; :func:`candidate_pairs` joins the candidates back to the rows.
 
 Arrays: ``F`` frames, ``M`` tracker rows, ``U`` distinct values (sorted by frame), class rows of
 the ground truth as in :class:`~dfrmot_jax.metrics.kitti.PreparedGT` (``row_start`` [F+1]).
@@ -18,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from dfrmot_jax.metrics.boxes import EPS, columns, gather_iou
+from dfrmot_jax.metrics.boxes import EPS, columns, gather_iou, pair_ioa
 from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.similarity import distinct_rows
 
@@ -34,7 +35,7 @@ class BoxTable(NamedTuple):
     rank among its frame's values; n_values: [F]; iou_start: [F+1] (frame f's table is
     ``iou[iou_start[f]:iou_start[f+1]]``, [n class rows of f, n_values[f]] row-major);
     iou: float64 table; cand_start: [U+1], cand_row: [Q] class row (global), cand_iou: [Q]: each
-    value's rows with IoU >= 0.5 - eps, in row order.
+    value's rows with IoU >= 0.5 - eps, in row order; in_dontcare: [U] bool.
     """
     value: np.ndarray
     local: np.ndarray
@@ -44,13 +45,15 @@ class BoxTable(NamedTuple):
     cand_start: np.ndarray
     cand_row: np.ndarray
     cand_iou: np.ndarray
+    in_dontcare: np.ndarray
 
 
-def box_table(row_start: np.ndarray, row_cols: tuple, frame: np.ndarray, box: np.ndarray) -> BoxTable:
+def box_table(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_box: np.ndarray, frame: np.ndarray,
+              box: np.ndarray) -> BoxTable:
     """The :class:`BoxTable` of tracker rows ``frame`` [M] (global frame) and ``box`` [M, 4] float64.
 
     row_start: [F+1] class rows of each frame; row_cols: the class rows' boxes as four columns
-    (:func:`~dfrmot_jax.metrics.boxes.columns`)."""
+    (:func:`~dfrmot_jax.metrics.boxes.columns`); dc_start [F+1], dc_box [D, 4]: DontCare regions."""
     F = len(row_start) - 1
     first, ids = distinct_rows(frame, box)
     ufr = frame[first]
@@ -64,11 +67,18 @@ def box_table(row_start: np.ndarray, row_cols: tuple, frame: np.ndarray, box: np
     n_rows = np.diff(row_start)
     seg, row, col, iou_start = enumerate_pairs(n_rows, row_start[:-1], n_values, vstart[:-1])
     iou = gather_iou(row_cols, row, columns(box[first[order]]), col)
+    ubox = box[first[order]]
+    n_dc = np.diff(dc_start)[np.repeat(np.arange(F), n_values)]
+    d_val = np.repeat(np.arange(len(order)), n_dc)
+    d_reg = np.repeat(dc_start[:-1][np.repeat(np.arange(F), n_values)], n_dc) + (
+        np.arange(len(d_val)) - np.repeat(segment_starts(n_dc)[:-1], n_dc))
+    in_dc = np.zeros(len(order), dtype=bool)
+    in_dc[d_val[pair_ioa(ubox[d_val], dc_box[d_reg]) > 0.5 + EPS]] = True
     cand = np.flatnonzero(iou >= MATCH_IOU - EPS)
     cand = cand[np.argsort(col[cand], kind="stable")]    # by value, rows in order
     return BoxTable(value=value, local=local, n_values=n_values, iou_start=iou_start, iou=iou,
                     cand_start=segment_starts(np.bincount(col[cand], minlength=len(order))),
-                    cand_row=row[cand], cand_iou=iou[cand])
+                    cand_row=row[cand], cand_iou=iou[cand], in_dontcare=in_dc)
 
 
 def table_iou(t: BoxTable, row_start: np.ndarray, frame: np.ndarray, row: np.ndarray, det: np.ndarray) -> np.ndarray:

@@ -52,7 +52,7 @@ import numpy as np
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.io.result_rows import read_result_rows
 from dfrmot_jax.metrics.box_table import box_table, candidate_pairs, table_iou
-from dfrmot_jax.metrics.boxes import EPS, columns, pair_ioa
+from dfrmot_jax.metrics.boxes import EPS, columns
 from dfrmot_jax.metrics.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows, read_box3d_columns
 from dfrmot_jax.metrics.pairs import enumerate_pairs, nontrivial_segments, segment_starts, solve_blocks
 from dfrmot_jax.metrics.similarity import pair_similarity_3d, parse_similarity
@@ -559,22 +559,26 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     nd = np.bincount(lf, minlength=L * F).astype(np.int64)
     d_start = segment_starts(nd)
     g_of_lf = np.tile(np.arange(F, dtype=np.int64), L)
-    # IoU of each distinct (frame, box) with the frame's class rows, once for all lanes
-    tab = box_table(gt.row_start, gt.row_cols, dets.frame, dets.box)
+    # IoU of each distinct (frame, box) with the frame's class rows and its DontCare overlap, once
+    tab = box_table(gt.row_start, gt.row_cols, gt.dc_start, gt.dc_box, dets.frame, dets.box)
+    # removed if left unmatched (step 3): too small, or mostly inside a DontCare region
+    fragile = (dets.box[:, 3] - dets.box[:, 1] <= MIN_HEIGHT + EPS) | tab.in_dontcare[tab.value]
 
     # --- step 2: match to class + distractor GT, drop boxes matched to distractors. Only pairs with
-    # IoU >= 0.5 - eps score; a lane-frame whose such pairs share no row or column keeps them all,
-    # the others are solved on TrackEval's full [class rows, boxes] matrix (zeros elsewhere)
+    # IoU >= 0.5 - eps score; where they share no row or column they are all matched. Other frames
+    # are solved on TrackEval's full [class rows, boxes] matrix (zeros elsewhere) when the answer
+    # can matter: some candidate is a distractor or a fragile box (else every box stays either way)
     c_det, c_row, c_iou = candidate_pairs(tab)
     c_lf = lf[c_det]
     matched = np.ones(len(c_det), dtype=bool)
     hard = nontrivial_segments(c_lf, dets.lane[c_det] * max(len(gt.row_eval), 1) + c_row, c_det, matched)
     if hard.size:
+        hard = np.intersect1d(hard, c_lf[~gt.row_eval[c_row] | fragile[c_det]])
+    if hard.size:
         ng_all = np.diff(gt.row_start)[g_of_lf]
-        size = ng_all * nd
-        block = np.full(len(size), -1, dtype=np.int64)
+        block = np.full(len(nd), -1, dtype=np.int64)
         block[hard] = np.arange(len(hard))
-        b_start = segment_starts(size[hard])
+        b_start = segment_starts(ng_all[hard] * nd[hard])
         ch = np.flatnonzero(block[c_lf] >= 0)
         f = c_lf[ch]
         at = b_start[block[f]] + (c_row[ch] - gt.row_start[f % F]) * nd[f] + (c_det[ch] - d_start[f])
@@ -585,20 +589,8 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     det_matched[c_det[matched]] = True
     to_remove = np.zeros(M, dtype=bool)
     to_remove[c_det[matched & ~gt.row_eval[c_row]]] = True
-
-    # --- step 3: unmatched boxes too small or mostly inside DontCare
-    unmatched = ~det_matched
-    height = dets.box[:, 3] - dets.box[:, 1]
-    to_remove |= unmatched & (height <= MIN_HEIGHT + EPS)
-    ndc = np.diff(gt.dc_start)[dets.frame]
-    cand = np.flatnonzero(unmatched & ~to_remove & (ndc > 0))
-    if cand.size:
-        c_n = ndc[cand]
-        c_det = np.repeat(cand, c_n)
-        c_dc = np.repeat(gt.dc_start[dets.frame[cand]], c_n) + (
-            np.arange(c_det.size) - np.repeat(segment_starts(c_n)[:-1], c_n))
-        inside = pair_ioa(dets.box[c_det], gt.dc_box[c_dc]) > 0.5 + EPS
-        to_remove[c_det[inside]] = True
+    # --- step 3: unmatched fragile boxes
+    to_remove |= ~det_matched & fragile
     keep = ~to_remove
 
     # --- kept dets, ids
