@@ -174,7 +174,7 @@ def test_pedestrian_parity(pedestrian_run, name):
 def test_stress_parity_clear_rounds_and_frame_loop(stress_run, monkeypatch, round_min):
     """CLEAR's frames that need the solver, all solved in vectorised rounds (1) or all one by one in
     time order (10**9): both equal TrackEval on the tie-heavy edits (duplicates, swaps)."""
-    gt, lanes, dirs, te = stress_run
+    gt, lanes, _, te = stress_run
     monkeypatch.setattr(clear, "ROUND_MIN", round_min)
     names = ["ties", "heavy"]
     ids, boxes, offsets = pack_arrays([lanes[n] for n in names], STRESS_SEQS, gt.lengths)

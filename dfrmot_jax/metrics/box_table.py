@@ -65,7 +65,7 @@ def box_table(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_b
     vstart = segment_starts(n_values)
     local = value - vstart[frame]
     n_rows = np.diff(row_start)
-    seg, row, col, iou_start = enumerate_pairs(n_rows, row_start[:-1], n_values, vstart[:-1])
+    _, row, col, iou_start = enumerate_pairs(n_rows, row_start[:-1], n_values, vstart[:-1])
     iou = gather_iou(row_cols, row, columns(box[first[order]]), col)
     ubox = box[first[order]]
     n_dc = np.diff(dc_start)[np.repeat(np.arange(F), n_values)]

@@ -20,7 +20,7 @@ from dfrmot_jax.metrics.boxes import EPS
 from dfrmot_jax.metrics.kitti import EvalBatch
 from scipy.optimize import linear_sum_assignment
 
-from dfrmot_jax.metrics.pairs import nontrivial_segments, segment_pairs, segment_starts, solve_blocks
+from dfrmot_jax.metrics.pairs import crowded_segments, segment_pairs, segment_rows, segment_starts, solve_blocks
 
 THRESHOLD = 0.5
 MAIN_INTEGER_FIELDS = ("CLR_TP", "CLR_FN", "CLR_FP", "IDSW", "MT", "PT", "ML", "Frag")
@@ -187,18 +187,16 @@ def clear_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     """CLEAR fields per (config, sequence): arrays [L, S] (``FIELDS``; counts as int64)."""
     gt = b.gt
     L, F, S = b.n_lanes, gt.n_frames, len(gt.sequences)
-    NE = len(gt.eval_gid)
     NG = len(gt.gid_count)
     sim = b.sim
     ng_e = b.lf_eval_count
     nk = b.det_count
-    lane_p = b.p_lf // F
     p_gid = gt.eval_gid[b.p_e]
     p_tid = b.det_gid[b.p_k]
 
     positive = sim >= THRESHOLD - EPS
     matched = positive.copy()
-    hard = nontrivial_segments(b.p_lf, lane_p * max(NE, 1) + b.p_e, b.p_k, positive)
+    hard = crowded_segments(positive, *segment_rows(ng_e, nk, b.pair_start), b.p_k, b.det_lf)
     if hard.size:
         _solve_sequential(hard, b, sim, p_gid, p_tid, matched)
 
