@@ -121,7 +121,10 @@ def crowded_segments(positive: np.ndarray, row_seg: np.ndarray, row_first: np.nd
         return np.zeros(0, dtype=np.int64)
     per_row = np.add.reduceat(positive, row_first)
     per_col = np.bincount(pair_col[positive], minlength=len(col_seg))
-    return np.union1d(row_seg[per_row > 1], col_seg[per_col > 1]).astype(np.int64)
+    crowded = np.zeros(int(max(row_seg[-1], col_seg.max(initial=0))) + 1, dtype=bool)
+    crowded[row_seg[per_row > 1]] = True
+    crowded[col_seg[per_col > 1]] = True
+    return np.flatnonzero(crowded)
 
 
 def nontrivial_segments(pair_seg: np.ndarray, pair_rowkey: np.ndarray, pair_colkey: np.ndarray,
