@@ -30,7 +30,7 @@ FLOAT_FIELDS = MAIN_FLOAT_FIELDS + ("CLR_F1", "FP_per_frame", "MOTAL", "MOTP_sum
 FIELDS = FLOAT_FIELDS + INTEGER_FIELDS
 SUMMED_FIELDS = INTEGER_FIELDS + ("MOTP_sum",)
 #: frames solved together per round while a round has at least this many (then one by one)
-ROUND_MIN = 64
+ROUND_MIN = 16
 
 
 def _final_fields(res: dict) -> dict:

@@ -304,7 +304,8 @@ def class_sequences(root, cls: str = "car", sequences: Sequence | None = None) -
 class TrackerDets(NamedTuple):
     """Tracker boxes of ``n_lanes`` configs, sorted by (lane, frame), slot/file order within a frame.
 
-    lane, frame (global GT frame), track_id: [M] int64; box: [M, 4] float64 ``x1, y1, x2, y2``;
+    lane, frame (global GT frame), track_id: [M] int64; box: [M, 4] float64 ``x1, y1, x2, y2`` (float32
+    from float32 arrays: :func:`preprocess` widens a batch's boxes to float64, exactly);
     source: [M] int64 row in the source file (files) or slot index (arrays), for error messages;
     paths: per lane, per sequence the source file (or None). box3d: [M, 7] float64 ``h w l x y z
     rot_y`` and has3d: [M] bool (False: no 3D box), or both None when the 3D fields were not read.
@@ -471,8 +472,8 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
         g = gmap[t]
         order = np.lexsort((k, g, b))
         b, t, k, g = b[order], t[order], k[order], g[order]
-    box = (np.take(boxes.reshape(-1, 4), flat, axis=0) if g is t and boxes.flags.c_contiguous
-           else boxes[b, t, k]).astype(np.float64)
+    box = np.take(boxes.reshape(-1, 4), flat, axis=0) if g is t and boxes.flags.c_contiguous else boxes[b, t, k]
+    box = box if box.dtype == np.float32 else box.astype(np.float64)   # float32 kept: widened per batch
     if box.size and not np.all(np.isfinite(box)):
         bad = int(np.flatnonzero(~np.all(np.isfinite(box), axis=1))[0])
         raise ValueError(f"non-finite box in config {b[bad]}, frame {t[bad]}, slot {k[bad]}")
@@ -564,9 +565,10 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     d_start = segment_starts(nd)
     g_of_lf = np.tile(np.arange(F, dtype=np.int64), L)
     # IoU of each distinct (frame, box) with the frame's class rows and its DontCare overlap, once
-    tab = box_table(gt.row_start, gt.row_cols, gt.dc_start, gt.dc_box, dets.frame, dets.box)
+    box = np.asarray(dets.box, dtype=np.float64)
+    tab = box_table(gt.row_start, gt.row_cols, gt.dc_start, gt.dc_box, dets.frame, box)
     # removed if left unmatched (step 3): too small, or mostly inside a DontCare region
-    fragile = (dets.box[:, 3] - dets.box[:, 1] <= MIN_HEIGHT + EPS) | tab.in_dontcare[tab.value]
+    fragile = (box[:, 3] - box[:, 1] <= MIN_HEIGHT + EPS) | tab.in_dontcare[tab.value]
 
     # --- step 2: match to class + distractor GT, drop boxes matched to distractors. Only pairs with
     # IoU >= 0.5 - eps score; where they share no row or column they are all matched. Other frames
