@@ -140,6 +140,33 @@ def test_solve_blocks_equals_scipy_on_each_full_matrix(seed, monkeypatch):
     assert sum(m.tobytes() not in solved for m in clear_winners) > 0.9 * len(clear_winners)
 
 
+def test_match_entries_equals_scipy_on_the_full_matrices():
+    """Sparse entries of many frames (zeros elsewhere), crowded and tied ones among them: the entries
+    match_entries takes are those scipy takes on each frame's full matrix."""
+    rng = np.random.default_rng(5)
+    mats = []
+    for i in range(2000):
+        g, k = int(rng.integers(1, 9)), int(rng.integers(1, 9))
+        m = np.where(rng.random((g, k)) < 0.25, rng.choice([0.5, 0.6, 0.6, 0.75, 0.9], (g, k)), 0.0)
+        if i % 3 == 0:
+            m = np.where(m > 0, 0.5 + 0.5 * rng.random((g, k)), 0.0)   # generic values: mostly certified
+        mats.append(m)
+    nr = np.array([m.shape[0] for m in mats])
+    nc = np.array([m.shape[1] for m in mats])
+    seg = np.concatenate([np.full(int((m > 0).sum()), s) for s, m in enumerate(mats)])
+    r_loc = np.concatenate([np.nonzero(m > 0)[0] for m in mats])
+    c_loc = np.concatenate([np.nonzero(m > 0)[1] for m in mats])
+    val = np.concatenate([m[m > 0] for m in mats])
+    rowkey = segment_starts(nr)[seg] + r_loc
+    colkey = segment_starts(nc)[seg] + c_loc
+    got = pairs.match_entries(seg, rowkey, colkey, val, np.ones(len(mats), bool), nr, nc, r_loc, c_loc)
+    want = np.concatenate([_scipy_pairs(m).reshape(m.shape)[m > 0] for m in mats])
+    assert np.array_equal(got, want)
+    ok, _ = pairs.certify_sparse(seg, rowkey, colkey, val, len(mats))
+    crowded = pairs.nontrivial_segments(seg, rowkey, colkey, np.ones(len(val), bool))
+    assert 0.2 < ok[crowded].mean() < 0.9           # both the certificate and scipy decide crowded frames
+
+
 # ------------------------------------------------------------------ random synthetic scenes vs TrackEval
 
 LABEL = "{f} {i} {t} {tr} {oc} -10 {b[0]!r} {b[1]!r} {b[2]!r} {b[3]!r} 1.5 1.6 3.9 1 1 10 0\n"

@@ -54,7 +54,7 @@ from dfrmot_jax.io.result_rows import read_result_rows
 from dfrmot_jax.metrics.box_table import box_table, candidate_pairs, table_iou
 from dfrmot_jax.metrics.boxes import EPS, columns
 from dfrmot_jax.metrics.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows, read_box3d_columns
-from dfrmot_jax.metrics.pairs import enumerate_pairs, nontrivial_segments, segment_starts, solve_blocks
+from dfrmot_jax.metrics.pairs import enumerate_pairs, match_entries, segment_starts
 from dfrmot_jax.metrics.similarity import pair_similarity_3d, parse_similarity
 
 __all__ = [
@@ -472,7 +472,12 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
         g = gmap[t]
         order = np.lexsort((k, g, b))
         b, t, k, g = b[order], t[order], k[order], g[order]
-    box = np.take(boxes.reshape(-1, 4), flat, axis=0) if g is t and boxes.flags.c_contiguous else boxes[b, t, k]
+    if g is t and boxes.flags.c_contiguous:
+        box = np.take(boxes.reshape(-1, 4), flat, axis=0)
+    elif g is t and boxes.strides[0] == 0 and boxes[0].flags.c_contiguous:    # one box array for all lanes
+        box = np.take(boxes[0].reshape(-1, 4), tk, axis=0)
+    else:
+        box = boxes[b, t, k]
     box = box if box.dtype == np.float32 else box.astype(np.float64)   # float32 kept: widened per batch
     if box.size and not np.all(np.isfinite(box)):
         bad = int(np.flatnonzero(~np.all(np.isfinite(box), axis=1))[0])
@@ -571,26 +576,16 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     fragile = (box[:, 3] - box[:, 1] <= MIN_HEIGHT + EPS) | tab.in_dontcare[tab.value]
 
     # --- step 2: match to class + distractor GT, drop boxes matched to distractors. Only pairs with
-    # IoU >= 0.5 - eps score; where they share no row or column they are all matched. Other frames
-    # are solved on TrackEval's full [class rows, boxes] matrix (zeros elsewhere) when the answer
-    # can matter: some candidate is a distractor or a fragile box (else every box stays either way)
+    # IoU >= 0.5 - eps score (TrackEval's matrix is [class rows, boxes], zeros elsewhere); the answer
+    # matters only where a distractor or a fragile box is among a frame's candidates (else every box
+    # stays either way)
     c_det, c_row, c_iou = candidate_pairs(tab)
     c_lf = lf[c_det]
-    matched = np.ones(len(c_det), dtype=bool)
-    hard = nontrivial_segments(c_lf, dets.lane[c_det] * max(len(gt.row_eval), 1) + c_row, c_det, matched)
-    if hard.size:
-        hard = np.intersect1d(hard, c_lf[~gt.row_eval[c_row] | fragile[c_det]])
-    if hard.size:
-        ng_all = np.diff(gt.row_start)[g_of_lf]
-        block = np.full(len(nd), -1, dtype=np.int64)
-        block[hard] = np.arange(len(hard))
-        b_start = segment_starts(ng_all[hard] * nd[hard])
-        ch = np.flatnonzero(block[c_lf] >= 0)
-        f = c_lf[ch]
-        at = b_start[block[f]] + (c_row[ch] - gt.row_start[f % F]) * nd[f] + (c_det[ch] - d_start[f])
-        vals = np.zeros(int(b_start[-1]))
-        vals[at] = c_iou[ch]
-        matched[ch] = solve_blocks(ng_all[hard], nd[hard], vals)[at] & (c_iou[ch] > 0 + EPS)
+    needed = np.zeros(len(nd), dtype=bool)
+    needed[c_lf[~gt.row_eval[c_row] | fragile[c_det]]] = True
+    matched = match_entries(c_lf, dets.lane[c_det] * max(len(gt.row_eval), 1) + c_row, c_det, c_iou, needed,
+                            np.diff(gt.row_start)[g_of_lf], nd, c_row - gt.row_start[dets.frame[c_det]],
+                            c_det - d_start[c_lf], 0 + EPS)
     det_matched = np.zeros(M, dtype=bool)
     det_matched[c_det[matched]] = True
     to_remove = np.zeros(M, dtype=bool)

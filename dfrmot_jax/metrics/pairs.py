@@ -187,6 +187,42 @@ def _rows_greedy(n_rows: np.ndarray, n_cols: np.ndarray, values: np.ndarray) -> 
     return ok, arg[ok[arg_blk]]
 
 
+def _greedy_sparse(seg: np.ndarray, line: np.ndarray, other: np.ndarray, value: np.ndarray,
+                   n_seg: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_rows_greedy` on sparse positive entries: the lines (rows or columns) ``line`` [E] >= 0,
+    the crossing keys ``other`` [E] >= 0, values [E] > 0 (absent entries are 0). Returns (ok
+    [n_seg], take [E] bool: the largest entry of each line of the decided segments)."""
+    n = int(line.max(initial=-1)) + 1
+    top = np.zeros(n)
+    np.maximum.at(top, line, value)
+    is_top = value == top[line]
+    n_top = np.bincount(line[is_top], minlength=n)
+    second = np.zeros(n)                                      # absent entries: 0 (the line unmatched)
+    np.maximum.at(second, line[~is_top], value[~is_top])
+    v1 = top[line]
+    good = (n_top[line] == 1) & (v1 - second[line] > TIE_MARGIN * np.maximum(1.0, v1))
+    pick = np.flatnonzero(is_top & good)
+    clash = np.bincount(other[pick])[other[pick]] > 1         # two lines take one crossing line
+    bad = np.zeros(n_seg, dtype=bool)
+    bad[seg[~good]] = True
+    bad[seg[pick[clash]]] = True
+    take = np.zeros(len(value), dtype=bool)
+    take[pick] = True
+    return ~bad, take & ~bad[seg]
+
+
+def certify_sparse(seg: np.ndarray, row: np.ndarray, col: np.ndarray, value: np.ndarray,
+                   n_seg: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`solve_blocks`' certificate on the positive entries only (all others 0): ``seg``,
+    ``row``, ``col`` [E] int64 >= 0 (row and column keys unique across segments), ``value`` [E] > 0.
+    Returns (ok [n_seg] bool: segments decided, matched [E] bool: their optimal pairs). A segment
+    not decided needs scipy on its full matrix."""
+    ok_r, take_r = _greedy_sparse(seg, row, col, value, n_seg)
+    ok_c, take_c = _greedy_sparse(seg, col, row, value, n_seg)
+    ok_c &= ~ok_r
+    return ok_r | ok_c, (take_r & ok_r[seg]) | (take_c & ok_c[seg])
+
+
 def solve_blocks(n_rows: np.ndarray, n_cols: np.ndarray, values: np.ndarray) -> np.ndarray:
     """The positive pairs of ``scipy.optimize.linear_sum_assignment(-S)`` of every block.
 
@@ -242,6 +278,41 @@ def solve_blocks(n_rows: np.ndarray, n_cols: np.ndarray, values: np.ndarray) -> 
     flat = np.concatenate(rows_l) * np.repeat(n_cols, n_per) + np.concatenate(cols_l) + np.repeat(start, n_per)
     out[flat[values[flat] > 0]] = True
     return out
+
+
+def match_entries(seg: np.ndarray, row: np.ndarray, col: np.ndarray, value: np.ndarray, needed: np.ndarray,
+                  seg_n_rows: np.ndarray, seg_n_cols: np.ndarray, row_local: np.ndarray, col_local: np.ndarray,
+                  accept_above: float = 0.0) -> np.ndarray:
+    """Which sparse positive entries scipy's ``linear_sum_assignment(-S)`` takes, ``S`` being each
+    segment's full [seg_n_rows, seg_n_cols] matrix with these entries and zeros elsewhere.
+
+    seg, row, col [E] int64 (row and column keys >= 0, unique across segments), value [E] > 0;
+    row_local, col_local [E]: the entry's place in its segment's matrix; needed [G] bool: segments
+    whose answer is wanted (the others' entries are all returned as taken, as they are when no row
+    or column holds two). A segment whose entries share a row or column is decided by the
+    certificate of :func:`solve_blocks` on the entries alone (:func:`certify_sparse`), else by
+    scipy on its full matrix. Returns [E] bool: taken and ``value > accept_above``.
+    """
+    matched = np.ones(len(value), dtype=bool)
+    hard = nontrivial_segments(seg, row, col, matched)
+    hard = hard[needed[hard]]
+    if hard.size:
+        flag = np.zeros(len(needed), dtype=bool)
+        flag[hard] = True
+        h = np.flatnonzero(flag[seg])
+        ok, take = certify_sparse(seg[h], row[h], col[h], value[h], len(needed))
+        matched[h] = take
+        hard = hard[~ok[hard]]
+    if hard.size:
+        block = np.full(len(needed), -1, dtype=np.int64)
+        block[hard] = np.arange(len(hard))
+        b_start = segment_starts(seg_n_rows[hard] * seg_n_cols[hard])
+        ch = np.flatnonzero(block[seg] >= 0)
+        at = b_start[block[seg[ch]]] + row_local[ch] * seg_n_cols[seg[ch]] + col_local[ch]
+        vals = np.zeros(int(b_start[-1]))
+        vals[at] = value[ch]
+        matched[ch] = solve_blocks(seg_n_rows[hard], seg_n_cols[hard], vals)[at]
+    return matched & (value > accept_above)
 
 
 def assign_frames(segs: np.ndarray, seg_pair_start: np.ndarray, seg_n_rows: np.ndarray, seg_n_cols: np.ndarray,
