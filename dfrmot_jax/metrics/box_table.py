@@ -6,7 +6,7 @@ frame by frame. :func:`box_table` finds the distinct (frame, box) values of the 
 the frame's ground truth once (TrackEval's formula bit for bit, :func:`~dfrmot_jax.metrics.boxes.gather_iou`),
 and keeps, per distinct value, its candidate rows (IoU >= 0.5 - eps, the preprocessing's matching
 threshold) and whether it lies mostly inside a DontCare region (intersection over its own area
-> 0.5 + eps with any, :func:`~dfrmot_jax.metrics.boxes.pair_ioa`). :func:`table_iou` looks pairs
+> 0.5 + eps with any, :func:`~dfrmot_jax.metrics.boxes.pair_ioa`). :func:`pair_iou` looks pairs
 up; :func:`candidate_pairs` joins the candidates back to the rows.
 
 Arrays: ``F`` frames, ``M`` tracker rows, ``U`` distinct values (sorted by frame), class rows of
@@ -23,7 +23,7 @@ from dfrmot_jax.metrics.boxes import EPS, columns, gather_iou, pair_ioa
 from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.similarity import distinct_rows
 
-__all__ = ["BoxTable", "MATCH_IOU", "box_table", "table_iou", "candidate_pairs"]
+__all__ = ["BoxTable", "MATCH_IOU", "box_table", "pair_iou", "candidate_pairs"]
 
 MATCH_IOU = 0.5  # the preprocessing's distractor matching: IoU >= 0.5 - eps
 
@@ -81,9 +81,15 @@ def box_table(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_b
                     cand_row=row[cand], cand_iou=iou[cand], in_dontcare=in_dc)
 
 
-def table_iou(t: BoxTable, row_start: np.ndarray, frame: np.ndarray, row: np.ndarray, det: np.ndarray) -> np.ndarray:
-    """IoU of pairs (class row ``row``, tracker row ``det``) in frame ``frame`` (all [P] int) -> [P] float64."""
-    return t.iou[t.iou_start[frame] + (row - row_start[frame]) * t.n_values[frame] + t.local[det]]
+def pair_iou(t: BoxTable, row_start: np.ndarray, rows: np.ndarray, p_row: np.ndarray, dets: np.ndarray,
+             p_det: np.ndarray) -> np.ndarray:
+    """IoU of pairs (class row ``rows[p_row]``, tracker row ``dets[p_det]``) -> [P] float64.
+
+    rows: [R] class rows, dets: [D] tracker rows (each pair's row and box in the same frame);
+    p_row, p_det: [P] indices into them. Looked up as one base per row plus one offset per box."""
+    frame = np.searchsorted(row_start, rows, side="right") - 1
+    base = t.iou_start[frame] + (rows - row_start[frame]) * t.n_values[frame]
+    return t.iou[base[p_row] + t.local[dets][p_det]]
 
 
 def candidate_pairs(t: BoxTable) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -51,7 +51,7 @@ import numpy as np
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.io.result_rows import read_result_rows
-from dfrmot_jax.metrics.box_table import box_table, candidate_pairs, table_iou
+from dfrmot_jax.metrics.box_table import box_table, candidate_pairs, pair_iou
 from dfrmot_jax.metrics.boxes import EPS, columns
 from dfrmot_jax.metrics.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows, read_box3d_columns
 from dfrmot_jax.metrics.pairs import enumerate_pairs, match_entries, segment_starts
@@ -623,12 +623,12 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     # --- metric pairs: eval GT x kept dets of each lane-frame, row-major; IoU looked up in the table
     ng_e = gt.eval_count[g_of_lf]
     p_lf, p_e, p_k, pair_start = enumerate_pairs(ng_e, gt.eval_start[g_of_lf], nk, segment_starts(nk)[:-1])
-    p_row = np.flatnonzero(gt.row_eval)[p_e]         # class row of each eval row
-    p_det = kidx[p_k]
+    ev_rows = np.flatnonzero(gt.row_eval)             # class row of each eval row
     if similarity == "2d":
-        sim = table_iou(tab, gt.row_start, p_lf % F, p_row, p_det)
+        sim = pair_iou(tab, gt.row_start, ev_rows, p_e, kidx, p_k)
     else:
-        sim = pair_similarity_3d(gt.row_box3d, gt.row_has3d, p_row, dets.box3d, dets.has3d, p_det, similarity)
+        sim = pair_similarity_3d(gt.row_box3d, gt.row_has3d, ev_rows[p_e], dets.box3d, dets.has3d, kidx[p_k],
+                                 similarity)
     n_tr_dets = np.bincount(grp, minlength=L * S).reshape(L, S).astype(np.int64)
     n_tr_ids = np.bincount(tid_grp, minlength=L * S).reshape(L, S).astype(np.int64)
     return EvalBatch(gt=gt, n_lanes=L, det_lf=k_lf, det_gid=det_gid, det_start=segment_starts(nk), det_count=nk,
