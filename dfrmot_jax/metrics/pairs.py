@@ -8,9 +8,11 @@ exactly TrackEval's matrix. Helpers:
 * :func:`enumerate_pairs` builds the flat pair list;
 * :func:`numpy_row_sums` / :func:`numpy_col_sums` reproduce ``M.sum(1)`` / ``M.sum(0)`` bit for bit
   (numpy's pairwise summation along contiguous rows, sequential accumulation down columns);
-* :func:`assign_frames` reproduces ``scipy.optimize.linear_sum_assignment(-score)`` per lane-frame,
-  skipping the solver where the positive entries of a frame already form a matching (then the
-  optimum is provably those entries; see the function's docstring).
+* :func:`assign_frames` / :func:`solve_blocks` reproduce ``scipy.optimize.linear_sum_assignment(-score)``
+  per lane-frame, skipping the solver where the positive entries of a frame already form a matching
+  (:func:`crowded_segments`, :func:`nontrivial_segments` find the others) and where an optimality
+  certificate proves the optimum unique (scipy then returns it too; ties still go to scipy);
+  :func:`match_entries` does the same from a frame's positive entries alone (zeros elsewhere).
 """
 
 from __future__ import annotations
