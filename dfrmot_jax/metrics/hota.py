@@ -14,6 +14,7 @@ Arrays: ``L`` configs, ``S`` sequences, ``NA = 19`` alphas.
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 
 from dfrmot_jax.metrics.boxes import EPS
 from dfrmot_jax.metrics.kitti import EvalBatch
@@ -72,8 +73,7 @@ def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     pos = np.flatnonzero(sim > 0)
     p_gid = gt.eval_gid[b.p_e[pos]]
     p_tid = b.det_gid[b.p_k[pos]]
-    uniq, inv = np.unique(p_tid * max(NG, 1) + p_gid, return_inverse=True)
-    inv = inv.reshape(-1)
+    inv, uniq = pd.factorize(p_tid * max(NG, 1) + p_gid, sort=True)  # = np.unique(..., return_inverse), hashed
     pm = np.bincount(inv, weights=sim_iou[pos], minlength=len(uniq))
     c_gid = uniq % max(NG, 1)
     c_tid = uniq // max(NG, 1)

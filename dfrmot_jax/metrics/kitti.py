@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import NamedTuple, Sequence
 
 import numpy as np
+import pandas as pd
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.io.result_rows import read_result_rows
@@ -602,18 +603,22 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     k_lf = lf[kidx]
     k_seq = gt.seq_of_frame[k_frame]
     grp = k_lane * S + k_seq
-    order = np.lexsort((k_tid, grp))
-    gs, ts = grp[order], k_tid[order]
-    new = np.ones(len(order), dtype=bool)
-    new[1:] = (gs[1:] != gs[:-1]) | (ts[1:] != ts[:-1])
-    gid_sorted = np.cumsum(new) - 1
-    det_gid = np.empty(len(order), dtype=np.int64)
-    det_gid[order] = gid_sorted
-    NT = int(new.sum())
-    tid_grp = gs[new]
+    top = int(k_tid.max(initial=0)) + 1               # ids >= 0: one int64 key per (lane, seq, id) if it fits
+    if (L * S + 1) * top < 2**62:
+        det_gid, uniq = pd.factorize(grp * top + k_tid, sort=True)   # ranks of (grp, id), hashed
+        tid_grp = uniq // top
+    else:
+        order = np.lexsort((k_tid, grp))
+        gs, ts = grp[order], k_tid[order]
+        new = np.ones(len(order), dtype=bool)
+        new[1:] = (gs[1:] != gs[:-1]) | (ts[1:] != ts[:-1])
+        det_gid = np.empty(len(order), dtype=np.int64)
+        det_gid[order] = np.cumsum(new) - 1
+        tid_grp = gs[new]
+    NT = len(tid_grp)
     tid_count = np.bincount(det_gid, minlength=NT).astype(np.float64)
     # duplicates within a frame
-    if len(kidx):
+    if len(kidx) and (L * F * NT >= 2**62 or pd.Series(k_lf * NT + det_gid).duplicated().any()):
         o2 = np.lexsort((det_gid, k_lf))
         dup = (k_lf[o2][1:] == k_lf[o2][:-1]) & (det_gid[o2][1:] == det_gid[o2][:-1])
         if dup.any():
