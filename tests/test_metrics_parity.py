@@ -14,7 +14,7 @@ import pytest
 trackeval = pytest.importorskip("trackeval")
 
 from dfrmot_jax.io.kitti import read_detections_2d, read_tracking_labels  # noqa: E402
-from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, prepare_gt  # noqa: E402
+from dfrmot_jax.metrics import clear, evaluate_arrays, evaluate_files, prepare_gt  # noqa: E402
 from dfrmot_jax.testing.metric_edits import (SeqResults, f32, load_results, naive_tracks, pack_arrays,  # noqa: E402
                                       stress_edit, write_results)
 from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, run_trackeval  # noqa: E402
@@ -168,6 +168,18 @@ def test_pedestrian_parity(pedestrian_run, name):
     ours = evaluate_files(dirs[name], gt)
     assert_same(te[name], ours, tag=name)
     assert te[name]["COMBINED"]["HOTA_TP"][0] > 0
+
+
+@pytest.mark.parametrize("round_min", [1, 10**9])
+def test_stress_parity_clear_rounds_and_frame_loop(stress_run, monkeypatch, round_min):
+    """CLEAR's frames that need the solver, all solved in vectorised rounds (1) or all one by one in
+    time order (10**9): both equal TrackEval on the tie-heavy edits (duplicates, swaps)."""
+    gt, lanes, _, te = stress_run
+    monkeypatch.setattr(clear, "ROUND_MIN", round_min)
+    names = ["ties", "heavy"]
+    ids, boxes, offsets = pack_arrays([lanes[n] for n in names], STRESS_SEQS, gt.lengths)
+    for name, res in zip(names, evaluate_arrays(gt, ids, boxes, offsets, chunk=2)):
+        assert_same(te[name], res, tag=f"{name} ROUND_MIN={round_min}")
 
 
 # ----------------------------------------------------------------------------------------- (d)

@@ -10,8 +10,9 @@ from scipy.optimize import linear_sum_assignment
 from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, metrics_table, prepare_gt
 from dfrmot_jax.metrics.boxes import columns, gather_iou, pair_ioa, pair_iou
 from dfrmot_jax.testing.metric_edits import SeqResults, f32, pack_arrays, write_results
+from dfrmot_jax.metrics import pairs
 from dfrmot_jax.metrics.pairs import (assign_frames, enumerate_pairs, nontrivial_segments, numpy_col_sums,
-                                      numpy_row_sums, segment_starts)
+                                      numpy_row_sums, segment_starts, solve_blocks)
 
 
 def _random_boxes(rng, n):
@@ -80,6 +81,90 @@ def test_assign_frames_matches_scipy_with_ties():
         ok = m[r, c] > 0
         want[r[ok], c[ok]] = True
         assert np.array_equal(matched[pstart[s]:pstart[s + 1]].reshape(m.shape), want), s
+
+
+def _scipy_pairs(m: np.ndarray) -> np.ndarray:
+    r, c = linear_sum_assignment(-m)
+    want = np.zeros(m.shape, bool)
+    ok = m[r, c] > 0
+    want[r[ok], c[ok]] = True
+    return want.reshape(-1)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_solve_blocks_equals_scipy_on_each_full_matrix(seed, monkeypatch):
+    """Blocks decided by the optimality certificate and blocks sent to scipy (ties, near ties,
+    crossings) both give scipy's positive pairs on the full matrix, pair for pair."""
+    rng = np.random.default_rng(seed)
+    mats = []
+    for i in range(3000):
+        g, k = int(rng.integers(1, 10)), int(rng.integers(1, 10))
+        kind = i % 6
+        if kind == 0:       # exact ties everywhere
+            m = rng.choice([0.0, 0.0, 0.0, 0.3, 0.5, 0.5, 0.7], (g, k))
+        elif kind == 1:     # generic and sparse, as HOTA's overlapping cars
+            m = rng.random((g, k)) * (rng.random((g, k)) < 0.3)
+        elif kind == 2:     # a duplicated column (one box twice under two ids)
+            m = rng.random((g, k)) * (rng.random((g, k)) < 0.4)
+            m[:, -1] = m[:, 0]
+        elif kind == 3:     # near ties: each row's best a rounding error above its next entry
+            m = np.zeros((g, k))
+            d = np.arange(min(g, k))
+            m[d, d] = 0.9
+            m[d[:-1], d[:-1] + 1] = 0.9 - 1e-13
+        elif kind == 4:     # CLEAR: the continuation bonus on some entries
+            m = np.where(rng.random((g, k)) < 0.4, 0.5 + 0.5 * rng.random((g, k)), 0.0)
+            m += 1000.0 * ((rng.random((g, k)) < 0.15) & (m > 0))
+        else:               # a diagonal of clear winners: certified
+            m = 0.1 * rng.random((g, k)) * (rng.random((g, k)) < 0.5)
+            d = np.arange(min(g, k))
+            m[d, d] = 0.5 + 0.5 * rng.random(len(d))
+        mats.append(m)
+    calls = []
+    real = pairs.linear_sum_assignment
+
+    def spy(cost):
+        calls.append((-cost).tobytes())
+        return real(cost)
+
+    monkeypatch.setattr(pairs, "linear_sum_assignment", spy)
+    nr = np.array([m.shape[0] for m in mats])
+    nc = np.array([m.shape[1] for m in mats])
+    got = solve_blocks(nr, nc, np.concatenate([m.reshape(-1) for m in mats]))
+    assert np.array_equal(got, np.concatenate([_scipy_pairs(m) for m in mats]))
+    assert 0.1 * len(mats) < len(calls) < 0.7 * len(mats)      # both ways taken
+    solved = set(calls)
+    near = [m for i, m in enumerate(mats) if i % 6 == 3 and min(m.shape) > 1]
+    assert len(near) > 300 and all(m.tobytes() in solved for m in near)   # within the margin: scipy decides
+    clear_winners = [m for i, m in enumerate(mats) if i % 6 == 5]
+    assert sum(m.tobytes() not in solved for m in clear_winners) > 0.9 * len(clear_winners)
+
+
+def test_match_entries_equals_scipy_on_the_full_matrices():
+    """Sparse entries of many frames (zeros elsewhere), crowded and tied ones among them: the entries
+    match_entries takes are those scipy takes on each frame's full matrix."""
+    rng = np.random.default_rng(5)
+    mats = []
+    for i in range(2000):
+        g, k = int(rng.integers(1, 9)), int(rng.integers(1, 9))
+        m = np.where(rng.random((g, k)) < 0.25, rng.choice([0.5, 0.6, 0.6, 0.75, 0.9], (g, k)), 0.0)
+        if i % 3 == 0:
+            m = np.where(m > 0, 0.5 + 0.5 * rng.random((g, k)), 0.0)   # generic values: mostly certified
+        mats.append(m)
+    nr = np.array([m.shape[0] for m in mats])
+    nc = np.array([m.shape[1] for m in mats])
+    seg = np.concatenate([np.full(int((m > 0).sum()), s) for s, m in enumerate(mats)])
+    r_loc = np.concatenate([np.nonzero(m > 0)[0] for m in mats])
+    c_loc = np.concatenate([np.nonzero(m > 0)[1] for m in mats])
+    val = np.concatenate([m[m > 0] for m in mats])
+    rowkey = segment_starts(nr)[seg] + r_loc
+    colkey = segment_starts(nc)[seg] + c_loc
+    got = pairs.match_entries(seg, rowkey, colkey, val, np.ones(len(mats), bool), nr, nc, r_loc, c_loc)
+    want = np.concatenate([_scipy_pairs(m).reshape(m.shape)[m > 0] for m in mats])
+    assert np.array_equal(got, want)
+    ok, _ = pairs.certify_sparse(seg, rowkey, colkey, val, len(mats))
+    crowded = pairs.nontrivial_segments(seg, rowkey, colkey, np.ones(len(val), bool))
+    assert 0.2 < ok[crowded].mean() < 0.9           # both the certificate and scipy decide crowded frames
 
 
 # ------------------------------------------------------------------ random synthetic scenes vs TrackEval

@@ -40,7 +40,7 @@ from dfrmot_jax.metrics.ab3dmot_prep import Ab3dGT, Ab3dTracker
 from dfrmot_jax.metrics.box3d import iou_3d
 from dfrmot_jax.metrics.fields3d import box3d_problem, no_box_rows
 from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
-from dfrmot_jax.metrics.similarity import row_ids
+from dfrmot_jax.metrics.similarity import distinct_rows
 
 __all__ = ["evaluate_ab3dmot_arrays", "evaluate_ab3dmot_rows", "tracker_rows_from_arrays"]
 
@@ -187,27 +187,14 @@ def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_off
     return [rows.tracker(gt, b) for b in range(len(rows.n_tracks))]
 
 
-def _distinct(frame: np.ndarray, vals: np.ndarray, key: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct (frame, value row) of [R] frames and [R, C] rows -> (first row of each [U], id of each
-    row [R]); with ``key`` [R] (equal keys in a frame: equal values; non-negative) the distinct
-    (frame, key) instead, without reading the values."""
-    if key is not None and len(key):
-        ids = pd.factorize(frame.astype(np.int64) * (int(key.max()) + 1) + key)[0].astype(np.int64)
-    else:
-        ids = row_ids(np.concatenate([frame[:, None].astype(np.float64), vals], axis=1))
-    first = np.full(int(ids.max(initial=-1)) + 1, -1, dtype=np.int64)
-    first[ids[::-1]] = np.arange(len(ids))[::-1]
-    return first, ids
-
-
 def _pairs(gt: Ab3dGT, rows: _Rows, kind: str, threshold: float, key: np.ndarray | None = None) -> list:
     """Candidate pairs of every output (by frame, object, row within each): the distinct (frame, box)
     values' pairs with the ground truth (IoU once each), joined back to every output's rows.
-    ``key`` [R]: the rows' value keys (:func:`_distinct`), or None."""
+    ``key`` [R]: the rows' value keys (:func:`~dfrmot_jax.metrics.similarity.distinct_rows`), or None."""
     B = len(rows.n_tracks)
     vals, live = (rows.box, np.ones(len(rows.frame), dtype=bool)) if kind == "2d" else (rows.box3d, rows.has3d)
     sel = np.flatnonzero(live)
-    first, uid = _distinct(rows.frame[sel], vals[sel], None if key is None else key[sel])
+    first, uid = distinct_rows(rows.frame[sel], vals[sel], None if key is None else key[sel])
     ufr = rows.frame[sel[first]]
     o = np.argsort(ufr, kind="stable")                  # distinct values by frame
     rank = np.empty(len(o), dtype=np.int64)
@@ -276,7 +263,7 @@ def evaluate_ab3dmot_rows(gt: Ab3dGT, lane, t, slot, ids, box, score, box3d, n_l
         return []
     pairs = _pairs(gt, rows, kind, thr, box_key if kind == "2d" else box3d_key)
     # the static ignore rule once per distinct (frame, image box); track means in one call
-    first, bid = _distinct(rows.frame, rows.box, box_key)
+    first, bid = distinct_rows(rows.frame, rows.box, box_key)
     static = static_ignore(gt, rows.frame[first], rows.box[first], np.zeros(len(first), dtype=bool))[bid]
     gtrack = rows.track_start[rows.lane] + rows.track
     n_all = int(rows.track_start[-1])

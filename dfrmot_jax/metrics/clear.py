@@ -8,8 +8,8 @@ re-starts of tracking between consecutive such frames, MT/PT/ML use the tracked 
 (> 0.8 / >= 0.2).
 
 Only frames where a GT or tracker box has two candidates (IoU >= 0.5) need the solver (the
-``continues`` bonus can only matter there); they are solved in time order after all other frames'
-matches are known. Arrays: ``L`` configs, ``S`` sequences.
+``continues`` bonus can only matter there); they are solved after all other frames' matches are
+known, in rounds of frames whose previous frame is final (vectorised), then the rest in time order. Arrays: ``L`` configs, ``S`` sequences.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dfrmot_jax.metrics.boxes import EPS
 from dfrmot_jax.metrics.kitti import EvalBatch
 from scipy.optimize import linear_sum_assignment
 
-from dfrmot_jax.metrics.pairs import nontrivial_segments, segment_starts
+from dfrmot_jax.metrics.pairs import crowded_segments, segment_pairs, segment_rows, segment_starts, solve_blocks
 
 THRESHOLD = 0.5
 MAIN_INTEGER_FIELDS = ("CLR_TP", "CLR_FN", "CLR_FP", "IDSW", "MT", "PT", "ML", "Frag")
@@ -29,6 +29,8 @@ MAIN_FLOAT_FIELDS = ("MOTA", "MOTP", "MODA", "CLR_Re", "CLR_Pr", "MTR", "PTR", "
 FLOAT_FIELDS = MAIN_FLOAT_FIELDS + ("CLR_F1", "FP_per_frame", "MOTAL", "MOTP_sum")
 FIELDS = FLOAT_FIELDS + INTEGER_FIELDS
 SUMMED_FIELDS = INTEGER_FIELDS + ("MOTP_sum",)
+#: frames solved together per round while a round has at least this many (then one by one)
+ROUND_MIN = 16
 
 
 def _final_fields(res: dict) -> dict:
@@ -51,31 +53,86 @@ def _final_fields(res: dict) -> dict:
     return res
 
 
+def _prev_active(b: EvalBatch) -> np.ndarray:
+    """[L*F] the previous lane-frame with both GT and tracker boxes in the same lane and sequence (-1 none)."""
+    gt = b.gt
+    F = gt.n_frames
+    active = np.flatnonzero(b.lf_eval_count * b.det_count)
+    prev_of = np.full(len(b.det_count), -1, dtype=np.int64)
+    same = (active[1:] // F == active[:-1] // F) & (
+        gt.seq_of_frame[active[1:] % F] == gt.seq_of_frame[active[:-1] % F])
+    prev_of[active[1:][same]] = active[:-1][same]
+    return prev_of
+
+
+def _solve_round(ready: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.ndarray, p_tid: np.ndarray,
+                 matched: np.ndarray, prev_of: np.ndarray) -> None:
+    """Solve lane-frames whose previous active frame's matches are final in ``matched``, all at once.
+
+    Each frame's matrix is TrackEval's ``1000 * continues + sim`` (zero where ``sim < 0.5 - eps``),
+    solved by :func:`~dfrmot_jax.metrics.pairs.solve_blocks` (scipy on each full matrix).
+    """
+    NG = max(len(b.gt.gid_count), 1)
+    ps = b.pair_start
+    idx = segment_pairs(ready, ps)
+    frame = np.repeat(ready, ps[ready + 1] - ps[ready])
+    s = sim[idx]
+    vals = np.where(s >= THRESHOLD - EPS, s, 0.0)  # TrackEval: score[sim < thr - eps] = 0
+    prevs = prev_of[ready]
+    prevs = prevs[prevs >= 0]
+    q = np.flatnonzero((vals > 0) & (prev_of[frame] >= 0))
+    if prevs.size and q.size:
+        pp = segment_pairs(prevs, ps)
+        mp = pp[matched[pp]]
+        if mp.size:
+            mkey = b.p_lf[mp] * NG + p_gid[mp]
+            order = np.argsort(mkey)
+            mkey, mtid = mkey[order], p_tid[mp][order]
+            qkey = prev_of[frame[q]] * NG + p_gid[idx[q]]
+            pos = np.minimum(np.searchsorted(mkey, qkey), len(mkey) - 1)
+            cont = (mkey[pos] == qkey) & (mtid[pos] == p_tid[idx[q]])
+            vals[q[cont]] += 1000  # TrackEval: 1000 * continues + sim (where sim >= thr - eps)
+    take = solve_blocks(b.lf_eval_count[ready], b.det_count[ready], vals) & (vals > 0 + EPS)
+    matched[idx[take]] = True
+
+
 def _solve_sequential(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.ndarray, p_tid: np.ndarray,
                       matched: np.ndarray) -> None:
-    """Solve the listed lane-frames in time order with TrackEval's continuation bonus (in place).
+    """Solve the listed lane-frames with TrackEval's continuation bonus (in place).
 
     ``matched`` holds the final matches of every other lane-frame on entry. The bonus of a frame
     needs the matches of the previous frame with both GT and tracker boxes (same lane and
-    sequence): looked up vectorised when that frame needed no solver, else taken from the loop.
+    sequence). Frames whose previous frame is final are solved together, in rounds
+    (:func:`_solve_round`), while a round has at least ``ROUND_MIN`` frames; the rest (the tails of
+    long runs of such frames) one by one in time order (:func:`_solve_in_order`).
     """
+    prev_of = _prev_active(b)
+    pending = np.zeros(len(b.det_count), dtype=bool)
+    pending[hard] = True
+    matched[segment_pairs(hard, b.pair_start)] = False
+    while hard.size:
+        prev = prev_of[hard]
+        ready = hard[(prev < 0) | ~pending[np.maximum(prev, 0)]]
+        if len(ready) < ROUND_MIN:
+            break
+        _solve_round(ready, b, sim, p_gid, p_tid, matched, prev_of)
+        pending[ready] = False
+        hard = hard[pending[hard]]
+    if hard.size:
+        _solve_in_order(hard, b, sim, p_gid, p_tid, matched, prev_of)
+
+
+def _solve_in_order(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.ndarray, p_tid: np.ndarray,
+                    matched: np.ndarray, prev_of: np.ndarray) -> None:
+    """The listed lane-frames (pairs cleared in ``matched``) one by one in time order: the bonus
+    looked up vectorised when the previous frame is final, else taken from the loop."""
     gt = b.gt
-    F = gt.n_frames
     NG = max(len(gt.gid_count), 1)
     ng_e = b.lf_eval_count
     nk = b.det_count
     ps = b.pair_start
-    active = np.flatnonzero(ng_e * nk)
-    prev_of = np.full(len(nk), -1, dtype=np.int64)
-    same = (active[1:] // F == active[:-1] // F) & (
-        gt.seq_of_frame[active[1:] % F] == gt.seq_of_frame[active[:-1] % F])
-    prev_of[active[1:][same]] = active[:-1][same]
     is_hard = np.zeros(len(nk), dtype=bool)
     is_hard[hard] = True
-
-    # clear the hard frames' pairs
-    lens = ps[hard + 1] - ps[hard]
-    matched[np.arange(lens.sum()) - np.repeat(segment_starts(lens)[:-1] - ps[hard], lens)] = False
 
     # rows of the hard frames, their GT ids and (for non-hard previous frames) the previous match
     nr = ng_e[hard]
@@ -130,18 +187,16 @@ def clear_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     """CLEAR fields per (config, sequence): arrays [L, S] (``FIELDS``; counts as int64)."""
     gt = b.gt
     L, F, S = b.n_lanes, gt.n_frames, len(gt.sequences)
-    NE = len(gt.eval_gid)
     NG = len(gt.gid_count)
     sim = b.sim
     ng_e = b.lf_eval_count
     nk = b.det_count
-    lane_p = b.p_lf // F
     p_gid = gt.eval_gid[b.p_e]
     p_tid = b.det_gid[b.p_k]
 
     positive = sim >= THRESHOLD - EPS
     matched = positive.copy()
-    hard = nontrivial_segments(b.p_lf, lane_p * max(NE, 1) + b.p_e, b.p_k, positive)
+    hard = crowded_segments(positive, *segment_rows(ng_e, nk, b.pair_start), b.p_k, b.det_lf)
     if hard.size:
         _solve_sequential(hard, b, sim, p_gid, p_tid, matched)
 

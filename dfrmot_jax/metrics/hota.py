@@ -14,10 +14,12 @@ Arrays: ``L`` configs, ``S`` sequences, ``NA = 19`` alphas.
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 
 from dfrmot_jax.metrics.boxes import EPS
 from dfrmot_jax.metrics.kitti import EvalBatch
-from dfrmot_jax.metrics.pairs import assign_frames, nontrivial_segments, numpy_col_sums, numpy_row_sums, segment_starts
+from dfrmot_jax.metrics.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
+                                      segment_rows)
 
 ALPHAS = np.arange(0.05, 0.99, 0.05)  # TrackEval's array_labels, [19]
 NA = len(ALPHAS)
@@ -51,7 +53,6 @@ def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     """HOTA fields per (config, sequence): arrays [L, S, NA] and [L, S] (``FIELDS``)."""
     gt = b.gt
     L, F, S = b.n_lanes, gt.n_frames, len(gt.sequences)
-    NE = len(gt.eval_gid)
     NG = len(gt.gid_count)
     P = len(b.sim)
     sim = b.sim
@@ -59,11 +60,7 @@ def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     nk = b.det_count
 
     # (1) sim_iou = sim / (colsum + rowsum - sim), sums exactly as numpy
-    act = np.flatnonzero(ng_e * nk)
-    nr = ng_e[act]
-    row_lf = np.repeat(act, nr)
-    local = np.arange(row_lf.size, dtype=np.int64) - np.repeat(segment_starts(nr)[:-1], nr)
-    row_first = b.pair_start[row_lf] + local * nk[row_lf]
+    row_lf, row_first = segment_rows(ng_e, nk, b.pair_start)
     row_len = nk[row_lf]
     rowsum = np.repeat(numpy_row_sums(sim, row_first, row_len), row_len)
     colsum = numpy_col_sums(sim, b.p_k, len(b.det_lf), b.det_lf, ng_e, nk, b.pair_start)[b.p_k]
@@ -76,8 +73,7 @@ def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     pos = np.flatnonzero(sim > 0)
     p_gid = gt.eval_gid[b.p_e[pos]]
     p_tid = b.det_gid[b.p_k[pos]]
-    uniq, inv = np.unique(p_tid * max(NG, 1) + p_gid, return_inverse=True)
-    inv = inv.reshape(-1)
+    inv, uniq = pd.factorize(p_tid * max(NG, 1) + p_gid, sort=True)  # = np.unique(..., return_inverse), hashed
     pm = np.bincount(inv, weights=sim_iou[pos], minlength=len(uniq))
     c_gid = uniq % max(NG, 1)
     c_tid = uniq // max(NG, 1)
@@ -88,17 +84,17 @@ def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     score[pos] = gas[inv] * sim[pos]
 
     # (2) per-frame assignment
-    lane_p = b.p_lf // F
     positive = score > 0
     matched = positive.copy()
-    hard = nontrivial_segments(b.p_lf, lane_p * max(NE, 1) + b.p_e, b.p_k, positive)
+    hard = crowded_segments(positive, row_lf, row_first, b.p_k, b.det_lf)
     assign_frames(hard, b.pair_start, ng_e, nk, score, matched, 0.0)
 
     # (3) statistics per alpha
     h = np.flatnonzero(matched)
     sim_h = sim[h]
     na = np.searchsorted(ALPHAS - EPS, sim_h, side="right")  # alphas passed: sim >= alpha - eps
-    ls_h = lane_p[h] * S + gt.seq_of_frame[b.p_lf[h] % F]
+    lf_h = b.p_lf[h]
+    ls_h = (lf_h // F) * S + gt.seq_of_frame[lf_h % F]
     hist = np.bincount(ls_h * (NA + 1) + na, minlength=L * S * (NA + 1)).reshape(L, S, NA + 1)
     tp = _rev_cum(hist).astype(np.float64)
     loc_hist = np.bincount(ls_h * (NA + 1) + na, weights=sim_h, minlength=L * S * (NA + 1)).reshape(L, S, NA + 1)

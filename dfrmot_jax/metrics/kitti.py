@@ -52,9 +52,10 @@ import pandas as pd
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.io.result_rows import read_result_rows
-from dfrmot_jax.metrics.boxes import EPS, columns, gather_iou, pair_ioa
+from dfrmot_jax.metrics.box_table import box_table, candidate_pairs, pair_iou
+from dfrmot_jax.metrics.boxes import EPS, columns
 from dfrmot_jax.metrics.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows, read_box3d_columns
-from dfrmot_jax.metrics.pairs import assign_frames, enumerate_pairs, nontrivial_segments, segment_starts
+from dfrmot_jax.metrics.pairs import enumerate_pairs, match_entries, segment_starts
 from dfrmot_jax.metrics.similarity import pair_similarity_3d, parse_similarity
 
 __all__ = [
@@ -309,7 +310,8 @@ def class_sequences(root, cls: str = "car", sequences: Sequence | None = None) -
 class TrackerDets(NamedTuple):
     """Tracker boxes of ``n_lanes`` configs, sorted by (lane, frame), slot/file order within a frame.
 
-    lane, frame (global GT frame), track_id: [M] int64; box: [M, 4] float64 ``x1, y1, x2, y2``;
+    lane, frame (global GT frame), track_id: [M] int64; box: [M, 4] float64 ``x1, y1, x2, y2`` (float32
+    from float32 arrays: :func:`preprocess` widens a batch's boxes to float64, exactly);
     source: [M] int64 row in the source file (files) or slot index (arrays), for error messages;
     paths: per lane, per sequence the source file (or None). box3d: [M, 7] float64 ``h w l x y z
     rot_y`` and has3d: [M] bool (False: no 3D box), or both None when the 3D fields were not read.
@@ -463,7 +465,9 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     if np.any(seq_offsets < 0) or np.any(seq_offsets + gt.lengths > T):
         raise ValueError(f"seq_offsets + sequence lengths exceed T = {T}")
     if np.array_equal(seq_offsets, gt.offsets[:-1]) and T == gt.n_frames:
-        b, t, k = np.nonzero(ids >= 0)
+        flat = np.flatnonzero(ids.reshape(-1) >= 0)   # (b, t, k) in order, cheaper than a 3-D nonzero
+        b, tk = np.divmod(flat, T * K)
+        t, k = np.divmod(tk, K)
         g = t
     else:
         # map array frames to global GT frames; frames outside every sequence are ignored
@@ -474,7 +478,13 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
         g = gmap[t]
         order = np.lexsort((k, g, b))
         b, t, k, g = b[order], t[order], k[order], g[order]
-    box = boxes[b, t, k].astype(np.float64)
+    if g is t and boxes.flags.c_contiguous:
+        box = np.take(boxes.reshape(-1, 4), flat, axis=0)
+    elif g is t and boxes.strides[0] == 0 and boxes[0].flags.c_contiguous:    # one box array for all lanes
+        box = np.take(boxes[0].reshape(-1, 4), tk, axis=0)
+    else:
+        box = boxes[b, t, k]
+    box = box if box.dtype == np.float32 else box.astype(np.float64)   # float32 kept: widened per batch
     if box.size and not np.all(np.isfinite(box)):
         bad = int(np.flatnonzero(~np.all(np.isfinite(box), axis=1))[0])
         raise ValueError(f"non-finite box in config {b[bad]}, frame {t[bad]}, slot {k[bad]}")
@@ -490,8 +500,9 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
             i, j, msg = bad
             raise ValueError(f"3D box of config {b[i]}, frame {t[i]}, slot {k[i]}, field {FIELDS_3D[j]}: "
                              + msg.format(repr(float(b3[i, j])), repr(float(b3[i, 2]))))
-    return TrackerDets(B, b.astype(np.int64), g.astype(np.int64), ids[b, t, k].astype(np.int64), box,
-                       k.astype(np.int64), (), b3, h3)
+    tid = ids.reshape(-1)[flat] if g is t else ids[b, t, k]
+    return TrackerDets(B, b.astype(np.int64, copy=False), g.astype(np.int64, copy=False),
+                       tid.astype(np.int64, copy=False), box, k.astype(np.int64, copy=False), (), b3, h3)
 
 
 @dataclass(eq=False)
@@ -564,36 +575,29 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     nd = np.bincount(lf, minlength=L * F).astype(np.int64)
     d_start = segment_starts(nd)
     g_of_lf = np.tile(np.arange(F, dtype=np.int64), L)
-    ng_all = np.diff(gt.row_start)[g_of_lf]
-    seg, row, col, pstart = enumerate_pairs(ng_all, gt.row_start[g_of_lf], nd, d_start)
+    # IoU of each distinct (frame, box) with the frame's class rows and its DontCare overlap, once
+    box = np.asarray(dets.box, dtype=np.float64)
+    tab = box_table(gt.row_start, gt.row_cols, gt.dc_start, gt.dc_box, dets.frame, box)
+    # removed if left unmatched (step 3): too small, or mostly inside a DontCare region
+    fragile = (box[:, 3] - box[:, 1] <= MIN_HEIGHT + EPS) | tab.in_dontcare[tab.value]
 
-    # --- step 2: match to class + distractor GT, drop boxes matched to distractors
-    iou = gather_iou(gt.row_cols, row, columns(dets.box), col)
-    pos = iou >= 0.5 - EPS
-    lane_of_pair = seg // F
-    rowkey = lane_of_pair * max(len(gt.row_eval), 1) + row
-    matched = pos.copy()
-    hard = nontrivial_segments(seg, rowkey, col, pos)
-    assign_frames(hard, pstart, ng_all, nd, np.where(pos, iou, 0.0), matched, 0 + EPS)
+    # --- step 2: match to class + distractor GT, drop boxes matched to distractors. Only pairs with
+    # IoU >= 0.5 - eps score (TrackEval's matrix is [class rows, boxes], zeros elsewhere); the answer
+    # matters only where a distractor or a fragile box is among a frame's candidates (else every box
+    # stays either way)
+    c_det, c_row, c_iou = candidate_pairs(tab)
+    c_lf = lf[c_det]
+    needed = np.zeros(len(nd), dtype=bool)
+    needed[c_lf[~gt.row_eval[c_row] | fragile[c_det]]] = True
+    matched = match_entries(c_lf, dets.lane[c_det] * max(len(gt.row_eval), 1) + c_row, c_det, c_iou, needed,
+                            np.diff(gt.row_start)[g_of_lf], nd, c_row - gt.row_start[dets.frame[c_det]],
+                            c_det - d_start[c_lf], 0 + EPS)
     det_matched = np.zeros(M, dtype=bool)
-    det_matched[col[matched]] = True
+    det_matched[c_det[matched]] = True
     to_remove = np.zeros(M, dtype=bool)
-    mm = matched & ~gt.row_eval[row]
-    to_remove[col[mm]] = True
-
-    # --- step 3: unmatched boxes too small or mostly inside DontCare
-    unmatched = ~det_matched
-    height = dets.box[:, 3] - dets.box[:, 1]
-    to_remove |= unmatched & (height <= MIN_HEIGHT + EPS)
-    ndc = np.diff(gt.dc_start)[dets.frame]
-    cand = np.flatnonzero(unmatched & ~to_remove & (ndc > 0))
-    if cand.size:
-        c_n = ndc[cand]
-        c_det = np.repeat(cand, c_n)
-        c_dc = np.repeat(gt.dc_start[dets.frame[cand]], c_n) + (
-            np.arange(c_det.size) - np.repeat(segment_starts(c_n)[:-1], c_n))
-        inside = pair_ioa(dets.box[c_det], gt.dc_box[c_dc]) > 0.5 + EPS
-        to_remove[c_det[inside]] = True
+    to_remove[c_det[matched & ~gt.row_eval[c_row]]] = True
+    # --- step 3: unmatched fragile boxes
+    to_remove |= ~det_matched & fragile
     keep = ~to_remove
 
     # --- kept dets, ids
@@ -604,37 +608,37 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     k_lf = lf[kidx]
     k_seq = gt.seq_of_frame[k_frame]
     grp = k_lane * S + k_seq
-    order = np.lexsort((k_tid, grp))
-    gs, ts = grp[order], k_tid[order]
-    new = np.ones(len(order), dtype=bool)
-    new[1:] = (gs[1:] != gs[:-1]) | (ts[1:] != ts[:-1])
-    gid_sorted = np.cumsum(new) - 1
-    det_gid = np.empty(len(order), dtype=np.int64)
-    det_gid[order] = gid_sorted
-    NT = int(new.sum())
-    tid_grp = gs[new]
+    top = int(k_tid.max(initial=0)) + 1               # ids >= 0: one int64 key per (lane, seq, id) if it fits
+    if (L * S + 1) * top < 2**62:
+        det_gid, uniq = pd.factorize(grp * top + k_tid, sort=True)   # ranks of (grp, id), hashed
+        tid_grp = uniq // top
+    else:
+        order = np.lexsort((k_tid, grp))
+        gs, ts = grp[order], k_tid[order]
+        new = np.ones(len(order), dtype=bool)
+        new[1:] = (gs[1:] != gs[:-1]) | (ts[1:] != ts[:-1])
+        det_gid = np.empty(len(order), dtype=np.int64)
+        det_gid[order] = np.cumsum(new) - 1
+        tid_grp = gs[new]
+    NT = len(tid_grp)
     tid_count = np.bincount(det_gid, minlength=NT).astype(np.float64)
     # duplicates within a frame
-    if len(kidx):
+    if len(kidx) and (L * F * NT >= 2**62 or pd.Series(k_lf * NT + det_gid).duplicated().any()):
         o2 = np.lexsort((det_gid, k_lf))
         dup = (k_lf[o2][1:] == k_lf[o2][:-1]) & (det_gid[o2][1:] == det_gid[o2][:-1])
         if dup.any():
             raise _duplicate_error(gt, dets, int(kidx[o2[1:][dup][0]]))
     nk = np.bincount(k_lf, minlength=L * F).astype(np.int64)
 
-    # --- metric pairs: eval GT x kept dets (a sub-grid of each lane-frame's pair grid)
-    ev_row = gt.row_eval_index[row]
-    kpos = np.cumsum(keep) - 1
-    sel = (ev_row >= 0) & keep[col]
-    p_lf = seg[sel]
-    p_e = ev_row[sel]
-    p_k = kpos[col[sel]]
-    if similarity == "2d":
-        sim = iou[sel]
-    else:
-        sim = pair_similarity_3d(gt.row_box3d, gt.row_has3d, row[sel], dets.box3d, dets.has3d, col[sel], similarity)
+    # --- metric pairs: eval GT x kept dets of each lane-frame, row-major; IoU looked up in the table
     ng_e = gt.eval_count[g_of_lf]
-    pair_start = segment_starts(ng_e * nk)
+    p_lf, p_e, p_k, pair_start = enumerate_pairs(ng_e, gt.eval_start[g_of_lf], nk, segment_starts(nk)[:-1])
+    ev_rows = np.flatnonzero(gt.row_eval)             # class row of each eval row
+    if similarity == "2d":
+        sim = pair_iou(tab, gt.row_start, ev_rows, p_e, kidx, p_k)
+    else:
+        sim = pair_similarity_3d(gt.row_box3d, gt.row_has3d, ev_rows[p_e], dets.box3d, dets.has3d, kidx[p_k],
+                                 similarity)
     n_tr_dets = np.bincount(grp, minlength=L * S).reshape(L, S).astype(np.int64)
     n_tr_ids = np.bincount(tid_grp, minlength=L * S).reshape(L, S).astype(np.int64)
     return EvalBatch(gt=gt, n_lanes=L, det_lf=k_lf, det_gid=det_gid, det_start=segment_starts(nk), det_count=nk,

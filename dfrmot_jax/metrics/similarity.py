@@ -15,7 +15,7 @@ import pandas as pd
 
 from dfrmot_jax.metrics.box3d import bev_iou, iou_3d
 
-__all__ = ["SIMILARITIES", "parse_similarity", "row_ids", "pair_similarity_3d"]
+__all__ = ["SIMILARITIES", "parse_similarity", "row_ids", "distinct_rows", "pair_similarity_3d"]
 
 #: the similarities HOTA / CLEAR / Identity can use: image-box IoU, 3D IoU of rotated boxes, BEV IoU
 SIMILARITIES = ("2d", "3d", "bev")
@@ -58,6 +58,19 @@ def row_ids(vals: np.ndarray) -> np.ndarray:
     if np.array_equal(vals[first][codes].view(np.uint64), bits):
         return codes
     return np.unique(vals, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
+
+
+def distinct_rows(frame: np.ndarray, vals: np.ndarray, key: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct (frame, value row) of [R] frames and [R, C] rows -> (first row of each [U], id of each
+    row [R]); with ``key`` [R] (non-negative; equal keys within a frame mean equal values) the
+    distinct (frame, key) instead, without reading the values."""
+    if key is not None and len(key):
+        ids = pd.factorize(frame.astype(np.int64) * (int(key.max()) + 1) + key)[0].astype(np.int64)
+    else:
+        ids = row_ids(np.concatenate([frame[:, None].astype(np.float64), vals], axis=1))
+    first = np.full(int(ids.max(initial=-1)) + 1, -1, dtype=np.int64)
+    first[ids[::-1]] = np.arange(len(ids))[::-1]
+    return first, ids
 
 
 def pair_similarity_3d(a_box3d: np.ndarray, a_has3d: np.ndarray, ia: np.ndarray, b_box3d: np.ndarray,

@@ -1,0 +1,101 @@
+"""Image IoU of the distinct tracker boxes with the ground truth, computed once and looked up.
+
+The outputs of a sweep (and the lanes of one batch) mostly carry the same boxes: the detector's,
+frame by frame. :func:`box_table` finds the distinct (frame, box) values of the tracker rows
+(:func:`~dfrmot_jax.metrics.similarity.distinct_rows`), computes their IoU with every class row of
+the frame's ground truth once (TrackEval's formula bit for bit, :func:`~dfrmot_jax.metrics.boxes.gather_iou`),
+and keeps, per distinct value, its candidate rows (IoU >= 0.5 - eps, the preprocessing's matching
+threshold) and whether it lies mostly inside a DontCare region (intersection over its own area
+> 0.5 + eps with any, :func:`~dfrmot_jax.metrics.boxes.pair_ioa`). :func:`pair_iou` looks pairs
+up; :func:`candidate_pairs` joins the candidates back to the rows.
+
+Arrays: ``F`` frames, ``M`` tracker rows, ``U`` distinct values (sorted by frame), class rows of
+the ground truth as in :class:`~dfrmot_jax.metrics.kitti.PreparedGT` (``row_start`` [F+1]).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from dfrmot_jax.metrics.boxes import EPS, columns, gather_iou, pair_ioa
+from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
+from dfrmot_jax.metrics.similarity import distinct_rows
+
+__all__ = ["BoxTable", "MATCH_IOU", "box_table", "pair_iou", "candidate_pairs"]
+
+MATCH_IOU = 0.5  # the preprocessing's distractor matching: IoU >= 0.5 - eps
+
+
+class BoxTable(NamedTuple):
+    """IoU of distinct (frame, box) values with the frame's class ground-truth rows.
+
+    value: [M] distinct value of each tracker row (0..U-1, values sorted by frame); local: [M] its
+    rank among its frame's values; n_values: [F]; iou_start: [F+1] (frame f's table is
+    ``iou[iou_start[f]:iou_start[f+1]]``, [n class rows of f, n_values[f]] row-major);
+    iou: float64 table; cand_start: [U+1], cand_row: [Q] class row (global), cand_iou: [Q]: each
+    value's rows with IoU >= 0.5 - eps, in row order; in_dontcare: [U] bool.
+    """
+    value: np.ndarray
+    local: np.ndarray
+    n_values: np.ndarray
+    iou_start: np.ndarray
+    iou: np.ndarray
+    cand_start: np.ndarray
+    cand_row: np.ndarray
+    cand_iou: np.ndarray
+    in_dontcare: np.ndarray
+
+
+def box_table(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_box: np.ndarray, frame: np.ndarray,
+              box: np.ndarray) -> BoxTable:
+    """The :class:`BoxTable` of tracker rows ``frame`` [M] (global frame) and ``box`` [M, 4] float64.
+
+    row_start: [F+1] class rows of each frame; row_cols: the class rows' boxes as four columns
+    (:func:`~dfrmot_jax.metrics.boxes.columns`); dc_start [F+1], dc_box [D, 4]: DontCare regions."""
+    F = len(row_start) - 1
+    first, ids = distinct_rows(frame, box)
+    ufr = frame[first]
+    order = np.argsort(ufr, kind="stable")               # distinct values by frame
+    value = np.empty(len(order), dtype=np.int64)
+    value[order] = np.arange(len(order))
+    value = value[ids]
+    n_values = np.bincount(ufr, minlength=F).astype(np.int64)
+    vstart = segment_starts(n_values)
+    local = value - vstart[frame]
+    n_rows = np.diff(row_start)
+    _, row, col, iou_start = enumerate_pairs(n_rows, row_start[:-1], n_values, vstart[:-1])
+    iou = gather_iou(row_cols, row, columns(box[first[order]]), col)
+    ubox = box[first[order]]
+    n_dc = np.diff(dc_start)[np.repeat(np.arange(F), n_values)]
+    d_val = np.repeat(np.arange(len(order)), n_dc)
+    d_reg = np.repeat(dc_start[:-1][np.repeat(np.arange(F), n_values)], n_dc) + (
+        np.arange(len(d_val)) - np.repeat(segment_starts(n_dc)[:-1], n_dc))
+    in_dc = np.zeros(len(order), dtype=bool)
+    in_dc[d_val[pair_ioa(ubox[d_val], dc_box[d_reg]) > 0.5 + EPS]] = True
+    cand = np.flatnonzero(iou >= MATCH_IOU - EPS)
+    cand = cand[np.argsort(col[cand], kind="stable")]    # by value, rows in order
+    return BoxTable(value=value, local=local, n_values=n_values, iou_start=iou_start, iou=iou,
+                    cand_start=segment_starts(np.bincount(col[cand], minlength=len(order))),
+                    cand_row=row[cand], cand_iou=iou[cand], in_dontcare=in_dc)
+
+
+def pair_iou(t: BoxTable, row_start: np.ndarray, rows: np.ndarray, p_row: np.ndarray, dets: np.ndarray,
+             p_det: np.ndarray) -> np.ndarray:
+    """IoU of pairs (class row ``rows[p_row]``, tracker row ``dets[p_det]``) -> [P] float64.
+
+    rows: [R] class rows, dets: [D] tracker rows (each pair's row and box in the same frame);
+    p_row, p_det: [P] indices into them. Looked up as one base per row plus one offset per box."""
+    frame = np.searchsorted(row_start, rows, side="right") - 1
+    base = t.iou_start[frame] + (rows - row_start[frame]) * t.n_values[frame]
+    return t.iou[base[p_row] + t.local[dets][p_det]]
+
+
+def candidate_pairs(t: BoxTable) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every tracker row's candidate class rows: (det [Q], row [Q], iou [Q]), by tracker row then class row."""
+    a = t.cand_start[t.value]
+    n = t.cand_start[t.value + 1] - a
+    det = np.repeat(np.arange(len(t.value), dtype=np.int64), n)
+    idx = np.repeat(a, n) + (np.arange(int(n.sum()), dtype=np.int64) - np.repeat(segment_starts(n)[:-1], n))
+    return det, t.cand_row[idx], t.cand_iou[idx]
