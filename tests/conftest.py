@@ -1,12 +1,39 @@
+import gc
+import os
 from pathlib import Path
 
 import pytest
 
 from dfrmot_jax import setup_host_devices
+from dfrmot_jax.core.run import clear_programs
 from dfrmot_jax.paths import ENV_VAR, data_available, default_data_root
 
 # One XLA device per core for the whole session, before any test runs a JAX operation.
 setup_host_devices()
+
+
+#: compiled programs are forgotten after a test module once the process holds this many memory
+#: mappings (each program holds some; the kernel's limit, vm.max_map_count, is 65,530 by default,
+#: and the whole suite in one process compiles enough programs to reach it)
+MAX_MAPPINGS = 20_000
+
+
+def memory_mappings() -> int:
+    """This process's memory mappings (0 where /proc is not there)."""
+    try:
+        with open(f"/proc/{os.getpid()}/maps") as f:
+            return sum(1 for _ in f)
+    except OSError:
+        return 0
+
+
+@pytest.fixture(autouse=True, scope="module")
+def bounded_memory_mappings():
+    """After each test module: the compiled programs go when the mappings near the kernel's limit."""
+    yield
+    if memory_mappings() > MAX_MAPPINGS:
+        clear_programs()
+        gc.collect()
 
 
 @pytest.fixture(scope="session")

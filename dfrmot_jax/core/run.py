@@ -198,6 +198,16 @@ def compiled(options: Options, capacity: int, n_devices: int, hook_fn=None, deta
     return _PROGRAMS[key]
 
 
+def clear_programs() -> None:
+    """Forget every compiled batch program and object program, and JAX's own caches: their memory
+    is given back, at the cost of compiling again. Each compiled program holds memory mappings of
+    its own; a process that compiles hundreds of static settings (a test suite) would otherwise
+    reach the kernel's limit on them (``vm.max_map_count``, 65,530 by default) and crash."""
+    _PROGRAMS.clear()
+    _OBJECT_PROGRAMS.clear()
+    jax.clear_caches()
+
+
 def compilations() -> int:
     """XLA compilations of the batch programs so far (a program not yet called counts once):
     ``testing.recompile.no_recompile`` guards against this growing."""
