@@ -169,9 +169,7 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
             for name in per_slot:
                 v = getattr(out, name)
                 if name not in got and lanes.size == b:
-                    # the whole batch in one call: one copy (the program's arrays may be read-only
-                    # views of its device buffers)
-                    got[name] = np.array(v)
+                    got[name] = v                     # the whole batch in one call: run_batch's own arrays
                     continue
                 if name not in got:
                     got[name] = np.empty((b,) + v.shape[1:], v.dtype)

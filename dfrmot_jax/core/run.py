@@ -246,6 +246,21 @@ def _lanes(tree, b: int, pad: int, float_dtype):
     return type(tree)(*out)
 
 
+def _to_host(x: jax.Array, b: int) -> np.ndarray:
+    """The first b lanes of a program output as a NumPy array of its own (writeable): each device's
+    shard copied once into place (``np.asarray`` of a sharded array assembles a read-only copy)."""
+    out = np.empty((b,) + x.shape[1:], x.dtype)
+    for shard in x.addressable_shards:
+        rows = shard.index[0] if shard.index else slice(None)
+        start = rows.start or 0
+        if start >= b:
+            continue
+        data = np.asarray(shard.data)
+        n = min(b - start, data.shape[0]) if data.ndim else 0
+        out[start:start + n] = data[:n]
+    return out
+
+
 def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n_devices: int | None = None,
               hook: FrameHook | None = None, detail: bool = False,
               small_frames_min: int | None = SMALL_FRAMES_MIN_T, objs: Objects | None = None) -> BatchOutput:
@@ -277,6 +292,6 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
             raise ValueError("objects made outside the scan cannot follow a frame hook")
         program = compiled(options, capacity, n_dev, fn, detail, small, objs is not None)
         out, overflow, peak = program(p, Frames(*(jnp.asarray(x) for x in frames)), lanes, xs, flags, objs)
-    out = jax.tree.map(lambda x: np.asarray(x)[:b], out)
+    out = jax.tree.map(lambda x: _to_host(x, b), out)
     return BatchOutput(out.ids, out.boxes, out.dropped, np.asarray(overflow)[:b], np.asarray(peak)[:b],
                        out.src3, out.own3, out.box3)
