@@ -151,7 +151,9 @@ class ChunkRunner:
         self.todo = list(todo)
         self.versions = versions()
         self.scorer = LaneScorer(self.gt, self.split.offsets)
-        self.lanes_per_call = max(1, min(self.spec.chunk, TRACK_CHUNK))
+        # AB3DMOT needs the rows' 3D detail ([B, T, K, 6] boxes with output "filtered"): the whole
+        # chunk in one call, whose output arrays are kept as they come, instead of copying two halves
+        self.lanes_per_call = max(1, min(self.spec.chunk, TRACK_CHUNK if self.spec.ab3dmot is None else 2 * TRACK_CHUNK))
         pending_cf = sum(len(c.configs) for c in todo) * self.split.n_frames
         if self.workers is None:
             self.workers = min(2, os.cpu_count() or 1) if pending_cf >= 2_000_000 else 0
