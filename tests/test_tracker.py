@@ -238,8 +238,8 @@ def test_too_many_objects_per_frame_is_refused_up_front():
         track(fr, stack_params([Params()]), Options())
 
 
-@pytest.mark.parametrize("options", [Options(), Options(output="filtered", filter="kalman"), Options(modality="3d"),
-                                     Options(merge="calib_projection", modality="2d")])
+@pytest.mark.parametrize("options", [Options()] + [pytest.param(o, marks=pytest.mark.slow) for o in (
+    Options(output="filtered", filter="kalman"), Options(modality="3d"), Options(merge="calib_projection", modality="2d"))])
 def test_lanes_sharing_merge_settings_share_objects_made_outside_the_scan(scene, options, monkeypatch):
     """Lanes with the same score_2d / score_3d / merge_iou share their objects, made once outside the
     scan (``core.run.split_objects``): the same arrays as each step making its own, detail included."""
@@ -265,8 +265,8 @@ def test_lanes_sharing_merge_settings_share_objects_made_outside_the_scan(scene,
             np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.parametrize("options", [Options(), Options(output="filtered"), Options(modality="3d"),
-                                     Options(modality="2d")])
+@pytest.mark.parametrize("options", [Options()] + [pytest.param(o, marks=pytest.mark.slow) for o in (
+    Options(output="filtered"), Options(modality="3d"), Options(modality="2d"))])
 def test_track_compacts_the_split_and_gives_the_output_back_in_its_own_layout(scene, options):
     """``track(split)`` runs on the split compacted to the batch's loosest thresholds and moves the
     output back to the split's own slots: every array equal to tracking the split as it is."""
