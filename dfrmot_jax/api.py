@@ -175,8 +175,6 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
                     got[name] = np.empty((b,) + v.shape[1:], v.dtype)
                 # a lane re-run with more track slots ("filtered": slots are tracks) widens axis 2
                 got[name] = _widen(got[name], v.shape[2], fill.get(name, 0))
-                if not got[name].flags.writeable:
-                    got[name] = got[name].copy()
                 k = v.shape[2]
                 got[name][at, :, :k] = v
                 if got[name].shape[2] > k:

@@ -98,13 +98,14 @@ def _object_slots(objs: Objects | None, options: Options, m2: int, m3: int, big2
 
 def split_objects(params: Params, frames: Frames, options: Options) -> Objects:
     """The :class:`~dfrmot_jax.core.step.Objects` of every frame ([T, O, ...]) for one setting of
-    ``score_2d``, ``score_3d``, ``merge_iou`` (``params``: scalars; the other fields are not read),
+    ``score_2d``, ``score_3d``, ``merge_iou`` (``params``: scalars or [1] leaves; the other fields
+    are not read),
     made in one vmapped call outside the scan, once for every lane that shares them."""
     fn = _OBJECT_PROGRAMS.get(options)
     if fn is None:
         fn = _OBJECT_PROGRAMS[options] = jax.jit(jax.vmap(lambda p, f: objects(p, f, options), in_axes=(None, 0)))
     with jax.enable_x64(True):
-        p = Params(*(jnp.asarray(v, jnp.int32 if np.asarray(v).dtype.kind in "iub" else jnp.float64) for v in params))
+        p = Params(*(v[0] for v in _lanes(params, 1, 0, jnp.float64)))      # the step's dtypes, as scalars
         return fn(p, Frames(*(jnp.asarray(x) for x in frames)))
 
 
@@ -256,7 +257,7 @@ def _to_host(x: jax.Array, b: int) -> np.ndarray:
         if start >= b:
             continue
         data = np.asarray(shard.data)
-        n = min(b - start, data.shape[0]) if data.ndim else 0
+        n = min(b - start, data.shape[0])
         out[start:start + n] = data[:n]
     return out
 
