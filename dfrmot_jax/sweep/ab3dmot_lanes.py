@@ -25,6 +25,7 @@ from ..data import Split
 from ..metrics.ab3dmot_arrays import evaluate_ab3dmot_rows
 from ..metrics.ab3dmot_prep import Ab3dGT
 from ..metrics.ab3dmot_table import ab3dmot_columns
+from ..metrics.evaluate import LaneScorer
 from ..metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
 from ..results import kitti_rows
 from .table import COMBINED
@@ -46,9 +47,11 @@ class Ab3dmotLanes:
         (``src3``, ``own3``); with output "filtered" also the lane's own image and 3D boxes. (With
         output "detections" a row's image box, score and 3D box follow from the options, its slot and
         its 3D source, on the one split.) ``base``: the lanes' digests of ids and own image boxes
-        (:meth:`dfrmot_jax.metrics.evaluate.LaneScorer.digests`), extended here instead of
-        hashing them again."""
+        (:meth:`dfrmot_jax.metrics.evaluate.LaneScorer.digests`, made here when not given), extended
+        here instead of hashing them again."""
         ids = np.asarray(res.ids)
+        if base is None:
+            base = LaneScorer.digests(ids, np.asarray(res.boxes))
         rows = ids >= 0
         filtered = res.options.output == "filtered"
         src, own = np.asarray(res.src3), np.asarray(res.own3)
@@ -56,12 +59,7 @@ class Ab3dmotLanes:
         for b in range(ids.shape[0]):
             r = rows[b]
             h = hashlib.sha1(repr(res.options).encode())
-            if base is None:
-                h.update(np.ascontiguousarray(ids[b]).tobytes())
-                if filtered:
-                    h.update(np.ascontiguousarray(np.asarray(res.boxes)[b][r]).tobytes())
-            else:
-                h.update(base[b])
+            h.update(base[b])
             h.update(src[b][r].astype(np.int32).tobytes())
             h.update(np.packbits(own[b][r]).tobytes())
             if filtered:

@@ -94,7 +94,8 @@ class Pending:
 
     def ready(self) -> bool:
         """Its scores are in (nothing left to wait for)."""
-        return all(f is None or not hasattr(f, "done") or f.done() for f in (self.future, self.ab3dmot))
+        scored = self.future is None or self.future.done()
+        return scored and not (isinstance(self.ab3dmot, Future) and not self.ab3dmot.done())
 
 
 def distort_of(table: pd.DataFrame, rows: Sequence[int], dist: DistortionAxes):
