@@ -214,9 +214,11 @@ def test_lane_scorer_with_3d_similarity(scene):
     sc = LaneScorer(gt, gt.offsets[:-1], similarity="3d")
     dig = sc.digests(ids2, boxes2, b3)
     assert dig[0] != dig[1] and LaneScorer.digests(ids2, boxes2)[0] == LaneScorer.digests(ids2, boxes2)[1]
-    lanes = sc.new_lanes(dig)
-    sc.store(dig, lanes, sc.evaluate(sc.dets(ids2, boxes2, lanes, b3)))
-    got = sc.gather(dig)
+    per = sc.seq_digests(ids2, boxes2, b3)
+    assert per[0] != per[1] and sc.seq_digests(ids2, boxes2)[0] == sc.seq_digests(ids2, boxes2)[1]
+    items = sc.new_items(per)
+    sc.store(per, items, sc.evaluate(sc.dets(ids2, boxes2, items, b3)))
+    got = sc.gather(per)
     want = evaluate_arrays(gt, ids2, boxes2, box3d=b3, similarity="3d")
     for lane in range(2):
         assert np.array_equal(got["comb"]["HOTA"][lane], want[lane]["COMBINED"]["HOTA"])

@@ -396,19 +396,28 @@ def _without_main(ctx):
 
 
 class LaneScorer:
-    """Scores lanes of padded tracker output against prepared ground truth, each distinct output once.
+    """Scores lanes of padded tracker output against prepared ground truth, each distinct output of
+    each sequence once.
 
-    A lane's output is identified by a digest of its ids (and its own boxes, when boxes are per
-    lane); :meth:`new_lanes` picks the lanes whose output is not scored yet, :meth:`store` keeps
-    their scores and :meth:`gather` returns the scores of every lane of a batch. similarity:
-    ``'2d'`` (default), ``'3d'`` or ``'bev'`` (then :meth:`digests` and :meth:`dets` take ``box3d``,
-    [B, T, K, 7] or [T, K, 7] shared by the lanes)."""
+    Every metric field of a sequence depends on that sequence's rows only, and a lane's combined
+    fields are :func:`combine_sequences` of its per-sequence ones: so a sequence's output is
+    identified by a digest of its ids (and its own boxes, when boxes are per lane) on its frames
+    (:meth:`seq_digests`), and only the (sequence, output) pairs not seen before are scored. They
+    are packed into as few virtual lanes as the most varied sequence needs (:meth:`new_items`,
+    :meth:`dets`: virtual lane v holds, for each sequence, its v-th new output, or nothing);
+    :meth:`store` keeps their per-sequence fields and :meth:`gather` returns every lane's fields,
+    combined. In a grid sweep of KITTI car, 1,024 configs give 832 distinct lanes but 2.4x fewer
+    distinct sequence-frames to score. similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (then
+    :meth:`seq_digests` and :meth:`dets` take ``box3d``, [B, T, K, 7] or [T, K, 7] shared by the
+    lanes). :meth:`digests` (one per whole lane) is what other memos of lanes build on."""
     def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16, similarity: str = "2d"):
         self.gt = gt
         self.offsets = np.asarray(offsets, np.int64)
         self.lanes_per_batch = lanes_per_batch
         self.similarity = parse_similarity(similarity)
-        self.memo: dict[bytes, tuple[dict, dict]] = {}
+        self.memo: dict[tuple[int, bytes], int] = {}     # (sequence, digest) -> row of the store
+        self._rows: dict[str, list] = {}                 # per field, the stored rows' blocks
+        self._table: dict[str, np.ndarray] | None = None
 
     def __len__(self) -> int:
         return len(self.memo)
@@ -426,27 +435,66 @@ class LaneScorer:
             out.append(h.digest())
         return out
 
-    def new_lanes(self, digests: Sequence[bytes], busy=frozenset()) -> list[int]:
-        """The first lane of each digest not scored yet and not in ``busy`` (being scored elsewhere)."""
-        seen: set[bytes] = set()
+    def seq_digests(self, ids: np.ndarray, boxes: np.ndarray, box3d: np.ndarray | None = None) -> list[tuple]:
+        """Per lane of ``ids`` [B, T, K], one digest per sequence: its ids on the sequence's frames
+        and the lane's own boxes there (as :meth:`digests`). Returns B tuples of S digests."""
+        own = [bx for bx in (boxes, box3d if self.similarity != "2d" else None) if bx is not None and bx.ndim == 4]
+        spans = [(int(a), int(a + n)) for a, n in zip(self.offsets, self.gt.lengths)]
         out = []
-        for i, d in enumerate(digests):
-            if d not in self.memo and d not in seen:
-                seen.add(d)
-                if d not in busy:
-                    out.append(i)
+        for b in range(ids.shape[0]):
+            lane = np.ascontiguousarray(ids[b])
+            live = lane >= 0
+            per = []
+            for a, e in spans:
+                h = hashlib.sha1(lane[a:e].tobytes())
+                for bx in own:
+                    h.update(np.ascontiguousarray(bx[b, a:e][live[a:e]]).tobytes())
+                per.append(h.digest())
+            out.append(tuple(per))
         return out
 
-    def dets(self, ids, boxes, lanes, box3d=None) -> TrackerDets:
-        lanes = np.asarray(lanes, np.int64)
+    def new_items(self, seq_digests: Sequence[tuple], busy=frozenset()) -> list[list[int]]:
+        """Per sequence, the first lane of each of its digests not scored yet and not in ``busy``
+        (``(sequence, digest)`` pairs being scored elsewhere)."""
+        out = []
+        for s in range(len(self.gt.sequences)):
+            seen: set[bytes] = set()
+            lanes = []
+            for i, per in enumerate(seq_digests):
+                key = (s, per[s])
+                if key not in self.memo and per[s] not in seen:
+                    seen.add(per[s])
+                    if key not in busy:
+                        lanes.append(i)
+            out.append(lanes)
+        return out
 
-        def per_lane(a):
-            return a[lanes] if a.ndim == 4 else np.broadcast_to(a, (len(lanes),) + a.shape)
+    @staticmethod
+    def item_keys(seq_digests: Sequence[tuple], items: Sequence[Sequence[int]]) -> set:
+        """The ``(sequence, digest)`` pairs ``items`` (from :meth:`new_items`) score."""
+        return {(s, seq_digests[lane][s]) for s, lanes in enumerate(items) for lane in lanes}
 
+    def dets(self, ids, boxes, items, box3d=None) -> TrackerDets:
+        """The virtual lanes of ``items`` (from :meth:`new_items`): lane v holds, on each sequence's
+        frames, that sequence's v-th new output (or nothing). ids [B, T, K], boxes [B, T, K, 4] or
+        [T, K, 4] shared by the lanes."""
         if self.similarity != "2d" and box3d is None:
             raise ValueError(f"similarity {self.similarity!r} needs box3d")
-        b3 = per_lane(np.asarray(box3d)) if box3d is not None and self.similarity != "2d" else None
-        return tracker_dets_from_arrays(self.gt, ids[lanes], per_lane(boxes), self.offsets, b3)
+        ids = np.asarray(ids)
+        V = max((len(lanes) for lanes in items), default=0)
+        vids = np.full((V,) + ids.shape[1:], -1, dtype=ids.dtype)
+        own = {n: np.asarray(a) for n, a in (("boxes", boxes), ("box3d", box3d)) if a is not None}
+        out = {n: (np.zeros((V,) + a.shape[1:], a.dtype) if a.ndim == 4 else np.broadcast_to(a, (V,) + a.shape))
+               for n, a in own.items()}
+        for s, lanes in enumerate(items):
+            if lanes:
+                a, e = int(self.offsets[s]), int(self.offsets[s] + self.gt.lengths[s])
+                vids[:len(lanes), a:e] = ids[lanes, a:e]
+                for n, arr in own.items():
+                    if arr.ndim == 4:
+                        out[n][:len(lanes), a:e] = arr[lanes, a:e]
+        b3 = out.get("box3d") if self.similarity != "2d" else None
+        return tracker_dets_from_arrays(self.gt, vids, out["boxes"], self.offsets, b3)
 
     def evaluate(self, dets: TrackerDets) -> dict:
         return evaluate_lanes(self.gt, dets, self.lanes_per_batch, self.similarity)
@@ -458,19 +506,29 @@ class LaneScorer:
         return _Parts(pool.submit(_run_chunk, lane_slice(dets, a, min(a + n, dets.n_lanes)), self.similarity)
                       for a in range(0, dets.n_lanes, n))
 
-    def store(self, digests: Sequence[bytes], lanes: Sequence[int], result: dict) -> None:
-        """Keep the scores ``result`` (:func:`evaluate_lanes` of ``lanes``, in order) under their digests."""
-        for j, lane in enumerate(lanes):
-            d = digests[lane]
-            if d not in self.memo:
-                self.memo[d] = ({f: v[j] for f, v in result["seq"].items()},
-                                {f: v[j] for f, v in result["comb"].items()})
+    def store(self, seq_digests: Sequence[tuple], items: Sequence[Sequence[int]], result: dict) -> None:
+        """Keep the per-sequence fields of ``result`` (:func:`evaluate_lanes` of :meth:`dets` of
+        ``items``) under their ``(sequence, digest)`` pairs."""
+        vs, ss = [], []
+        for s, lanes in enumerate(items):
+            for v, lane in enumerate(lanes):
+                key = (s, seq_digests[lane][s])
+                if key not in self.memo:
+                    self.memo[key] = len(self.memo)
+                    vs.append(v)
+                    ss.append(s)
+        if vs:
+            for f, val in result["seq"].items():
+                self._rows.setdefault(f, []).append(np.asarray(val)[vs, ss])
+            self._table = None
 
-    def gather(self, digests: Sequence[bytes]) -> dict:
-        """The scores of every lane (all scored): ``{'seq': {f: [B, S(, 19)]}, 'comb': {f: [B(, 19)]}}``."""
-        per = [self.memo[d] for d in digests]
-        return {"seq": {f: np.stack([s[f] for s, _ in per]) for f in per[0][0]},
-                "comb": {f: np.stack([c[f] for _, c in per]) for f in per[0][1]}}
+    def gather(self, seq_digests: Sequence[tuple]) -> dict:
+        """The fields of every lane (all scored): ``{'seq': {f: [B, S(, 19)]}, 'comb': {f: [B(, 19)]}}``."""
+        if self._table is None:
+            self._table = {f: np.concatenate(parts) for f, parts in self._rows.items()}
+        rows = np.array([[self.memo[(s, d)] for s, d in enumerate(per)] for per in seq_digests], np.int64)
+        seq = {f: t[rows] for f, t in self._table.items()}
+        return {"seq": seq, "comb": combine_sequences(seq)}
 
 
 def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None, similarity: str = "2d",

@@ -4,7 +4,7 @@ runs (the local backend in this process, the Ray backend inside its workers), an
 Per chunk: :func:`dfrmot_jax.track` on one [B] batch (track capacity: the tracker's own policy,
 ``api.default_capacity`` for the option group and ``track(grow=True)``; the capacity a chunk grew
 to is kept for the group's later chunks), then the metrics (:class:`dfrmot_jax.metrics.evaluate.LaneScorer`:
-identical outputs scored once, in-process or in a metric worker pool beside the tracker), then the
+each distinct output of each sequence scored once, in-process or in a metric worker pool beside the tracker), then the
 chunk's table (:func:`dfrmot_jax.sweep.store.chunk_frame`), handed to the caller's ``keep``.
 """
 
@@ -81,8 +81,9 @@ def load_data(d: DataSettings):
 class Pending:
     """A tracked chunk waiting for its metrics. ``res``: its :class:`~dfrmot_jax.api.TrackResult`
     without the per-row arrays (the counts the table needs: dropped, overflow, peak, capacity);
-    ``todo``: the lanes it scores itself, the others are scored already or by an earlier chunk in
-    flight."""
+    ``digests``: its lanes' per-sequence digests (``LaneScorer.seq_digests``); ``todo``: per
+    sequence, the lanes whose output it scores itself (``LaneScorer.new_items``), the others are
+    scored already or by an earlier chunk in flight."""
 
     chunk: Chunk
     res: TrackResult
@@ -195,7 +196,7 @@ class ChunkRunner:
         log(f"sweep {label}: {n:,} configs tracked and scored in {dt:.1f} s ({n / dt:.1f} configs/s, "
             f"{n * self.split.n_frames / dt / 1e3:.0f} k config-frames/s; setup {tm.setup:.1f} s, tracking "
             f"{tm.track:.1f} s, metrics {tm.metrics:.1f} s in-process + {tm.wait:.1f} s waiting "
-            f"for workers, tables {tm.write:.1f} s; {len(self.scorer):,} distinct outputs scored)")
+            f"for workers, tables {tm.write:.1f} s; {len(self.scorer):,} distinct sequence outputs scored)")
 
     def frames_of(self, options: Options):
         """The split prepared for ``options`` (kept while consecutive chunks share them)."""
@@ -241,19 +242,20 @@ class ChunkRunner:
         if c.options.capacity == 0:         # start the group's later chunks where track grew to
             self.caps[c.options] = max(self.caps[c.options], int(res.capacity.max(initial=0)))
         self.timing.track += time.perf_counter() - tt
-        digests = self.scorer.digests(res.ids, res.boxes)
-        # lanes identical to one still being scored (an earlier chunk in flight) wait for it
-        busy = {q.digests[i] for q in self.inflight for i in q.todo}
+        digests = self.scorer.seq_digests(res.ids, res.boxes)
+        # sequence outputs identical to one still being scored (an earlier chunk in flight) wait for it
+        busy = set().union(*(self.scorer.item_keys(q.digests, q.todo) for q in self.inflight))
         slim = res._replace(ids=None, boxes=None, frames=None, src3=None, own3=None, box3=None)
-        p = Pending(c, slim, digests, self.scorer.new_lanes(digests, busy))
+        p = Pending(c, slim, digests, self.scorer.new_items(digests, busy))
         if self.ab3dmot is not None:
+            lanes = self.scorer.digests(res.ids, res.boxes)
             if self.ab3dmot_thread is not None:
-                p.ab3dmot = self.ab3dmot_thread.submit(self.ab3dmot.score, res, digests)
+                p.ab3dmot = self.ab3dmot_thread.submit(self.ab3dmot.score, res, lanes)
             else:
                 tm = time.perf_counter()
-                p.ab3dmot = self.ab3dmot.score(res, digests)
+                p.ab3dmot = self.ab3dmot.score(res, lanes)
                 self.timing.metrics += time.perf_counter() - tm
-        if p.todo:
+        if any(p.todo):
             dets = self.scorer.dets(res.ids, res.boxes, p.todo)
             if pool is not None:
                 p.future = self.scorer.submit(pool, dets)
@@ -276,7 +278,7 @@ class ChunkRunner:
         if isinstance(p.ab3dmot, Future):
             p.ab3dmot = p.ab3dmot.result()
         self.timing.wait += time.perf_counter() - tw
-        if p.todo:
+        if any(p.todo):
             self.scorer.store(p.digests, p.todo, p.result)
         df = chunk_frame(self.table, p.chunk, self.data, self.split.names, self.split.lengths,
                          self.scorer.gather(p.digests), p.res, self.versions, self.spec.name)
