@@ -32,8 +32,8 @@ box is unmatched in 3D). Files are then read with their 3D fields (located error
 (e.g. ``HOTA_3d``).
 
 Sweeps (:mod:`dfrmot_jax.sweep`) score padded tracker output with :class:`LaneScorer` (each
-distinct output scored once, in sub-batches of lanes, optionally in a :func:`worker_pool`), keep
-TrackEval's summary view per row (:func:`summary_columns`), re-combine any subset of sequences
+distinct output of each sequence scored once, in sub-batches of lanes, optionally in a
+:func:`worker_pool`), keep TrackEval's summary view per row (:func:`summary_columns`), re-combine any subset of sequences
 from the per-alpha fields :data:`RAW_FIELDS` (:func:`combine_sequences`) and average classes
 column-wise (:func:`class_average_columns`).
 """

@@ -4,7 +4,8 @@ runs (the local backend in this process, the Ray backend inside its workers), an
 Per chunk: :func:`dfrmot_jax.track` on one [B] batch (track capacity: the tracker's own policy,
 ``api.default_capacity`` for the option group and ``track(grow=True)``; the capacity a chunk grew
 to is kept for the group's later chunks), then the metrics (:class:`dfrmot_jax.metrics.evaluate.LaneScorer`:
-each distinct output of each sequence scored once, in-process or in a metric worker pool beside the tracker), then the
+each distinct output of each sequence scored once, in-process or in a metric worker pool beside the
+tracker), then the
 chunk's table (:func:`dfrmot_jax.sweep.store.chunk_frame`), handed to the caller's ``keep``.
 """
 
