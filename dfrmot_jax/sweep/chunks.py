@@ -5,8 +5,8 @@ Per chunk: :func:`dfrmot_jax.track` on one [B] batch (track capacity: the tracke
 ``api.default_capacity`` for the option group and ``track(grow=True)``; the capacity a chunk grew
 to is kept for the group's later chunks), then the metrics (:class:`dfrmot_jax.metrics.evaluate.LaneScorer`:
 each distinct output of each sequence scored once, in-process or in a metric worker pool beside the
-tracker), then the
-chunk's table (:func:`dfrmot_jax.sweep.store.chunk_frame`), handed to the caller's ``keep``.
+tracker), then the chunk's table (:func:`dfrmot_jax.sweep.store.chunk_frame`), handed to the
+caller's ``keep``.
 """
 
 from __future__ import annotations
