@@ -16,7 +16,7 @@ import pytest
 from dfrmot_jax.io import kitti as kio
 from dfrmot_jax.io import result_rows
 from dfrmot_jax.io.kitti import KittiFormatError
-from dfrmot_jax.io.plain_table import plain_columns, plain_text
+from dfrmot_jax.io.plain_table import plain_columns, plain_text, read_ahead
 
 READERS = {
     "labels": kio.read_tracking_labels,
@@ -210,3 +210,18 @@ def test_numbers_are_read_as_pythons_float_reads_them():
     want = np.array([float(t) for t in toks])
     assert col.view(np.int64).tolist() == want.view(np.int64).tolist()
     assert want.view(np.int64).tolist() == np.array(toks, dtype=np.float64).view(np.int64).tolist()
+
+
+def test_read_ahead_keeps_the_callers_order_and_error(tmp_path):
+    """Files read ahead in threads come back in order; a bad file's error comes at its turn (after
+    the files before it), as a plain loop raises it."""
+    good = "0 1 Car 0 0 -1 10 20 30 40 1.5 1.6 3.9 1 2 10 0.1\n"
+    paths = []
+    for i, text in enumerate([good, good * 2, "zero" + good[1:], good * 3]):
+        paths.append(tmp_path / f"{i}.txt")
+        paths[-1].write_text(text)
+    it = read_ahead(kio.read_tracking_labels, paths)
+    assert [len(next(it).frame) for _ in range(2)] == [1, 2]
+    with pytest.raises(KittiFormatError, match=r"2\.txt"):
+        next(it)
+    assert [len(x.frame) for x in read_ahead(kio.read_tracking_labels, [paths[3], paths[0]])] == [3, 1]

@@ -51,6 +51,7 @@ import numpy as np
 import pandas as pd
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
+from dfrmot_jax.io.plain_table import read_ahead
 from dfrmot_jax.io.result_rows import read_result_rows
 from dfrmot_jax.metrics.box_table import box_table, candidate_pairs, pair_iou
 from dfrmot_jax.metrics.boxes import EPS, columns
@@ -211,9 +212,10 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
     offset = 0
     gid_off = 0
     n_ids, n_dets, gid_counts = [], [], []
+    labels = read_ahead(kio.read_tracking_labels, [label_dir / f"{name}.txt" for name in names])
     for name in names:
         path = label_dir / f"{name}.txt"
-        lab = kio.read_tracking_labels(path)
+        lab = next(labels)
         length = int(lab.frame.max()) + 1 if lab.frame.size else 0
         lengths.append(length)
         code, uniq = _distinct(lab.type)
@@ -395,6 +397,7 @@ def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty", need
     if not results_dir.is_dir():
         raise FileNotFoundError(f"results folder not found: {results_dir}")
     fr, ids, bx, src, paths, b3, h3 = [], [], [], [], [], [], []
+    files = read_ahead(read_result_rows, [p for n in gt.sequences if (p := results_dir / f"{n}.txt").is_file()])
     for s, name in enumerate(gt.sequences):
         path = results_dir / f"{name}.txt"
         why = result_file_problem(path)
@@ -406,7 +409,7 @@ def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty", need
             paths.append(None)
             continue
         paths.append(str(path))
-        rows = read_result_rows(path)
+        rows = next(files)
         cid = _class_ids(rows.type, path, kio, rows.row)
         bad = np.flatnonzero(rows.frame >= gt.lengths[s])
         if bad.size:
