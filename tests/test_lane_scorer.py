@@ -9,7 +9,7 @@ import pytest
 import dfrmot_jax as dm
 from dfrmot_jax.config import Params
 from dfrmot_jax.metrics import evaluate_arrays, prepare_gt
-from dfrmot_jax.metrics.evaluate import LaneScorer
+from dfrmot_jax.metrics.lane_scorer import LaneScorer
 from dfrmot_jax.synthetic import make_scene
 
 

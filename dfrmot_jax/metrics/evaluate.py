@@ -31,7 +31,8 @@ box is unmatched in 3D). Files are then read with their 3D fields (located error
 ``box3d``. The result fields keep their names (``HOTA``, ``DetA``, ...): the caller labels them
 (e.g. ``HOTA_3d``).
 
-Sweeps (:mod:`dfrmot_jax.sweep`) score padded tracker output with :class:`LaneScorer` (each
+Sweeps (:mod:`dfrmot_jax.sweep`) score padded tracker output with
+:class:`dfrmot_jax.metrics.lane_scorer.LaneScorer` (each
 distinct output of each sequence scored once, in sub-batches of lanes, optionally in a
 :func:`worker_pool`), keep TrackEval's summary view per row (:func:`summary_columns`), re-combine any subset of sequences
 from the per-alpha fields :data:`RAW_FIELDS` (:func:`combine_sequences`) and average classes
@@ -41,10 +42,10 @@ column-wise (:func:`class_average_columns`).
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import multiprocessing as mp
 import os
 import sys
+import threading
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -319,12 +320,13 @@ def _init_worker(gt: PreparedGT) -> None:
     _WORKER_GT = gt
 
 
-def _run_chunk(dets: TrackerDets, similarity: str = "2d") -> dict:
+def run_in_worker(dets: TrackerDets, similarity: str = "2d") -> dict:
+    """:func:`evaluate_batch` of ``dets`` against the ground truth a :func:`worker_pool` worker holds."""
     return evaluate_batch(_WORKER_GT, dets, similarity)
 
 
-class _Parts(list):
-    """Futures of consecutive lane ranges of one batch, read as one future."""
+class PoolParts(list):
+    """Futures of consecutive lane ranges of one batch (:func:`run_in_worker`), read as one future."""
     def done(self) -> bool:
         return all(f.done() for f in self)
 
@@ -333,17 +335,30 @@ class _Parts(list):
 
 
 def worker_pool(gt: PreparedGT, workers: int, start_method: str | None = None) -> ProcessPoolExecutor:
-    """A process pool whose workers hold ``gt`` (sent once): submit ``_run_chunk(dets, similarity)``.
+    """A process pool whose workers hold ``gt`` (sent once): submit ``run_in_worker(dets, similarity)``.
     ``start_method`` default ``'forkserver'`` where available, else ``'spawn'`` (both safe in a
     process running JAX threads).
 
     The forkserver is told not to preload ``__main__``: the workers need only this package, and
     re-running the caller's script in them would start the sweep again there (a plain script
     without ``if __name__ == "__main__":`` then dies with "start a new process before ... bootstrapping").
+    The processes start at once, in a thread: each start waits ~1 s for its worker to import the
+    package, which the caller's own work (tracking the first chunk, its compilation) now overlaps.
     """
     method = start_method or ("forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn")
-    return ProcessPoolExecutor(max_workers=workers, mp_context=_without_main(mp.get_context(method)),
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=_without_main(mp.get_context(method)),
                                initializer=_init_worker, initargs=(gt,))
+    threading.Thread(target=_start_processes, args=(pool, workers), name="metric-workers", daemon=True).start()
+    return pool
+
+
+def _start_processes(pool: ProcessPoolExecutor, n: int) -> None:
+    """Start the pool's ``n`` processes (a pool starts one per task submitted while none is idle)."""
+    for _ in range(n):
+        try:
+            pool.submit(int)
+        except RuntimeError:        # shut down meanwhile
+            return
 
 
 @contextlib.contextmanager
@@ -395,142 +410,6 @@ def _without_main(ctx):
     return _SpawnContext() if method == "spawn" else ctx
 
 
-class LaneScorer:
-    """Scores lanes of padded tracker output against prepared ground truth, each distinct output of
-    each sequence once.
-
-    Every metric field of a sequence depends on that sequence's rows only, and a lane's combined
-    fields are :func:`combine_sequences` of its per-sequence ones: so a sequence's output is
-    identified by a digest of its ids (and its own boxes, when boxes are per lane) on its frames
-    (:meth:`seq_digests`), and only the (sequence, output) pairs not seen before are scored. They
-    are packed into as few virtual lanes as the most varied sequence needs (:meth:`new_items`,
-    :meth:`dets`: virtual lane v holds, for each sequence, its v-th new output, or nothing);
-    :meth:`store` keeps their per-sequence fields and :meth:`gather` returns every lane's fields,
-    combined. In a grid sweep of KITTI car, 1,024 configs give 832 distinct lanes but 2.4x fewer
-    distinct sequence-frames to score. similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (then
-    :meth:`seq_digests` and :meth:`dets` take ``box3d``, [B, T, K, 7] or [T, K, 7] shared by the
-    lanes). :meth:`digests` (one per whole lane) is what other memos of lanes build on."""
-    def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16, similarity: str = "2d"):
-        self.gt = gt
-        self.offsets = np.asarray(offsets, np.int64)
-        self.lanes_per_batch = lanes_per_batch
-        self.similarity = parse_similarity(similarity)
-        self.memo: dict[tuple[int, bytes], int] = {}     # (sequence, digest) -> row of the store
-        self._rows: dict[str, list] = {}                 # per field, the stored rows' blocks
-        self._table: dict[str, np.ndarray] | None = None
-
-    def __len__(self) -> int:
-        return len(self.memo)
-
-    @staticmethod
-    def digests(ids: np.ndarray, boxes: np.ndarray, box3d: np.ndarray | None = None) -> list[bytes]:
-        """One digest per lane of ``ids`` [B, T, K] and the lane's own boxes ([B, T, K, 4] / 3D boxes
-        [B, T, K, 7]; boxes shared by the lanes, [T, K, ...], are the same for every lane)."""
-        out = []
-        for b in range(ids.shape[0]):
-            h = hashlib.sha1(np.ascontiguousarray(ids[b]).tobytes())
-            for bx in (boxes, box3d):
-                if bx is not None and bx.ndim == 4:
-                    h.update(np.ascontiguousarray(bx[b][ids[b] >= 0]).tobytes())
-            out.append(h.digest())
-        return out
-
-    def seq_digests(self, ids: np.ndarray, boxes: np.ndarray, box3d: np.ndarray | None = None) -> list[tuple]:
-        """Per lane of ``ids`` [B, T, K], one digest per sequence: its ids on the sequence's frames
-        and the lane's own boxes there (as :meth:`digests`). Returns B tuples of S digests."""
-        own = [bx for bx in (boxes, box3d if self.similarity != "2d" else None) if bx is not None and bx.ndim == 4]
-        spans = [(int(a), int(a + n)) for a, n in zip(self.offsets, self.gt.lengths)]
-        out = []
-        for b in range(ids.shape[0]):
-            lane = np.ascontiguousarray(ids[b])
-            live = lane >= 0
-            per = []
-            for a, e in spans:
-                h = hashlib.sha1(lane[a:e].tobytes())
-                for bx in own:
-                    h.update(np.ascontiguousarray(bx[b, a:e][live[a:e]]).tobytes())
-                per.append(h.digest())
-            out.append(tuple(per))
-        return out
-
-    def new_items(self, seq_digests: Sequence[tuple], busy=frozenset()) -> list[list[int]]:
-        """Per sequence, the first lane of each of its digests not scored yet and not in ``busy``
-        (``(sequence, digest)`` pairs being scored elsewhere)."""
-        out = []
-        for s in range(len(self.gt.sequences)):
-            seen: set[bytes] = set()
-            lanes = []
-            for i, per in enumerate(seq_digests):
-                key = (s, per[s])
-                if key not in self.memo and per[s] not in seen:
-                    seen.add(per[s])
-                    if key not in busy:
-                        lanes.append(i)
-            out.append(lanes)
-        return out
-
-    @staticmethod
-    def item_keys(seq_digests: Sequence[tuple], items: Sequence[Sequence[int]]) -> set:
-        """The ``(sequence, digest)`` pairs ``items`` (from :meth:`new_items`) score."""
-        return {(s, seq_digests[lane][s]) for s, lanes in enumerate(items) for lane in lanes}
-
-    def dets(self, ids, boxes, items, box3d=None) -> TrackerDets:
-        """The virtual lanes of ``items`` (from :meth:`new_items`): lane v holds, on each sequence's
-        frames, that sequence's v-th new output (or nothing). ids [B, T, K], boxes [B, T, K, 4] or
-        [T, K, 4] shared by the lanes."""
-        if self.similarity != "2d" and box3d is None:
-            raise ValueError(f"similarity {self.similarity!r} needs box3d")
-        ids = np.asarray(ids)
-        V = max((len(lanes) for lanes in items), default=0)
-        vids = np.full((V,) + ids.shape[1:], -1, dtype=ids.dtype)
-        own = {n: np.asarray(a) for n, a in (("boxes", boxes), ("box3d", box3d)) if a is not None}
-        out = {n: (np.zeros((V,) + a.shape[1:], a.dtype) if a.ndim == 4 else np.broadcast_to(a, (V,) + a.shape))
-               for n, a in own.items()}
-        for s, lanes in enumerate(items):
-            if lanes:
-                a, e = int(self.offsets[s]), int(self.offsets[s] + self.gt.lengths[s])
-                vids[:len(lanes), a:e] = ids[lanes, a:e]
-                for n, arr in own.items():
-                    if arr.ndim == 4:
-                        out[n][:len(lanes), a:e] = arr[lanes, a:e]
-        b3 = out.get("box3d") if self.similarity != "2d" else None
-        return tracker_dets_from_arrays(self.gt, vids, out["boxes"], self.offsets, b3)
-
-    def evaluate(self, dets: TrackerDets) -> dict:
-        return evaluate_lanes(self.gt, dets, self.lanes_per_batch, self.similarity)
-
-    def submit(self, pool: ProcessPoolExecutor, dets: TrackerDets) -> "_Parts":
-        """Score ``dets`` in the pool, ``lanes_per_batch`` lanes per task (one chunk's lanes spread over
-        every process): a future-like ``_Parts`` whose ``result()`` equals :meth:`evaluate`'s."""
-        n = self.lanes_per_batch
-        return _Parts(pool.submit(_run_chunk, lane_slice(dets, a, min(a + n, dets.n_lanes)), self.similarity)
-                      for a in range(0, dets.n_lanes, n))
-
-    def store(self, seq_digests: Sequence[tuple], items: Sequence[Sequence[int]], result: dict) -> None:
-        """Keep the per-sequence fields of ``result`` (:func:`evaluate_lanes` of :meth:`dets` of
-        ``items``) under their ``(sequence, digest)`` pairs."""
-        vs, ss = [], []
-        for s, lanes in enumerate(items):
-            for v, lane in enumerate(lanes):
-                key = (s, seq_digests[lane][s])
-                if key not in self.memo:
-                    self.memo[key] = len(self.memo)
-                    vs.append(v)
-                    ss.append(s)
-        if vs:
-            for f, val in result["seq"].items():
-                self._rows.setdefault(f, []).append(np.asarray(val)[vs, ss])
-            self._table = None
-
-    def gather(self, seq_digests: Sequence[tuple]) -> dict:
-        """The fields of every lane (all scored): ``{'seq': {f: [B, S(, 19)]}, 'comb': {f: [B(, 19)]}}``."""
-        if self._table is None:
-            self._table = {f: np.concatenate(parts) for f, parts in self._rows.items()}
-        rows = np.array([[self.memo[(s, d)] for s, d in enumerate(per)] for per in seq_digests], np.int64)
-        seq = {f: t[rows] for f, t in self._table.items()}
-        return {"seq": seq, "comb": combine_sequences(seq)}
-
-
 def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None, similarity: str = "2d",
                     chunk: int = 4, workers: int | None = 1,
                     start_method: str | None = None) -> list[dict[str, dict[str, object]]]:
@@ -567,7 +446,7 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None,
         workers = 2 if (B >= 64 and (os.cpu_count() or 1) >= 2) else 1
     if workers > 1 and len(tasks) > 1:
         with worker_pool(gt, min(workers, len(tasks)), start_method) as ex:
-            outs = list(ex.map(_run_chunk, tasks, [similarity] * len(tasks)))
+            outs = list(ex.map(run_in_worker, tasks, [similarity] * len(tasks)))
     else:
         outs = [evaluate_batch(gt, t, similarity) for t in tasks]
     return _to_dicts(gt, _concat(outs))

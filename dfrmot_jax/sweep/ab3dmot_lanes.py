@@ -25,7 +25,7 @@ from ..data import Split
 from ..metrics.ab3dmot_arrays import evaluate_ab3dmot_rows
 from ..metrics.ab3dmot_prep import Ab3dGT
 from ..metrics.ab3dmot_table import ab3dmot_columns
-from ..metrics.evaluate import LaneScorer
+from ..metrics.lane_scorer import LaneScorer
 from ..metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
 from ..results import kitti_rows
 from .table import COMBINED
@@ -47,7 +47,7 @@ class Ab3dmotLanes:
         (``src3``, ``own3``); with output "filtered" also the lane's own image and 3D boxes. (With
         output "detections" a row's image box, score and 3D box follow from the options, its slot and
         its 3D source, on the one split.) ``base``: the lanes' digests of ids and own image boxes
-        (:meth:`dfrmot_jax.metrics.evaluate.LaneScorer.digests`, made here when not given), extended
+        (:meth:`dfrmot_jax.metrics.lane_scorer.LaneScorer.digests`, made here when not given), extended
         here instead of hashing them again."""
         ids = np.asarray(res.ids)
         if base is None:

@@ -3,7 +3,7 @@ runs (the local backend in this process, the Ray backend inside its workers), an
 
 Per chunk: :func:`dfrmot_jax.track` on one [B] batch (track capacity: the tracker's own policy,
 ``api.default_capacity`` for the option group and ``track(grow=True)``; the capacity a chunk grew
-to is kept for the group's later chunks), then the metrics (:class:`dfrmot_jax.metrics.evaluate.LaneScorer`:
+to is kept for the group's later chunks), then the metrics (:class:`dfrmot_jax.metrics.lane_scorer.LaneScorer`:
 each distinct output of each sequence scored once, in-process or in a metric worker pool beside the
 tracker), then the chunk's table (:func:`dfrmot_jax.sweep.store.chunk_frame`), handed to the
 caller's ``keep``.
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
 import warnings
 from collections import deque
@@ -31,7 +32,8 @@ from ..config import Options
 from ..data import cached_split, compact_split, prepare_frames
 from ..lidar import LIDAR_PREFIX, lidar_dir, simulate_cached
 from ..metrics.ab3dmot_prep import cached_ab3dmot_gt
-from ..metrics.evaluate import LaneScorer, cached_gt, worker_pool
+from ..metrics.evaluate import cached_gt, worker_pool
+from ..metrics.lane_scorer import LaneScorer
 from ..version import __version__
 from .ab3dmot_lanes import Ab3dmotLanes, add_columns
 from .distortion import DistortionAxes
@@ -93,9 +95,12 @@ class Pending:
     future: Any = None
     result: Any = None
     ab3dmot: list | Future | None = None    # AB3DMOT's columns of each lane (metrics.ab3dmot), or their future
+    prep: Future | None = None      # the scoring's start (digests, todo, future), when made in a thread
 
     def ready(self) -> bool:
         """Its scores are in (nothing left to wait for)."""
+        if self.prep is not None and not self.prep.done():
+            return False
         scored = self.future is None or self.future.done()
         return scored and not (isinstance(self.ab3dmot, Future) and not self.ab3dmot.done())
 
@@ -141,6 +146,9 @@ class ChunkRunner:
     inflight: deque = field(default_factory=deque)
     timing: Timing = field(default_factory=Timing)
     ab3dmot_thread: ThreadPoolExecutor | None = None
+    prep_thread: ThreadPoolExecutor | None = None
+    busy: dict = field(default_factory=dict)        # chunk in flight -> the (sequence, digest) pairs it scores
+    lock: threading.Lock = field(default_factory=threading.Lock)
 
     def setup(self, todo: Sequence[Chunk], split=None, gt=None) -> None:
         """Load (or take) the class's split and prepared ground truth; ``todo``: the chunks to run."""
@@ -175,6 +183,7 @@ class ChunkRunner:
         self.timing.setup = time.perf_counter() - t0
         pool = worker_pool(self.gt, self.workers) if self.workers > 0 else None
         self.ab3dmot_thread = ThreadPoolExecutor(1, "ab3dmot") if self.ab3dmot is not None else None
+        self.prep_thread = ThreadPoolExecutor(1, "scoring")
         try:
             for c in todo:
                 self.inflight.append(self.start(c, self.frames_of(c.options), pool))
@@ -188,9 +197,10 @@ class ChunkRunner:
         finally:
             if pool is not None:
                 pool.shutdown(wait=True, cancel_futures=True)
-            if self.ab3dmot_thread is not None:
-                self.ab3dmot_thread.shutdown(wait=True, cancel_futures=True)
-                self.ab3dmot_thread = None
+            for t in (self.prep_thread, self.ab3dmot_thread):
+                if t is not None:
+                    t.shutdown(wait=True, cancel_futures=True)
+            self.prep_thread = self.ab3dmot_thread = None
         dt = time.perf_counter() - t0
         n = sum(len(c.configs) for c in todo)
         tm = self.timing
@@ -243,11 +253,28 @@ class ChunkRunner:
         if c.options.capacity == 0:         # start the group's later chunks where track grew to
             self.caps[c.options] = max(self.caps[c.options], int(res.capacity.max(initial=0)))
         self.timing.track += time.perf_counter() - tt
-        digests = self.scorer.seq_digests(res.ids, res.boxes)
-        # sequence outputs identical to one still being scored (an earlier chunk in flight) wait for it
-        busy = set().union(*(self.scorer.item_keys(q.digests, q.todo) for q in self.inflight))
         slim = res._replace(ids=None, boxes=None, frames=None, src3=None, own3=None, box3=None)
-        p = Pending(c, slim, digests, self.scorer.new_items(digests, busy))
+        p = Pending(c, slim, [], [])
+        if self.prep_thread is not None:        # while the next chunk tracks (chunks in order: one thread)
+            p.prep = self.prep_thread.submit(self.start_scoring, p, res, pool)
+        else:
+            self.start_scoring(p, res, pool)
+        return p
+
+    def start_scoring(self, p: Pending, res: TrackResult, pool) -> None:
+        """Start scoring a tracked chunk's new sequence outputs (in the pool, or here) and its AB3DMOT
+        figures (in their thread, or here)."""
+        digests = self.scorer.seq_digests(res.ids, res.boxes)
+        # sequence outputs identical to one still being scored (an earlier chunk in flight) wait for
+        # it: only in :meth:`run`, whose chunks complete in submission order (a Ray actor's complete
+        # in any order, so each scores all its new outputs itself)
+        in_order = self.prep_thread is not None
+        with self.lock:
+            busy = set().union(*self.busy.values()) if in_order else set()
+        p.digests, p.todo = digests, self.scorer.new_items(digests, busy)
+        if in_order:
+            with self.lock:
+                self.busy[id(p)] = self.scorer.item_keys(digests, p.todo)
         if self.ab3dmot is not None:
             lanes = self.scorer.digests(res.ids, res.boxes)
             if self.ab3dmot_thread is not None:
@@ -264,7 +291,6 @@ class ChunkRunner:
                 tm = time.perf_counter()
                 p.result = self.scorer.evaluate(dets)
                 self.timing.metrics += time.perf_counter() - tm
-        return p
 
     def _group_params(self, options: Options):
         """The parameters of every chunk left to run with these options."""
@@ -274,6 +300,8 @@ class ChunkRunner:
     def chunk_table(self, p: Pending) -> pd.DataFrame:
         """A tracked chunk's table, once its scores are in."""
         tw = time.perf_counter()
+        if p.prep is not None:
+            p.prep.result()
         if p.future is not None:
             p.result = p.future.result()
         if isinstance(p.ab3dmot, Future):
@@ -281,6 +309,8 @@ class ChunkRunner:
         self.timing.wait += time.perf_counter() - tw
         if any(p.todo):
             self.scorer.store(p.digests, p.todo, p.result)
+        with self.lock:
+            self.busy.pop(id(p), None)
         df = chunk_frame(self.table, p.chunk, self.data, self.split.names, self.split.lengths,
                          self.scorer.gather(p.digests), p.res, self.versions, self.spec.name)
         return df if p.ab3dmot is None else add_columns(df, p.ab3dmot)
