@@ -9,7 +9,8 @@ from dfrmot_jax.io.kitti import KittiFormatError
 from dfrmot_jax.metrics.boxes import pair_iou
 from dfrmot_jax.metrics.evaluate import evaluate_arrays, evaluate_classes, evaluate_files
 from dfrmot_jax.metrics.lane_scorer import LaneScorer
-from dfrmot_jax.metrics.kitti import prepare_gt, read_tracker_files
+from dfrmot_jax.metrics.kitti import prepare_gt
+from dfrmot_jax.metrics.tracker_files import read_tracker_files
 from dfrmot_jax.metrics.similarity import pair_similarity_3d
 from dfrmot_jax.paths import default_data_root
 

@@ -67,7 +67,8 @@ from ..metrics.evaluate import (
     evaluate_dets,
     parse_classes,
 )
-from ..metrics.kitti import CLASS_NAME_TO_ID, inspect_results, read_tracker_files
+from ..metrics.kitti import CLASS_NAME_TO_ID
+from ..metrics.tracker_files import inspect_results, read_tracker_files
 from ..metrics.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
 from ..paths import default_data_root
 from .errors import guarded
@@ -166,7 +167,7 @@ def _warn(message: str) -> None:
 
 
 def _check_folder(d: Path, found, n_seqs: int, label_dir: Path, allow_missing: bool) -> None:
-    """Raise ValueError naming everything wrong with result folder ``d`` (a ``metrics.kitti.ResultFolder``
+    """Raise ValueError naming everything wrong with result folder ``d`` (a ``metrics.tracker_files.ResultFolder``
     for ``n_seqs`` sequences); with ``allow_missing`` warn about missing files instead."""
     problems = [f"{path} {why}, not a result file" for path, why in found.unreadable]
     missing = f"no result file for {len(found.missing)} of {n_seqs} sequences ({_names(found.missing)})"

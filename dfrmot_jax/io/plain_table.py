@@ -99,15 +99,21 @@ def plain_columns(data: bytes, sep: str | None, ncols: int, string_columns: Sequ
 
 
 def read_ahead(reader: Callable, paths: Sequence, threads: int = 2) -> Iterator:
-    """``reader(path)`` for each of ``paths``, in order, the files read ahead in ``threads`` threads
-    while the caller works on the earlier ones: pyarrow's parser releases Python's lock, so two
-    files parse at once. A reader's error is raised when its file's turn comes, as a plain loop
-    would raise it; what the caller does not take is cancelled when the generator is closed."""
-    with ThreadPoolExecutor(max(1, threads)) as ex:
-        futures = [ex.submit(reader, p) for p in paths]
+    """``reader(path)`` for each of ``paths``, in order, the files read ahead from this call on in
+    ``threads`` threads while the caller works on other things or on the earlier files: pyarrow's
+    parser releases Python's lock, so two files parse at once. A reader's error is raised when its
+    file's turn comes, as a plain loop would raise it; what the caller does not take is cancelled
+    when the iterator is closed."""
+    ex = ThreadPoolExecutor(max(1, threads))
+    futures = [ex.submit(reader, p) for p in paths]
+    ex.shutdown(wait=False)             # (the submitted reads still run; the threads end after them)
+
+    def results():
         try:
             for f in futures:
                 yield f.result()
         finally:
             for f in futures:
                 f.cancel()
+
+    return results()

@@ -61,11 +61,12 @@ from dfrmot_jax.metrics.kitti import (
     class_sequences,
     prepare_gt,
     preprocess,
-    read_tracker_files,
+    seq_name,
     tracker_dets_from_arrays,
 )
 from dfrmot_jax.metrics.similarity import parse_similarity
 from dfrmot_jax.metrics.table import classes_table
+from dfrmot_jax.metrics.tracker_files import read_tracker_files
 from dfrmot_jax.paths import default_data_root
 
 COUNT_FIELDS = ("Dets", "GT_Dets", "IDs", "GT_IDs")
@@ -92,7 +93,7 @@ def cached_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Prep
     if sequences is None:
         names = tuple(sorted(p.stem for p in label_dir.glob("*.txt")))
     else:
-        names = tuple(f"{s:04d}" if isinstance(s, (int, np.integer)) else str(s) for s in sequences)
+        names = tuple(seq_name(s) for s in sequences)
     stamp = file_stamps(label_dir / f"{n}.txt" for n in names)
     key = (str(Path(root).resolve()), cls.lower(), names)
     return _GT_CACHE.get(key, stamp, lambda: prepare_gt(root, cls, names))

@@ -2,7 +2,7 @@
 
 A KITTI tracking row carries a 3D box in columns 11-17 (``h w l x y z rot_y``, camera frame, see
 :mod:`dfrmot_jax.metrics.box3d`). Three readers take them: AB3DMOT's (:mod:`~dfrmot_jax.metrics.ab3dmot_prep`),
-TrackEval's with 3D / BEV similarity (:func:`dfrmot_jax.metrics.kitti.read_tracker_files`) and the
+TrackEval's with 3D / BEV similarity (:func:`dfrmot_jax.metrics.tracker_files.read_tracker_files`) and the
 array paths (:func:`~dfrmot_jax.metrics.kitti.tracker_dets_from_arrays`,
 :mod:`~dfrmot_jax.metrics.ab3dmot_arrays`). They share these rules:
 

@@ -41,7 +41,6 @@ configs ("lanes"), a *lane-frame* ``lf = lane * F + frame``.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -52,10 +51,9 @@ import pandas as pd
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.io.plain_table import read_ahead
-from dfrmot_jax.io.result_rows import read_result_rows
 from dfrmot_jax.metrics.box_table import box_table, candidate_pairs, pair_iou
 from dfrmot_jax.metrics.boxes import EPS, columns
-from dfrmot_jax.metrics.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows, read_box3d_columns
+from dfrmot_jax.metrics.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows
 from dfrmot_jax.metrics.pairs import enumerate_pairs, match_entries, segment_starts
 from dfrmot_jax.metrics.similarity import pair_similarity_3d, parse_similarity
 
@@ -66,10 +64,8 @@ __all__ = [
     "EvalBatch",
     "prepare_gt",
     "class_sequences",
-    "read_tracker_files",
-    "inspect_results",
-    "ResultFolder",
-    "result_file_problem",
+    "seq_name",
+    "class_ids",
     "tracker_dets_from_arrays",
     "preprocess",
     "DuplicateIdError",
@@ -91,11 +87,11 @@ def _kitti_io():
     return kio
 
 
-def _seq_name(s) -> str:
+def seq_name(s) -> str:
     return f"{s:04d}" if isinstance(s, (int, np.integer)) else str(s)
 
 
-def _class_ids(types: np.ndarray, path, kio, rows: np.ndarray | None = None) -> np.ndarray:
+def class_ids(types: np.ndarray, path, kio, rows: np.ndarray | None = None) -> np.ndarray:
     """[R] object type names -> [R] int64 class ids (lower-cased lookup, as TrackEval).
 
     ``rows`` [R]: file row of each entry (for the error's line number); default 0..R-1.
@@ -206,7 +202,7 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
         if not names:
             raise FileNotFoundError(f"no ground truth files in {label_dir}")
     else:
-        names = [_seq_name(s) for s in sequences]
+        names = [seq_name(s) for s in sequences]
 
     lengths, boxes, boxes3d, evals, ids, frames, dcb, dcf = [], [], [], [], [], [], [], []
     offset = 0
@@ -222,7 +218,7 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
         is_dc = (np.char.lower(uniq) == "dontcare")[code]
         cid = np.zeros(len(code), dtype=np.int64)
         nd = ~is_dc & (lab.track_id >= 0)  # TrackEval skips negative ids before mapping class names
-        cid[nd] = _class_ids(lab.type[nd], path, kio, np.flatnonzero(nd))
+        cid[nd] = class_ids(lab.type[nd], path, kio, np.flatnonzero(nd))
         use = nd & np.isin(cid, classes)
         occ = lab.occluded.astype(np.int64)
         trunc = lab.truncated.astype(np.int64)
@@ -300,7 +296,7 @@ def class_sequences(root, cls: str = "car", sequences: Sequence | None = None) -
     if sequences is None:
         cand = sorted(p.stem for p in label_dir.glob("*.txt"))
     else:
-        cand = [_seq_name(s) for s in sequences]
+        cand = [seq_name(s) for s in sequences]
     out = []
     for name in cand:
         uniq = _distinct(kio.read_tracking_labels(label_dir / f"{name}.txt").type)[1]
@@ -327,120 +323,6 @@ class TrackerDets(NamedTuple):
     paths: tuple = ()
     box3d: np.ndarray | None = None
     has3d: np.ndarray | None = None
-
-
-def result_file_problem(path) -> str | None:
-    """Why ``path`` cannot be read as a result file although something has that name: ``'is a
-    directory'``, ``'is a dangling symlink (to TARGET)'``, ``'is not a regular file'``; None for a
-    readable file (after symlinks) and for no entry at all (a missing file)."""
-    path = Path(path)
-    if path.is_file() or not (path.exists() or path.is_symlink()):
-        return None
-    if path.is_dir():
-        return "is a directory"
-    if not path.exists():
-        return f"is a dangling symlink (to {os.readlink(path)})"
-    return "is not a regular file"
-
-
-class ResultFolder(NamedTuple):
-    """What a results folder holds for the sequences to evaluate (:func:`inspect_results`).
-
-    missing: names of sequences without a result file; unreadable: ``(path, why)`` of names that
-    are no readable file (:func:`result_file_problem`); unexpected: ``*.txt`` file names that are
-    no sequence of the ground truth (stale or foreign files), sorted.
-    """
-    missing: tuple
-    unreadable: tuple
-    unexpected: tuple
-
-
-def inspect_results(results_dir, sequences: Sequence, known: Sequence | None = None) -> ResultFolder:
-    """The :class:`ResultFolder` of ``results_dir`` for ``sequences`` (names or ints); ``known``:
-    every sequence of the ground truth (``*.txt`` files named otherwise are unexpected), None to
-    not look for unexpected files."""
-    results_dir = Path(results_dir)
-    missing, unreadable = [], []
-    for name in (_seq_name(s) for s in sequences):
-        path = results_dir / f"{name}.txt"
-        why = result_file_problem(path)
-        if why is not None:
-            unreadable.append((str(path), why))
-        elif not path.is_file():
-            missing.append(name)
-    unexpected = ()
-    if known is not None:
-        names = {_seq_name(s) for s in known}
-        unexpected = tuple(sorted(p.name for p in results_dir.glob("*.txt") if p.stem not in names))
-    return ResultFolder(tuple(missing), tuple(unreadable), unexpected)
-
-
-def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty", need_3d: bool = False) -> TrackerDets:
-    """Read ``results_dir/SSSS.txt`` for every sequence of ``gt`` (KITTI tracking result format).
-
-    Files are read as TrackEval reads them (:mod:`dfrmot_jax.io.result_rows`: rows in any order,
-    ``x2 < x1`` allowed, frames and ids truncated toward zero, 10 or more columns); rows with a
-    negative id are skipped unread. Rows of the evaluated class (``Car``/``car_2`` for car,
-    ``Pedestrian`` for pedestrian; any case) are kept, in frame order (file order within a frame);
-    rows of other known classes are dropped. Unknown class names raise :class:`KittiFormatError`
-    (field ``type``), as do frames outside the sequence (field ``frame``) and whatever
-    :func:`~dfrmot_jax.io.result_rows.read_result_rows` refuses. A name that is no readable file
-    (a directory, a dangling symlink) always raises. A missing file is an empty output with
-    ``missing='empty'`` (TrackEval itself refuses to run without every file; an empty file there
-    gives the same numbers) or raises with ``missing='error'``. need_3d: also read the 3D fields
-    ``h w l x y z rot_y`` (columns 11-17) of the kept rows, by the rules of
-    :mod:`dfrmot_jax.metrics.fields3d` (the placeholder: no 3D box; anything else that is no box, a
-    missing column or a non-number: ``KittiFormatError`` with file, line and field). Returns one lane.
-    """
-    kio = _kitti_io()
-    results_dir = Path(results_dir)
-    if not results_dir.is_dir():
-        raise FileNotFoundError(f"results folder not found: {results_dir}")
-    fr, ids, bx, src, paths, b3, h3 = [], [], [], [], [], [], []
-    files = read_ahead(read_result_rows, [p for n in gt.sequences if (p := results_dir / f"{n}.txt").is_file()])
-    for s, name in enumerate(gt.sequences):
-        path = results_dir / f"{name}.txt"
-        why = result_file_problem(path)
-        if why is not None:
-            raise kio.KittiFormatError(path, None, None, f"{why}, not a result file")
-        if not path.is_file():
-            if missing == "error":
-                raise kio.KittiFormatError(path, None, None, "result file not found")
-            paths.append(None)
-            continue
-        paths.append(str(path))
-        rows = next(files)
-        cid = _class_ids(rows.type, path, kio, rows.row)
-        bad = np.flatnonzero(rows.frame >= gt.lengths[s])
-        if bad.size:
-            r = int(rows.row[bad[0]])
-            raise kio.KittiFormatError(path, kio.line_of_row(path, r) or r + 1, "frame",
-                                       f"frame {int(rows.frame[bad[0]])} is beyond sequence {name} "
-                                       f"({int(gt.lengths[s])} frames: 0..{int(gt.lengths[s]) - 1})")
-        keep = np.flatnonzero(cid == gt.cls_id)
-        keep = keep[np.argsort(rows.frame[keep], kind="stable")]
-        fr.append(rows.frame[keep] + gt.offsets[s])
-        ids.append(rows.track_id[keep])
-        bx.append(rows.box[keep])
-        src.append(rows.row[keep])
-        if need_3d:
-            with open(path, encoding="utf-8-sig") as f:
-                first = f.readline()
-            # io.result_rows' separator rule: commas when the first line has one, else whitespace
-            box3d, has3d = read_box3d_columns(path, rows.row[keep], "," if "," in first else None)
-            b3.append(box3d)
-            h3.append(has3d)
-    e = np.zeros(0, np.int64)
-    box3d = has3d = None
-    if need_3d:
-        box3d = np.concatenate(b3) if b3 else np.zeros((0, 7))
-        has3d = np.concatenate(h3) if h3 else np.zeros(0, dtype=bool)
-    if fr:
-        frame = np.concatenate(fr)
-        return TrackerDets(1, np.zeros(len(frame), np.int64), frame, np.concatenate(ids),
-                           np.ascontiguousarray(np.concatenate(bx), dtype=np.float64), np.concatenate(src),
-                           (tuple(paths),), box3d, has3d)
-    return TrackerDets(1, e, e, e, np.zeros((0, 4)), e, (tuple(paths),), box3d, has3d)
 
 
 def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets,
