@@ -81,6 +81,31 @@ def test_ground_truth_type_names_in_any_case(tmp_path):
     assert class_sequences(tmp_path, "car") == ()
 
 
+
+@pytest.mark.parametrize("rows, field, line", [
+    ([(0, 1, "Car"), (1, 2, "Zebra"), (1, 3, "Bus"), (2, -1, "Unicorn")], "type", 3),   # first by name, its first row
+    ([(0, 1, "Car"), (1, 2, "Car"), (1, 2, "car")], None, None),                      # one id twice in frame 1
+])
+def test_ground_truth_unknown_class_or_repeated_id(tmp_path, rows, field, line):
+    """Ground truth refuses an unknown class name on a row TrackEval reads (not on negative ids) and an id
+    twice in one frame, as TrackEval does."""
+    label = "{f} {i} {t} 0 0 -10 {x} 100 {x2} 180 1.5 1.6 4 1 1.8 20 0\n"
+    (tmp_path / "label_02").mkdir()
+    (tmp_path / "label_02" / "0000.txt").write_text("".join(label.format(f=f, i=i, t=t, x=100 + 10 * k, x2=200 + 10 * k)
+                                                            for k, (f, i, t) in enumerate(rows)))
+    if field is None:
+        with pytest.raises(ValueError, match="same id twice in one frame"):
+            prepare_gt(tmp_path, "car", ["0000"])
+        rows[-1] = (1, 3, "car")
+        (tmp_path / "label_02" / "0000.txt").write_text("".join(
+            label.format(f=f, i=i, t=t, x=100 + 10 * k, x2=200 + 10 * k) for k, (f, i, t) in enumerate(rows)))
+        assert int(prepare_gt(tmp_path, "car", ["0000"]).n_gt_ids.sum()) == 3
+        return
+    with pytest.raises(KittiFormatError) as e:
+        prepare_gt(tmp_path, "car", ["0000"])
+    assert e.value.field == field and e.value.line == line and "Bus" in str(e.value), str(e.value)
+
+
 def test_duplicate_id_in_frame(tmp_path, gt0):
     text = _row(0) + _row(5, i=3) + _row(5, i=3, box=(400, 120, 500, 200))
     _raises(_write(tmp_path, text), gt0, "track_id", 3)
