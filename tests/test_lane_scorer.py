@@ -76,3 +76,27 @@ def test_virtual_lanes_hold_each_sequences_new_outputs(outputs):
     # in flight elsewhere: not scored here
     busy = sc.item_keys(per, [items[0], [], []])
     assert sc.new_items(per, busy)[0] == [] and sc.new_items(per, busy)[1:] == items[1:]
+
+
+def test_errors_name_the_lane_not_the_virtual_lane(outputs):
+    """A problem in a lane's rows is named by the lane's own index, whichever virtual lane holds them."""
+    from dfrmot_jax.metrics import DuplicateIdError
+
+    gt, split, ids, boxes = outputs
+    ids, boxes = ids[:6].copy(), boxes[:6].copy()
+    ids[:, :] = ids[0]                           # six copies of lane 0 ...
+    boxes[:, :] = boxes[0]
+    s = 1
+    a = int(split.offsets[s])
+    t, k = np.argwhere(ids[4, a:a + int(split.lengths[s])] >= 0)[0]
+    ids[4, a + t, (k + 1) % ids.shape[2]] = ids[4, a + t, k]       # ... lane 4 repeats an id in sequence 1
+    boxes[4, a + t, (k + 1) % ids.shape[2]] = boxes[4, a + t, k] + 50
+    sc = LaneScorer(gt, split.offsets)
+    per = sc.seq_digests(ids, boxes)
+    items = sc.new_items(per)
+    assert items[s] == [0, 4] and items[0] == [0]
+    with pytest.raises(DuplicateIdError, match="config 4:"):
+        sc.evaluate(sc.dets(ids, boxes, items))
+    boxes[4, a + t, k] = np.nan                   # not finite: named by lane 4 (dets of lanes 0 and 4 only)
+    with pytest.raises(ValueError, match="non-finite box in config 4,"):
+        sc.dets(ids, boxes, sc.new_items(sc.seq_digests(ids, boxes)))

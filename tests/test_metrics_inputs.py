@@ -161,6 +161,11 @@ def test_array_checks(gt0):
     ids[1, 4, 1] = 8
     res = evaluate_arrays(gt0, ids, boxes, [0])
     assert [r["COMBINED"]["Dets"] for r in res] == [0, 2]
+    # in a later chunk of lanes (4 per chunk): still named by its own index
+    many_ids, many_boxes = np.repeat(ids, 4, axis=0), np.repeat(boxes, 4, axis=0)
+    many_ids[6, 4, 1] = 7
+    with pytest.raises(DuplicateIdError, match="config 6:"):
+        evaluate_arrays(gt0, many_ids, many_boxes, [0])
 
 
 def test_missing_results_folder(tmp_path, gt0):

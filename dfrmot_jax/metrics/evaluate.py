@@ -292,9 +292,11 @@ def evaluate_classes(results_dir, root=None, classes: Sequence[str] | str = EVAL
 
 
 def lane_slice(dets: TrackerDets, a: int, b: int) -> TrackerDets:
-    """Lanes a..b-1 of flattened tracker output (rows are sorted by lane), renumbered from 0."""
+    """Lanes a..b-1 of flattened tracker output (rows are sorted by lane), renumbered from 0 (their
+    ``configs`` keep the caller's numbers for error messages)."""
     i, j = np.searchsorted(dets.lane, [a, b], side="left")
-    return dets._replace(n_lanes=b - a, lane=dets.lane[i:j] - a, frame=dets.frame[i:j],
+    configs = np.arange(dets.n_lanes, dtype=np.int64)[:, None] if dets.configs is None else dets.configs
+    return dets._replace(n_lanes=b - a, lane=dets.lane[i:j] - a, frame=dets.frame[i:j], configs=configs[a:b],
                          track_id=dets.track_id[i:j], box=dets.box[i:j], source=dets.source[i:j],
                          paths=dets.paths[a:b] if dets.paths else dets.paths,
                          box3d=None if dets.box3d is None else dets.box3d[i:j],

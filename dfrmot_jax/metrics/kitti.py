@@ -318,6 +318,8 @@ class TrackerDets(NamedTuple):
     source: [M] int64 row in the source file (files) or slot index (arrays), for error messages;
     paths: per lane, per sequence the source file (or None). box3d: [M, 7] float64 ``h w l x y z
     rot_y`` and has3d: [M] bool (False: no 3D box), or both None when the 3D fields were not read.
+    configs: [n_lanes, S] (or [n_lanes, 1]: every sequence) int64, the caller's config of each lane's
+    rows, for error messages (lanes of a slice, virtual lanes of several configs); None: the lane.
     """
     n_lanes: int
     lane: np.ndarray
@@ -328,10 +330,17 @@ class TrackerDets(NamedTuple):
     paths: tuple = ()
     box3d: np.ndarray | None = None
     has3d: np.ndarray | None = None
+    configs: np.ndarray | None = None
+
+    def config(self, lane: int, s: int) -> int:
+        """The caller's config of ``lane``'s rows of sequence ``s``."""
+        if self.configs is None:
+            return lane
+        return int(self.configs[lane, s if self.configs.shape[1] > 1 else 0])
 
 
 def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets,
-                             box3d: np.ndarray | None = None) -> TrackerDets:
+                             box3d: np.ndarray | None = None, configs=None) -> TrackerDets:
     """Flatten padded tracker output into :class:`TrackerDets`.
 
     ids: [B, T, K] int (negative = empty slot); boxes: [B, T, K, 4] float ``x1, y1, x2, y2``;
@@ -340,6 +349,7 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot, or None (3D fields not needed). A slot
     without a 3D box holds the placeholder or all NaN; any other value that is no box
     (:mod:`dfrmot_jax.metrics.fields3d`) raises ValueError naming config, frame, slot and field.
+    configs: [B] the caller's config of each lane (messages; :attr:`TrackerDets.configs`), default 0..B-1.
     """
     ids = np.asarray(ids)
     if ids.ndim != 3:
@@ -348,6 +358,7 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     boxes = np.asarray(boxes)
     if boxes.shape != (B, T, K, 4):
         raise ValueError(f"boxes must be [B, T, K, 4] = {(B, T, K, 4)}, got {boxes.shape}")
+    cfg = np.arange(B) if configs is None else np.asarray(configs, np.int64).reshape(B)
     seq_offsets = np.asarray(seq_offsets, dtype=np.int64).reshape(-1)
     S = len(gt.sequences)
     if seq_offsets.shape != (S,):
@@ -377,7 +388,7 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     box = box if box.dtype == np.float32 else box.astype(np.float64)   # float32 kept: widened per batch
     if box.size and not np.all(np.isfinite(box)):
         bad = int(np.flatnonzero(~np.all(np.isfinite(box), axis=1))[0])
-        raise ValueError(f"non-finite box in config {b[bad]}, frame {t[bad]}, slot {k[bad]}")
+        raise ValueError(f"non-finite box in config {cfg[b[bad]]}, frame {t[bad]}, slot {k[bad]}")
     b3 = h3 = None
     if box3d is not None:
         box3d = np.asarray(box3d)
@@ -388,11 +399,12 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
         bad = box3d_problem(b3, h3)
         if bad is not None:
             i, j, msg = bad
-            raise ValueError(f"3D box of config {b[i]}, frame {t[i]}, slot {k[i]}, field {FIELDS_3D[j]}: "
+            raise ValueError(f"3D box of config {cfg[b[i]]}, frame {t[i]}, slot {k[i]}, field {FIELDS_3D[j]}: "
                              + msg.format(repr(float(b3[i, j])), repr(float(b3[i, 2]))))
     tid = ids.reshape(-1)[flat] if g is t else ids[b, t, k]
     return TrackerDets(B, b.astype(np.int64, copy=False), g.astype(np.int64, copy=False),
-                       tid.astype(np.int64, copy=False), box, k.astype(np.int64, copy=False), (), b3, h3)
+                       tid.astype(np.int64, copy=False), box, k.astype(np.int64, copy=False), (), b3, h3,
+                       None if configs is None else cfg[:, None])
 
 
 @dataclass(eq=False)
@@ -442,7 +454,7 @@ def _duplicate_error(gt: PreparedGT, dets: TrackerDets, idx: int) -> Exception:
         path = dets.paths[lane][s]
         row = int(dets.source[idx])
         return kio.KittiFormatError(path, kio.line_of_row(path, row) or row + 1, "track_id", msg)
-    return DuplicateIdError(f"config {lane}: {msg}")
+    return DuplicateIdError(f"config {dets.config(lane, s)}: {msg}")
 
 
 def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> EvalBatch:

@@ -114,7 +114,8 @@ class LaneScorer:
             return np.broadcast_to(a, (len(used),) + a.shape)
 
         b3 = per_lane(box3d) if box3d is not None and self.similarity != "2d" else None
-        flat = tracker_dets_from_arrays(self.gt, ids if every else ids[used], per_lane(boxes), self.offsets, b3)
+        flat = tracker_dets_from_arrays(self.gt, ids if every else ids[used], per_lane(boxes), self.offsets, b3,
+                                        configs=used)
         F, S = self.gt.n_frames, len(self.gt.sequences)
         bounds = np.searchsorted(flat.lane * F + flat.frame,
                                  (np.arange(len(used)) * F)[:, None] + self.gt.offsets[None, :])   # [U, S + 1]
@@ -122,8 +123,10 @@ class LaneScorer:
         V = max((len(lanes) for lanes in items), default=0)
         start = np.zeros((V, S), np.int64)
         size = np.zeros((V, S), np.int64)
+        configs = np.full((V, S), -1, np.int64)         # (error messages name the lane of each run)
         for s, lanes in enumerate(items):
             u = np.array([row[lane] for lane in lanes], np.int64)
+            configs[:len(u), s] = lanes
             start[:len(u), s] = bounds[u, s]
             size[:len(u), s] = bounds[u, s + 1] - bounds[u, s]
         size, start = size.reshape(-1), start.reshape(-1)
@@ -131,7 +134,7 @@ class LaneScorer:
         return flat._replace(n_lanes=V, lane=np.repeat(np.arange(V, dtype=np.int64), size.reshape(V, S).sum(1)),
                              frame=flat.frame[idx], track_id=flat.track_id[idx], box=flat.box[idx],
                              source=flat.source[idx], box3d=None if flat.box3d is None else flat.box3d[idx],
-                             has3d=None if flat.has3d is None else flat.has3d[idx])
+                             has3d=None if flat.has3d is None else flat.has3d[idx], configs=configs)
 
     def evaluate(self, dets: TrackerDets) -> dict:
         return evaluate_lanes(self.gt, dets, self.lanes_per_batch, self.similarity)
