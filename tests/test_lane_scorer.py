@@ -8,7 +8,9 @@ import pytest
 
 import dfrmot_jax as dm
 from dfrmot_jax.config import Params
-from dfrmot_jax.metrics import evaluate_arrays, prepare_gt
+from dfrmot_jax.metrics import evaluate_arrays, evaluate_batch, prepare_gt
+from dfrmot_jax.metrics.evaluate import result_dicts
+from dfrmot_jax.metrics.kitti import tracker_dets_from_arrays
 from dfrmot_jax.metrics.lane_scorer import LaneScorer
 from dfrmot_jax.synthetic import make_scene
 
@@ -43,9 +45,21 @@ def _scored(sc, ids, boxes, busy=frozenset()):
     return per, items
 
 
+def _alone(gt, ids, boxes, offsets):
+    """Every lane scored as it is (no memo, no virtual lanes)."""
+    return result_dicts(gt, evaluate_batch(gt, tracker_dets_from_arrays(gt, ids, boxes, offsets)))
+
+
+def _same(got, want, gt):
+    for lane, w in enumerate(want):
+        for name in ("COMBINED",) + tuple(gt.sequences):
+            for f, v in w[name].items():
+                np.testing.assert_array_equal(got[lane][name][f], v, err_msg=f"lane {lane} {name} {f}")
+
+
 def test_every_lane_equals_scoring_it_alone(outputs):
     gt, split, ids, boxes = outputs
-    want = evaluate_arrays(gt, ids, boxes, split.offsets)
+    want = _alone(gt, ids, boxes, split.offsets)
     sc = LaneScorer(gt, split.offsets, lanes_per_batch=4)
     # two chunks: the second relies on the first's sequence outputs
     _scored(sc, ids[:5], boxes[:5])
@@ -100,3 +114,22 @@ def test_errors_name_the_lane_not_the_virtual_lane(outputs):
     boxes[4, a + t, k] = np.nan                   # not finite: named by lane 4 (dets of lanes 0 and 4 only)
     with pytest.raises(ValueError, match="non-finite box in config 4,"):
         sc.dets(ids, boxes, sc.new_items(sc.seq_digests(ids, boxes)))
+
+
+def test_evaluate_arrays_scores_repeated_outputs_once(outputs, monkeypatch):
+    """evaluate_arrays packs repeated (config, sequence) outputs into virtual lanes: the same dicts as
+    scoring every lane as it is, with fewer lanes scored."""
+    from dfrmot_jax.metrics import lane_scorer
+
+    gt, split, ids, boxes = outputs
+    want = _alone(gt, ids, boxes, split.offsets)
+    scored = []
+    real = lane_scorer.evaluate_batch
+    monkeypatch.setattr(lane_scorer, "evaluate_batch", lambda g, d, sim: scored.append(d.n_lanes) or real(g, d, sim))
+    got = evaluate_arrays(gt, ids, boxes, split.offsets)
+    _same(got, want, gt)
+    assert sum(scored) < ids.shape[0]
+    # nothing repeated: the lanes as they are
+    scored.clear()
+    _same(evaluate_arrays(gt, ids[:2], boxes[:2], split.offsets), want[:2], gt)
+    assert sum(scored) == 2

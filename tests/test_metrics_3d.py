@@ -7,7 +7,8 @@ import pytest
 
 from dfrmot_jax.io.kitti import KittiFormatError
 from dfrmot_jax.metrics.boxes import pair_iou
-from dfrmot_jax.metrics.evaluate import evaluate_arrays, evaluate_classes, evaluate_files
+from dfrmot_jax.metrics.evaluate import evaluate_classes, evaluate_files
+from dfrmot_jax.metrics.lane_scorer import evaluate_arrays
 from dfrmot_jax.metrics.lane_scorer import LaneScorer
 from dfrmot_jax.metrics.kitti import prepare_gt
 from dfrmot_jax.metrics.tracker_files import read_tracker_files

@@ -26,8 +26,9 @@ Typical use::
 """
 
 from dfrmot_jax.metrics.evaluate import (ALL_FIELDS, CLASS_AVERAGED_FIELDS, CLASS_SUMMED_FIELDS, cached_gt,
-                                         class_average, evaluate_arrays, evaluate_batch, evaluate_classes,
-                                         evaluate_files, evaluate_files_classes)
+                                         class_average, evaluate_batch, evaluate_classes, evaluate_files,
+                                         evaluate_files_classes)
+from dfrmot_jax.metrics.lane_scorer import evaluate_arrays
 from dfrmot_jax.metrics.kitti import DuplicateIdError, PreparedGT, class_sequences, prepare_gt
 from dfrmot_jax.metrics.table import classes_table, metrics_table
 

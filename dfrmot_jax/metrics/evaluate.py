@@ -62,7 +62,6 @@ from dfrmot_jax.metrics.kitti import (
     prepare_gt,
     preprocess,
     seq_name,
-    tracker_dets_from_arrays,
 )
 from dfrmot_jax.metrics.similarity import parse_similarity
 from dfrmot_jax.metrics.table import classes_table
@@ -188,7 +187,8 @@ def combine_sequences(seq_rows: Mapping[str, np.ndarray]) -> dict[str, np.ndarra
     return out
 
 
-def _to_dicts(gt: PreparedGT, out: dict) -> list[dict[str, dict[str, object]]]:
+def result_dicts(gt: PreparedGT, out: dict) -> list[dict[str, dict[str, object]]]:
+    """``{'seq': {f: [L, S(, 19)]}, 'comb': {f: [L(, 19)]}}`` -> L dicts ``{seq | 'COMBINED': {field: value}}``."""
     seq, comb = out["seq"], out["comb"]
     L = next(iter(comb.values())).shape[0]
     conv = {}
@@ -245,7 +245,7 @@ def evaluate_files(results_dir, root=None, cls: str = "car", sequences: Sequence
 def evaluate_dets(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> dict[str, dict[str, object]]:
     """One lane of tracker output (:func:`read_tracker_files`) scored against ``gt``:
     ``{seq: {field: value}, ..., 'COMBINED': {...}}``."""
-    return _to_dicts(gt, evaluate_batch(gt, dets, similarity))[0]
+    return result_dicts(gt, evaluate_batch(gt, dets, similarity))[0]
 
 
 def evaluate_files_classes(results_dir, root=None, classes: Sequence[str] | str = EVAL_CLASSES,
@@ -303,7 +303,8 @@ def lane_slice(dets: TrackerDets, a: int, b: int) -> TrackerDets:
                          has3d=None if dets.has3d is None else dets.has3d[i:j])
 
 
-def _concat(outs: list[dict]) -> dict:
+def concat_results(outs: list[dict]) -> dict:
+    """Results of consecutive lane ranges (:func:`evaluate_batch`) as one."""
     return {part: {f: np.concatenate([o[part][f] for o in outs], axis=0) for f in outs[0][part]}
             for part in ("seq", "comb")}
 
@@ -311,7 +312,7 @@ def _concat(outs: list[dict]) -> dict:
 def evaluate_lanes(gt: PreparedGT, dets: TrackerDets, lanes_per_batch: int = 16, similarity: str = "2d") -> dict:
     """:func:`evaluate_batch` over sub-batches of ``lanes_per_batch`` lanes (bounded memory), concatenated:
     ``{'seq': {field: [L, S(, 19)]}, 'comb': {field: [L(, 19)]}}``."""
-    return _concat([evaluate_batch(gt, lane_slice(dets, a, min(a + lanes_per_batch, dets.n_lanes)), similarity)
+    return concat_results([evaluate_batch(gt, lane_slice(dets, a, min(a + lanes_per_batch, dets.n_lanes)), similarity)
                     for a in range(0, dets.n_lanes, lanes_per_batch)])
 
 
@@ -334,7 +335,7 @@ class PoolParts(list):
         return all(f.done() for f in self)
 
     def result(self) -> dict:
-        return _concat([f.result() for f in self])
+        return concat_results([f.result() for f in self])
 
 
 def worker_pool(gt: PreparedGT, workers: int, start_method: str | None = None) -> ProcessPoolExecutor:
@@ -411,48 +412,6 @@ def _without_main(ctx):
     if method == "forkserver":
         return _ForkServerContext()
     return _SpawnContext() if method == "spawn" else ctx
-
-
-def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None, similarity: str = "2d",
-                    chunk: int = 4, workers: int | None = 1,
-                    start_method: str | None = None) -> list[dict[str, dict[str, object]]]:
-    """Evaluate B tracker configs straight from padded output; one result dict per config.
-
-    gt: :class:`PreparedGT` from :func:`prepare_gt`. ids: [B, T, K] int (``-1`` / negative = empty
-    slot; ids are per sequence). boxes: [B, T, K, 4] float ``x1, y1, x2, y2`` (float32 is fine;
-    values are used as float64). seq_offsets: [S] first frame along T of each of ``gt.sequences``
-    (default: the sequences back to back, ``gt.offsets[:-1]``). Within a frame, slots are taken in
-    order k = 0..K-1 (the order of rows in a result file; it decides ties exactly as in TrackEval).
-    similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (module docstring); 3D and BEV need
-    box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot (the 3D box the result file would carry; a
-    slot without one holds the placeholder ``-1 -1 -1 -1000 -1000 -1000`` or all NaN: unmatched in 3D).
-    chunk: configs per vectorised batch (peak memory ~ chunk x 60 MB for all of KITTI car).
-    workers: processes for chunks (default 1; ``None`` = 2 when B >= 64 and 2+ CPUs). With
-    workers > 1 a process pool (``start_method``, default ``'forkserver'`` on Linux, else
-    ``'spawn'``; both are safe in a process running JAX threads) evaluates chunks in parallel; as
-    always with these start methods, a calling script needs an ``if __name__ == "__main__":`` guard.
-    Returns a list of B dicts ``{seq: {field: value}, 'COMBINED': {...}}`` like
-    :func:`evaluate_files`.
-    """
-    if seq_offsets is None:
-        seq_offsets = gt.offsets[:-1]
-    similarity = parse_similarity(similarity)
-    if similarity != "2d" and box3d is None:
-        raise ValueError(f"similarity {similarity!r} needs box3d [B, T, K, 7] (h w l x y z rot_y per slot)")
-    dets = tracker_dets_from_arrays(gt, ids, boxes, seq_offsets, box3d if similarity != "2d" else None)
-    B = dets.n_lanes
-    if B == 0:
-        return []
-    chunk = max(1, int(chunk))
-    tasks = [lane_slice(dets, a, min(a + chunk, B)) for a in range(0, B, chunk)]
-    if workers is None:
-        workers = 2 if (B >= 64 and (os.cpu_count() or 1) >= 2) else 1
-    if workers > 1 and len(tasks) > 1:
-        with worker_pool(gt, min(workers, len(tasks)), start_method) as ex:
-            outs = list(ex.map(run_in_worker, tasks, [similarity] * len(tasks)))
-    else:
-        outs = [evaluate_batch(gt, t, similarity) for t in tasks]
-    return _to_dicts(gt, _concat(outs))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -66,6 +66,7 @@ __all__ = [
     "class_sequences",
     "seq_name",
     "class_ids",
+    "check_arrays",
     "tracker_dets_from_arrays",
     "preprocess",
     "DuplicateIdError",
@@ -339,8 +340,26 @@ class TrackerDets(NamedTuple):
         return int(self.configs[lane, s if self.configs.shape[1] > 1 else 0])
 
 
+def check_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets) -> np.ndarray:
+    """ValueError unless ``ids`` is [B, T, K], ``boxes`` [B, T, K, 4] and ``seq_offsets`` [S] puts every
+    sequence of ``gt`` inside T; returns ``seq_offsets`` as int64."""
+    ids, boxes = np.asarray(ids), np.asarray(boxes)
+    if ids.ndim != 3:
+        raise ValueError(f"ids must be [B, T, K], got shape {ids.shape}")
+    B, T, K = ids.shape
+    if boxes.shape != (B, T, K, 4):
+        raise ValueError(f"boxes must be [B, T, K, 4] = {(B, T, K, 4)}, got {boxes.shape}")
+    seq_offsets = np.asarray(seq_offsets, dtype=np.int64).reshape(-1)
+    S = len(gt.sequences)
+    if seq_offsets.shape != (S,):
+        raise ValueError(f"seq_offsets must have one entry per sequence ({S}), got {seq_offsets.shape}")
+    if np.any(seq_offsets < 0) or np.any(seq_offsets + gt.lengths > T):
+        raise ValueError(f"seq_offsets + sequence lengths exceed T = {T}")
+    return seq_offsets
+
+
 def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets,
-                             box3d: np.ndarray | None = None, configs=None) -> TrackerDets:
+                             box3d: np.ndarray | None = None) -> TrackerDets:
     """Flatten padded tracker output into :class:`TrackerDets`.
 
     ids: [B, T, K] int (negative = empty slot); boxes: [B, T, K, 4] float ``x1, y1, x2, y2``;
@@ -349,22 +368,11 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot, or None (3D fields not needed). A slot
     without a 3D box holds the placeholder or all NaN; any other value that is no box
     (:mod:`dfrmot_jax.metrics.fields3d`) raises ValueError naming config, frame, slot and field.
-    configs: [B] the caller's config of each lane (messages; :attr:`TrackerDets.configs`), default 0..B-1.
     """
-    ids = np.asarray(ids)
-    if ids.ndim != 3:
-        raise ValueError(f"ids must be [B, T, K], got shape {ids.shape}")
+    seq_offsets = check_arrays(gt, ids, boxes, seq_offsets)
+    ids, boxes = np.asarray(ids), np.asarray(boxes)
     B, T, K = ids.shape
-    boxes = np.asarray(boxes)
-    if boxes.shape != (B, T, K, 4):
-        raise ValueError(f"boxes must be [B, T, K, 4] = {(B, T, K, 4)}, got {boxes.shape}")
-    cfg = np.arange(B) if configs is None else np.asarray(configs, np.int64).reshape(B)
-    seq_offsets = np.asarray(seq_offsets, dtype=np.int64).reshape(-1)
     S = len(gt.sequences)
-    if seq_offsets.shape != (S,):
-        raise ValueError(f"seq_offsets must have one entry per sequence ({S}), got {seq_offsets.shape}")
-    if np.any(seq_offsets < 0) or np.any(seq_offsets + gt.lengths > T):
-        raise ValueError(f"seq_offsets + sequence lengths exceed T = {T}")
     if np.array_equal(seq_offsets, gt.offsets[:-1]) and T == gt.n_frames:
         flat = np.flatnonzero(ids.reshape(-1) >= 0)   # (b, t, k) in order, cheaper than a 3-D nonzero
         b, tk = np.divmod(flat, T * K)
@@ -388,7 +396,7 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     box = box if box.dtype == np.float32 else box.astype(np.float64)   # float32 kept: widened per batch
     if box.size and not np.all(np.isfinite(box)):
         bad = int(np.flatnonzero(~np.all(np.isfinite(box), axis=1))[0])
-        raise ValueError(f"non-finite box in config {cfg[b[bad]]}, frame {t[bad]}, slot {k[bad]}")
+        raise ValueError(f"non-finite box in config {b[bad]}, frame {t[bad]}, slot {k[bad]}")
     b3 = h3 = None
     if box3d is not None:
         box3d = np.asarray(box3d)
@@ -399,12 +407,11 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
         bad = box3d_problem(b3, h3)
         if bad is not None:
             i, j, msg = bad
-            raise ValueError(f"3D box of config {cfg[b[i]]}, frame {t[i]}, slot {k[i]}, field {FIELDS_3D[j]}: "
+            raise ValueError(f"3D box of config {b[i]}, frame {t[i]}, slot {k[i]}, field {FIELDS_3D[j]}: "
                              + msg.format(repr(float(b3[i, j])), repr(float(b3[i, 2]))))
     tid = ids.reshape(-1)[flat] if g is t else ids[b, t, k]
     return TrackerDets(B, b.astype(np.int64, copy=False), g.astype(np.int64, copy=False),
-                       tid.astype(np.int64, copy=False), box, k.astype(np.int64, copy=False), (), b3, h3,
-                       None if configs is None else cfg[:, None])
+                       tid.astype(np.int64, copy=False), box, k.astype(np.int64, copy=False), (), b3, h3)
 
 
 @dataclass(eq=False)

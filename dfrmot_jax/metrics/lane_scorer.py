@@ -1,20 +1,26 @@
 """Padded tracker output of many lanes scored against prepared ground truth, each distinct output
-of each sequence once (:class:`LaneScorer`, what sweeps score with)."""
+of each sequence once: :class:`LaneScorer` (what sweeps score with) and :func:`evaluate_arrays`."""
 
 from __future__ import annotations
 
 import hashlib
+import os
 from concurrent.futures import ProcessPoolExecutor
 from typing import Sequence
 
 import numpy as np
 
-from dfrmot_jax.metrics.evaluate import PoolParts, combine_sequences, evaluate_lanes, lane_slice, run_in_worker
-from dfrmot_jax.metrics.kitti import PreparedGT, TrackerDets, tracker_dets_from_arrays
+from dfrmot_jax.metrics.evaluate import (PoolParts, combine_sequences, concat_results, evaluate_batch, evaluate_lanes,
+                                         lane_slice, result_dicts, run_in_worker, worker_pool)
+from dfrmot_jax.metrics.kitti import PreparedGT, TrackerDets, check_arrays, tracker_dets_from_arrays
 from dfrmot_jax.metrics.pairs import segment_starts
 from dfrmot_jax.metrics.similarity import parse_similarity
 
-__all__ = ["LaneScorer"]
+__all__ = ["LaneScorer", "evaluate_arrays", "REPEATS_WORTH"]
+
+#: :func:`evaluate_arrays` packs the new outputs into virtual lanes when at most this share of the
+#: (config, sequence) outputs is new (gathering the rows costs ~0.1 of scoring them)
+REPEATS_WORTH = 0.9
 
 
 class LaneScorer:
@@ -100,32 +106,29 @@ class LaneScorer:
         """The virtual lanes of ``items`` (from :meth:`new_items`): lane v holds, on each sequence's
         frames, that sequence's v-th new output (or nothing). ids [B, T, K], boxes [B, T, K, 4] or
         [T, K, 4] shared by the lanes. (The lanes' rows are flattened once; a (lane, sequence) is a
-        run of them, and the virtual lanes are these runs in (v, sequence) order.)"""
+        run of them, and the virtual lanes are these runs in (v, sequence) order; their ``configs``
+        name each run's lane in error messages.)"""
         if self.similarity != "2d" and box3d is None:
             raise ValueError(f"similarity {self.similarity!r} needs box3d")
         ids = np.asarray(ids)
-        used = sorted({lane for lanes in items for lane in lanes})
-        every = len(used) == ids.shape[0]
 
         def per_lane(a):
             a = np.asarray(a)
-            if a.ndim == 4:
-                return a if every else a[used]
-            return np.broadcast_to(a, (len(used),) + a.shape)
+            return a if a.ndim == 4 else np.broadcast_to(a, (ids.shape[0],) + a.shape)
 
+        # every lane flattened (no copy of a subset; a problem is named by its own lane, and the first
+        # lane with it is always among the items: its duplicates are later, or scored already)
         b3 = per_lane(box3d) if box3d is not None and self.similarity != "2d" else None
-        flat = tracker_dets_from_arrays(self.gt, ids if every else ids[used], per_lane(boxes), self.offsets, b3,
-                                        configs=used)
+        flat = tracker_dets_from_arrays(self.gt, ids, per_lane(boxes), self.offsets, b3)
         F, S = self.gt.n_frames, len(self.gt.sequences)
         bounds = np.searchsorted(flat.lane * F + flat.frame,
-                                 (np.arange(len(used)) * F)[:, None] + self.gt.offsets[None, :])   # [U, S + 1]
-        row = {lane: u for u, lane in enumerate(used)}
+                                 (np.arange(ids.shape[0]) * F)[:, None] + self.gt.offsets[None, :])   # [B, S + 1]
         V = max((len(lanes) for lanes in items), default=0)
         start = np.zeros((V, S), np.int64)
         size = np.zeros((V, S), np.int64)
         configs = np.full((V, S), -1, np.int64)         # (error messages name the lane of each run)
         for s, lanes in enumerate(items):
-            u = np.array([row[lane] for lane in lanes], np.int64)
+            u = np.asarray(lanes, np.int64)
             configs[:len(u), s] = lanes
             start[:len(u), s] = bounds[u, s]
             size[:len(u), s] = bounds[u, s + 1] - bounds[u, s]
@@ -169,3 +172,59 @@ class LaneScorer:
         rows = np.array([[self.memo[(s, d)] for s, d in enumerate(per)] for per in seq_digests], np.int64)
         seq = {f: t[rows] for f, t in self._table.items()}
         return {"seq": seq, "comb": combine_sequences(seq)}
+
+
+def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None, similarity: str = "2d",
+                    chunk: int = 4, workers: int | None = 1,
+                    start_method: str | None = None) -> list[dict[str, dict[str, object]]]:
+    """Evaluate B tracker configs straight from padded output; one result dict per config.
+
+    gt: :class:`PreparedGT` from :func:`prepare_gt`. ids: [B, T, K] int (``-1`` / negative = empty
+    slot; ids are per sequence). boxes: [B, T, K, 4] float ``x1, y1, x2, y2`` (float32 is fine;
+    values are used as float64). seq_offsets: [S] first frame along T of each of ``gt.sequences``
+    (default: the sequences back to back, ``gt.offsets[:-1]``). Within a frame, slots are taken in
+    order k = 0..K-1 (the order of rows in a result file; it decides ties exactly as in TrackEval).
+    similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (:mod:`~dfrmot_jax.metrics.evaluate`); 3D and BEV need
+    box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot (the 3D box the result file would carry; a
+    slot without one holds the placeholder ``-1 -1 -1 -1000 -1000 -1000`` or all NaN: unmatched in 3D).
+    chunk: configs per vectorised batch (peak memory ~ chunk x 60 MB for all of KITTI car).
+    workers: processes for chunks (default 1; ``None`` = 2 when B >= 64 and 2+ CPUs). With
+    workers > 1 a process pool (``start_method``, default ``'forkserver'`` on Linux, else
+    ``'spawn'``; both are safe in a process running JAX threads) evaluates chunks in parallel; as
+    always with these start methods, a calling script needs an ``if __name__ == "__main__":`` guard.
+    Each distinct output of each sequence is scored once (:class:`LaneScorer`'s virtual lanes) when
+    at least 1 - ``REPEATS_WORTH`` of the (config, sequence) outputs repeat; the results are the same.
+    Returns a list of B dicts ``{seq: {field: value}, 'COMBINED': {...}}`` like
+    :func:`~dfrmot_jax.metrics.evaluate.evaluate_files`.
+    """
+    if seq_offsets is None:
+        seq_offsets = gt.offsets[:-1]
+    similarity = parse_similarity(similarity)
+    if similarity != "2d" and box3d is None:
+        raise ValueError(f"similarity {similarity!r} needs box3d [B, T, K, 7] (h w l x y z rot_y per slot)")
+    box3d = box3d if similarity != "2d" else None
+    seq_offsets = check_arrays(gt, ids, boxes, seq_offsets)
+    ids = np.asarray(ids)
+    B = ids.shape[0]
+    if B == 0:
+        return []
+    sc = LaneScorer(gt, seq_offsets, max(1, int(chunk)), similarity)
+    per = sc.seq_digests(ids, boxes, box3d)
+    items = sc.new_items(per)
+    if sum(map(len, items)) > REPEATS_WORTH * B * len(gt.sequences):     # (almost) nothing repeats: the lanes as they are
+        dets, items = tracker_dets_from_arrays(gt, ids, boxes, seq_offsets, box3d), None
+    else:
+        dets = sc.dets(ids, boxes, items, box3d)
+    tasks = [lane_slice(dets, a, min(a + sc.lanes_per_batch, dets.n_lanes))
+             for a in range(0, dets.n_lanes, sc.lanes_per_batch)]
+    if workers is None:
+        workers = 2 if (B >= 64 and (os.cpu_count() or 1) >= 2) else 1
+    if workers > 1 and len(tasks) > 1:
+        with worker_pool(gt, min(workers, len(tasks)), start_method) as ex:
+            out = concat_results(list(ex.map(run_in_worker, tasks, [similarity] * len(tasks))))
+    else:
+        out = concat_results([evaluate_batch(gt, t, similarity) for t in tasks])
+    if items is not None:
+        sc.store(per, items, out)
+        out = sc.gather(per)
+    return result_dicts(gt, out)
