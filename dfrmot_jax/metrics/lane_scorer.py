@@ -81,6 +81,12 @@ class LaneScorer:
             out.append(tuple(per))
         return out
 
+    @staticmethod
+    def lane_digests(seq_digests: Sequence[tuple]) -> list[bytes]:
+        """One digest per lane from its :meth:`seq_digests`: what :meth:`digests` identifies (its ids
+        and own boxes) on the sequences' frames, without hashing the arrays again."""
+        return [hashlib.sha1(b"".join(per)).digest() for per in seq_digests]
+
     def new_items(self, seq_digests: Sequence[tuple], busy=frozenset()) -> list[list[int]]:
         """Per sequence, the first lane of each of its digests not scored yet and not in ``busy``
         (``(sequence, digest)`` pairs being scored elsewhere)."""

@@ -47,8 +47,8 @@ class Ab3dmotLanes:
         (``src3``, ``own3``); with output "filtered" also the lane's own image and 3D boxes. (With
         output "detections" a row's image box, score and 3D box follow from the options, its slot and
         its 3D source, on the one split.) ``base``: the lanes' digests of ids and own image boxes
-        (:meth:`dfrmot_jax.metrics.lane_scorer.LaneScorer.digests`, made here when not given), extended
-        here instead of hashing them again."""
+        (:meth:`dfrmot_jax.metrics.lane_scorer.LaneScorer.digests` or ``lane_digests``, made here
+        when not given), extended here instead of hashing them again."""
         ids = np.asarray(res.ids)
         if base is None:
             base = LaneScorer.digests(ids, np.asarray(res.boxes))

@@ -276,7 +276,7 @@ class ChunkRunner:
             with self.lock:
                 self.busy[id(p)] = self.scorer.item_keys(digests, p.todo)
         if self.ab3dmot is not None:
-            lanes = self.scorer.digests(res.ids, res.boxes)
+            lanes = self.scorer.lane_digests(digests)      # (the split's frames are its sequences')
             if self.ab3dmot_thread is not None:
                 p.ab3dmot = self.ab3dmot_thread.submit(self.ab3dmot.score, res, lanes)
             else:
