@@ -215,9 +215,12 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None,
     if B == 0:
         return []
     sc = LaneScorer(gt, seq_offsets, max(1, int(chunk)), similarity)
-    per = sc.seq_digests(ids, boxes, box3d)
+    # a repeated output repeats its ids: the boxes are hashed only when some ids repeat
+    by_ids = sc.seq_digests(ids, None)
+    S = len(gt.sequences)
+    per = sc.seq_digests(ids, boxes, box3d) if any(len({d[s] for d in by_ids}) < B for s in range(S)) else by_ids
     items = sc.new_items(per)
-    if sum(map(len, items)) > REPEATS_WORTH * B * len(gt.sequences):     # (almost) nothing repeats: the lanes as they are
+    if sum(map(len, items)) > REPEATS_WORTH * B * S:       # (almost) nothing repeats: the lanes as they are
         dets, items = tracker_dets_from_arrays(gt, ids, boxes, seq_offsets, box3d), None
     else:
         dets = sc.dets(ids, boxes, items, box3d)
