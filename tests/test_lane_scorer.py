@@ -119,13 +119,13 @@ def test_errors_name_the_lane_not_the_virtual_lane(outputs):
 def test_evaluate_arrays_scores_repeated_outputs_once(outputs, monkeypatch):
     """evaluate_arrays packs repeated (config, sequence) outputs into virtual lanes: the same dicts as
     scoring every lane as it is, with fewer lanes scored."""
-    from dfrmot_jax.metrics import lane_scorer
+    from dfrmot_jax.metrics import evaluate
 
     gt, split, ids, boxes = outputs
     want = _alone(gt, ids, boxes, split.offsets)
     scored = []
-    real = lane_scorer.evaluate_batch
-    monkeypatch.setattr(lane_scorer, "evaluate_batch", lambda g, d, sim: scored.append(d.n_lanes) or real(g, d, sim))
+    real = evaluate.evaluate_batch
+    monkeypatch.setattr(evaluate, "evaluate_batch", lambda g, d, sim: scored.append(d.n_lanes) or real(g, d, sim))
     got = evaluate_arrays(gt, ids, boxes, split.offsets)
     _same(got, want, gt)
     assert sum(scored) < ids.shape[0]

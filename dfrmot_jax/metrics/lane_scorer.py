@@ -10,8 +10,8 @@ from typing import Sequence
 
 import numpy as np
 
-from dfrmot_jax.metrics.evaluate import (PoolParts, combine_sequences, concat_results, evaluate_batch, evaluate_lanes,
-                                         lane_slice, result_dicts, run_in_worker, worker_pool)
+from dfrmot_jax.metrics.evaluate import (PoolParts, combine_sequences, evaluate_lanes, lane_slice, result_dicts,
+                                         run_in_worker, worker_pool)
 from dfrmot_jax.metrics.kitti import PreparedGT, TrackerDets, check_arrays, tracker_dets_from_arrays
 from dfrmot_jax.metrics.pairs import segment_starts
 from dfrmot_jax.metrics.similarity import parse_similarity
@@ -150,7 +150,7 @@ class LaneScorer:
 
     def submit(self, pool: ProcessPoolExecutor, dets: TrackerDets) -> "PoolParts":
         """Score ``dets`` in the pool, ``lanes_per_batch`` lanes per task (one chunk's lanes spread over
-        every process): a future-like ``_Parts`` whose ``result()`` equals :meth:`evaluate`'s."""
+        every process): a future-like :class:`PoolParts` whose ``result()`` equals :meth:`evaluate`'s."""
         n = self.lanes_per_batch
         return PoolParts(pool.submit(run_in_worker, lane_slice(dets, a, min(a + n, dets.n_lanes)), self.similarity)
                       for a in range(0, dets.n_lanes, n))
@@ -224,15 +224,14 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None,
         dets, items = tracker_dets_from_arrays(gt, ids, boxes, seq_offsets, box3d), None
     else:
         dets = sc.dets(ids, boxes, items, box3d)
-    tasks = [lane_slice(dets, a, min(a + sc.lanes_per_batch, dets.n_lanes))
-             for a in range(0, dets.n_lanes, sc.lanes_per_batch)]
+    tasks = -(-dets.n_lanes // sc.lanes_per_batch)
     if workers is None:
         workers = 2 if (B >= 64 and (os.cpu_count() or 1) >= 2) else 1
-    if workers > 1 and len(tasks) > 1:
-        with worker_pool(gt, min(workers, len(tasks)), start_method) as ex:
-            out = concat_results(list(ex.map(run_in_worker, tasks, [similarity] * len(tasks))))
+    if workers > 1 and tasks > 1:
+        with worker_pool(gt, min(workers, tasks), start_method) as ex:
+            out = sc.submit(ex, dets).result()
     else:
-        out = concat_results([evaluate_batch(gt, t, similarity) for t in tasks])
+        out = sc.evaluate(dets)
     if items is not None:
         sc.store(per, items, out)
         out = sc.gather(per)
