@@ -23,6 +23,16 @@ __all__ = ["LaneScorer", "evaluate_arrays", "REPEATS_WORTH"]
 REPEATS_WORTH = 0.9
 
 
+def _output_digest(ids: np.ndarray, own: Sequence[np.ndarray]) -> bytes:
+    """The digest of one output: ``ids`` [T, K] (contiguous) and, of each of its own box arrays
+    [T, K, ...], the boxes of its rows (ids >= 0)."""
+    h = hashlib.sha1(ids.tobytes())
+    live = ids >= 0
+    for bx in own:
+        h.update(np.ascontiguousarray(bx[live]).tobytes())
+    return h.digest()
+
+
 class LaneScorer:
     """Scores lanes of padded tracker output against prepared ground truth, each distinct output of
     each sequence once.
@@ -54,14 +64,8 @@ class LaneScorer:
     def digests(ids: np.ndarray, boxes: np.ndarray, box3d: np.ndarray | None = None) -> list[bytes]:
         """One digest per lane of ``ids`` [B, T, K] and the lane's own boxes ([B, T, K, 4] / 3D boxes
         [B, T, K, 7]; boxes shared by the lanes, [T, K, ...], are the same for every lane)."""
-        out = []
-        for b in range(ids.shape[0]):
-            h = hashlib.sha1(np.ascontiguousarray(ids[b]).tobytes())
-            for bx in (boxes, box3d):
-                if bx is not None and bx.ndim == 4:
-                    h.update(np.ascontiguousarray(bx[b][ids[b] >= 0]).tobytes())
-            out.append(h.digest())
-        return out
+        own = [bx for bx in (boxes, box3d) if bx is not None and bx.ndim == 4]
+        return [_output_digest(np.ascontiguousarray(ids[b]), [bx[b] for bx in own]) for b in range(ids.shape[0])]
 
     def seq_digests(self, ids: np.ndarray, boxes: np.ndarray, box3d: np.ndarray | None = None) -> list[tuple]:
         """Per lane of ``ids`` [B, T, K], one digest per sequence: its ids on the sequence's frames
@@ -71,14 +75,7 @@ class LaneScorer:
         out = []
         for b in range(ids.shape[0]):
             lane = np.ascontiguousarray(ids[b])
-            live = lane >= 0
-            per = []
-            for a, e in spans:
-                h = hashlib.sha1(lane[a:e].tobytes())
-                for bx in own:
-                    h.update(np.ascontiguousarray(bx[b, a:e][live[a:e]]).tobytes())
-                per.append(h.digest())
-            out.append(tuple(per))
+            out.append(tuple(_output_digest(lane[a:e], [bx[b, a:e] for bx in own]) for a, e in spans))
         return out
 
     @staticmethod
