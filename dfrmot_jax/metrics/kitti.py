@@ -92,20 +92,23 @@ def seq_name(s) -> str:
     return f"{s:04d}" if isinstance(s, (int, np.integer)) else str(s)
 
 
-def class_ids(types: np.ndarray, path, kio, rows: np.ndarray | None = None, distinct=None) -> np.ndarray:
+def class_ids(types: np.ndarray, path, kio, rows: np.ndarray | None = None) -> np.ndarray:
     """[R] object type names -> [R] int64 class ids (lower-cased lookup, as TrackEval).
 
     ``rows`` [R]: file row of each entry (for the error's line number); default 0..R-1.
-    ``distinct``: ``(code [R], names [U])`` of ``types`` when known (then ``types`` may be None;
-    names no entry uses are skipped).
     """
-    code, uniq = _distinct(types) if distinct is None else distinct
-    used = np.bincount(code, minlength=len(uniq)) > 0
-    ids = np.zeros(len(uniq), dtype=np.int64)
-    for k in np.argsort(uniq, kind="stable"):        # names in sorted order: the first unknown one is named
+    return coded_class_ids(*_distinct(types), path, kio, rows)
+
+
+def coded_class_ids(code: np.ndarray, names: np.ndarray, path, kio, rows: np.ndarray | None = None) -> np.ndarray:
+    """:func:`class_ids` of type names given as ``code`` [R] into ``names`` [U] (names no entry uses
+    are skipped: ``names`` may be those of a whole file, ``code`` of some of its rows)."""
+    used = np.bincount(code, minlength=len(names)) > 0
+    ids = np.zeros(len(names), dtype=np.int64)
+    for k in np.argsort(names, kind="stable"):       # names in sorted order: the first unknown one is named
         if not used[k]:
             continue
-        name = uniq[k]
+        name = names[k]
         cid = CLASS_NAME_TO_ID.get(name.lower())
         if cid is None:
             r = int(np.flatnonzero(code == k)[0])
@@ -224,7 +227,7 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
         is_dc = (np.char.lower(uniq) == "dontcare")[code]
         cid = np.zeros(len(code), dtype=np.int64)
         nd = ~is_dc & (lab.track_id >= 0)  # TrackEval skips negative ids before mapping class names
-        cid[nd] = class_ids(None, path, kio, np.flatnonzero(nd), distinct=(code[nd], uniq))
+        cid[nd] = coded_class_ids(code[nd], uniq, path, kio, np.flatnonzero(nd))
         use = nd & np.logical_or.reduce([cid == c for c in classes])
         occ = lab.occluded.astype(np.int64)
         trunc = lab.truncated.astype(np.int64)
