@@ -99,8 +99,7 @@ def _object_slots(objs: Objects | None, options: Options, m2: int, m3: int, big2
 def split_objects(params: Params, frames: Frames, options: Options) -> Objects:
     """The :class:`~dfrmot_jax.core.step.Objects` of every frame ([T, O, ...]) for one setting of
     ``score_2d``, ``score_3d``, ``merge_iou`` (``params``: scalars or [1] leaves; the other fields
-    are not read),
-    made in one vmapped call outside the scan, once for every lane that shares them."""
+    are not read), made in one vmapped call outside the scan, once for every lane that shares them."""
     fn = _OBJECT_PROGRAMS.get(options)
     if fn is None:
         fn = _OBJECT_PROGRAMS[options] = jax.jit(jax.vmap(lambda p, f: objects(p, f, options), in_axes=(None, 0)))

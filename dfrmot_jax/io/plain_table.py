@@ -97,7 +97,6 @@ def plain_columns(data: bytes, sep: str | None, ncols: int, string_columns: Sequ
     return out
 
 
-
 def read_ahead(reader: Callable, paths: Sequence, threads: int = 2) -> Iterator:
     """``reader(path)`` for each of ``paths``, in order, the files read ahead from this call on in
     ``threads`` threads while the caller works on other things or on the earlier files: pyarrow's

@@ -32,9 +32,9 @@ box is unmatched in 3D). Files are then read with their 3D fields (located error
 (e.g. ``HOTA_3d``).
 
 Sweeps (:mod:`dfrmot_jax.sweep`) score padded tracker output with
-:class:`dfrmot_jax.metrics.lane_scorer.LaneScorer` (each
-distinct output of each sequence scored once, in sub-batches of lanes, optionally in a
-:func:`worker_pool`), keep TrackEval's summary view per row (:func:`summary_columns`), re-combine any subset of sequences
+:class:`dfrmot_jax.metrics.lane_scorer.LaneScorer` (each distinct output of each sequence scored
+once, in sub-batches of lanes, optionally in a :func:`worker_pool`), keep TrackEval's summary view
+per row (:func:`summary_columns`), re-combine any subset of sequences
 from the per-alpha fields :data:`RAW_FIELDS` (:func:`combine_sequences`) and average classes
 column-wise (:func:`class_average_columns`).
 """
@@ -313,7 +313,7 @@ def evaluate_lanes(gt: PreparedGT, dets: TrackerDets, lanes_per_batch: int = 16,
     """:func:`evaluate_batch` over sub-batches of ``lanes_per_batch`` lanes (bounded memory), concatenated:
     ``{'seq': {field: [L, S(, 19)]}, 'comb': {field: [L(, 19)]}}``."""
     return concat_results([evaluate_batch(gt, lane_slice(dets, a, min(a + lanes_per_batch, dets.n_lanes)), similarity)
-                    for a in range(0, dets.n_lanes, lanes_per_batch)])
+                           for a in range(0, dets.n_lanes, lanes_per_batch)])
 
 
 _WORKER_GT: PreparedGT | None = None

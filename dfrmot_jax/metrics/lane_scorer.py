@@ -187,8 +187,8 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None,
     values are used as float64). seq_offsets: [S] first frame along T of each of ``gt.sequences``
     (default: the sequences back to back, ``gt.offsets[:-1]``). Within a frame, slots are taken in
     order k = 0..K-1 (the order of rows in a result file; it decides ties exactly as in TrackEval).
-    similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (:mod:`~dfrmot_jax.metrics.evaluate`); 3D and BEV need
-    box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot (the 3D box the result file would carry; a
+    similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (:mod:`~dfrmot_jax.metrics.evaluate`); 3D
+    and BEV need box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot (the 3D box the result file would carry; a
     slot without one holds the placeholder ``-1 -1 -1 -1000 -1000 -1000`` or all NaN: unmatched in 3D).
     chunk: configs per vectorised batch (peak memory ~ chunk x 60 MB for all of KITTI car).
     workers: processes for chunks (default 1; ``None`` = 2 when B >= 64 and 2+ CPUs). With

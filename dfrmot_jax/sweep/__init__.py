@@ -10,8 +10,8 @@ The pipeline::
         ``chunk`` configs; chunk id = hash(data settings + the chunk's config hashes
         [+ the distortion settings])
     run ─▶ per chunk: dfrmot_jax.track (one [B] batch; distortion lanes vmapped with the parameter
-        lanes, one DistortSpec per option group) ─▶ metrics on the padded arrays (prepared
-        ground truth reused, each distinct output of each sequence scored once) ─▶ DIR/chunks/<id>.parquet
+        lanes, one DistortSpec per option group) ─▶ metrics on the padded arrays (prepared ground
+        truth reused, each distinct output of each sequence scored once) ─▶ DIR/chunks/<id>.parquet
         written atomically (tmp file + os.replace) and recorded (sha256, rows) in DIR/ledger.jsonl; a
         rerun skips chunks whose file matches its record and recomputes the others
     table ─▶ one row per (config, sequence) + one ``COMBINED`` row per config

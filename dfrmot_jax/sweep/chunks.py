@@ -3,10 +3,10 @@ runs (the local backend in this process, the Ray backend inside its workers), an
 
 Per chunk: :func:`dfrmot_jax.track` on one [B] batch (track capacity: the tracker's own policy,
 ``api.default_capacity`` for the option group and ``track(grow=True)``; the capacity a chunk grew
-to is kept for the group's later chunks), then the metrics (:class:`dfrmot_jax.metrics.lane_scorer.LaneScorer`:
-each distinct output of each sequence scored once, in-process or in a metric worker pool beside the
-tracker), then the chunk's table (:func:`dfrmot_jax.sweep.store.chunk_frame`), handed to the
-caller's ``keep``.
+to is kept for the group's later chunks), then the metrics
+(:class:`dfrmot_jax.metrics.lane_scorer.LaneScorer`: each distinct output of each sequence scored
+once, in-process or in a metric worker pool beside the tracker), then the chunk's table
+(:func:`dfrmot_jax.sweep.store.chunk_frame`), handed to the caller's ``keep``.
 """
 
 from __future__ import annotations
@@ -164,7 +164,8 @@ class ChunkRunner:
         self.scorer = LaneScorer(self.gt, self.split.offsets)
         # AB3DMOT needs the rows' 3D detail ([B, T, K, 6] boxes with output "filtered"): the whole
         # chunk in one call, whose output arrays are kept as they come, instead of copying two halves
-        self.lanes_per_call = max(1, min(self.spec.chunk, TRACK_CHUNK if self.spec.ab3dmot is None else 2 * TRACK_CHUNK))
+        per_call = TRACK_CHUNK if self.spec.ab3dmot is None else 2 * TRACK_CHUNK
+        self.lanes_per_call = max(1, min(self.spec.chunk, per_call))
         pending_cf = sum(len(c.configs) for c in todo) * self.split.n_frames
         if self.workers is None:
             self.workers = min(2, os.cpu_count() or 1) if pending_cf >= 2_000_000 else 0
