@@ -20,7 +20,7 @@ from .config import Options
 from .data import CLASS_NAMES, Frames, Split, object_boxes, object_slots
 from .io.atomic import write_text_atomic
 from .io.columns import (COLUMN_SETS, PLACEHOLDER_DIMS, PLACEHOLDER_LOC, PLACEHOLDER_ROT_Y, PLACEHOLDER_SCORE,
-                         invert_box3d_extent)
+                         as_written, invert_box3d_extent)
 from .io.kitti import tracking_lines
 
 
@@ -195,15 +195,15 @@ def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRo
         rows3 = rows_of(res.box3).astype(np.float64)
         ok = has3 & np.all(np.isfinite(rows3), axis=1)
         d, l = invert_box3d_extent(rows3[ok, :3], rows3[ok, 3:], options.centroid)
-        dims[ok], loc[ok] = _as_written(d, 7), _as_written(l, 7)
-        box = _as_written(rows_of(res.boxes).astype(np.float64), 6)
+        dims[ok], loc[ok] = as_written(d, 7), as_written(l, 7)
+        box = as_written(rows_of(res.boxes).astype(np.float64), 6)
     else:
         dims[box_carry] = split.dims3d[tt[box_carry], jj[box_carry]]
         loc[box_carry] = split.loc3d[tt[box_carry], jj[box_carry]]
         box_key = tk
         box3d_key = np.where(box_carry, src, -1)
         # the objects' boxes are every lane's: written once per object slot, then gathered
-        box = _as_written(np.asarray(output_boxes(frames, options), np.float64).reshape(-1, 4), 6)[box_key]
+        box = as_written(np.asarray(output_boxes(frames, options), np.float64).reshape(-1, 4), 6)[box_key]
     box3d = np.concatenate([dims, loc, rot_y[:, None]], axis=1)
     return KittiRows(b, t, k, rows_of(ids).astype(np.int64), box, score, box3d, len(chosen), T, box_key, box3d_key)
 
@@ -220,33 +220,6 @@ def kitti_row_arrays(split: Split, res, columns: str = "kitti") -> tuple[np.ndar
     box3d = np.full(shape + (7,), np.nan)
     box3d[r.lane, r.t, r.slot] = r.box3d
     return boxes, scores, box3d
-
-
-def _as_written(v: np.ndarray, digits: int) -> np.ndarray:
-    """``float(f"{x:.{digits}g}")`` of every non-integral finite x, integers as they are, vectorised.
-
-    x is scaled to ``digits`` integer digits and rounded half to even; the quotient by a power of
-    ten (exact up to 10**22) is then the double nearest to the printed decimal, as ``float`` of the
-    text is. The scaled value carries a relative error of at most 2**-53, so where it lies within
-    1e-9 of a rounding tie, or its digit count is off (log10 at a power of ten), the value is
-    formatted by Python instead: the result equals the text's for every input."""
-    out = v.copy()
-    odd = np.isfinite(v) & (v != 0) & ((v != np.round(v)) | (np.abs(v) >= 1e15))
-    x = v[odd]
-    if not x.size:
-        return out
-    e = np.floor(np.log10(np.abs(x))).astype(np.int64)
-    k = digits - 1 - e                                    # decimal places kept
-    scale = 10.0 ** np.abs(k).astype(np.float64)
-    r = np.where(k >= 0, x * scale, x / scale)
-    m = np.round(r)                                      # half to even, as printing rounds
-    got = np.where(k >= 0, m / scale, m * scale)
-    frac = np.abs(np.abs(r - np.trunc(r)) - 0.5)
-    unsure = (frac < 1e-9) | (np.abs(m) >= 10.0 ** digits) | (np.abs(m) < 10.0 ** (digits - 1)) | (np.abs(k) > 22)
-    if unsure.any():
-        got[unsure] = [float(f"{y:.{digits}g}") for y in x[unsure].tolist()]
-    out[odd] = got
-    return out
 
 
 def _check_columns(columns: str) -> None:

@@ -234,10 +234,12 @@ def test_tidy_table(small_table, scene):
     assert comb["baseline"].sum() == 1
 
 
-def test_rows_equal_direct_track_and_eval(small_table, scene):
-    """A sweep row is what track + evaluate_arrays + metrics_table give for that config (same names)."""
+def test_rows_equal_direct_track_and_eval(small_table, scene, tmp_path):
+    """A sweep row is what track + write_lane + evaluate_files + metrics_table give for that config
+    (same names): the rows its result files carry (boxes as printed), scored from the files."""
     import dfrmot_jax as dm
-    from dfrmot_jax.metrics import evaluate_arrays, metrics_table, prepare_gt
+    from dfrmot_jax.metrics import evaluate_files, metrics_table, prepare_gt
+    from dfrmot_jax.results import write_lane
 
     split = dm.load_split(scene, "synth2d", "synth3d", "car")
     gt = prepare_gt(scene, "car", split.names)
@@ -246,9 +248,9 @@ def test_rows_equal_direct_track_and_eval(small_table, scene):
         params = Params(**{n: row[n] for n in PARAM_NAMES})
         options = Options(**{n: type(Options._field_defaults[n])(row[n]) for n in OPTION_NAMES})
         res = dm.track(split, dm.stack_params([params]), options)
-        boxes = res.boxes[None] if res.boxes.ndim == 3 else res.boxes
-        expect = metrics_table(evaluate_arrays(gt, res.ids, np.broadcast_to(boxes, res.ids.shape + (4,)),
-                                               split.offsets)[0])
+        out = tmp_path / str(row["config"])
+        write_lane(out, split, dm.prepare_frames(split, options), options, res.ids[0], res.lane_boxes(0))
+        expect = metrics_table(evaluate_files(out, gt))
         got = small_table[small_table["config"] == row["config"]].set_index("sequence")
         for col in expect.columns:
             np.testing.assert_array_equal(got.loc[list(expect.index), col].to_numpy(),

@@ -45,3 +45,33 @@ def test_compacted_detection_slots_change_nothing(kitti_root, monkeypatch):
     full = run_sweep(spec, progress=False, log=lambda m: None, compact=False)
     pd.testing.assert_frame_equal(compact, full)
     assert compact["peak_tracks"].max() > 0
+
+
+def test_option_variants_score_their_own_boxes_on_kitti(kitti_root, tmp_path):
+    """Issue 28's repro on sequence 0000: without truncation the ids equal the dfr2023 baseline's but
+    the boxes do not; the variant's row is its own (HOTA 79.8436 / LocA 91.3337 / MOTP 90.6241, as
+    ``dfrmot track --set truncate=false`` + ``dfrmot eval``), and so is output "filtered"'s (its
+    boxes scored as its file prints them)."""
+    import numpy as np
+
+    import dfrmot_jax as dm
+    from dfrmot_jax.config import Options, Params
+    from dfrmot_jax.metrics import evaluate_files, metrics_table, prepare_gt
+    from dfrmot_jax.results import write_lane
+
+    spec = {"name": "options", "data": {"root": str(kitti_root), "det2d": "rrc", "det3d": "pointrcnn",
+                                         "class": "car", "sequences": ["0000"]},
+            "baseline": {"preset": "dfr2023"}, "params": {"a_l": [8.0]},
+            "variants": [{"name": "no_truncation", "options": {"truncate": False}},
+                         {"name": "filtered", "options": {"output": "filtered"}}]}
+    df = run_sweep(spec, progress=False, workers=0, log=lambda m: None)
+    rows = df[df["sequence"] == "0000"].set_index("variant")
+    assert rows.loc["no_truncation", ["HOTA", "LocA", "MOTP"]].round(4).tolist() == [79.8436, 91.3337, 90.6241]
+    split = dm.load_split(kitti_root, "rrc", "pointrcnn", "car", ["0000"])
+    gt = prepare_gt(kitti_root, "car", split.names)
+    for name, opts in (("no_truncation", Options(truncate=False)), ("filtered", Options(output="filtered"))):
+        res = dm.track(split, dm.stack_params([Params()]), opts)
+        write_lane(tmp_path / name, split, dm.prepare_frames(split, opts), opts, res.ids[0], res.lane_boxes(0))
+        expect = metrics_table(evaluate_files(tmp_path / name, gt)).loc["0000"]
+        for col in expect.index:
+            np.testing.assert_array_equal(rows.loc[name, col], expect[col], err_msg=f"{name} {col}")

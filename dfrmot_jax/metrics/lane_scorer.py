@@ -10,6 +10,7 @@ from typing import Sequence
 
 import numpy as np
 
+from dfrmot_jax.io.columns import as_written
 from dfrmot_jax.metrics.evaluate import (PoolParts, combine_sequences, evaluate_lanes, lane_slice, result_dicts,
                                          run_in_worker, worker_pool)
 from dfrmot_jax.metrics.kitti import PreparedGT, TrackerDets, check_arrays, tracker_dets_from_arrays
@@ -23,13 +24,26 @@ __all__ = ["LaneScorer", "evaluate_arrays", "REPEATS_WORTH"]
 REPEATS_WORTH = 0.9
 
 
-def _output_digest(ids: np.ndarray, own: Sequence[np.ndarray]) -> bytes:
-    """The digest of one output: ``ids`` [T, K] (contiguous) and, of each of its own box arrays
-    [T, K, ...], the boxes of its rows (ids >= 0)."""
+def _output_digest(ids: np.ndarray, own: Sequence[np.ndarray], shared: bytes = b"") -> bytes:
+    """The digest of one output: ``ids`` [T, K] (contiguous), of each of its own box arrays
+    [T, K, ...] the boxes of its rows (ids >= 0), and ``shared``: the digest of the box arrays it
+    shares with other lanes on the same frames (:func:`_shared_digest`)."""
     h = hashlib.sha1(ids.tobytes())
     live = ids >= 0
     for bx in own:
         h.update(np.ascontiguousarray(bx[live]).tobytes())
+    h.update(shared)
+    return h.digest()
+
+
+def _shared_digest(shared: Sequence[np.ndarray]) -> bytes:
+    """The digest of box arrays shared by the lanes ([T, K, ...] each, on one span of frames): their
+    shapes, dtypes and every value (live or not: the rows that read them differ per lane)."""
+    h = hashlib.sha1()
+    for bx in shared:
+        a = np.ascontiguousarray(bx)
+        h.update(repr((a.shape, a.dtype.str)).encode())
+        h.update(a.tobytes())
     return h.digest()
 
 
@@ -48,8 +62,10 @@ class LaneScorer:
     distinct sequence-frames to score. similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (then
     :meth:`seq_digests` and :meth:`dets` take ``box3d``, [B, T, K, 7] or [T, K, 7] shared by the
     lanes). :meth:`digests` (one per whole lane) is what other memos of lanes build on."""
-    def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16, similarity: str = "2d"):
+    def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16, similarity: str = "2d",
+                 as_written: bool = False):
         self.gt = gt
+        self.as_written = bool(as_written)
         self.offsets = np.asarray(offsets, np.int64)
         self.lanes_per_batch = lanes_per_batch
         self.similarity = parse_similarity(similarity)
@@ -62,20 +78,30 @@ class LaneScorer:
 
     @staticmethod
     def digests(ids: np.ndarray, boxes: np.ndarray, box3d: np.ndarray | None = None) -> list[bytes]:
-        """One digest per lane of ``ids`` [B, T, K] and the lane's own boxes ([B, T, K, 4] / 3D boxes
-        [B, T, K, 7]; boxes shared by the lanes, [T, K, ...], are the same for every lane)."""
-        own = [bx for bx in (boxes, box3d) if bx is not None and bx.ndim == 4]
-        return [_output_digest(np.ascontiguousarray(ids[b]), [bx[b] for bx in own]) for b in range(ids.shape[0])]
+        """One digest per lane of ``ids`` [B, T, K] and its boxes: the lane's own ([B, T, K, 4] / 3D
+        boxes [B, T, K, 7]) on its rows, and the boxes shared by the lanes ([T, K, ...]) whole."""
+        arrays = [bx for bx in (boxes, box3d) if bx is not None]
+        own = [bx for bx in arrays if bx.ndim == 4]
+        shared = _shared_digest([bx for bx in arrays if bx.ndim != 4])
+        return [_output_digest(np.ascontiguousarray(ids[b]), [bx[b] for bx in own], shared)
+                for b in range(ids.shape[0])]
 
-    def seq_digests(self, ids: np.ndarray, boxes: np.ndarray, box3d: np.ndarray | None = None) -> list[tuple]:
-        """Per lane of ``ids`` [B, T, K], one digest per sequence: its ids on the sequence's frames
-        and the lane's own boxes there (as :meth:`digests`). Returns B tuples of S digests."""
-        own = [bx for bx in (boxes, box3d if self.similarity != "2d" else None) if bx is not None and bx.ndim == 4]
+    def seq_digests(self, ids: np.ndarray, boxes: np.ndarray | None, box3d: np.ndarray | None = None) -> list[tuple]:
+        """Per lane of ``ids`` [B, T, K], one digest per sequence of all that its scores depend on
+        there: its ids on the sequence's frames, the boxes its rows carry (its own, [B, T, K, ...],
+        on its rows; boxes shared by the lanes, [T, K, ...], the sequence's whole slice) and how they
+        are scored (``similarity``, ``as_written``). ``boxes=None`` digests the ids alone (a cheap
+        pre-check: equal outputs have equal ids). Returns B tuples of S digests."""
+        arrays = [bx for bx in (boxes, box3d if self.similarity != "2d" else None) if bx is not None]
+        own = [bx for bx in arrays if bx.ndim == 4]
         spans = [(int(a), int(a + n)) for a, n in zip(self.offsets, self.gt.lengths)]
+        how = repr((self.similarity, self.as_written, boxes is None)).encode()
+        shared = [how + _shared_digest([bx[a:e] for bx in arrays if bx.ndim != 4]) for a, e in spans]
         out = []
         for b in range(ids.shape[0]):
             lane = np.ascontiguousarray(ids[b])
-            out.append(tuple(_output_digest(lane[a:e], [bx[b, a:e] for bx in own]) for a, e in spans))
+            out.append(tuple(_output_digest(lane[a:e], [bx[b, a:e] for bx in own], sh)
+                             for (a, e), sh in zip(spans, shared)))
         return out
 
     @staticmethod
@@ -137,8 +163,11 @@ class LaneScorer:
             size[:len(u), s] = bounds[u, s + 1] - bounds[u, s]
         size, start = size.reshape(-1), start.reshape(-1)
         idx = np.arange(int(size.sum()), dtype=np.int64) - np.repeat(segment_starts(size)[:-1] - start, size)
+        box = flat.box[idx]
+        if self.as_written:         # what the lanes' result files carry (their 2D box printed with %g)
+            box = as_written(np.asarray(box, np.float64), 6)
         return flat._replace(n_lanes=V, lane=np.repeat(np.arange(V, dtype=np.int64), size.reshape(V, S).sum(1)),
-                             frame=flat.frame[idx], track_id=flat.track_id[idx], box=flat.box[idx],
+                             frame=flat.frame[idx], track_id=flat.track_id[idx], box=box,
                              source=flat.source[idx], box3d=None if flat.box3d is None else flat.box3d[idx],
                              has3d=None if flat.has3d is None else flat.has3d[idx], configs=configs)
 

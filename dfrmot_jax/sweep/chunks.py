@@ -161,7 +161,7 @@ class ChunkRunner:
         self.frames: tuple | None = None        # (options, prepared frames) of the last option group
         self.todo = list(todo)
         self.versions = versions()
-        self.scorer = LaneScorer(self.gt, self.split.offsets)
+        self.scorer = LaneScorer(self.gt, self.split.offsets, as_written=True)   # rows as the files carry them
         # AB3DMOT needs the rows' 3D detail ([B, T, K, 6] boxes with output "filtered"): the whole
         # chunk in one call, whose output arrays are kept as they come, instead of copying two halves
         per_call = TRACK_CHUNK if self.spec.ab3dmot is None else 2 * TRACK_CHUNK
