@@ -17,7 +17,6 @@ from .geometry import KITTI_IMAGE_SIZE, box3d_extent, project_box3d_to_image
 from .io.kitti import (
     Detections3D,
     KittiFormatError,
-    file_stamps,
     line_of_row,
     read_calib,
     read_detections_2d,
@@ -25,7 +24,7 @@ from .io.kitti import (
     read_tracking_labels,
     sequence_lengths,
 )
-from .io.memo import FileMemo
+from .io.memo import FileMemo, file_stamps
 from .io.sequence import SequenceDets  # public here too: load_sequences returns it, pack takes it
 from .core.boxes import truncate_2d_box, truncate_3d_box
 from .core.step import Frames
@@ -281,9 +280,11 @@ _SPLITS = FileMemo(size=4)
 
 
 def cached_split(root, det2d, det3d, cls: str, sequences, lift: LiftSettings | None = None) -> Split:
-    """:func:`load_split` memoised on its arguments and the size and mtime of every file it reads
-    (labels for the lengths, calibrations, both detectors' files; with ``det3d="lidar:DIR"`` the lifting
-    settings and every scan): sweeps on the same data, such as a tune's batches, read it once."""
+    """:func:`load_split` memoised: sweeps on the same data, such as a tune's batches, read it once.
+    Key: every argument (root, detectors, class, sequences, the lifting settings; the image size is
+    always the default's). Stamp (:class:`~dfrmot_jax.io.memo.FileMemo`): every file the split is read
+    from (labels for the lengths, calibrations, both detectors' files; with ``det3d="lidar:DIR"``
+    every scan, the 2D detections and calibrations being what is lifted)."""
     root = Path(root)
     sequences = tuple(sequences)
     files = [root / sub / f"{s}.txt" for sub in ("label_02", "calib") for s in sequences]

@@ -135,3 +135,53 @@ def test_evaluate_arrays_of_mixed_option_groups_equals_each_alone(ground):
     for b in range(len(ids)):
         one = evaluate_arrays(gt, ids[b:b + 1], boxes[b:b + 1], split.offsets)[0]
         assert metrics_table(batch[b]).equals(metrics_table(one)), b
+
+
+@pytest.mark.slow
+def test_every_tune_row_equals_its_config_run_alone(scene, ground, tmp_path):
+    """A tune's batches are sweeps on tables of trials (one memo across a batch's option groups)."""
+    from dfrmot_jax.tuning import run_tune
+
+    split, gt = ground
+    path = tmp_path / "tune.toml"
+    path.write_text(f"""
+name = "tune_alone"
+[data]
+root = "{scene}"
+det2d = "synth2d"
+det3d = "synth3d"
+[params]
+a_l = [4.0, 8.0]
+[options]
+truncate = [true, false]
+merge = ["detector_box", "calib_projection"]
+modality = ["fused", "2d", "3d"]
+output = ["detections", "filtered"]
+[tune]
+sampler = "random"
+budget = 12
+batch = 6
+seed = 1
+objectives = ["HOTA"]
+""")
+    res = run_tune(path, tmp_path / "out", progress=False, workers=0, log=lambda m: None)
+    assert res.table["config_hash"].nunique() == 12
+    assert_rows_equal_alone(res.table, split, gt, tmp_path, key="config_hash")
+
+
+def test_the_scores_key_names_the_boxes_the_lanes_share(ground):
+    """LaneScorer.seq_digests / digests: equal ids with other shared boxes are another output."""
+    from dfrmot_jax.metrics.lane_scorer import LaneScorer
+
+    split, gt = ground
+    sc = LaneScorer(gt, split.offsets)
+    ids = np.full((2, split.n_frames, 3), -1, np.int32)
+    ids[:, :, 0] = 1
+    boxes = np.tile(np.array([10.0, 20.0, 60.0, 90.0], np.float32), (split.n_frames, 3, 1))
+    other = boxes.copy()
+    other[0, 0, 0] += 0.5                              # one box of sequence 0, frame 0
+    a, b = sc.seq_digests(ids, boxes), sc.seq_digests(ids, other)
+    assert a[0] == a[1] and a[0][0] != b[0][0] and a[0][1:] == b[0][1:]
+    assert LaneScorer.digests(ids, boxes) != LaneScorer.digests(ids, other)
+    written = LaneScorer(gt, split.offsets, as_written=True)
+    assert written.seq_digests(ids, boxes)[0] != a[0]          # scored another way: another key

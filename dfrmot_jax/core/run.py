@@ -187,7 +187,10 @@ _PROGRAMS: dict[tuple, Any] = {}
 
 def compiled(options: Options, capacity: int, n_devices: int, hook_fn=None, detail: bool = False, small=None,
              shared_objects: bool = False):
-    """The jitted batch program of one static setting, built once and kept (``_PROGRAMS``).
+    """The jitted batch program of one static setting, built once and kept (``_PROGRAMS``): keyed on
+    every argument (the program is built from nothing else; the devices are the process's first
+    ``n_devices``, fixed once JAX runs), while shapes and dtypes of the inputs select among its
+    traces in ``jax.jit``'s own cache.
 
     Called with (params [B], frames, hook lanes [B] or None, hook xs or None, small-frame flags [T]
     or None, the lanes' shared objects [T, O, ...] or None (``shared_objects``)).

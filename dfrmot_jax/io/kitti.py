@@ -8,7 +8,6 @@ endings and a leading UTF-8 byte-order mark are accepted and an empty file gives
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 from typing import NamedTuple, Sequence
 
@@ -16,6 +15,7 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .columns import format_lines
+from .memo import file_stamps as file_stamps   # (lidar/ imports it from here)
 from .plain_table import first_line, plain_columns, plain_text
 
 __all__ = [
@@ -617,18 +617,6 @@ def tracking_lines(frame, track_id, box, type_name="Car", alpha=None, dims=None,
         message = str(e).removeprefix("format_lines: ").replace("score3", "score")  # this function's name for it
         raise ValueError(f"write_tracking_results: {message}") from None
     return lines
-
-
-def file_stamps(paths) -> tuple:
-    """(mtime in ns, size) of each file, None where there is none: what the readers' memos key on."""
-    out = []
-    for path in paths:
-        try:
-            st = os.stat(path)
-            out.append((st.st_mtime_ns, st.st_size))
-        except OSError:
-            out.append(None)
-    return tuple(out)
 
 
 def sequence_lengths(root, sequences=None) -> dict[str, int]:

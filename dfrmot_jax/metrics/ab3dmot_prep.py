@@ -48,8 +48,8 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from dfrmot_jax.io.kitti import KittiFormatError, file_stamps, quoted, read_text_file, read_tracking_labels
-from dfrmot_jax.io.memo import FileMemo
+from dfrmot_jax.io.kitti import KittiFormatError, quoted, read_text_file, read_tracking_labels
+from dfrmot_jax.io.memo import FileMemo, file_stamps
 from dfrmot_jax.metrics.fields3d import PLACEHOLDER_DIMS, PLACEHOLDER_LOC, box3d_problem, parse_floats, placeholder_rows
 from dfrmot_jax.metrics.pairs import segment_starts
 
@@ -214,7 +214,8 @@ _GT_CACHE = FileMemo()
 
 
 def cached_ab3dmot_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Ab3dGT:
-    """:func:`prepare_ab3dmot_gt` memoised on (root, class, sequences, label files' mtime and size)."""
+    """:func:`prepare_ab3dmot_gt` memoised. Key: (root, class, sequences); stamp: the sequences' label
+    files (:class:`~dfrmot_jax.io.memo.FileMemo`): all that AB3DMOT's ground truth is read from."""
     if isinstance(root, Ab3dGT):
         return root
     label_dir = Path(root) / "label_02"

@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing as mp
-import os
 import sys
 import threading
 from concurrent.futures import ProcessPoolExecutor
@@ -52,8 +51,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from dfrmot_jax.io.kitti import file_stamps
-from dfrmot_jax.io.memo import FileMemo
+from dfrmot_jax.io.memo import FileMemo, file_stamps
 from dfrmot_jax.metrics import clear, hota, identity, table
 from dfrmot_jax.metrics.kitti import (
     PreparedGT,
@@ -85,7 +83,8 @@ _GT_CACHE = FileMemo()
 
 
 def cached_gt(root, cls: str = "car", sequences: Sequence | None = None) -> PreparedGT:
-    """:func:`prepare_gt` memoised on (root, class, sequences, label files' mtime and size)."""
+    """:func:`prepare_gt` memoised. Key: (root, class, sequences); stamp: the sequences' label files
+    (:class:`~dfrmot_jax.io.memo.FileMemo`): all that the prepared ground truth is read from."""
     if isinstance(root, PreparedGT):
         return root
     label_dir = Path(root) / "label_02"
@@ -102,16 +101,14 @@ _SEQ_CACHE = FileMemo()
 
 
 def _label_stamp(label_dir: Path) -> tuple:
-    out = []
-    for p in sorted(label_dir.glob("*.txt")):
-        st = os.stat(p)
-        out.append((p.stem, st.st_mtime_ns, st.st_size))
-    return tuple(out)
+    """The label files' names and :class:`~dfrmot_jax.io.memo.FileStamp` s (a file added or removed is seen)."""
+    paths = sorted(label_dir.glob("*.txt"))
+    return tuple(p.stem for p in paths), file_stamps(paths)
 
 
 def cached_class_sequences(root, cls: str = "car") -> tuple:
     """:func:`dfrmot_jax.metrics.kitti.class_sequences` of every ``label_02`` sequence, memoised on
-    (root, class, label files' names, mtime and size)."""
+    (root, class) with the stamp of every label file (names too: a sequence added or removed is seen)."""
     label_dir = Path(root) / "label_02"
     key = (str(Path(root).resolve()), cls.lower())
     stamp = _label_stamp(label_dir)

@@ -53,15 +53,19 @@ class LaneScorer:
 
     Every metric field of a sequence depends on that sequence's rows only, and a lane's combined
     fields are :func:`combine_sequences` of its per-sequence ones: so a sequence's output is
-    identified by a digest of its ids (and its own boxes, when boxes are per lane) on its frames
-    (:meth:`seq_digests`), and only the (sequence, output) pairs not seen before are scored. They
+    identified by a digest of all that its scores depend on (:meth:`seq_digests`: its ids on the
+    sequence's frames, the boxes its rows carry, the lane's own or the ones the lanes share, and
+    how they are scored), and only the (sequence, output) pairs not seen before are scored. The
+    ground truth and the frame offsets are the scorer's own: one memo per scorer. They
     are packed into as few virtual lanes as the most varied sequence needs (:meth:`new_items`,
     :meth:`dets`: virtual lane v holds, for each sequence, its v-th new output, or nothing);
     :meth:`store` keeps their per-sequence fields and :meth:`gather` returns every lane's fields,
     combined. In a grid sweep of KITTI car, 1,024 configs give 832 distinct lanes but 2.4x fewer
     distinct sequence-frames to score. similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (then
     :meth:`seq_digests` and :meth:`dets` take ``box3d``, [B, T, K, 7] or [T, K, 7] shared by the
-    lanes). :meth:`digests` (one per whole lane) is what other memos of lanes build on."""
+    lanes). as_written: score each box as a result file prints it (6 significant digits,
+    :func:`dfrmot_jax.io.columns.as_written`), so that a sweep's row is what its files score.
+    :meth:`digests` (one per whole lane) is what other memos of lanes build on."""
     def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16, similarity: str = "2d",
                  as_written: bool = False):
         self.gt = gt

@@ -43,10 +43,11 @@ class Ab3dmotLanes:
         self.memo: dict[bytes, dict] = {}
 
     def digests(self, res: TrackResult, base: Sequence[bytes] | None = None) -> list[bytes]:
-        """One digest per lane of what its rows carry: the options, ids and, per row, the 3D source
-        (``src3``, ``own3``); with output "filtered" also the lane's own image and 3D boxes. (With
-        output "detections" a row's image box, score and 3D box follow from the options, its slot and
-        its 3D source, on the one split.) ``base``: the lanes' digests of ids and own image boxes
+        """One digest per lane of what its rows carry, the key of :attr:`memo`: the options, ids, the
+        image boxes (the lane's own, or the ones the lanes share, whole) and, per row, the 3D source
+        (``src3``, ``own3``); with output "filtered" also the lane's own 3D boxes. (With output
+        "detections" a row's score and 3D box follow from the options, its slot and its 3D source,
+        on the one split; the split, ground truth, IoU and columns are the instance's own.) ``base``: the lanes' digests of ids and own image boxes
         (:meth:`dfrmot_jax.metrics.lane_scorer.LaneScorer.digests` or ``lane_digests``, made here
         when not given), extended here instead of hashing them again."""
         ids = np.asarray(res.ids)

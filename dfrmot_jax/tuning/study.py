@@ -17,7 +17,9 @@ the others (a batch killed while being asked) are failed and the batch is asked 
 asks with a sampler seeded by (seed, batch) and sees exactly the completed trials of the earlier
 batches, so an interrupted tune ends with the same table as an uninterrupted one.
 
-Repeats: a proposal whose config was evaluated already (or was asked earlier in its batch) is told
+Repeats: a proposal whose config was evaluated already (or was asked earlier in its batch; keyed by
+its ``config_hash``, which names every parameter, option and extra axis of the config: the data and
+scoring are the tune's own, fixed by its folder's identity) is told
 FAIL at once (user attribute ``phase`` "repeat": samplers ignore failed trials) and the sampler asks
 again, so the budget buys distinct configs (samplers re-propose points of discrete spaces: batched
 TPE over a 1,024-point grid re-proposed about half of its trials). After ``REPEAT_ASKS`` x batch
