@@ -51,6 +51,11 @@ def test_simulate_lift_and_track(root, tmp_path, capsys):
     (["lidar", "lift", "--det2d", "synth2d", "--scans", "{tmp}", "--set", "leafy=1"], "unknown"),
     (["lidar", "lift", "--det2d", "synth2d", "--scans", "{tmp}"], "no scan for frame 0"),
     (["lidar", "simulate", "--out", "{tmp}/s", "--dropout", "3"], "dropout"),
+    # a non-finite count was an OverflowError (exit 1), in lift and in track alike
+    (["lidar", "lift", "--det2d", "synth2d", "--scans", "{tmp}", "--set", "min_cluster=inf"], "lift min_cluster inf"),
+    (["lidar", "lift", "--det2d", "synth2d", "--scans", "{tmp}", "--set", "min_cluster=-inf"], "lift min_cluster -inf"),
+    (["lidar", "lift", "--det2d", "synth2d", "--scans", "{tmp}", "--set", "min_cluster=nan"], "lift min_cluster nan"),
+    (["track", "--det2d", "synth2d", "--det3d", "lidar:{tmp}", "--set", "min_cluster=inf"], "lift min_cluster inf"),
 ])
 def test_bad_input_is_one_line_and_exit_2(root, tmp_path, capsys, argv, message):
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv] + ["--data", str(root)]

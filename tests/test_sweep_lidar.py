@@ -106,6 +106,8 @@ def test_default_lifting_keeps_the_hash():
     ({"lift": {"shrink": "a"}}, "lift.shrink"),
     ({"lift": {"bogus": [1]}}, "lift.bogus"),
     ({"lift": {"min_cluster": [5, 2.5]}}, "lift.min_cluster[1]"),
+    ({"lift": {"min_cluster": float("inf")}}, "lift.min_cluster"),          # was an OverflowError
+    ({"lift": {"min_cluster": [5, float("nan")]}}, "lift.min_cluster[1]"),
     ({"lift": {"crop_lo": [[0.5, -20, 1.0]]}}, "lift.crop_lo[0]"),        # above crop_hi's z
     ({"lift": {"crop_lo": "0.5,-20,0.4", "crop_hi": [[180, 20, 0.3]]}}, "lift"),   # each fine, not together
     ({"lift": {"shrink": []}}, "lift.shrink"),
