@@ -191,3 +191,19 @@ def test_a_fifo_named_like_the_lock_is_refused_without_blocking(scene, tmp_path,
     assert status == 2 and "is a FIFO (named pipe)" in error_line(err, "track", alone=True)
     assert (out / LOCK_NAME).is_fifo()                  # (left alone: not ours to remove)
 
+
+def test_the_takeover_warning_is_one_clean_line(scene, tmp_path, capsys):
+    """A record left by a killed run is taken over with a warning: it was Python's warnings line
+    (``/path/runner.py:NN: RuntimeWarning: ...`` and the source line), now ``dfrmot CMD: warning: ...``."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / LOCK_NAME).write_text(json.dumps({"pid": 2 ** 22 + 12345, "host": "elsewhere", "command": "dfrmot track",
+                                             "started": "2024-01-01 00:00:00"}) + "\n")
+    # a real run that takes the lock over, then stops at a bad detector (no tracking needed)
+    status, _, err = run_cli(capsys, ["track", "--data", scene, "--det2d", "nosuch", "--det3d", "synth3d",
+                                      "--out", out])
+    assert status == 2 and len(err) == 2, err
+    assert err[0] == (f"dfrmot track: warning: {out}: took over the lock of process {2 ** 22 + 12345} on elsewhere "
+                      f"(dfrmot track, since 2024-01-01 00:00:00), which ended without releasing it (killed or "
+                      f"crashed): its partial output is checked as usual"), err
+    assert err[1].startswith("dfrmot track: error: ")
