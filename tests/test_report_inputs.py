@@ -7,6 +7,7 @@ import pytest
 
 from dfrmot_jax.cli import main
 from dfrmot_jax.sweep import SweepConfigError, parse_spec, sweep_report
+from dfrmot_jax.testing.cli import error_line, run_cli
 
 FIXTURE = Path(__file__).resolve().parent / "fixtures" / "sweep_v1"
 
@@ -28,3 +29,12 @@ def test_objective_in_any_case_and_top_zero_refused(tmp_path, capsys):
     assert "top" in capsys.readouterr().err
     assert main(["sweep", "sweeps/kitti_smoke.toml", "--out", str(tmp_path / "x"), "--objective", "HOTAA"]) == 2
     assert "HOTAA" in capsys.readouterr().err and not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("flag", ["--html", "--csv"])
+def test_an_empty_output_name_is_refused(flag, capsys):
+    """``--html ""`` printed the report, wrote nothing and said nothing (exit 0)."""
+    status, out, err = run_cli(capsys, ["report", str(FIXTURE), flag, ""])
+    assert status == 2 and not out
+    assert f"argument {flag}: '': expected a file name" in error_line(err, "report", alone=True)
+
