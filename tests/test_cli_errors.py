@@ -172,13 +172,29 @@ def test_traceback_only_with_debug_in_a_real_process():
     ("epsilon=2.5", "--set epsilon=2.5: not an integer; expected an integer from 0 to 10000"),
     ("min_hits=x", "--set min_hits=x: not a number; expected an integer from 1 to 10000"),
     ("capacity=2147483648", "--set capacity=2147483648: above the maximum capacity 4096 (config.MAX_CAPACITY)"),
-    ("car.capacity=1e9", "--set capacity=1e9: write it without a decimal point or exponent"),
+    ("car.capacity=1e9", "--set car.capacity=1e9: write it without a decimal point or exponent"),
 ])
 def test_set_integer_messages(item, want, scene, tmp_path, capsys):
     status, _, err = run_cli(capsys, ["track", "--data", str(scene), "--det2d", "synth2d", "--det3d", "synth3d",
                                    "--set", item, "--out", str(tmp_path / "o")])
     assert status == 2 and want in error_line(err, "track", alone=True)
     assert "invalid literal" not in err[0]
+
+
+@pytest.mark.parametrize("item, want", [
+    ("pedestrian.nosuch=1", "--set pedestrian.nosuch: unknown; parameters are"),
+    ("pedestrian.a_l=0", "--set pedestrian.a_l=0: parameter a_l=0.0: outside the valid range"),
+    ("pedestrian.shrink=0.1", "--set pedestrian.shrink=0.1: 'shrink' is a lifting setting, one for every class"),
+    ("pedestrian.a_l=2", "--set pedestrian.a_l=2: class 'pedestrian' is not tracked (--class car)"),
+])
+def test_settings_of_a_class_not_tracked_are_checked_then_refused(item, want, scene, tmp_path, capsys):
+    """``--class car --set pedestrian.X=V`` was accepted silently, whatever X and V: a bad one is its
+    own error, a valid one is refused (it would be ignored), before any work."""
+    out = tmp_path / "o"
+    status, _, err = run_cli(capsys, ["track", "--data", str(scene), "--det2d", "synth2d", "--det3d", "synth3d",
+                                      "--class", "car", "--set", "epsilon=20", "--set", item, "--out", str(out)])
+    assert status == 2 and want in error_line(err, "track", alone=True)
+    assert not out.exists()
 
 
 def test_set_capacity_bounds_are_inclusive():

@@ -21,7 +21,7 @@ import pytest
 from dfrmot_jax.io.lock import LOCK_NAME, FolderInUseError, folder_lock, lock_holder
 from dfrmot_jax.sweep import SweepDirectoryError, run_sweep
 from dfrmot_jax.synthetic import make_scene
-from dfrmot_jax.testing.cli import error_line, kill_when, run_cli
+from dfrmot_jax.testing.cli import deadline, error_line, kill_when, run_cli
 
 REPO = Path(__file__).resolve().parent.parent
 HOLD = textwrap.dedent("""
@@ -174,3 +174,36 @@ def test_one_claim_for_sweeps_and_tunes(scene, tmp_path):
     with pytest.raises(FolderInUseError):               # (the lock is the same for both, in one process too)
         with folder_lock(out):
             run_sweep(sweep, out, progress=False, workers=0, log=lambda m: None)
+
+
+def test_a_fifo_named_like_the_lock_is_refused_without_blocking(scene, tmp_path, capsys):
+    """A FIFO named ``.dfrmot.lock`` in the output folder: the run read it and waited forever."""
+    out = tmp_path / "out"
+    out.mkdir()
+    os.mkfifo(out / LOCK_NAME)
+    with deadline(10):
+        assert lock_holder(out) is None
+        with pytest.raises(ValueError, match=f"{out / LOCK_NAME} is a FIFO \\(named pipe\\), not the lock file"):
+            with folder_lock(out):
+                pass
+        status, _, err = run_cli(capsys, ["track", "--data", scene, "--det2d", "synth2d", "--det3d", "synth3d",
+                                          "--out", out])
+    assert status == 2 and "is a FIFO (named pipe)" in error_line(err, "track", alone=True)
+    assert (out / LOCK_NAME).is_fifo()                  # (left alone: not ours to remove)
+
+
+def test_the_takeover_warning_is_one_clean_line(scene, tmp_path, capsys):
+    """A record left by a killed run is taken over with a warning: it was Python's warnings line
+    (``/path/runner.py:NN: RuntimeWarning: ...`` and the source line), now ``dfrmot CMD: warning: ...``."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / LOCK_NAME).write_text(json.dumps({"pid": 2 ** 22 + 12345, "host": "elsewhere", "command": "dfrmot track",
+                                             "started": "2024-01-01 00:00:00"}) + "\n")
+    # a real run that takes the lock over, then stops at a bad detector (no tracking needed)
+    status, _, err = run_cli(capsys, ["track", "--data", scene, "--det2d", "nosuch", "--det3d", "synth3d",
+                                      "--out", out])
+    assert status == 2 and len(err) == 2, err
+    assert err[0] == (f"dfrmot track: warning: {out}: took over the lock of process {2 ** 22 + 12345} on elsewhere "
+                      f"(dfrmot track, since 2024-01-01 00:00:00), which ended without releasing it (killed or "
+                      f"crashed): its partial output is checked as usual"), err
+    assert err[1].startswith("dfrmot track: error: ")

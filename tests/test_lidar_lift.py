@@ -181,3 +181,18 @@ def test_settings_are_checked():
         LiftSettings(crop_lo=(1, 0, 0), crop_hi=(0, 1, 1)).validate()
     with pytest.raises(ValueError, match="min_cluster"):
         LiftSettings(min_cluster=2.5).validate()
+
+
+@pytest.mark.parametrize("value", [float("inf"), float("-inf"), float("nan"), 1e300, True])
+def test_a_non_finite_or_huge_count_is_a_value_error_naming_the_setting(value):
+    """int(inf) is an OverflowError (an internal error, exit 1), int(nan) a ValueError naming no
+    setting: every count of the LiDAR settings is checked as a finite whole number in its range."""
+    from dfrmot_jax.lidar import SimSettings, with_setting
+
+    with pytest.raises(ValueError, match="lift min_cluster .*expected an integer in"):
+        LiftSettings(min_cluster=value).validate()
+    if not isinstance(value, bool):                       # (as --set and sweep files give it)
+        with pytest.raises(ValueError, match="lift min_cluster .*expected an integer in"):
+            with_setting(LiftSettings(), "min_cluster", str(value))
+    with pytest.raises(ValueError, match="simulate beams .*expected an integer in"):
+        SimSettings(beams=value).validate()

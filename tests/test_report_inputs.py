@@ -6,7 +6,9 @@ from pathlib import Path
 import pytest
 
 from dfrmot_jax.cli import main
+from dfrmot_jax.io.atomic import atomic_write
 from dfrmot_jax.sweep import SweepConfigError, parse_spec, sweep_report
+from dfrmot_jax.testing.cli import error_line, run_cli
 
 FIXTURE = Path(__file__).resolve().parent / "fixtures" / "sweep_v1"
 
@@ -28,3 +30,27 @@ def test_objective_in_any_case_and_top_zero_refused(tmp_path, capsys):
     assert "top" in capsys.readouterr().err
     assert main(["sweep", "sweeps/kitti_smoke.toml", "--out", str(tmp_path / "x"), "--objective", "HOTAA"]) == 2
     assert "HOTAA" in capsys.readouterr().err and not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("flag", ["--html", "--csv"])
+def test_an_empty_output_name_is_refused(flag, capsys):
+    """``--html ""`` printed the report, wrote nothing and said nothing (exit 0)."""
+    status, out, err = run_cli(capsys, ["report", str(FIXTURE), flag, ""])
+    assert status == 2 and not out
+    assert f"argument {flag}: '': expected a file name" in error_line(err, "report", alone=True)
+
+
+def test_an_html_target_that_cannot_be_written_is_named_not_its_temp_file(tmp_path, capsys):
+    """The error named the atomic writer's temp file (``.x.html.PID.tmp``), not the file asked for."""
+    target = tmp_path / "x.html"
+    (target / "inside").mkdir(parents=True)             # a folder where the page should go (fails for root too)
+    status, _, err = run_cli(capsys, ["report", str(FIXTURE), "--html", str(target)])
+    line = error_line(err, "report", alone=True)
+    assert status == 2 and line == f"dfrmot report: error: {target}: Is a directory", line
+
+    def refused(tmp):                                   # what open() raises in a read-only folder
+        raise PermissionError(13, "Permission denied", str(tmp))
+
+    with pytest.raises(PermissionError) as e:
+        atomic_write(tmp_path / "y.html", refused)
+    assert e.value.filename == str(tmp_path / "y.html") and ".tmp" not in str(e.value)

@@ -106,6 +106,8 @@ def test_default_lifting_keeps_the_hash():
     ({"lift": {"shrink": "a"}}, "lift.shrink"),
     ({"lift": {"bogus": [1]}}, "lift.bogus"),
     ({"lift": {"min_cluster": [5, 2.5]}}, "lift.min_cluster[1]"),
+    ({"lift": {"min_cluster": float("inf")}}, "lift.min_cluster"),          # was an OverflowError
+    ({"lift": {"min_cluster": [5, float("nan")]}}, "lift.min_cluster[1]"),
     ({"lift": {"crop_lo": [[0.5, -20, 1.0]]}}, "lift.crop_lo[0]"),        # above crop_hi's z
     ({"lift": {"crop_lo": "0.5,-20,0.4", "crop_hi": [[180, 20, 0.3]]}}, "lift"),   # each fine, not together
     ({"lift": {"shrink": []}}, "lift.shrink"),
@@ -124,6 +126,24 @@ def test_lidar_tables_need_lidar_data():
     with pytest.raises(SweepConfigError) as e:
         parse_spec(spec_of("/nowhere", "pointrcnn", lift={"shrink": [0.1]}))
     assert e.value.key == "lift"
+
+
+def test_lidar_without_a_folder_names_the_file_and_data_det3d(tmp_path, capsys):
+    """``det3d = "lidar:"``: the error named neither the sweep file nor the key."""
+    from dfrmot_jax.sweep import load_spec
+    from dfrmot_jax.testing.cli import error_line, run_cli
+
+    f = tmp_path / "s.toml"
+    f.write_text('[data]\nroot = "/nowhere"\ndet2d = "synth2d"\ndet3d = "lidar:"\n[params]\na_l = [4.0, 8.0]\n')
+    with pytest.raises(SweepConfigError, match="expected lidar:DIR") as e:
+        load_spec(f)
+    assert (e.value.key, e.value.source) == ("data.det3d", str(f))
+    status, _, err = run_cli(capsys, ["sweep", f, "--out", tmp_path / "out", "--dry-run"])
+    assert status == 2 and f"{f}: data.det3d: " in error_line(err, "sweep", alone=True)
+    f.write_text(f.read_text() + "[lift]\nmin_cluster = inf\n")
+    f.write_text(f.read_text().replace('"lidar:"', '"lidar:/nowhere"'))
+    status, _, err = run_cli(capsys, ["sweep", f, "--out", tmp_path / "out", "--dry-run"])
+    assert status == 2 and f"{f}: lift.min_cluster: " in error_line(err, "sweep", alone=True)
 
 
 def test_a_missing_scan_folder_names_data_det3d(scene, tmp_path):

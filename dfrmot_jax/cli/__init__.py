@@ -18,7 +18,8 @@ exit 130    interrupted (Ctrl-C)
 ==========  ========================================================================================
 
 ``dfrmot --debug CMD ...`` (or ``dfrmot CMD --debug ...``) lets every exception through with its
-traceback. Without it no traceback reaches the user.
+traceback. Without it no traceback reaches the user, and each Python warning a command raises (a
+lock taken over from a killed run, ...) is one line ``dfrmot CMD: warning: MESSAGE``.
 """
 
 from __future__ import annotations

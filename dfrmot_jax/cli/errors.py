@@ -1,5 +1,7 @@
 """The ``dfrmot`` command line's one error handler (:func:`guarded`) and exit statuses; see
-:mod:`dfrmot_jax.cli` for what each status means."""
+:mod:`dfrmot_jax.cli` for what each status means. It also shows each Python warning raised while a
+command runs as one line, ``dfrmot CMD: warning: MESSAGE`` (``--debug``: Python's own format, with
+the source line)."""
 
 from __future__ import annotations
 
@@ -7,6 +9,8 @@ import argparse
 import functools
 import re
 import sys
+import warnings
+from contextlib import contextmanager
 from typing import Callable
 
 from ..io.kitti import KittiFormatError
@@ -44,6 +48,18 @@ def _input_error(e: BaseException) -> str | None:
     return None
 
 
+@contextmanager
+def warning_lines(cmd: str):
+    """Inside, a warning that Python's filters let through is printed as one line on stderr,
+    ``{cmd}: warning: MESSAGE``, instead of ``FILE:LINE: Category: MESSAGE`` and the source line."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"{cmd}: warning: {_one_line(message)}", file=sys.stderr if file is None else file)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = show
+        yield
+
+
 def guarded(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
     """``run(args)`` of a subcommand module behind the one error handler (the parser's ``func``):
     returns ``run``'s status, or the status of the error it raised (module docstring)."""
@@ -54,7 +70,10 @@ def guarded(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Name
         cmd = f"dfrmot {getattr(args, 'command', None) or name}"
         debug = getattr(args, "debug", False)
         try:
-            return run(args)
+            if debug:
+                return run(args)
+            with warning_lines(cmd):
+                return run(args)
         except KeyboardInterrupt:
             if debug:
                 raise

@@ -23,6 +23,14 @@ from .errors import guarded
 __all__ = ["add_parser", "run", "parse_contrast"]
 
 
+def output_file(text: str) -> str:
+    """An output file name (``--html``, ``--csv``): refused when empty (argparse: exit 2), since an
+    empty name would otherwise write nothing and say nothing."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a file name")
+    return text
+
+
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``report`` on an argparse ``subparsers`` object; returns its parser."""
     p = sub.add_parser(
@@ -39,12 +47,13 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="sweeps over several classes: rank on one class (its own parameter values) or on "
                         "'average' (ratios averaged over the classes, counts summed; the default unless the file's "
                         "report.class says otherwise)")
-    p.add_argument("--csv", metavar="F", help="also write the tidy table (without the per-alpha column) as CSV")
+    p.add_argument("--csv", metavar="F", type=output_file,
+                   help="also write the tidy table (without the per-alpha column) as CSV")
     p.add_argument("--contrast", metavar="AXIS:HIGH/LOW[:BY]",
                    help="distortion sweeps: the gap between two groups of an axis per level, paired by seed, e.g. "
                         "epsilon:30,60/1,2,3:filter (long minus short memory, per filter); default: the sweep "
                         "file's report.contrast")
-    p.add_argument("--html", metavar="OUT.html",
+    p.add_argument("--html", metavar="OUT.html", type=output_file,
                    help="also write the report as one self-contained HTML page (figures as inline SVG; no script, "
                         "no network): the run's identity, top configs beside the baseline, sensitivity per axis, "
                         "the objective per sequence, the cross-validated figure (the file's --folds, else min(5, "
@@ -82,12 +91,12 @@ def run(args) -> int:
                        folds=args.folds, top=10 if args.top is None else args.top, contrast=contrast,
                        cls=getattr(args, "cls", None))
     print(rep.text)
-    if getattr(args, "html", None):
+    if getattr(args, "html", None) is not None:
         page = html_report(Path(args.dir), args.html, objective=args.objective or _manifest_objective(args.dir),
                            folds=args.folds, top=10 if args.top is None else args.top, contrast=contrast,
                            cls=getattr(args, "cls", None))
         print(f"dfrmot report: wrote {page}", file=sys.stderr)
-    if args.csv:
+    if args.csv is not None:
         df = load_results(args.dir, allow_partial=True)
         df.drop(columns=[RAW_COLUMN], errors="ignore").to_csv(args.csv, index=False)
     return 0

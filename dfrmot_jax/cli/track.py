@@ -4,7 +4,8 @@
 removes its old result files (``SSSS.txt`` and temporaries of an interrupted write) before writing
 and keeps every other file, so that no stale sequence is scored with the new ones. The folder is
 locked while the run writes it (:func:`dfrmot_jax.io.lock.folder_lock`): a second run on it fails at
-once, naming the folder and the process writing it.
+once, naming the folder and the process writing it. ``--set CLASS.NAME=VALUE`` for a class not in
+``--class`` is checked as if that class were tracked, then refused (exit 2) rather than ignored.
 """
 
 from __future__ import annotations
@@ -69,7 +70,9 @@ def lift_of(args) -> LiftSettings:
 def class_settings(args, cls: str = "car"):
     """The preset for the class, then every ``--set NAME=VALUE`` and ``--set CLASS.NAME=VALUE`` of it
     (lifting settings excepted, :func:`lift_of`). With ``--det3d lidar:DIR`` score_3d is score_2d
-    (a lifted box carries its 2D detection's score) unless set."""
+    (a lifted box carries its 2D detection's score) unless set. A bad ``CLASS.NAME=VALUE`` is a
+    ValueError naming ``CLASS.NAME``; a lifting setting under a class prefix is refused (one lifting
+    for every class)."""
     params, options = preset(args.preset, cls)
     lifted = lidar_dir(getattr(args, "det3d", "")) is not None
     set_3d = False
@@ -86,10 +89,40 @@ def class_settings(args, cls: str = "car"):
                                  f"with CLASS one of {list(CLASSES)}")
             if prefix != cls:
                 continue
-            item = f"{name}{eq}{rhs}"
-        set_3d = set_3d or item.partition("=")[0].strip() == "score_3d"
+            name = name.strip()
+            if not eq:
+                raise ValueError(f"--set {item!r}: expected CLASS.NAME=VALUE")
+            if lift_setting_name(name) is not None:
+                raise ValueError(f"--set {item}: {name!r} is a lifting setting, one for every class: --set "
+                                 f"{name}=VALUE (with --det3d lidar:DIR)")
+            try:
+                params, options = parse_assignment(f"{name}{eq}{rhs}", params, options)
+            except ValueError as e:       # name the setting as given: CLASS.NAME
+                msg = str(e)
+                head = f"--set {name}"
+                raise ValueError(f"--set {prefix}.{name}{msg[len(head):]}" if msg.startswith(head)
+                                 else f"--set {item.strip()}: {msg}") from None
+            set_3d = set_3d or name == "score_3d"
+            continue
+        set_3d = set_3d or lhs.strip() == "score_3d"
         params, options = parse_assignment(item, params, options)
     return (tie_scores(params) if lifted and not set_3d else params), options
+
+
+def untracked_settings(args, classes) -> None:
+    """Refuse ``--set CLASS.NAME=VALUE`` for a class not in ``classes`` (it would be ignored): each is
+    first checked as if its class were tracked (an unknown name or a bad value is that error), then
+    a valid one is refused too, naming the class and how to track it."""
+    prefixes = [lhs.partition(".")[0] if "." in lhs else None
+                for lhs in (item.partition("=")[0].strip() for item in args.set or [])]
+    untracked = [c for c in dict.fromkeys(prefixes) if c in CLASSES and c not in classes]
+    for cls in untracked:
+        class_settings(args, cls)
+    for item, prefix in zip(args.set or [], prefixes):
+        if prefix in untracked:
+            raise ValueError(f"--set {item}: class {prefix!r} is not tracked (--class {','.join(classes)}), so this "
+                             f"setting would be ignored: track it too (--class {','.join(classes)},{prefix}) or drop "
+                             f"the setting")
 
 
 # ---- help text generated from dfrmot_jax.config ----------------------------------------------------
@@ -213,7 +246,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="the settings to start from: " + " | ".join(PRESETS) + " (listed below)")
     t.add_argument("--set", action="append", metavar="NAME=VALUE",
                    help="override a parameter or option (repeatable); CLASS.NAME=VALUE for one class only, "
-                        "e.g. pedestrian.a_l=2")
+                        "e.g. pedestrian.a_l=2 (checked like any setting; refused when CLASS is not in --class, "
+                        "rather than ignored)")
     t.add_argument("--class", dest="cls", default="car",
                    help="car | pedestrian | car,pedestrian (each class with its own settings, one file per sequence)")
     t.add_argument("--seqs", help="comma-separated sequences (default: those whose ground truth has the class)")
@@ -252,6 +286,7 @@ def run(args) -> int:
     _old_results(Path(args.out), args.overwrite)           # (a bad --out fails before anything else)
     classes = _classes(args.cls)
     settings = {cls: class_settings(args, cls) for cls in classes}
+    untracked_settings(args, classes)
     for cls, (p, o) in settings.items():
         if o.output == "filtered" and unstable_gains([o.filter == "fixed_gain"], p.gain_alpha, p.gain_beta,
                                                      p.gain_gamma)[0]:

@@ -1,7 +1,8 @@
 """Atomic file writes, the one writer every output of the package goes through: the bytes go to a
 temp file beside the target (``.<name>.<pid>.tmp``), which is then renamed over it, so a reader (or a
 resumed run) sees the old file or the new one, never half of one. On any error the temp file is
-removed; an ``OSError`` that names no file (a full disk) is raised again naming the target."""
+removed; an ``OSError`` that names no file (a full disk) or names only the temp file (a folder
+that cannot be written) is raised again naming the target, the file the caller asked for."""
 
 from __future__ import annotations
 
@@ -17,12 +18,14 @@ TMP_NAME = re.compile(r"^\..+\.(\d+)\.tmp$")
 
 
 @contextmanager
-def naming(path: Path):
-    """An ``OSError`` inside that names no file (a full disk) is raised again naming ``path``."""
+def naming(path: Path, tmp: Path | None = None):
+    """An ``OSError`` inside that names no file (a full disk), or names ``tmp`` (the temp file of an
+    atomic write, also as the source of its rename), is raised again naming ``path``
+    (``OSError(errno, ...)`` keeps its subclass: ``PermissionError``, ...)."""
     try:
         yield
     except OSError as e:
-        if e.filename is not None:
+        if e.filename is not None and (tmp is None or str(e.filename) != str(tmp)):
             raise
         raise OSError(e.errno, e.strerror or str(e), str(path)) from e
 
@@ -45,7 +48,7 @@ def atomic_write(path, write: Callable[[Path], None], *, parents: bool = False, 
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     out = None
     try:
-        with naming(path):
+        with naming(path, tmp):
             write(tmp)
             if digest:
                 out = sha256(tmp)

@@ -10,7 +10,9 @@ the file is removed, still locked (filelock >= 3.30 checks after locking that th
 still there, so a contender that opened it just before cannot hold a removed file's lock; before
 3.30 a contender also truncated the holder's record), and so is a folder the lock created that
 nothing else was written to. A file left by a process that ended without removing it (killed,
-crashed) is taken over by the next run with a ``RuntimeWarning`` naming that process.
+crashed) is taken over by the next run with a ``RuntimeWarning`` naming that process. A
+``.dfrmot.lock`` that is no regular file (a FIFO, a folder, ...) is refused with a ``ValueError``
+naming it, before anything opens it (a FIFO would block the run).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from __future__ import annotations
 import json
 import os
 import socket
+import stat
 import sys
 import time
 import warnings
@@ -39,8 +42,11 @@ class FolderInUseError(ValueError):
 def lock_holder(folder) -> dict | None:
     """The record of the process holding (or last holding, if it did not clear it) the lock of
     ``folder``: {pid, host, command, started}; None if there is none or it does not parse."""
+    path = Path(folder) / LOCK_NAME
     try:
-        doc = json.loads((Path(folder) / LOCK_NAME).read_text(encoding="utf-8") or "null")
+        if not path.is_file():                  # (a FIFO would block the read)
+            return None
+        doc = json.loads(path.read_text(encoding="utf-8") or "null")
     except (OSError, ValueError):
         return None
     return doc if isinstance(doc, dict) and isinstance(doc.get("pid"), int) else None
@@ -65,14 +71,23 @@ def folder_lock(folder, what: str = "dfrmot"):
     """Hold the lock of output folder ``folder`` (created if missing) for the ``with`` block.
 
     Raises :class:`FolderInUseError` at once when another process holds it (naming the folder and
-    that process), ``ValueError`` when ``folder`` is a file. ``what``: how the record names this
-    run when no command line is at hand (``sys.argv`` is used when there is one)."""
+    that process), ``ValueError`` when ``folder`` is a file or its lock file no regular file (a
+    FIFO: nothing opens it). ``what``: how the record names this run when no command line is at
+    hand (``sys.argv`` is used when there is one)."""
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"{folder} is a file, not a directory (the output folder)")
     created = not folder.exists()
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / LOCK_NAME
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        mode = None
+    if mode is not None and not stat.S_ISREG(mode):
+        kind = ("a FIFO (named pipe)" if stat.S_ISFIFO(mode) else "a directory" if stat.S_ISDIR(mode)
+                else "not a regular file")
+        raise ValueError(f"{path} is {kind}, not the lock file of the output folder: remove it, or write elsewhere")
     lock = FileLock(str(path), timeout=0)
     try:
         lock.acquire()

@@ -74,7 +74,8 @@ class LiftSettings(NamedTuple):
     score_cut: float = 0.45
 
     def validate(self) -> "LiftSettings":
-        """The settings as plain floats / ints, or ValueError naming the bad one."""
+        """The settings as plain floats / ints, or ValueError naming the bad one (a NaN or infinite
+        value included: each number must be finite, ``min_cluster`` a whole number in [1, 1000000])."""
         s = self._replace(shrink=float(self.shrink), leaf=float(self.leaf), tolerance=float(self.tolerance),
                           score_cut=float(self.score_cut), crop_lo=tuple(float(v) for v in self.crop_lo),
                           crop_hi=tuple(float(v) for v in self.crop_hi))
@@ -84,15 +85,25 @@ class LiftSettings(NamedTuple):
             raise ValueError(f"lift leaf {s.leaf}: expected a cell size in [0.01, 10] m")
         if not 0.0 < s.tolerance <= 10.0:
             raise ValueError(f"lift tolerance {s.tolerance}: expected a distance in (0, 10] m")
-        if int(self.min_cluster) != self.min_cluster or not 1 <= int(self.min_cluster) <= 1_000_000:
-            raise ValueError(f"lift min_cluster {self.min_cluster}: expected an integer >= 1")
+        if not _whole(self.min_cluster) or not 1 <= int(float(self.min_cluster)) <= 1_000_000:
+            raise ValueError(f"lift min_cluster {self.min_cluster}: expected an integer in [1, 1000000]")
         if len(s.crop_lo) != 3 or len(s.crop_hi) != 3 or not all(np.isfinite(s.crop_lo + s.crop_hi)):
             raise ValueError(f"lift crop {s.crop_lo} .. {s.crop_hi}: expected three finite numbers each")
         if any(a > b for a, b in zip(s.crop_lo, s.crop_hi)):
             raise ValueError(f"lift crop {s.crop_lo} .. {s.crop_hi}: a lower bound above its upper bound")
         if not np.isfinite(s.score_cut):
             raise ValueError(f"lift score_cut {s.score_cut}: expected a finite number")
-        return s._replace(min_cluster=int(self.min_cluster))
+        return s._replace(min_cluster=int(float(self.min_cluster)))
+
+
+def _whole(v) -> bool:
+    """A finite whole number (an int, or a float such as 5.0; not a boolean, inf or NaN)."""
+    if isinstance(v, (bool, np.bool_)):
+        return False
+    try:
+        return bool(np.isfinite(float(v))) and float(v) == int(v)
+    except (TypeError, ValueError, OverflowError):
+        return False
 
 
 #: the settings' names, as ``--set NAME=VALUE`` and sweep axes (``lift.NAME``) spell them
@@ -117,10 +128,8 @@ def with_setting(settings: LiftSettings, name: str, raw) -> LiftSettings:
             parts = raw.split(",") if isinstance(raw, str) else list(raw)
             value = tuple(float(v) for v in parts)
         elif key == "min_cluster":
-            value = float(raw)
-            if value != int(value):
-                raise ValueError
-            value = int(value)
+            value = float(raw)                # a fraction, inf or nan: validate() names the setting and its range
+            value = int(value) if _whole(value) else value
         else:
             value = float(raw)
     except (TypeError, ValueError):

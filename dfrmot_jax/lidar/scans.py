@@ -3,13 +3,18 @@
 A scan is ``[N, 4]`` float32 in the LiDAR frame (x forward, y left, z up, metres; the sensor at the
 origin). The reader checks what a damaged or wrong file would show and raises
 :class:`~dfrmot_jax.io.kitti.KittiFormatError` naming the file (and, for a bad value, the point as
-its 1-based "line" and the field): a size that is not a multiple of 16 bytes, a non-finite value,
-a missing frame. The writer produces the same bytes (``numpy.tofile`` of little-endian float32),
-atomically.
+its 1-based "line" and the field): a size that is not a multiple of 16 bytes (the file's true
+size, a partial last point included), a non-finite value, a missing frame, a name that is no
+regular file (a FIFO, a device or a directory: refused before anything is read from it, so nothing
+waits on a pipe), a file or folder that cannot be reached (the system's reason: "Permission
+denied", "Too many levels of symbolic links", ...). The writer produces the same bytes
+(``numpy.tofile`` of little-endian float32), atomically.
 """
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -33,26 +38,51 @@ def scan_path(directory, sequence: str, frame: int) -> Path:
 
 
 def read_scan(path) -> np.ndarray:
-    """One scan as ``[N, 4]`` float32 (native byte order). Raises KittiFormatError for a missing
-    file, a size that is not a multiple of 16 bytes, or a NaN / infinite value (the point's 1-based
-    number as the line, its field as the field)."""
+    """One scan as ``[N, 4]`` float32 (native byte order). Raises KittiFormatError for a missing or
+    unreachable file, a name that is no regular file (checked on the open descriptor before any read:
+    a FIFO never blocks), a size that is not a multiple of 16 bytes (the true size in the message),
+    or a NaN / infinite value (the point's 1-based number as the line, its field as the field)."""
     p = str(path)
     try:
-        raw = np.fromfile(path, dtype=_DTYPE)
-    except FileNotFoundError:
-        raise KittiFormatError(p, None, None, "file not found (no scan for this frame)") from None
-    except IsADirectoryError:
-        raise KittiFormatError(p, None, None, "is a directory, not a scan file") from None
-    if raw.size % 4:
-        size = raw.size * 4
-        raise KittiFormatError(p, None, None, f"size {size} bytes is not a multiple of {POINT_BYTES} "
+        # O_NONBLOCK: opening a FIFO without a writer returns at once instead of waiting for one
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as e:
+        raise KittiFormatError(p, None, None, _unreachable(e)) from None
+    with os.fdopen(fd, "rb") as f:
+        problem = _not_a_scan_file(os.fstat(fd).st_mode)
+        if problem:
+            raise KittiFormatError(p, None, None, problem)
+        data = f.read()
+    if len(data) % POINT_BYTES:
+        raise KittiFormatError(p, None, None, f"size {len(data)} bytes is not a multiple of {POINT_BYTES} "
                                               f"(float32 x y z reflectance per point)")
-    pts = raw.reshape(-1, 4).astype(np.float32)
+    pts = np.frombuffer(data, dtype=_DTYPE).reshape(-1, 4).astype(np.float32)
     bad = ~np.isfinite(pts)
     if bad.any():
         row, col = (int(v) for v in np.argwhere(bad)[0])
         raise KittiFormatError(p, row + 1, FIELDS[col], f"point {row + 1} has a non-finite value {pts[row, col]}")
     return pts
+
+
+def _unreachable(e: OSError) -> str:
+    """The message of an error opening or stat-ing a scan: a missing file as such, else the system's
+    reason."""
+    if isinstance(e, FileNotFoundError):
+        return "file not found (no scan for this frame)"
+    if isinstance(e, IsADirectoryError):
+        return "is a directory, not a scan file"
+    return f"cannot read the scan: {e.strerror or e}"
+
+
+def _not_a_scan_file(mode: int) -> str | None:
+    """Why a file of this ``st_mode`` is no scan file (a directory, a FIFO, ...); None for a regular file."""
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISDIR(mode):
+        return "is a directory, not a scan file"
+    kind = ("a FIFO (named pipe)" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
+            else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file")
+    return f"is {kind}, not a regular scan file"
 
 
 def write_scan(path, points) -> None:
@@ -68,13 +98,23 @@ def write_scan(path, points) -> None:
 
 
 def check_frames(directory, sequence: str, n_frames: int) -> list[Path]:
-    """The scan paths of frames ``0 .. n_frames - 1``; KittiFormatError naming the first missing one."""
+    """The scan paths of frames ``0 .. n_frames - 1``; KittiFormatError naming the first that is
+    missing ("file not found ... no scan for frame F"), cannot be reached (the system's reason, e.g.
+    an unreadable or looping sequence folder) or is no regular file (a FIFO: nothing is opened)."""
     paths = [scan_path(directory, sequence, f) for f in range(n_frames)]
-    stamps = file_stamps(paths)
-    for f, (path, st) in enumerate(zip(paths, stamps)):
-        if st is None:
+    for f, path in enumerate(paths):
+        try:
+            mode = os.stat(path).st_mode
+        except FileNotFoundError:
             raise KittiFormatError(str(path), None, None,
-                                   f"file not found: sequence {sequence} has {n_frames} frames, no scan for frame {f}")
+                                   f"file not found: sequence {sequence} has {n_frames} frames, no scan for frame {f}"
+                                   ) from None
+        except OSError as e:
+            raise KittiFormatError(str(path), None, None, f"{_unreachable(e)} (frame {f} of sequence {sequence})"
+                                   ) from None
+        problem = _not_a_scan_file(mode)
+        if problem:
+            raise KittiFormatError(str(path), None, None, f"{problem} (frame {f} of sequence {sequence})")
     return paths
 
 

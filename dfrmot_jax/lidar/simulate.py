@@ -65,7 +65,8 @@ class SimSettings(NamedTuple):
     bottom: float = -24.9
 
     def validate(self) -> "SimSettings":
-        if int(self.beams) != self.beams or not 1 <= int(self.beams) <= 512:
+        beams = float(self.beams)             # (inf / nan first: int() of inf raises OverflowError)
+        if isinstance(self.beams, bool) or not np.isfinite(beams) or not beams.is_integer() or not 1 <= beams <= 512:
             raise ValueError(f"simulate beams {self.beams}: expected an integer in [1, 512]")
         if not 0.005 <= float(self.az_step) <= 10:
             raise ValueError(f"simulate az_step {self.az_step}: expected degrees in [0.005, 10]")
@@ -79,7 +80,7 @@ class SimSettings(NamedTuple):
                 raise ValueError(f"simulate {name} {getattr(self, name)}: expected a probability in [0, 1]")
         if not float(self.bottom) < float(self.top) or abs(float(self.bottom)) >= 90 or abs(float(self.top)) >= 90:
             raise ValueError(f"simulate elevations {self.top} .. {self.bottom}: expected -90 < bottom < top < 90")
-        return self._replace(beams=int(self.beams))
+        return self._replace(beams=int(beams))
 
 
 class Sensor(NamedTuple):

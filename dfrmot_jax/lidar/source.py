@@ -112,14 +112,20 @@ def lift_sequence(scan_dir, sequence: str, n_frames: int, det2: Detections2D, ca
 
     det2: the sequence's 2D detections (file order); calib: its calibration; stamp_files: the files
     ``det2`` and ``calib`` were read from (their size and mtime join the cache key). Every frame
-    ``0 .. n_frames - 1`` must have a scan (KittiFormatError naming the first missing one); only the
-    frames with a kept detection are read.
+    ``0 .. n_frames - 1`` must have a scan (KittiFormatError naming the first missing or unreachable
+    one, with the system's reason for the latter); only the frames with a kept detection are read.
     """
     s = settings.validate()
     scan_dir = Path(scan_dir)
     if not scan_dir.is_dir():
-        raise KittiFormatError(str(scan_dir), None, None, "LiDAR scan folder not found (lidar:DIR expects "
-                                                          "DIR/velodyne/SSSS/FFFFFF.bin)")
+        try:
+            scan_dir.stat()
+            why = "is not a folder"
+        except FileNotFoundError:
+            why = "LiDAR scan folder not found"
+        except OSError as e:                    # a loop of symlinks, no permission: the system's reason
+            why = f"cannot read the LiDAR scan folder: {e.strerror or e}"
+        raise KittiFormatError(str(scan_dir), None, None, f"{why} (lidar:DIR expects DIR/velodyne/SSSS/FFFFFF.bin)")
     paths = check_frames(scan_dir, sequence, n_frames)
     base = (str(scan_dir.resolve()), str(sequence), int(n_frames), cls, scan_stamps(scan_dir, sequence, n_frames),
             file_stamps(stamp_files))

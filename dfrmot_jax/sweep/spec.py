@@ -15,6 +15,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..config import CLASSES, INHERITED_PARAMS, INT_PARAMS, PRESETS, Options, Params, option_problem, param_problem
+from ..lidar import lidar_dir
 from ..metrics.ab3dmot import DEFAULT_AB3DMOT_IOU, parse_iou
 from ..metrics.table import AB3DMOT_COLUMNS, canonical_objective
 from .checks import (
@@ -404,6 +405,10 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     data = top.table("data", DATA_KEYS)
     for k in ("root", "det2d", "det3d"):
         data.string(k, None)
+    try:
+        lidar_dir(data.get("det3d", ""))                # "lidar:" without its folder
+    except ValueError as e:
+        raise data.error("det3d", str(e)) from None
     classes = _parse_classes(data.get("class", "car"), source)
     cls = classes[0]
     root = data.get("root")

@@ -1,11 +1,13 @@
 """Command-line test tools: run ``dfrmot`` in-process and read its one error line; kill a
-``dfrmot`` subprocess at a chosen moment (resume tests)."""
+``dfrmot`` subprocess at a chosen moment (resume tests); bound a call that could block forever
+(:func:`deadline`)."""
 
 from __future__ import annotations
 
 import os
 import signal
 import time
+from contextlib import contextmanager
 from typing import Callable, Sequence
 
 from ..cli import main
@@ -45,3 +47,25 @@ def kill_when(proc, ready: Callable[[], bool], timeout: float = 240.0, poll: flo
             return True
         time.sleep(poll)
     return False
+
+
+class Overdue(BaseException):
+    """Raised by :func:`deadline` (a BaseException, so that no ``except Exception`` of the code under
+    test, the command line's error handler included, turns it into a result)."""
+
+
+@contextmanager
+def deadline(seconds: float):
+    """Raise :class:`Overdue` in the main thread if the block is still running after ``seconds``
+    (SIGALRM: it interrupts a blocking ``open`` or ``read``, e.g. of a FIFO without a writer), so a
+    test of something that could hang fails instead. Main thread, POSIX only."""
+    def alarm(signum, frame):
+        raise Overdue(f"still running after {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
