@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -92,3 +93,24 @@ def test_the_demo_refuses_bad_input_and_another_sweeps_folder(tmp_path, capsys):
     assert status == 2 and "mine" in error_line(err, "demo")
     assert (other / "manifest.json").read_text() == '{"name": "mine", "kind": "sweep"}'
 
+
+def _stable(text: str) -> list[str]:
+    """The demo's output without its timing paragraph (``... tracked and scored in 3.0 s ...``)."""
+    out, skip = [], False
+    for line in text.splitlines():
+        skip = (line.startswith("sweep demo: ") and " tracked and scored in " in line) or (skip and line.startswith("  "))
+        if not skip:
+            out.append(line)
+    return out
+
+
+@pytest.mark.slow
+def test_the_readme_shows_the_demos_output(tmp_path, monkeypatch, capsys):
+    """README, "The demo": ``dfrmot demo`` as printed, run as the README runs it (default settings,
+    from the repository root: paths under results/demo), but for its timings."""
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    shown = re.search(r"```text\n\$ dfrmot demo\n(.*?)```", readme, re.S).group(1)
+    monkeypatch.chdir(tmp_path)
+    status, text, err = run_cli(capsys, ["demo"])
+    assert status == 0 and not err, err
+    assert _stable(text) == _stable(shown)
