@@ -9,10 +9,10 @@ from dfrmot_jax.synthetic import make_scene
 
 
 def test_demo_runs_with_no_data(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path), "--frames", "60"]) == 0
+    assert main(["demo", "--out", str(tmp_path), "--sequences", "2", "--frames", "60"]) == 0
     out = capsys.readouterr().out
-    assert "COMBINED" in out and "HOTA" in out
-    assert (tmp_path / "results" / "0000.txt").exists()
+    assert "COMBINED" in out and "HOTA" in out and "best vs baseline" in out
+    assert (tmp_path / "sweep" / "results.parquet").exists() and (tmp_path / "sweep" / "report.html").exists()
 
 
 @pytest.mark.slow

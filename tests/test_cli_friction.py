@@ -1,7 +1,7 @@
 """Friendly inputs and output of the ``dfrmot`` command (issue 10, items 11 and 18), at CLI level:
 unreadable files, byte-order marks, non-UTF-8 sweep files, detector directories given by relative
 path, a wrong data root, 3D rows of an unknown type, report lines that fit 120 columns, the README
-options table and the demo's work directory."""
+options table and the demo's work directory (kept: --out, else results/demo)."""
 
 import builtins
 import io
@@ -233,21 +233,23 @@ def test_readme_tables_list_every_parameter_and_option():
     assert not missing
 
 
-def test_demo_writes_to_out_or_removes_its_temporary_directory(tmp_path, monkeypatch, capsys):
+def test_demo_writes_to_out_else_results_demo_and_leaves_no_temporary_directory(tmp_path, monkeypatch, capsys):
+    """The demo's files are its point (the sweep folder and its HTML report): they are kept, in
+    --out or in results/demo of the working directory, and nothing is left in the temp dir."""
     import tempfile
 
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    monkeypatch.chdir(tmp_path)
     args = ["demo", "--sequences", "1", "--frames", "40"]
     status, kept, err = run_cli(capsys, args + ["--out", str(tmp_path / "demo")])
-    assert status == 0 and not err and (tmp_path / "demo" / "results" / "0000.txt").is_file()
-    assert list(scratch.iterdir()) == []
-    status, temp, err = run_cli(capsys, args)
-    assert status == 0 and not err
-    assert list(scratch.iterdir()) == [], "the demo left its temporary directory behind"
-    assert "COMBINED" in temp and temp.splitlines()[-2:] == kept.splitlines()[-2:]     # the same scores
-    assert "removed" in temp and "--out" in temp
+    assert status == 0 and not err and (tmp_path / "demo" / "sweep" / "report.html").is_file()
+    status, default, err = run_cli(capsys, args)
+    assert status == 0 and not err and (tmp_path / "results" / "demo" / "sweep" / "report.html").is_file()
+    assert list(scratch.iterdir()) == [], "the demo left a temporary directory behind"
+    table = [s for s in kept.splitlines() if s.startswith(("rank", "base", "best vs"))]
+    assert table and table == [s for s in default.splitlines() if s.startswith(("rank", "base", "best vs"))]
 
 
 def test_track_refuses_filtered_boxes_with_unstable_fixed_gains_up_front(scene, tmp_path, capsys):

@@ -1,53 +1,141 @@
-"""``dfrmot demo``: generate a synthetic scene, track it with the dfr2023 settings and score it (no data needed)."""
+"""``dfrmot demo``: the main job on a synthetic scene, no data needed. A synthetic KITTI-layout scene
+(labels, calibration, 2D and 3D detections: :func:`~dfrmot_jax.synthetic.make_scene`) is written to
+``DIR/scene``, a sweep file over it to ``DIR/demo.toml`` (the dfr2023 preset as baseline and a grid
+of :data:`GRID`), and the sweep is run as ``dfrmot sweep`` runs it (:func:`~dfrmot_jax.sweep.run_sweep`:
+every config tracked in one vmapped call and scored) into ``DIR/sweep``; the best configs are printed
+beside the baseline, and the report of the folder (computed once, :func:`~dfrmot_jax.sweep.sweep_report`)
+is written next to its results as ``DIR/sweep/report.html``.
+
+A rerun in the same ``DIR`` starts the demo's own sweep over (its scene was just rewritten); a
+folder ``DIR/sweep`` of another sweep is refused, as ``dfrmot sweep`` refuses it.
+"""
 
 from __future__ import annotations
 
 import argparse
-import tempfile
+import json
+import sys
 from pathlib import Path
 
-from ..api import track
-from ..config import Options, Params
-from ..data import load_split
-from ..metrics import evaluate_files, metrics_table
-from ..results import write_lane
+import numpy as np
+
+from ..config import preset
+from ..io.lock import folder_lock
+from ..sweep import SweepReport, load_spec, run_sweep, sweep_report, write_html
+from ..sweep.analysis import fmt_value
+from ..sweep.folder import clear, read_old_manifest
+from ..sweep.text import paragraph, text_table
 from ..synthetic import make_scene
 from .errors import guarded
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "GRID", "sweep_file"]
+
+#: the demo's grid: the 2D score threshold and the fixed-gain filter's beta and gamma (27 settings)
+GRID = {"score_2d": [0.35, 0.45, 0.55], "gain_beta": [0.5, 0.7, 0.9], "gain_gamma": [0.02, 0.05, 0.1]}
+#: the columns printed beside the swept axes
+SHOWN = ["HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW"]
+NAME = "demo"
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``demo`` on an argparse ``subparsers`` object; returns its parser."""
-    d = sub.add_parser("demo", help="generate a synthetic scene, track it and score it (no data needed)",
-                       description="Generate a synthetic KITTI-layout scene, track it with the dfr2023 settings "
-                                   "and score it (HOTA, MOTA, IDF1); no data needed.")
-    d.add_argument("--out", help="work directory, kept (default: a temporary directory, removed at the end)")
-    d.add_argument("--sequences", type=int, default=2, help="synthetic sequences (default 2)")
+    d = sub.add_parser("demo", help="a small parameter sweep on a synthetic scene, with its HTML report (no data needed)",
+                       description="Generate a synthetic KITTI-layout scene, sweep a grid of settings over it "
+                                   f"(the dfr2023 preset as baseline and a {_shape()} grid of {', '.join(GRID)}, "
+                                   "tracked in one vmapped call and scored), print the best configs "
+                                   "beside the baseline and write the HTML report next to the results; no data "
+                                   "needed.")
+    d.add_argument("--out", metavar="DIR", default=str(Path("results") / NAME),
+                   help="work directory, kept: DIR/scene, DIR/demo.toml, DIR/sweep (results and report.html) "
+                        "(default: results/demo)")
+    d.add_argument("--sequences", type=int, default=4, help="synthetic sequences (default 4)")
     d.add_argument("--frames", type=int, default=120, help="frames per sequence (default 120)")
     d.add_argument("--seed", type=int, default=0, help="scene seed, >= 0 (default 0)")
+    d.add_argument("--top", type=int, default=5, help="configs printed above the baseline (default 5)")
     d.set_defaults(func=guarded(run))
     return d
 
 
 def run(args) -> int:
-    """Run the demo in ``--out`` (kept), else in a temporary directory removed at the end."""
-    if args.out:
-        return _demo(Path(args.out), args, kept=True)
-    with tempfile.TemporaryDirectory(prefix="dfrmot_demo_") as work:
-        return _demo(Path(work), args, kept=False)
-
-
-def _demo(work: Path, args, kept: bool) -> int:
+    """Scene, sweep file, sweep, report; prints the best configs beside the baseline."""
+    if args.sequences < 1:
+        raise ValueError(f"--sequences {args.sequences}: expected a whole number >= 1")
+    if args.top < 1:
+        raise ValueError(f"--top {args.top}: expected a whole number >= 1 (configs printed)")
+    work = Path(args.out)
     root = make_scene(work / "scene", n_sequences=args.sequences, n_frames=args.frames, seed=args.seed)
-    split = load_split(root, "synth2d", "synth3d", "car")
-    params, options = Params(), Options()
-    res = track(split, params, options)
-    write_lane(work / "results", split, res.frames, options, res.ids[0])
-    where = "" if kept else " (a temporary directory, removed at the end: --out DIR keeps the files)"
-    print(f"synthetic scene: {len(split.names)} sequences, {split.n_frames} frames at {root}")
-    print(f"tracked with the dfr2023 settings -> {work / 'results'}{where}")
-    table = metrics_table(evaluate_files(work / "results", root, "car"))
-    cols = ["HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW"]
-    print(table[cols].to_string(float_format=lambda v: f"{v:.2f}"))
+    names = [f"{s:04d}" for s in range(args.sequences)]
+    print(f"scene: {len(names)} synthetic sequences x {args.frames} frames in KITTI layout (labels, calib, 2D and 3D "
+          f"detections) -> {root}")
+    toml = work / f"{NAME}.toml"
+    toml.write_text(sweep_file(root.resolve(), names))
+    print(f"sweep file: {toml}: the dfr2023 preset as baseline + a {_shape()} grid of {', '.join(GRID)}")
+    out = work / "sweep"
+    _restart(out, toml)
+    df = run_sweep(load_spec(toml), out, progress=False, workers=0, log=lambda m: print(paragraph(m)))
+    rep = sweep_report(out, objective="HOTA", top=args.top)
+    _print_report(rep, args.top)
+    page = write_html(rep, out / "report.html")
+    print(f"\nHTML report: {page}")
+    print(f"full report: dfrmot report {out}; rerun: dfrmot sweep {toml} --out {out}")
+    over = df[(df["sequence"] == "COMBINED") & (df["overflow"] > 0)]
+    if len(over):
+        print(f"warning: {len(over)} config(s) overflowed their track memory (column 'overflow')", file=sys.stderr)
+        return 3
     return 0
+
+
+def sweep_file(root: Path, sequences: list[str]) -> str:
+    """The demo's sweep file (TOML): the scene, the dfr2023 baseline, :data:`GRID`, and folds
+    min(5, sequences) for the report (none for one sequence)."""
+    folds = min(5, len(sequences))
+    grid = "\n".join(f"{k} = [{', '.join(map(repr, v))}]" for k, v in _grid_on_baseline().items())
+    shape = _shape()
+    return (f"# dfrmot demo: the dfr2023 preset and a {shape} grid of {', '.join(GRID)} on a synthetic scene.\n"
+            f"name = {json.dumps(NAME)}\n"
+            f"description = \"the dfr2023 baseline + a {shape} grid of {', '.join(GRID)} (dfrmot demo)\"\n"
+            f"chunk = 64\n\n[data]\nroot = {json.dumps(str(root))}\ndet2d = \"synth2d\"\ndet3d = \"synth3d\"\n"
+            f"class = \"car\"\nsequences = {json.dumps(sequences)}\n\n[baseline]\npreset = \"dfr2023\"\n\n"
+            f"[params]\n# values equal to the preset's are written as its exact constants (the authors' float gains)\n"
+            f"{grid}\n" + (f"\n[report]\nfolds = {folds}\n" if folds >= 2 else ""))
+
+
+def _shape() -> str:
+    """The grid's shape, e.g. ``3 x 3 x 3``."""
+    return " x ".join(str(len(v)) for v in GRID.values())
+
+
+def _grid_on_baseline() -> dict[str, list[float]]:
+    """:data:`GRID` with each value equal to the dfr2023 preset's at float32 precision replaced by the
+    preset's own (the C++ code's float gains, e.g. 0.9 as 0.89999998...): the baseline is then a
+    point of the grid, and each axis has its three values, not a fourth one next to the preset's."""
+    base = preset("dfr2023")[0]
+    return {k: [float(getattr(base, k)) if np.float32(v) == np.float32(getattr(base, k)) else v for v in vs]
+            for k, vs in GRID.items()}
+
+
+def _restart(out: Path, toml: Path) -> None:
+    """A previous run of this demo's sweep file in ``out`` is cleared (the scene was rewritten, maybe
+    with another seed, so its chunks are stale); any other sweep there is left to ``run_sweep``."""
+    old, _ = read_old_manifest(out)
+    if old is not None and old.get("name") == NAME and Path(old.get("source") or "").resolve() == toml.resolve():
+        with folder_lock(out, "demo"):
+            clear(out, {"sweep"})
+
+
+def _print_report(rep: SweepReport, top: int) -> None:
+    """The best ``top`` configs beside the baseline, the gain and the cross-validated figure."""
+    s = rep.summary
+    axes = [a for a in GRID if a in rep.top.columns]
+    table = rep.top_with_baseline(top)[["rank", "config", *SHOWN, *axes]]
+    print(f"\ntop {len(table) - (rep.baseline is not None)} of {s['configs']} configs by HOTA (COMBINED over "
+          f"{s['sequences']} sequences, in-sample) and the baseline (preset dfr2023):")
+    print(text_table(table, keys=("rank",), float_format=lambda v: f"{v:.2f}"))
+    best, base = rep.top.iloc[0], rep.baseline
+    if base is not None:
+        changed = [f"{a} {fmt_value(base[a])} -> {fmt_value(best[a])}" for a in axes if best[a] != base[a]]
+        print(f"best vs baseline: HOTA {best['HOTA']:.2f} vs {base['HOTA']:.2f} ({best['HOTA'] - base['HOTA']:+.2f}); "
+              f"changed: {', '.join(changed) or 'nothing (the baseline is the best)'}")
+    if rep.cv is not None:
+        print(f"{s['folds']}-fold cross-validated HOTA {rep.cv['cross_validated']:.2f} (each sequence scored with the "
+              f"config chosen on the others)" + (f" vs baseline {base['HOTA']:.2f}" if base is not None else ""))

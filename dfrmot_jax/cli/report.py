@@ -17,7 +17,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..sweep import RAW_COLUMN, html_report, load_results, sweep_report
+from ..sweep import RAW_COLUMN, load_results, report_folds, sweep_report, write_html
 from .errors import guarded
 
 __all__ = ["add_parser", "run", "parse_contrast"]
@@ -57,8 +57,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="also write the report as one self-contained HTML page (figures as inline SVG; no script, "
                         "no network): the run's identity, top configs beside the baseline, sensitivity per axis, "
                         "the objective per sequence, the cross-validated figure (the file's --folds, else min(5, "
-                        "sequences)) and, where the directory holds them, robustness curves and contrast, the "
-                        "tune's history and Pareto front")
+                        "sequences), printed too: the page and the printed report are one report) and, where the "
+                        "directory holds them, robustness curves and contrast, the tune's history and Pareto front")
     p.set_defaults(func=guarded(run))
     return p
 
@@ -86,16 +86,17 @@ def parse_contrast(text: str) -> dict:
 
 
 def run(args) -> int:
+    """Compute the report once, print it and, with ``--html``, draw the page from the same report
+    (whose folds, when nobody set them, are then :func:`report_folds`'s, printed too)."""
     contrast = parse_contrast(args.contrast) if getattr(args, "contrast", None) else None
-    rep = sweep_report(Path(args.dir), objective=args.objective or _manifest_objective(args.dir),
-                       folds=args.folds, top=10 if args.top is None else args.top, contrast=contrast,
-                       cls=getattr(args, "cls", None))
+    html = getattr(args, "html", None)
+    folds, note = report_folds(args.dir, args.folds) if html is not None else (args.folds, "")
+    rep = sweep_report(Path(args.dir), objective=args.objective or _manifest_objective(args.dir), folds=folds,
+                       top=10 if args.top is None else args.top, contrast=contrast, cls=getattr(args, "cls", None),
+                       folds_note=note)
     print(rep.text)
-    if getattr(args, "html", None) is not None:
-        page = html_report(Path(args.dir), args.html, objective=args.objective or _manifest_objective(args.dir),
-                           folds=args.folds, top=10 if args.top is None else args.top, contrast=contrast,
-                           cls=getattr(args, "cls", None))
-        print(f"dfrmot report: wrote {page}", file=sys.stderr)
+    if html is not None:
+        print(f"dfrmot report: wrote {write_html(rep, html)}", file=sys.stderr)
     if args.csv is not None:
         df = load_results(args.dir, allow_partial=True)
         df.drop(columns=[RAW_COLUMN], errors="ignore").to_csv(args.csv, index=False)

@@ -32,8 +32,9 @@ every backend runs), :mod:`.backend` (local or Ray: ``check()`` and ``run_chunks
 :mod:`.ray_backend`, :mod:`.runner` (``prepare_sweep``, ``run_sweep``), :mod:`.folder` (``claim``: a
 folder belongs to one sweep or tune), :mod:`.store` (the directory: chunk files, manifest,
 ``load_results``), :mod:`.analysis` (ranking, sensitivity, folds, cross-validation),
-:mod:`.robustness`, :mod:`.text`, :mod:`.report` (``sweep_report``), :mod:`.html` (``html_report``:
-the report as one self-contained page) and :mod:`.figures` (its plots). The metrics
+:mod:`.robustness`, :mod:`.text`, :mod:`.report` (``sweep_report``: the report computed once, its
+numbers and text in one ``SweepReport``), :mod:`.html` (``html_report``, ``write_html``: that report as one
+self-contained page) and :mod:`.figures` (its plots). The metrics
 (summary columns, sequence re-combination, lane scoring, worker pools) are
 :mod:`dfrmot_jax.metrics.evaluate`'s. ``dfrmot_jax.sweep.sweep(...)`` is a deprecated alias of
 ``run_sweep`` (one release, with a ``DeprecationWarning``).
@@ -58,9 +59,9 @@ from .analysis import (MINIMISE, OBJECTIVES, axis_profiles, class_view, cross_va
 from .backend import LocalBackend, RayBackend, make_backend
 from .checks import SweepConfigError
 from .distortion import DistortionAxes
-from .html import html_report
+from .html import html_report, render_html, write_html
 from .plan import MAX_MEMORY_GB, DataSettings, check_memory, plan, resolve_data, resolve_data_all
-from .report import SweepReport, sweep_report
+from .report import SweepReport, report_folds, sweep_report
 from .robustness import robustness_contrast, robustness_curves, robustness_summary, setting_axes
 from .runner import PreparedSweep, prepare_sweep, run_sweep, sweep
 from .spec import (AVERAGE, DISTORTION_AXES, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, Axis, Contrast, SweepSpec, load_spec,
@@ -78,5 +79,5 @@ __all__ = [
     "resolve_data_all", "class_view", "class_columns", "AVERAGE", "HASH_VERSION", "HashVersionError",
     "hash_version", "SweepDirectoryError", "MAX_CONFIGS", "MAX_MEMORY_GB", "config_count", "check_memory",
     "COMBINED", "RAW_COLUMN", "params_of", "per_sequence_arrays", "objective_on", "LocalBackend", "RayBackend",
-    "make_backend", "html_report", "axis_profiles",
+    "make_backend", "html_report", "write_html", "render_html", "report_folds", "axis_profiles",
 ]

@@ -1,10 +1,13 @@
 """``dfrmot report DIR --html OUT.html``: a sweep or tune directory's report as one self-contained
 HTML page (inline CSS and SVG figures; no script, no network, nothing beside the file).
 
-The numbers are the text report's (:func:`~.report.sweep_report`: ranking, baseline, sensitivity,
-cross-validation, robustness curves and contrast, the tune's figures) and the analysis functions'
-(:func:`~.analysis.axis_profiles`, :func:`~.robustness.robustness_contrast`,
-:func:`~.analysis.pareto_front`); the figures are drawn by :mod:`.figures`. Sections: the run's
+The page is drawn from one computed report (:func:`render_html` / :func:`write_html` of a
+:class:`~.report.SweepReport`, the object whose text ``dfrmot report`` prints: ranking, baseline,
+sensitivity, cross-validation, robustness curves and contrast, the tune's figures), so page and
+printed report never disagree; :func:`html_report` computes one and writes it. The figures'
+series come from the analysis functions (:func:`~.analysis.axis_profiles`,
+:func:`~.robustness.robustness_contrast`, :func:`~.analysis.pareto_front`) and are drawn by
+:mod:`.figures`. Sections: the run's
 identity (sweep file, data, versions, machine), the top configs beside the baseline, sensitivity
 per axis, the objective per sequence of the top configs, the cross-validated figure, and where the
 directory holds them the robustness curves and contrast, the tune's history and Pareto front.
@@ -25,7 +28,7 @@ from ..io.atomic import write_text_atomic
 from ..version import __version__
 from . import figures
 from .analysis import MINIMISE, axis_profiles, fmt_value, pareto_front, varied_axes
-from .report import sweep_report
+from .report import SweepReport, report_folds, sweep_report
 from .robustness import robustness_contrast
 from .spec import AVERAGE
 from .store import read_manifest
@@ -99,21 +102,16 @@ def _identity(d: Path, m: dict, rep) -> str:
                          if spec else ""))
 
 
-def _top(rep, objective: str) -> tuple[str, pd.DataFrame, pd.Series | None]:
-    comb = rep.view[rep.view["sequence"] == COMBINED]
-    base = comb[comb["baseline"]]
-    baseline = base.iloc[0] if len(base) else None
-    view = rep.top.drop(columns=["config_hash"]).copy()
-    if baseline is not None:
-        row = {c: baseline[c] for c in view.columns if c in baseline.index}
-        view = pd.concat([view, pd.DataFrame([{**row, "rank": "baseline"}])], ignore_index=True)
+def _top(rep, objective: str) -> str:
+    baseline = rep.baseline
+    view = rep.top_with_baseline(label="baseline").drop(columns=["config_hash"])
     best = rep.top.iloc[0]
     text = (f"<p>Best {escape(objective)} {best[objective]:.3f} (config {int(best['config'])})"
             + (f", baseline {baseline[objective]:.3f} ({best[objective] - baseline[objective]:+.3f})"
                if baseline is not None else "") + ". In-sample: ranked on every sequence (COMBINED); the "
             "cross-validated figure below is the honest estimate for unseen sequences. The baseline is the "
             "highlighted last row.</p>")
-    return text + _table(view, "top"), comb, baseline
+    return text + _table(view, "top")
 
 
 def _heatmap(rep, objective: str, baseline) -> str:
@@ -191,26 +189,38 @@ def _tune(d: Path, m: dict, rep, objective: str) -> str:
 
 def html_report(results, out, *, objective: str | None = None, folds: int | None = None, top: int = 10,
                 contrast=None, cls: str | None = None) -> Path:
-    """Write the report of a sweep or tune directory ``results`` to the HTML file ``out``; returns
-    its path. The arguments are :func:`~.report.sweep_report`'s (``objective`` default: the
-    directory's). Without ``folds`` a sweep is cross-validated with the sweep file's folds, else
-    with min(5, sequences) folds (a tune: its own nested cross-validation, when it ran one)."""
+    """Compute the report of a sweep or tune directory ``results`` and write it to the HTML file
+    ``out``; returns its path. The arguments are :func:`~.report.sweep_report`'s (``objective``
+    default: the directory's), the folds :func:`~.report.report_folds`'s. To print the report as
+    well, compute it once and hand it to :func:`write_html` (``dfrmot report --html`` does)."""
     d = Path(results)
-    m = read_manifest(d)
+    folds, note = report_folds(d, folds)
+    rep = sweep_report(d, objective=objective or read_manifest(d).get("objective") or "HOTA", folds=folds,
+                       top=top, contrast=contrast, cls=cls, folds_note=note)
+    return write_html(rep, out)
+
+
+def write_html(rep: SweepReport, out) -> Path:
+    """Write the page of a directory's report ``rep`` (:func:`render_html`) to ``out``; returns its path."""
+    out = Path(out)
+    write_text_atomic(out, render_html(rep))
+    return out
+
+
+def render_html(rep: SweepReport) -> str:
+    """The page of a sweep or tune directory's report, drawn from ``rep`` as computed (its numbers,
+    tables and text; nothing is computed again but the figures' and per-axis profiles' layout)."""
+    if rep.directory is None or rep.manifest is None:
+        raise ValueError("the HTML page is made from the report of a sweep or tune directory, not of a table")
+    d, m = rep.directory, rep.manifest
     tune = m.get("kind") == "tune"
-    objective = objective or m.get("objective") or "HOTA"
-    note = ""
-    if folds is None and not tune and not m.get("folds") and len(m.get("lengths") or []) >= 2:
-        folds = min(5, len(m["lengths"]))
-        note = f" ({folds} folds: the sweep file sets none, so this page chose min(5, sequences))"
-    rep = sweep_report(d, objective=objective, folds=folds, top=top, contrast=contrast, cls=cls)
     objective = rep.summary["objective"]
-    top_html, comb, baseline = _top(rep, objective)
+    baseline = rep.baseline
     name = m.get("name") or d.name
     body = [f"<h1>{'Tune' if tune else 'Sweep'} {escape(name)}</h1>",
             f'<p class="lead">{escape(rep.text.splitlines()[0])}</p>',
             "<h2>The run</h2>", _identity(d, m, rep),
-            f"<h2>Top configs by {escape(objective)}</h2>", top_html]
+            f"<h2>Top configs by {escape(objective)}</h2>", _top(rep, objective)]
     profiles = axis_profiles(rep.view, objective)
     if profiles:
         body += ["<h2>Sensitivity per axis</h2>",
@@ -223,23 +233,7 @@ def html_report(results, out, *, objective: str | None = None, folds: int | None
     heat = _heatmap(rep, objective, baseline)
     if heat:
         body += ["<h2>Per sequence</h2>", heat]
-    if rep.cv is not None:
-        body += ["<h2>Cross-validated</h2>",
-                 f"<p>{rep.cv['folds']}-fold cross-validation over sequences{escape(note)}: per fold the best config "
-                 f"is chosen on the other folds and scored on the held-out one. Cross-validated {objective} "
-                 f"{rep.cv['cross_validated']:.3f} against the in-sample best {rep.top.iloc[0][objective]:.3f}.</p>",
-                 _figure(figures.folds_figure(rep.cv, objective, float(rep.top.iloc[0][objective])),
-                         "Per fold: the chosen config on its training folds and on the held-out fold, and the "
-                         "baseline on the held-out fold.")]
-    nested = d / "nested.json"
-    if tune and nested.is_file():
-        n = json.loads(nested.read_text())
-        body += ["<h2>Nested cross-validation</h2>",
-                 f"<p>The tune rerun per fold on the training sequences only, its choice scored on the held-out "
-                 f"fold: {escape(n['objective'])} cross-validated {n['cross_validated']:.3f}, baseline "
-                 f"{n['baseline']:.3f} on the same sequences.</p>",
-                 _figure(figures.folds_figure(n, n["objective"]), "Per fold: the config the tune chose on the "
-                         "training folds, there and on the held-out fold, and the baseline on the held-out fold.")]
+    body += _cross_validated(rep, objective)
     rob = _robustness(rep, objective)
     if rob:
         body += ["<h2>Robustness</h2>", rob]
@@ -247,10 +241,31 @@ def html_report(results, out, *, objective: str | None = None, folds: int | None
         body += ["<h2>The tune</h2>", _tune(d, m, rep, objective)]
     body += ["<h2>The text report</h2>",
              f"<details><summary>dfrmot report, as printed</summary><pre>{escape(rep.text)}</pre></details>"]
-    page = (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
             f'<meta name="viewport" content="width=device-width, initial-scale=1">'
             f"<title>{escape(name)}: dfrmot report</title><style>{CSS}</style></head>\n<body>\n"
             + "\n".join(body) + "\n</body></html>\n")
-    out = Path(out)
-    write_text_atomic(out, page)
+
+
+def _cross_validated(rep: SweepReport, objective: str) -> list[str]:
+    """The cross-validated section (the report's folds) or a tune's nested cross-validation."""
+    out = []
+    if rep.cv is not None:
+        note = f" ({rep.folds_note})" if rep.folds_note else ""
+        out += ["<h2>Cross-validated</h2>",
+                f"<p>{rep.cv['folds']}-fold cross-validation over sequences{escape(note)}: per fold the best config "
+                f"is chosen on the other folds and scored on the held-out one. Cross-validated {objective} "
+                f"{rep.cv['cross_validated']:.3f} against the in-sample best {rep.top.iloc[0][objective]:.3f}.</p>",
+                _figure(figures.folds_figure(rep.cv, objective, float(rep.top.iloc[0][objective])),
+                        "Per fold: the chosen config on its training folds and on the held-out fold, and the "
+                        "baseline on the held-out fold.")]
+    nested = rep.directory / "nested.json"
+    if rep.manifest.get("kind") == "tune" and nested.is_file():
+        n = json.loads(nested.read_text())
+        out += ["<h2>Nested cross-validation</h2>",
+                f"<p>The tune rerun per fold on the training sequences only, its choice scored on the held-out "
+                f"fold: {escape(n['objective'])} cross-validated {n['cross_validated']:.3f}, baseline "
+                f"{n['baseline']:.3f} on the same sequences.</p>",
+                _figure(figures.folds_figure(n, n["objective"]), "Per fold: the config the tune chose on the "
+                        "training folds, there and on the held-out fold, and the baseline on the held-out fold.")]
     return out

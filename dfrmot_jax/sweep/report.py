@@ -1,5 +1,7 @@
-"""The text report of a sweep: best configs, the baseline beside them, sensitivity, cross-validation
-and (distortion sweeps) robustness curves and contrasts."""
+"""The report of a sweep, computed once: best configs, the baseline beside them, sensitivity,
+cross-validation and (distortion sweeps) robustness curves and contrasts, as one
+:class:`SweepReport` holding both the numbers and the printed text; the HTML page
+(:mod:`.html`) is drawn from the same object, so the two always show the same figures."""
 
 from __future__ import annotations
 
@@ -32,11 +34,15 @@ from .store import load_results, read_manifest
 from .table import COMBINED
 from .text import WIDTH, paragraph, text_table  # noqa: F401  (WIDTH: the report's width)
 
+#: the columns of the top-configs table, after the objective (those the table holds)
+SHOWN = ("HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW")
 
-#: the widest line of the printed report, except its last (one JSON object)
+
 @dataclass
 class SweepReport:
-    """``text`` (the printed report) and ``summary`` (the JSON-able dict of its last line)."""
+    """One report's numbers and its printed form: ``text`` (the printed report) and ``summary`` (the
+    JSON-able dict of its last line), the tables they were written from, and for a directory its
+    path and manifest. The HTML page (:func:`~.html.render_html`) is drawn from this object."""
 
     text: str
     summary: dict
@@ -48,13 +54,68 @@ class SweepReport:
     data: pd.DataFrame | None = None            # the table reported on (every class)
     view: pd.DataFrame | None = None            # its rows ranked: the report's class (class_view), or all
     manifest: dict | None = None                # a directory's manifest
+    directory: Path | None = None               # the sweep or tune directory reported on
+    baseline: pd.Series | None = None           # the baseline's COMBINED row of ``view`` (None: no baseline)
+    folds_note: str = ""                        # how the folds were chosen, when the report chose them
 
     def __str__(self) -> str:
         return self.text
 
+    def top_with_baseline(self, n: int | None = None, label: str = "base") -> pd.DataFrame:
+        """The first ``n`` rows of ``top`` (all by default) and the baseline's row below them, its
+        ``rank`` set to ``label``: the table the report prints."""
+        view = self.top if n is None else self.top.head(n)
+        if self.baseline is None:
+            return view.copy()
+        row = {c: self.baseline[c] for c in view.columns if c in self.baseline.index}
+        return pd.concat([view, pd.DataFrame([{**row, "rank": label}])], ignore_index=True)
+
+
+def report_folds(directory, folds: int | None = None) -> tuple[int | None, str]:
+    """The folds of a directory's report that comes with a page (``dfrmot report --html``, the
+    demo), and a note when chosen here: ``folds`` when given, else the sweep file's, else for a
+    sweep of 2 or more sequences min(5, sequences). A tune keeps its own nested cross-validation."""
+    if folds is not None:
+        return folds, ""
+    m = read_manifest(Path(directory))
+    n = len(m.get("lengths") or [])
+    if m.get("kind") == "tune" or m.get("folds") or n < 2:
+        return None, ""
+    k = min(5, n)
+    return k, f"{k} folds: the sweep file sets none, so the report chose min(5, sequences)"
+
+
+@dataclass
+class _Source:
+    """What a report is of: the table, and for a directory its path, manifest and stored settings."""
+
+    df: pd.DataFrame
+    folds: int | None
+    contrast: Contrast | None
+    cls: str | None
+    n_expected: int | None = None
+    directory: Path | None = None
+    manifest: dict | None = None
+
+
+def _source(results, folds, contrast, cls) -> _Source:
+    """The table (given, or a directory's with its manifest's folds, contrast and class as defaults)."""
+    if isinstance(results, pd.DataFrame):
+        src = _Source(results, folds, contrast, cls)
+    else:
+        d = Path(results)
+        m = read_manifest(d)
+        src = _Source(load_results(d, allow_partial=True), m.get("folds") if folds is None else folds,
+                      contrast if contrast is not None or not m.get("contrast") else m["contrast"],
+                      m.get("report_class") if cls is None else cls, m.get("configs"), d, m)
+    if isinstance(src.contrast, Mapping):
+        src.contrast = parse_contrast(dict(src.contrast), None)
+    return src
+
 
 def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top: int = 10,
-                 contrast: Contrast | Mapping | None = None, cls: str | None = None) -> SweepReport:
+                 contrast: Contrast | Mapping | None = None, cls: str | None = None,
+                 folds_note: str = "") -> SweepReport:
     """Best configs by ``objective`` (HOTA, MOTA, IDF1, AssA, ... maximised; IDSW, Frag, ...
     minimised), the baseline beside them, the sensitivity per axis and, with ``folds``, the
     cross-validated best. ``results``: a table from :func:`sweep` or a sweep directory.
@@ -68,43 +129,66 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     A sweep over several classes ranks on ``cls``: one class (its rows with its own parameter values,
     :func:`class_view`) or ``"average"`` (default; for a directory: the file's ``report.class``):
     the class average (ratios averaged over the classes, counts summed), cross-validated with each
-    class's sequences folded on their own (:func:`cross_validate`)."""
-    if not isinstance(results, pd.DataFrame):
-        d = Path(results)
-        manifest = read_manifest(d)
-        df = load_results(d, allow_partial=True)
-        if folds is None:
-            folds = manifest.get("folds")
-        if contrast is None and manifest.get("contrast"):
-            contrast = manifest["contrast"]
-        if cls is None:
-            cls = manifest.get("report_class")
-        n_expected = manifest.get("configs")
-        tune = (d, manifest) if manifest.get("kind") == "tune" else None
-    else:
-        df, n_expected, tune, manifest = results, None, None, None
-    if isinstance(contrast, Mapping):
-        contrast = parse_contrast(dict(contrast), None)
+    class's sequences folded on their own (:func:`cross_validate`). ``folds_note``: how ``folds``
+    was chosen (:func:`report_folds`), said beside the cross-validation."""
+    src = _source(results, folds, contrast, cls)
     objective = canonical_objective(objective)
     if not isinstance(top, (int, np.integer)) or isinstance(top, bool) or top < 1:
         raise ValueError(f"top={top!r}: expected a whole number >= 1 (configs listed)")
-    check_objective(df, objective)
-    full = df
+    full = src.df
+    check_objective(full, objective)
     classes = classes_of(full)
-    cls = report_class_of(full, cls)
-    if classes:
-        df = class_view(full, cls)
+    cls = report_class_of(full, src.cls)
+    df = class_view(full, cls) if classes else full
     comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
     axes = varied_axes(df)
     order = rank_configs(comb[objective].to_numpy(), objective)
     best = comb.iloc[int(order[0])]
     base_rows = comb[comb["baseline"]]
     baseline = base_rows.iloc[0] if len(base_rows) else None
-    show = list(dict.fromkeys([objective, "HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW"]))
-    show = [c for c in show if c in comb.columns]
+    show = [c for c in dict.fromkeys([objective, *SHOWN]) if c in comb.columns]
     topdf = comb.iloc[order[:top]][["config", "config_hash"] + show + axes + ["overflow"]].copy()
     topdf.insert(0, "rank", np.arange(1, len(topdf) + 1))
-    lines = []
+    rep = SweepReport("", {}, topdf, pd.DataFrame(), data=full, view=df, manifest=src.manifest,
+                      directory=src.directory, baseline=baseline, folds_note=folds_note)
+    head, seqs = _headline(full, df, comb, classes, cls, objective, src.n_expected)
+    lines = [head, "", f"top {len(topdf)} configs (in-sample, COMBINED over all sequences):",
+             text_table(rep.top_with_baseline(), keys=("rank",), float_format=lambda v: f"{v:.3f}")]
+    if baseline is not None:
+        diff = [f"{a}={fmt_value(best[a])} (baseline {fmt_value(baseline[a])})" for a in axes if best[a] != baseline[a]]
+        lines.append(paragraph(f"best vs baseline: {objective} {best[objective]:.3f} vs {baseline[objective]:.3f} "
+                               f"({best[objective] - baseline[objective]:+.3f}); changed: {', '.join(diff) or 'nothing'}"))
+    rep.sensitivity = sensitivity(df, objective) if axes else pd.DataFrame()
+    lines += _sensitivity_lines(rep.sensitivity, objective)
+    rob_summary = None
+    if "distortion.kind" in df.columns and (df["distortion.kind"] != "none").any():
+        rob_lines, rob_summary = robustness_text(df, objective, top)
+        lines += ["", *rob_lines]
+        rep.curves = robustness_curves(df, [objective])
+        if src.contrast is not None:
+            con_lines, rep.contrast = contrast_text(df, src.contrast, objective)
+            lines += con_lines
+    if src.folds:
+        rep.cv = cross_validate(full, src.folds, objective, cls)
+        lines += _cv_lines(rep, src.folds, comb, axes, best, objective)
+    tune_summary = None
+    if src.manifest is not None and src.manifest.get("kind") == "tune":
+        tune_lines, tune_summary = _tune_section(src.directory, src.manifest, objective)
+        lines += tune_lines
+    rep.summary = _summary(rep, objective, comb, seqs, classes, cls, best, axes, src.folds)
+    if tune_summary is not None:
+        rep.summary["tune"] = tune_summary
+    if rob_summary is not None:
+        rep.summary["robustness"] = rob_summary
+    if rep.contrast is not None:
+        rep.summary["contrast"] = {**contrast_doc(src.contrast), "answer": rep.contrast}
+    rep.text = "\n".join(lines + ["", json.dumps(rep.summary)])
+    return rep
+
+
+def _headline(full: pd.DataFrame, df: pd.DataFrame, comb: pd.DataFrame, classes: list, cls, objective: str,
+              n_expected: int | None) -> tuple[str, int]:
+    """The report's first paragraph (what was swept, on what, ranked how) and the sequences counted."""
     name = df["sweep"].iloc[0] if "sweep" in df.columns else "sweep"
     n_cfg = int(full["config"].nunique())
     partial = f" (partial: {n_cfg} of {n_expected} configs)" if n_expected and n_expected != n_cfg else ""
@@ -116,66 +200,52 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         on = (f"the class average ({', '.join(classes)}: ratios averaged over the classes, counts summed)"
               if cls == AVERAGE else f"class {cls}" + (f" ({len(comb):,} distinct configs for it)"
                                                         if len(comb) != n_cfg else ""))
-        lines.append(paragraph(f"sweep {name}: objective {objective} ({better} is better) on {on}; {n_cfg:,} configs "
-                           f"x classes {', '.join(f'{k} ({n} sequences)' for k, n in per.items())}{partial}"))
-    else:
-        seqs = df.loc[df["sequence"] != COMBINED, "sequence"].nunique()
-        lines.append(paragraph(f"sweep {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
-                           f"({better} is better)" + (f"; class {cls}" if cls and cls != "car" else "")))
-    lines.append("")
-    lines.append(f"top {len(topdf)} configs (in-sample, COMBINED over all sequences):")
-    view = topdf.copy()
-    if baseline is not None:
-        brow = {"rank": "base", "config": baseline["config"], "config_hash": baseline["config_hash"],
-                **{c: baseline[c] for c in show + axes + ["overflow"]}}
-        view = pd.concat([view, pd.DataFrame([brow])], ignore_index=True)
-    lines.append(text_table(view, keys=("rank",), float_format=lambda v: f"{v:.3f}"))
-    if baseline is not None:
-        diff = [f"{a}={fmt_value(best[a])} (baseline {fmt_value(baseline[a])})" for a in axes if best[a] != baseline[a]]
-        lines.append(paragraph(f"best vs baseline: {objective} {best[objective]:.3f} vs {baseline[objective]:.3f} "
-                           f"({best[objective] - baseline[objective]:+.3f}); changed: {', '.join(diff) or 'nothing'}"))
-    sens = sensitivity(df, objective) if axes else pd.DataFrame()
-    if len(sens):
-        lines.append("")
-        lines.append(paragraph(f"sensitivity of {objective} per axis (spread_best: range over an axis' values of the best "
-                           f"config with that value; spread_mean: range of the means; corr: rank correlation; "
-                           f"oat_range: moving only this axis away from the best config):"))
-        lines.append(text_table(sens, keys=("axis",), float_format=lambda v: f"{v:.3f}"))
-    curves = answers = None
-    if "distortion.kind" in df.columns and (df["distortion.kind"] != "none").any():
-        rob_lines, rob_summary = robustness_text(df, objective, top)
-        lines.append("")
-        lines.extend(rob_lines)
-        curves = robustness_curves(df, [objective])
-        if contrast is not None:
-            con_lines, answers = contrast_text(df, contrast, objective)
-            lines.extend(con_lines)
-    cv = None
-    if folds:
-        cv = cross_validate(full, folds, objective, cls)
-        lines.append("")
-        lines.append(paragraph(f"{folds}-fold cross-validation over sequences (stratified by frame count"
-                           + ("; each class's sequences folded on their own" if cv.get("class") == AVERAGE else "")
-                           + "): best config chosen on the training folds, scored on the held-out fold"))
-        fold_rows = []
-        for p in cv["per_fold"]:
-            row = comb[comb["config"] == p["config"]].iloc[0]
-            changed = ", ".join(f"{a}={fmt_value(row[a])}" for a in axes if baseline is None or row[a] != baseline[a])
-            test = p["test_sequences"]
-            held = (" ".join(f"{k}:{','.join(v)}" for k, v in test.items()) if isinstance(test, Mapping)
-                    else ",".join(test))
-            fold_rows.append({"fold": p["fold"], "held_out_sequences": held,
-                              "config": p["config"], "train": p["train"], "held_out": p["held_out"],
-                              "baseline_held_out": p["baseline_held_out"], "changed": changed or "(baseline)"})
-        lines.append(text_table(pd.DataFrame(fold_rows), keys=("fold",), text=("held_out_sequences", "changed"),
+        return paragraph(f"sweep {name}: objective {objective} ({better} is better) on {on}; {n_cfg:,} configs "
+                         f"x classes {', '.join(f'{k} ({n} sequences)' for k, n in per.items())}{partial}"), seqs
+    seqs = df.loc[df["sequence"] != COMBINED, "sequence"].nunique()
+    return paragraph(f"sweep {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
+                     f"({better} is better)" + (f"; class {cls}" if cls and cls != "car" else "")), seqs
+
+
+def _sensitivity_lines(sens: pd.DataFrame, objective: str) -> list[str]:
+    if not len(sens):
+        return []
+    return ["", paragraph(f"sensitivity of {objective} per axis (spread_best: range over an axis' values of the best "
+                          f"config with that value; spread_mean: range of the means; corr: rank correlation; "
+                          f"oat_range: moving only this axis away from the best config):"),
+            text_table(sens, keys=("axis",), float_format=lambda v: f"{v:.3f}")]
+
+
+def _cv_lines(rep: SweepReport, folds: int, comb: pd.DataFrame, axes: list, best, objective: str) -> list[str]:
+    """The cross-validation's paragraphs: how, per fold, and the cross-validated figure."""
+    cv, baseline = rep.cv, rep.baseline
+    how = "stratified by frame count" + ("; each class's sequences folded on their own"
+                                         if cv.get("class") == AVERAGE else "")
+    lines = ["", paragraph(f"{folds}-fold cross-validation over sequences ("
+                           + (f"{rep.folds_note}; " if rep.folds_note else "") + how
+                           + "): best config chosen on the training folds, scored on the held-out fold")]
+    fold_rows = []
+    for p in cv["per_fold"]:
+        row = comb[comb["config"] == p["config"]].iloc[0]
+        changed = ", ".join(f"{a}={fmt_value(row[a])}" for a in axes if baseline is None or row[a] != baseline[a])
+        test = p["test_sequences"]
+        held = (" ".join(f"{k}:{','.join(v)}" for k, v in test.items()) if isinstance(test, Mapping)
+                else ",".join(test))
+        fold_rows.append({"fold": p["fold"], "held_out_sequences": held,
+                          "config": p["config"], "train": p["train"], "held_out": p["held_out"],
+                          "baseline_held_out": p["baseline_held_out"], "changed": changed or "(baseline)"})
+    lines.append(text_table(pd.DataFrame(fold_rows), keys=("fold",), text=("held_out_sequences", "changed"),
                             float_format=lambda v: f"{v:.3f}"))
-        lines.append(paragraph(f"{objective}: cross-validated {cv['cross_validated']:.3f} (each sequence scored with the "
+    lines.append(paragraph(f"{objective}: cross-validated {cv['cross_validated']:.3f} (each sequence scored with the "
                            f"config chosen without it) | in-sample best {best[objective]:.3f}"
                            + (f" | baseline {baseline[objective]:.3f}" if baseline is not None else "")))
-    tune_summary = None
-    if tune is not None:
-        tune_lines, tune_summary = _tune_section(*tune, objective)
-        lines.extend(tune_lines)
+    return lines
+
+
+def _summary(rep: SweepReport, objective: str, comb: pd.DataFrame, seqs: int, classes: list, cls, best,
+             axes: list, folds: int | None) -> dict:
+    """The JSON-able summary (the report's last line), without its tune, robustness and contrast parts."""
+    baseline, cv = rep.baseline, rep.cv
     summary = {"objective": objective, "direction": "min" if objective_direction(objective) < 0 else "max",
                "configs": int(len(comb)), "sequences": int(seqs),
                **({"class": cls} if classes else {}), **({"classes": classes} if len(classes) > 1 else {}),
@@ -190,15 +260,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         summary["folds"] = folds
         summary["mean_held_out"] = cv["mean_held_out"]
         summary["fold_configs"] = [p["config_hash"] for p in cv["per_fold"]]
-    if tune_summary is not None:
-        summary["tune"] = tune_summary
-    if curves is not None:
-        summary["robustness"] = rob_summary
-    if answers is not None:
-        summary["contrast"] = {**contrast_doc(contrast), "answer": answers}
-    lines.append("")
-    lines.append(json.dumps(summary))
-    return SweepReport("\n".join(lines), summary, topdf, sens, cv, curves, answers, full, df, manifest)
+    return summary
 
 
 def _tune_section(d: Path, manifest: dict, objective: str) -> tuple[list[str], dict]:
