@@ -6,12 +6,14 @@ from dfrmot_jax.lidar.lift import (LIFT_SETTINGS, Lifted, LiftSettings, Prepared
                                    lift_setting_name, prepare_points, with_setting)
 from dfrmot_jax.lidar.scans import check_frames, read_scan, scan_path, write_scan
 from dfrmot_jax.lidar.sim_cache import simulate_cached, simulated_name
-from dfrmot_jax.lidar.simulate import SimSettings, simulate_sequence, simulate_to_folder
-from dfrmot_jax.lidar.source import (LIDAR_PREFIX, clear_cache, lidar_dir, lift_sequence, tie_scores, to_detections3d,
-                                     write_detections3d)
+from dfrmot_jax.lidar.simulate import SIM_VERSION, SimSettings, simulate_sequence, simulate_to_folder
+from dfrmot_jax.lidar.source import (LIDAR_PREFIX, clear_cache, inputs_digest, lidar_dir, lift_sequence, tie_scores,
+                                     to_detections3d, write_detections3d)
 
 __all__ = [
-    "LIFT_SETTINGS", "LIDAR_PREFIX", "Lifted", "LiftSettings", "Prepared", "SimSettings", "check_frames", "clear_cache",
-    "lidar_dir", "lift_frames", "lift_prepared", "lift_sequence", "lift_setting_name", "prepare_points", "read_scan", "scan_path",
-    "simulate_cached", "simulate_sequence", "simulate_to_folder", "simulated_name", "tie_scores", "to_detections3d", "with_setting", "write_detections3d", "write_scan",
+    "LIFT_SETTINGS", "LIDAR_PREFIX", "Lifted", "LiftSettings", "Prepared", "SIM_VERSION", "SimSettings",
+    "check_frames", "clear_cache", "inputs_digest", "lidar_dir", "lift_frames", "lift_prepared", "lift_sequence",
+    "lift_setting_name", "prepare_points", "read_scan", "scan_path", "simulate_cached", "simulate_sequence",
+    "simulate_to_folder", "simulated_name", "tie_scores", "to_detections3d", "with_setting", "write_detections3d",
+    "write_scan",
 ]
