@@ -1,9 +1,11 @@
 """LiDAR: KITTI velodyne scans (``scans``), simulated scans (``simulate``), the authors' lifting of
 2D detections to 3D boxes by point-cloud projection (``lift``) and the lifted boxes as a 3D
-detection source, ``det3d="lidar:DIR"`` (``source``)."""
+detection source, ``det3d="lidar:DIR"`` (``source``); the lifting's first stage reads a sequence's
+scans one at a time (``prepare``)."""
 
-from dfrmot_jax.lidar.lift import (LIFT_SETTINGS, Lifted, LiftSettings, Prepared, lift_frames, lift_prepared,
-                                   lift_setting_name, prepare_points, with_setting)
+from dfrmot_jax.lidar.lift import (LIFT_SETTINGS, Lifted, LiftSettings, Prepared, lift_prepared, lift_setting_name,
+                                   with_setting)
+from dfrmot_jax.lidar.prepare import lift_frames, prepare_points
 from dfrmot_jax.lidar.scans import check_frames, read_scan, scan_path, write_scan
 from dfrmot_jax.lidar.sim_cache import simulate_cached, simulated_name
 from dfrmot_jax.lidar.simulate import SIM_VERSION, SimSettings, simulate_sequence, simulate_to_folder

@@ -45,7 +45,8 @@ import numpy as np
 from ..io.atomic import write_text_atomic
 from ..io.kitti import Calib, Detections2D, Detections3D, KittiFormatError
 from ..io.memo import FileMemo
-from .lift import PREPARE_FIELDS, Lifted, LiftSettings, Prepared, detection_boxes, lift_prepared, prepare_points
+from .lift import PREPARE_FIELDS, Lifted, LiftSettings, Prepared, detection_boxes, lift_prepared
+from .prepare import prepare_points
 from .scans import check_frames, read_scan, scan_stamps
 
 __all__ = ["LIDAR_PREFIX", "lidar_dir", "to_detections3d", "inputs_digest", "lift_sequence", "write_detections3d",
@@ -133,7 +134,8 @@ def lift_sequence(scan_dir, sequence: str, n_frames: int, det2: Detections2D, ca
     module docstring) hold a digest of ``det2`` and ``calib`` themselves (:func:`inputs_digest`) and
     the size and mtime of every scan. Every frame ``0 .. n_frames - 1`` must have a scan
     (KittiFormatError naming the first missing one); only the frames with a kept detection are
-    read.
+    read, one at a time (:func:`~dfrmot_jax.lidar.prepare.prepare_points` with a reader: memory
+    bounded by one scan plus what the boxes keep).
     """
     s = settings.validate()
     scan_dir = Path(scan_dir)
@@ -145,10 +147,7 @@ def lift_sequence(scan_dir, sequence: str, n_frames: int, det2: Detections2D, ca
             inputs_digest(det2, calib))
 
     def prepare() -> Prepared:
-        keep, _ = detection_boxes(det2.box, det2.score, s.score_cut)
-        frames = np.unique(np.asarray(det2.frame)[keep])
-        scans = {int(f): read_scan(paths[int(f)]) for f in frames}
-        return prepare_points(scans, det2.frame, det2.box, det2.score, calib, s)
+        return prepare_points(lambda f: read_scan(paths[f]), det2.frame, det2.box, det2.score, calib, s)
 
     def lift() -> Detections3D:
         prep = _PREPARED.get(base + tuple(getattr(s, f) for f in PREPARE_FIELDS), None, prepare)
