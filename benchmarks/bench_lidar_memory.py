@@ -122,7 +122,7 @@ def main() -> None:
     ap.add_argument("--commit", default=None, help="the commit of --child-path where it is no git work tree")
     ap.add_argument("--estimate", action="store_true", help="also count what the whole-sequence path held")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                    help="a lifting setting (e.g. crop_lo=0.5,-20,-2: the ground kept, a crop as full as a real scan's)")
+                    help="a lifting setting (crop_lo=0.5,-20,-2: the ground kept, a crop as full as a real scan's)")
     ap.add_argument("--child", nargs=4, metavar=("ROOT", "SCANS", "SEQ", "N"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -155,8 +155,9 @@ def main() -> None:
     got = json.loads(proc.stdout.strip().splitlines()[-1])
     load1 = os.getloadavg()
     out = {"benchmark": "lidar_memory", "sequence": seq, "frames": n, "az_step": args.az_step, "fov": 180.0,
-           "beams": settings.beams, "points_per_scan": round(sum(sizes) / 16 / n), "scan_gb": round(sum(sizes) / 1e9, 2),
-           "simulate_s": round(simulate_s, 1), "lift_settings": args.set, **got, "commit": args.commit or git_commit(Path(args.child_path)),
+           "beams": settings.beams, "points_per_scan": round(sum(sizes) / 16 / n),
+           "scan_gb": round(sum(sizes) / 1e9, 2), "simulate_s": round(simulate_s, 1), "lift_settings": args.set, **got,
+           "commit": args.commit or git_commit(Path(args.child_path)),
            "load_before": [round(v, 2) for v in load0], "load_after": [round(v, 2) for v in load1]}
     if args.estimate:
         out.update(old_path_estimate(root, folder, seq, lift_settings(args.set)))
