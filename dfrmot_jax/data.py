@@ -194,8 +194,7 @@ def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
                                        f"{kind} detection at frame {int(det.frame[row])} beyond the sequence "
                                        f"({lengths[name]} frames)")
         if scans is not None:
-            det3 = lift_sequence(scans, name, lengths[name], det2, calib, lift or LiftSettings(), cls,
-                                 stamp_files=(p2, calib_path))
+            det3 = lift_sequence(scans, name, lengths[name], det2, calib, lift or LiftSettings(), cls)
             out.append(SequenceDets(name=name, n_frames=lengths[name], det2d=det2, det3d=det3, calib=calib,
                                     fused3d=True))
             continue

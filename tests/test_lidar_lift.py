@@ -6,7 +6,8 @@ import pytest
 
 from dfrmot_jax.io.kitti import Calib
 from dfrmot_jax.lidar.lift import (LiftSettings, assign_points, crop_mask, detection_boxes, largest_clusters,
-                                   lift_frames, project_pixels, shrunk_boxes, velo_to_image, voxel_grid)
+                                   project_pixels, shrunk_boxes, velo_to_image, voxel_grid)
+from dfrmot_jax.lidar.prepare import lift_frames
 
 F32 = np.float32
 

@@ -103,3 +103,28 @@ def test_written_detection_folder_reads_back_the_same(scene, tmp_path):
     assert set(back.type) == {"Car"}
     # KITTI camera box: bottom centre below the geometric centre, heading along the camera's z
     assert np.all(det.dims > 0) and np.allclose(det.rot_y, -np.pi / 2, atol=0.05)
+
+
+def same_detections(a, b) -> bool:
+    return all(np.array_equal(getattr(a, n), getattr(b, n)) for n in ("frame", "box", "score", "dims", "loc",
+                                                                       "rot_y", "alpha"))
+
+
+def test_cache_sees_changed_detections_and_calibration(scene):
+    """The cache keys on the 2D detections and the calibration themselves: a direct caller passing
+    other values for the same scans gets them lifted, not the cached lifting of the first."""
+    root, scans = scene
+    clear_cache()
+    det2 = read_detections_2d(root / "detections" / "synth2d" / "car" / "0000.txt")
+    calib = read_calib(root / "calib" / "0000.txt")
+    a = lift_sequence(scans, "0000", 40, det2, calib)
+    copy = det2._replace(box=det2.box.copy())
+    assert lift_sequence(scans, "0000", 40, copy, calib._replace(P2=calib.P2.copy())) is a   # equal values: cached
+    moved = det2._replace(box=det2.box + 7.0)
+    tilted = calib._replace(Tr_velo_to_cam=calib.Tr_velo_to_cam + np.array([[0, 0, 0, 0.3], [0, 0, 0, 0],
+                                                                             [0, 0, 0, 0]]))
+    changed = [lift_sequence(scans, "0000", 40, moved, calib), lift_sequence(scans, "0000", 40, det2, tilted)]
+    clear_cache()
+    fresh = [lift_sequence(scans, "0000", 40, moved, calib), lift_sequence(scans, "0000", 40, det2, tilted)]
+    for got, want in zip(changed, fresh):
+        assert got is not a and same_detections(got, want) and not same_detections(got, a)

@@ -15,7 +15,6 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .columns import format_lines
-from .memo import file_stamps as file_stamps   # (lidar/ imports it from here)
 from .plain_table import first_line, plain_columns, plain_text
 
 __all__ = [

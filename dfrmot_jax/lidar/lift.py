@@ -26,14 +26,15 @@ the calls commented out in ``main.cpp``, enabled in its order) and of the PCL th
    3D box is the min / max corner of that cluster (``pcl::getMinMax3D``), in LiDAR coordinates. A
    detection without such a cluster gets no box.
 
-Everything is vectorised over all frames of a sequence: points of all frames are one array with a
-frame (or detection) index, cells are ``numpy.unique`` of packed integer keys, the clusters are the
-connected components (``scipy.sparse.csgraph``) of one radius graph (``scipy.spatial.cKDTree`` on
-(x, y, z, group * 1000 m), so that no two groups touch) whose pairs are re-checked with the strict
-float32 rule. Work is split in two stages so that lifting again with another shrink (or cluster)
-setting reuses the first: :func:`prepare_points` (voxel grid, crop, projection; only points inside
-some detection's unshrunk box are kept, which every shrink in [0, 1) leaves exact) and
-:func:`lift_prepared`.
+The rules are vectorised: cells are ``numpy.unique`` of packed integer keys (several clouds at
+once with a group index), the clusters are the connected components (``scipy.sparse.csgraph``) of
+one radius graph over all detections of a sequence (``scipy.spatial.cKDTree`` on (x, y, z, group *
+1000 m), so that no two groups touch) whose pairs are re-checked with the strict float32 rule.
+Work is split in two stages so that lifting again with another shrink (or cluster) setting reuses
+the first: stage 1 (voxel grid, crop, projection; only points inside some detection's unshrunk box
+are kept, which every shrink in [0, 1) leaves exact; :class:`Prepared`) reads one scan at a time
+(:func:`dfrmot_jax.lidar.prepare.prepare_points`), and :func:`lift_prepared` (stage 2: shrunk
+boxes, assignment in blocks of points, clusters) works on what it kept.
 """
 
 from __future__ import annotations
@@ -48,9 +49,9 @@ from scipy.spatial import cKDTree
 from ..core.boxes import truncate_2d_box
 from ..io.kitti import Calib
 
-__all__ = ["LiftSettings", "LIFT_SETTINGS", "lift_setting_name", "with_setting", "Prepared", "Lifted", "velo_to_image", "voxel_grid", "crop_mask",
-           "project_pixels", "detection_boxes", "shrunk_boxes", "assign_points", "largest_clusters",
-           "prepare_points", "lift_prepared", "lift_frames"]
+__all__ = ["LiftSettings", "LIFT_SETTINGS", "PREPARE_FIELDS", "lift_setting_name", "with_setting", "Prepared", "Lifted",
+           "velo_to_image", "voxel_grid", "crop_mask", "project_pixels", "detection_boxes", "shrunk_boxes", "contains",
+           "assign_points", "largest_clusters", "frame_slots", "lift_prepared"]
 
 
 class LiftSettings(NamedTuple):
@@ -232,19 +233,33 @@ def shrunk_boxes(rect, shrink: float) -> np.ndarray:
     return np.stack([nx, ny, nw.astype(np.float64), nh.astype(np.float64)], axis=-1).astype(np.int64)
 
 
-def assign_points(pix, frame_of_point, rects, valid) -> np.ndarray:
+def contains(rects, pix) -> np.ndarray:
+    """[n, D] bool: OpenCV ``Rect::contains`` of the pixels pix [n, 2] in rects [D, 4] (the same for
+    every pixel) or [n, D, 4] (x, y, w, h): ``x <= px < x + w`` and ``y <= py < y + h``."""
+    r = np.asarray(rects)
+    px, py = pix[:, 0:1], pix[:, 1:2]
+    return (r[..., 0] <= px) & (px < r[..., 0] + r[..., 2]) & (r[..., 1] <= py) & (py < r[..., 1] + r[..., 3])
+
+
+def assign_points(pix, frame_of_point, rects, valid, block: int = 1 << 20) -> np.ndarray:
     """[N] int64: the detection slot each point belongs to, -1 for none.
 
     pix [N, 2] int pixels; frame_of_point [N] index into the padded per-frame detections
     rects [F, D, 4] (x, y, w, h) and valid [F, D]. A point belongs to the one valid detection whose
-    rect contains it (``x <= px < x + w``, ``y <= py < y + h``); in two or more: to none.
+    rect contains it (``x <= px < x + w``, ``y <= py < y + h``); in two or more: to none. Computed
+    over blocks of points, at most ``block`` (point, slot) pairs at a time ([block / D, D, 4]
+    gathered rects), so memory does not grow with N.
     """
-    r = np.asarray(rects)[frame_of_point]                                   # [N, D, 4]
-    v = np.asarray(valid)[frame_of_point]
-    px, py = pix[:, 0:1], pix[:, 1:2]
-    inside = v & (r[..., 0] <= px) & (px < r[..., 0] + r[..., 2]) & (r[..., 1] <= py) & (py < r[..., 1] + r[..., 3])
-    n_in = inside.sum(axis=1)
-    return np.where(n_in == 1, np.argmax(inside, axis=1), -1)
+    pix = np.asarray(pix)
+    fop = np.asarray(frame_of_point, np.int64)
+    rects, valid = np.asarray(rects), np.asarray(valid)
+    step = max(1, int(block) // max(rects.shape[1], 1))
+    owner = np.full(pix.shape[0], -1, np.int64)
+    for a in range(0, pix.shape[0], step):
+        f = fop[a:a + step]
+        inside = valid[f] & contains(rects[f], pix[a:a + step])              # [b, D]
+        owner[a:a + step] = np.where(inside.sum(axis=1) == 1, np.argmax(inside, axis=1), -1)
+    return owner
 
 
 def largest_clusters(points, group, n_groups: int, tolerance: float, min_cluster: int):
@@ -325,7 +340,7 @@ class Lifted(NamedTuple):
     hi: np.ndarray
 
 
-def _frame_slots(det_frame: np.ndarray):
+def frame_slots(det_frame: np.ndarray):
     """Padded per-frame layout of detections in row order: (frames [F] unique, f_idx [D], slot [D], D_max)."""
     frames, f_idx = np.unique(det_frame, return_inverse=True)
     order = np.argsort(f_idx, kind="stable")
@@ -336,65 +351,13 @@ def _frame_slots(det_frame: np.ndarray):
     return frames, f_idx.reshape(-1), slot, int(counts.max(initial=0))
 
 
-def _cells_in(scan, inv, clo, chi) -> np.ndarray:
-    """[n, 3] the points of a scan whose float32 cell ``floor(p * inv)`` lies in [clo, chi) on every
-    axis (z first: the ground goes at once); ``floor(a) >= k`` is ``a >= k`` for a whole k."""
-    a = scan[:, 2] * inv
-    idx = np.flatnonzero((a >= clo[2]) & (a < chi[2]))
-    pts = scan[idx, :3]
-    ax, ay = pts[:, 0] * inv, pts[:, 1] * inv
-    return pts[(ax >= clo[0]) & (ax < chi[0]) & (ay >= clo[1]) & (ay < chi[1])]
-
-
-def prepare_points(scans, det_frame, det_box, det_score, calib: Calib, settings: LiftSettings) -> Prepared:
-    """Stage 1 for one sequence: ``scans`` maps frame -> ``[N, 4]`` (or ``[N, 3]``) float32 points (at
-    least every frame with a kept detection); det_frame [R], det_box [R, 4] (x1, y1, x2, y2),
-    det_score [R]: the sequence's 2D detections, file order."""
-    s = settings.validate()
-    det_frame = np.asarray(det_frame, np.int64).reshape(-1)
-    keep, rect = detection_boxes(det_box, det_score, s.score_cut)
-    rows = np.flatnonzero(keep)
-    dframe, rect = det_frame[rows], rect[rows]
-    frames, f_idx, slot, dmax = _frame_slots(dframe)
-    empty = Prepared(rows, dframe, rect, np.zeros((0, 3), np.float32), np.zeros(0, np.int64),
-                     np.zeros((0, 2), np.int64))
-    if not rows.size:
-        return empty
-    missing = [int(f) for f in frames if int(f) not in scans]
-    if missing:
-        raise ValueError(f"prepare_points: no scan for frame(s) {missing[:5]}")
-    inv = np.float32(1.0) / np.float32(s.leaf)
-    lo32, hi32 = np.asarray(s.crop_lo, np.float32), np.asarray(s.crop_hi, np.float32)
-    # cells whose centroid could fall in the crop (one cell of margin for rounding); the rest never can
-    clo = np.floor(lo32 * inv) - np.float32(1)
-    chi = np.floor(hi32 * inv) + np.float32(2)
-    clouds = [_cells_in(np.asarray(scans[int(f)], np.float32), inv, clo, chi) for f in frames]
-    pts = np.concatenate(clouds) if clouds else np.zeros((0, 3), np.float32)
-    fi = np.repeat(np.arange(frames.size), [c.shape[0] for c in clouds])
-    cent, cfi = voxel_grid(pts, fi, s.leaf)
-    ok = crop_mask(cent, s.crop_lo, s.crop_hi)
-    cent, cfi = cent[ok], cfi[ok]
-    pix = project_pixels(cent, velo_to_image(calib))
-    rects = np.zeros((frames.size, max(dmax, 1), 4), np.int64)
-    valid = np.zeros((frames.size, max(dmax, 1)), bool)
-    rects[f_idx, slot] = rect
-    valid[f_idx, slot] = True
-    # unshrunk boxes grown by one pixel: every shrunk box in [0, 1) lies inside
-    grown = rects + np.array([-1, -1, 2, 2])
-    r = grown[cfi]
-    px, py = pix[:, 0:1], pix[:, 1:2]
-    in_any = np.any(valid[cfi] & (r[..., 0] <= px) & (px < r[..., 0] + r[..., 2]) & (r[..., 1] <= py)
-                    & (py < r[..., 1] + r[..., 3]), axis=1)
-    return Prepared(rows, dframe, rect, cent[in_any], frames[cfi[in_any]], pix[in_any])
-
-
 def lift_prepared(prep: Prepared, settings: LiftSettings) -> Lifted:
     """Stage 2: shrunk boxes, exclusive assignment, the largest Euclidean cluster of each detection."""
     s = settings.validate()
     if not prep.rows.size or not prep.points.shape[0]:
         z = np.zeros((0, 3), np.float32)
         return Lifted(np.zeros(0, np.int64), z, z.copy())
-    frames, f_idx, slot, dmax = _frame_slots(prep.det_frame)
+    frames, f_idx, slot, dmax = frame_slots(prep.det_frame)
     rects = np.zeros((frames.size, dmax, 4), np.int64)
     valid = np.zeros((frames.size, dmax), bool)
     rects[f_idx, slot] = shrunk_boxes(prep.rect, s.shrink)
@@ -407,8 +370,3 @@ def lift_prepared(prep: Prepared, settings: LiftSettings) -> Lifted:
     det = det_of_slot[pf[mine], owner[mine]]
     found, lo, hi = largest_clusters(prep.points[mine], det, prep.rows.size, s.tolerance, s.min_cluster)
     return Lifted(prep.rows[found], lo[found], hi[found])
-
-
-def lift_frames(scans, det_frame, det_box, det_score, calib: Calib, settings: LiftSettings = LiftSettings()) -> Lifted:
-    """Both stages: the lifted boxes of one sequence's 2D detections (see :func:`prepare_points`)."""
-    return lift_prepared(prepare_points(scans, det_frame, det_box, det_score, calib, settings), settings)

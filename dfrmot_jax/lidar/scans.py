@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io.atomic import atomic_write
-from ..io.kitti import KittiFormatError, file_stamps
+from ..io.kitti import KittiFormatError
+from ..io.memo import file_stamps
 
 __all__ = ["POINT_BYTES", "FIELDS", "scan_path", "read_scan", "write_scan", "check_frames", "scan_stamps"]
 

@@ -3,11 +3,17 @@
 
 ``OUT/simulated/<name>/velodyne/SSSS/FFFFFF.bin`` with ``<name>`` = the beam count and a hash of the
 settings and seed (``b32-1f0c...``). A sequence is simulated once: its scans are written
-(atomically, one file each), then a marker ``OUT/simulated/<name>/done/SSSS.json`` holding the
-settings, the seed, the frame count and the size and mtime of the labels and calibration it was
-made from; a sequence whose marker is missing or differs (labels changed) is simulated again. Two
-processes simulating the same sequence at once write the same bytes (the simulation is
-deterministic per sequence, frame and seed), so no lock is needed.
+(atomically, one file each), then a marker ``OUT/simulated/<name>/done/SSSS.json``. The marker is
+the cache's key, and names everything the scans depend on: the simulator's version
+(:data:`~dfrmot_jax.lidar.simulate.SIM_VERSION`), the settings, the seed, the sequence, the frame
+count and a SHA-256 digest of the bytes of the label and calibration files they were made from. A
+sequence whose marker is missing or differs (labels or calibration changed, another simulator
+version, a marker written before versions existed) is simulated again in the same folder, its old
+scans overwritten. Two processes simulating the same sequence at once write the same bytes (the
+simulation is deterministic per sequence, frame and seed), so no lock is needed.
+
+Scans changed or removed by hand after their marker was written are not noticed here (a removed
+one is, when lifting: a located error naming the frame).
 """
 
 from __future__ import annotations
@@ -17,10 +23,10 @@ import json
 from pathlib import Path
 
 from ..io.atomic import write_text_atomic
-from ..io.kitti import file_stamps, read_calib, read_tracking_labels
-from .simulate import SimSettings, simulate_to_folder
+from ..io.kitti import read_calib, read_tracking_labels
+from .simulate import SIM_VERSION, SimSettings, simulate_to_folder
 
-__all__ = ["simulated_name", "simulate_cached"]
+__all__ = ["simulated_name", "simulate_cached", "marker_text"]
 
 
 def simulated_name(settings: SimSettings, seed: int = 0) -> str:
@@ -30,23 +36,41 @@ def simulated_name(settings: SimSettings, seed: int = 0) -> str:
     return f"b{int(s.beams)}-{hashlib.sha1(doc.encode()).hexdigest()[:12]}"
 
 
+def _file_digest(path: Path) -> str | None:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def marker_text(root, sequence: str, n_frames: int, settings: SimSettings, seed: int = 0) -> str:
+    """The marker (JSON text) of one sequence's scans simulated now: the simulator's version, the
+    settings, the seed, the sequence, the frame count and the digests of ``root``'s label and
+    calibration files of the sequence (None for a missing one)."""
+    root = Path(root)
+    values = {k: float(v) for k, v in settings.validate()._asdict().items()}
+    return json.dumps({"version": SIM_VERSION, "settings": values, "seed": int(seed),
+                       "sequence": str(sequence), "frames": int(n_frames),
+                       "label_sha256": _file_digest(root / "label_02" / f"{sequence}.txt"),
+                       "calib_sha256": _file_digest(root / "calib" / f"{sequence}.txt")}, sort_keys=True)
+
+
 def simulate_cached(out, root, sequences, lengths, settings: SimSettings = SimSettings(), seed: int = 0) -> Path:
     """The folder holding simulated scans of ``sequences`` (``lengths``: their frame counts) of the
     KITTI root ``root`` for one setting, simulated into ``out/simulated/<name>/`` where missing or
-    stale; returns that folder (a ``lidar:DIR`` folder)."""
+    stale (the module docstring); returns that folder (a ``lidar:DIR`` folder)."""
     s = settings.validate()
     folder = Path(out) / "simulated" / simulated_name(s, seed)
     root = Path(root)
     for seq, n in zip(sequences, lengths):
-        label, calib = root / "label_02" / f"{seq}.txt", root / "calib" / f"{seq}.txt"
         marker = folder / "done" / f"{seq}.json"
-        want = json.dumps({"settings": s._asdict(), "seed": int(seed), "frames": int(n),
-                           "stamps": [list(x) if x else None for x in file_stamps([label, calib])]}, sort_keys=True)
+        want = marker_text(root, str(seq), int(n), s, seed)
         try:
             if marker.read_text(encoding="utf-8") == want:
                 continue
         except OSError:
             pass
-        simulate_to_folder(folder, read_tracking_labels(label), read_calib(calib), int(n), str(seq), s, int(seed))
+        simulate_to_folder(folder, read_tracking_labels(root / "label_02" / f"{seq}.txt"),
+                           read_calib(root / "calib" / f"{seq}.txt"), int(n), str(seq), s, int(seed))
         write_text_atomic(marker, want)
     return folder

@@ -20,6 +20,10 @@ with ``numpy.repeat``), slab tests for all those rays at once, the nearest hit p
 
 Points are ``[N, 4]`` float32 ``x y z reflectance`` in beam-major order (reflectance 0.5 on boxes,
 0.2 on the ground, 0.05 for clutter).
+
+:data:`SIM_VERSION` names the simulator's output: bump it with any change that gives other scans
+for the same settings, seed, labels and calibration (the scan cache, :mod:`.sim_cache`, then
+simulates again what an older version made).
 """
 
 from __future__ import annotations
@@ -34,8 +38,11 @@ from ..geometry import box3d_corners
 from ..io.kitti import Calib, TrackingLabels
 from .scans import scan_path, write_scan
 
-__all__ = ["SimSettings", "Sensor", "sensor", "velo_boxes", "cast_frame", "frame_rng", "simulate_sequence",
-           "simulate_to_folder"]
+__all__ = ["SIM_VERSION", "SimSettings", "Sensor", "sensor", "velo_boxes", "cast_frame", "frame_rng",
+           "simulate_sequence", "simulate_to_folder"]
+
+#: the simulator's version: bumped whenever its scans change for the same inputs (module docstring)
+SIM_VERSION = 1
 
 
 class SimSettings(NamedTuple):

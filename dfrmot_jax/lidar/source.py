@@ -25,30 +25,36 @@ detection: ``score_3d == score_2d`` (the lifted score is the 2D score; :func:`ti
 ``merge_iou < 1``. Lifting used the 2D rows at or above ``LiftSettings.score_cut``; a tracker
 ``score_2d`` equal to it is the authors' setting.
 
-Lifting is cached in memory per (scan folder, sequence, class, lifting settings, the size and
-mtime of every scan, of the 2D detection file and of the calibration), the first stage (voxel
-grid, crop, projection) separately, so that another shrink, tolerance or minimum cluster size
-reuses it. Scans themselves are never kept.
+Lifting is cached in memory (:func:`lift_sequence`), the first stage (voxel grid, crop,
+projection) separately, so that another shrink, tolerance or minimum cluster size reuses it. Both
+keys name everything their value is made from: the scan folder, the sequence, its frame count, the
+size and mtime of every scan, a SHA-256 digest of the 2D detections' arrays and of the
+calibration's arrays themselves (so a caller passing changed ``det2`` or ``calib`` for the same
+scans gets a new lifting, whatever files they came from), the class, and the lifting settings (the
+first stage: ``PREPARE_FIELDS``; the whole lifting: all of them). Scans themselves are never kept.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import hashlib
+
 import numpy as np
 
 from ..io.atomic import write_text_atomic
-from ..io.kitti import Calib, Detections2D, Detections3D, KittiFormatError, file_stamps
+from ..io.kitti import Calib, Detections2D, Detections3D, KittiFormatError
 from ..io.memo import FileMemo
-from .lift import PREPARE_FIELDS, Lifted, LiftSettings, Prepared, detection_boxes, lift_prepared, prepare_points
+from .lift import PREPARE_FIELDS, Lifted, LiftSettings, Prepared, detection_boxes, lift_prepared
+from .prepare import prepare_points
 from .scans import check_frames, read_scan, scan_stamps
 
-__all__ = ["LIDAR_PREFIX", "lidar_dir", "to_detections3d", "lift_sequence", "write_detections3d", "tie_scores",
-           "clear_cache"]
+__all__ = ["LIDAR_PREFIX", "lidar_dir", "to_detections3d", "inputs_digest", "lift_sequence", "write_detections3d",
+           "tie_scores", "clear_cache"]
 
 LIDAR_PREFIX = "lidar:"
 _KITTI_TYPE = {"car": "Car", "pedestrian": "Pedestrian"}
-_PREPARED = FileMemo(size=256)     # keys hold the files' stamps: stamp None
+_PREPARED = FileMemo(size=256)     # keys hold the scans' stamps and the inputs' digests: stamp None
 _LIFTED = FileMemo(size=256)
 
 
@@ -106,14 +112,31 @@ def clear_cache() -> None:
     _LIFTED.clear()
 
 
+def inputs_digest(*values) -> str:
+    """SHA-256 (hex) of NamedTuples of arrays (``Detections2D``, ``Calib``): every field's name, dtype,
+    shape and bytes, in field order; what the lifting caches key on instead of the files' stamps."""
+    h = hashlib.sha256()
+    for value in values:
+        for name, arr in zip(value._fields, value):
+            a = np.ascontiguousarray(arr)
+            if a.dtype == object:
+                raise TypeError(f"inputs_digest: field {name} is an object array")
+            h.update(f"{type(value).__name__}.{name}:{a.dtype.str}:{a.shape};".encode())
+            h.update(a.tobytes())
+    return h.hexdigest()
+
+
 def lift_sequence(scan_dir, sequence: str, n_frames: int, det2: Detections2D, calib: Calib,
-                  settings: LiftSettings = LiftSettings(), cls: str = "car", stamp_files=()) -> Detections3D:
+                  settings: LiftSettings = LiftSettings(), cls: str = "car") -> Detections3D:
     """The lifted 3D detections of one sequence from ``scan_dir/velodyne/SSSS/*.bin`` (cached).
 
-    det2: the sequence's 2D detections (file order); calib: its calibration; stamp_files: the files
-    ``det2`` and ``calib`` were read from (their size and mtime join the cache key). Every frame
-    ``0 .. n_frames - 1`` must have a scan (KittiFormatError naming the first missing or unreachable
-    one, with the system's reason for the latter); only the frames with a kept detection are read.
+    det2: the sequence's 2D detections (file order); calib: its calibration. The cache keys (the
+    module docstring) hold a digest of ``det2`` and ``calib`` themselves (:func:`inputs_digest`) and
+    the size and mtime of every scan. Every frame ``0 .. n_frames - 1`` must have a scan
+    (KittiFormatError naming the first missing or unreachable one, with the system's reason
+    for the latter); only the frames with a kept detection are
+    read, one at a time (:func:`~dfrmot_jax.lidar.prepare.prepare_points` with a reader: memory
+    bounded by one scan plus what the boxes keep).
     """
     s = settings.validate()
     scan_dir = Path(scan_dir)
@@ -128,13 +151,10 @@ def lift_sequence(scan_dir, sequence: str, n_frames: int, det2: Detections2D, ca
         raise KittiFormatError(str(scan_dir), None, None, f"{why} (lidar:DIR expects DIR/velodyne/SSSS/FFFFFF.bin)")
     paths = check_frames(scan_dir, sequence, n_frames)
     base = (str(scan_dir.resolve()), str(sequence), int(n_frames), cls, scan_stamps(scan_dir, sequence, n_frames),
-            file_stamps(stamp_files))
+            inputs_digest(det2, calib))
 
     def prepare() -> Prepared:
-        keep, _ = detection_boxes(det2.box, det2.score, s.score_cut)
-        frames = np.unique(np.asarray(det2.frame)[keep])
-        scans = {int(f): read_scan(paths[int(f)]) for f in frames}
-        return prepare_points(scans, det2.frame, det2.box, det2.score, calib, s)
+        return prepare_points(lambda f: read_scan(paths[f]), det2.frame, det2.box, det2.score, calib, s)
 
     def lift() -> Detections3D:
         prep = _PREPARED.get(base + tuple(getattr(s, f) for f in PREPARE_FIELDS), None, prepare)
