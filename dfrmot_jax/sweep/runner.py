@@ -20,7 +20,8 @@ from .chunks import progress_bar
 from .lidar_axes import describe_key
 from .plan import Chunk, DataSettings, check_memory, plan, resolve_data_all
 from .spec import SweepSpec, as_spec
-from .store import chunk_path, finish_table, finished_chunks, write_chunk, write_manifest, write_results
+from .store import (chunk_path, computed_by, finish_table, finished_chunks, write_chunk, write_manifest,
+                    write_results)
 from .table import RAW_COLUMN, expand, n_settings
 
 
@@ -114,11 +115,13 @@ def _run(spec: SweepSpec, table: pd.DataFrame, datas, chunks, outdir: Path | Non
          log, compact: bool, raw: bool) -> pd.DataFrame:
     """The sweep itself, in its folder (claimed here, locked by the caller) or in memory."""
     done: set[str] = set()
+    computed = computed_by(datas)
     if outdir is not None:
         legacy = write_manifest(outdir, spec, datas, table, chunks, force=force)
         done, damaged = finished_chunks(outdir, table, chunks, datas, legacy)
         if damaged:
-            log(f"sweep {spec.name}: {len(damaged)} chunk file(s) damaged or not recorded, recomputed: "
+            log(f"sweep {spec.name}: {len(damaged)} chunk file(s) damaged, not recorded or computed by another "
+                "version, recomputed: "
                 + "; ".join(damaged))
     frames_out: dict[str, pd.DataFrame] = {}
     for d in datas:
@@ -142,7 +145,7 @@ def _run(spec: SweepSpec, table: pd.DataFrame, datas, chunks, outdir: Path | Non
         if todo:
             def keep(c: Chunk, df: pd.DataFrame) -> None:
                 if outdir is not None:
-                    write_chunk(outdir, c, df)
+                    write_chunk(outdir, c, df, computed)
                 else:
                     frames_out[c.id] = df
 

@@ -33,7 +33,8 @@ from ..metrics.evaluate import RAW_FIELDS, class_average_columns, class_combiner
 from .folder import SweepDirectoryError, claim
 from .plan import Chunk, DataSettings
 from .spec import AVERAGE, LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, SweepSpec, contrast_doc, extra_axes
-from ..version import __version__
+from ..lidar import SIM_VERSION
+from ..version import RESULTS_VERSION, __version__
 from .table import COMBINED, HASH_VERSION, RAW_COLUMN, class_columns
 
 #: The ledger of a sweep directory (module docstring).
@@ -102,6 +103,15 @@ def chunk_path(out: Path, chunk: Chunk) -> Path:
 class _Record(NamedTuple):
     sha256: str
     rows: int
+    computed: str = "1"         # what the rows were computed with (:func:`computed_by`); "1": not recorded
+
+
+def computed_by(datas: Sequence[DataSettings]) -> str:
+    """What a sweep's chunk rows are computed with: ``RESULTS_VERSION`` (``version.py``), and the LiDAR
+    simulator's ``SIM_VERSION`` when some class's scans are simulated. A chunk recorded with another
+    value is recomputed on resume (:func:`finished_chunks`)."""
+    sim = any(d.lidar is not None and d.lidar[1] is not None for d in datas)
+    return f"{RESULTS_VERSION}" + (f"+sim{SIM_VERSION}" if sim else "")
 
 
 def _read_ledger(out: Path) -> dict[str, _Record]:
@@ -114,7 +124,7 @@ def _read_ledger(out: Path) -> dict[str, _Record]:
     for line in lines:
         try:
             doc = json.loads(line)
-            name, rec = doc["file"], _Record(doc["sha256"], doc["rows"])
+            name, rec = doc["file"], _Record(doc["sha256"], doc["rows"], str(doc.get("computed", "1")))
         except (ValueError, KeyError, TypeError):
             continue
         if isinstance(name, str) and isinstance(rec.sha256, str) and len(rec.sha256) == 64 and \
@@ -124,19 +134,20 @@ def _read_ledger(out: Path) -> dict[str, _Record]:
 
 
 def _ledger_line(name: str, rec: _Record) -> str:
-    return json.dumps({"file": name, "sha256": rec.sha256, "rows": rec.rows}) + "\n"
+    return json.dumps({"file": name, "sha256": rec.sha256, "rows": rec.rows, "computed": rec.computed}) + "\n"
 
 
-def _record(out: Path, name: str, digest: str, rows: int) -> None:
+def _record(out: Path, name: str, digest: str, rows: int, computed: str = "1") -> None:
     """Append the record of a file just put in place."""
     path = out / LEDGER
     with naming(path), open(path, "a", encoding="utf-8") as f:
-        f.write(_ledger_line(name, _Record(digest, int(rows))))
+        f.write(_ledger_line(name, _Record(digest, int(rows), computed)))
 
 
-def write_chunk(out: Path, chunk: Chunk, df: pd.DataFrame) -> None:
-    """Write a chunk's table atomically, then its ledger record."""
-    _record(out, _chunk_name(chunk.id), write_parquet_atomic(chunk_path(out, chunk), df, digest=True), len(df))
+def write_chunk(out: Path, chunk: Chunk, df: pd.DataFrame, computed: str) -> None:
+    """Write a chunk's table atomically, then its ledger record (``computed``: :func:`computed_by`)."""
+    _record(out, _chunk_name(chunk.id), write_parquet_atomic(chunk_path(out, chunk), df, digest=True), len(df),
+            computed)
 
 
 def write_results(out: Path, df: pd.DataFrame) -> None:
@@ -160,10 +171,12 @@ def _problem(path: Path, rec: _Record | None, rows: int | None = None) -> str | 
 def finished_chunks(out: Path, table: pd.DataFrame, chunks: Sequence[Chunk], datas: Sequence[DataSettings],
                     legacy: bool = False) -> tuple[set[str], list[str]]:
     """(ids of the chunks whose file matches its ledger record, ``"chunks/<id>.parquet (why)"`` of
-    the chunk files that do not: to recompute). ``legacy``: a directory written before the ledger,
+    the chunk files that do not, or were computed by another version (:func:`computed_by`): to
+    recompute). ``legacy``: a directory written before the ledger,
     whose unrecorded chunks are checked by content instead (readable, their rows, chunk id and
     config hashes) and recorded. The ledger is rewritten with the records of the finished chunks."""
     sequences = {d.cls: len(d.sequences) for d in datas}
+    now = computed_by(datas)
     ledger = _read_ledger(out)
     keep: dict[str, _Record] = {}
     damaged = []
@@ -175,6 +188,8 @@ def finished_chunks(out: Path, table: pd.DataFrame, chunks: Sequence[Chunk], dat
         problem = _problem(path, ledger.get(name), rows)
         if problem == _NO_RECORD and legacy and _legacy_chunk_ok(path, c, table, rows):
             ledger[name], problem = _Record(sha256(path), rows), None
+        if problem is None and ledger[name].computed != now:
+            problem = f"computed by results version {ledger[name].computed}, this one is {now}"
         if problem is None:
             keep[name] = ledger[name]
         else:
