@@ -202,8 +202,8 @@ def test_a_worker_node_killed_mid_run_loses_and_duplicates_nothing(cluster, scen
     real_write = runner.write_chunk
     victim = cluster.workers[0]
 
-    def write_then_kill(out, chunk, df):
-        real_write(out, chunk, df)
+    def write_then_kill(out, chunk, df, *rest):
+        real_write(out, chunk, df, *rest)
         written.append(chunk.id)
         if len(written) == 1:           # the other node holds chunks in flight now: stop it
             LocalCluster.stop(victim)
@@ -230,10 +230,10 @@ def _interrupted(monkeypatch, after: int):
     real_write = runner.write_chunk
     n = [0]
 
-    def write(out, chunk, df):
+    def write(out, chunk, df, *rest):
         if n[0] == after:
             raise _Stop
-        real_write(out, chunk, df)
+        real_write(out, chunk, df, *rest)
         n[0] += 1
 
     monkeypatch.setattr(runner, "write_chunk", write)

@@ -212,9 +212,10 @@ def test_distortion_degrades_and_seeds_differ(dist_table):
 
 @pytest.mark.slow
 def test_rows_equal_direct_track_with_per_lane_boxes(dist_table, scene):
-    """A distorted row is what track(distortion=...) + evaluate_arrays on the lane's own boxes give;
-    jitter moves the boxes, so the scorer must use the per-lane boxes."""
+    """A distorted row is what track(distortion=...) + evaluate_arrays on the lane's own boxes, as its
+    result file prints them, give; jitter moves the boxes, so the scorer must use the per-lane boxes."""
     import dfrmot_jax as dm
+    from dfrmot_jax.io.columns import as_written
     from dfrmot_jax.metrics import evaluate_arrays, metrics_table, prepare_gt
 
     spec = dist_spec(scene, distortion={"kind": "jitter", "level": [3.0], "seeds": [4]}, chunk=64,
@@ -230,7 +231,8 @@ def test_rows_equal_direct_track_with_per_lane_boxes(dist_table, scene):
                    distortion=distort.stack_distort([distort.level_params("jitter", 3.0, seed=4)]))
     clean = dm.track(split, dm.stack_params([params]), options)
     assert not np.array_equal(res.lane_boxes(0), clean.lane_boxes(0))
-    expect = metrics_table(evaluate_arrays(gt, res.ids, res.boxes, split.offsets)[0])
+    written = as_written(np.asarray(res.boxes, np.float64), 6)          # (%g, as the file prints them)
+    expect = metrics_table(evaluate_arrays(gt, res.ids, written, split.offsets)[0])
     got = df[df["config"] == row["config"]].set_index("sequence")
     for col in expect.columns:
         np.testing.assert_array_equal(got.loc[list(expect.index), col].to_numpy(), expect[col].to_numpy(),
