@@ -8,6 +8,7 @@ from dfrmot_jax.io.kitti import read_tracking_labels
 from dfrmot_jax.synthetic import make_scene
 
 
+@pytest.mark.slow
 def test_demo_runs_with_no_data(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--sequences", "2", "--frames", "60"]) == 0
     out = capsys.readouterr().out

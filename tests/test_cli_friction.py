@@ -233,6 +233,7 @@ def test_readme_tables_list_every_parameter_and_option():
     assert not missing
 
 
+@pytest.mark.slow
 def test_demo_writes_to_out_else_results_demo_and_leaves_no_temporary_directory(tmp_path, monkeypatch, capsys):
     """The demo's files are its point (the sweep folder and its HTML report): they are kept, in
     --out or in results/demo of the working directory, and nothing is left in the temp dir."""

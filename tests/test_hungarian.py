@@ -217,6 +217,7 @@ def test_sweep_axis_and_hash():
         expand({"options": {"assign": ["greedy", "optimal"]}})
 
 
+@pytest.mark.slow
 def test_sweep_over_assign_and_chunks_written_before_the_option(tmp_path):
     """A sweep over both assignments runs them as two option groups; chunks written before the option
     existed (no ``assign`` column, same hashes and chunk ids) read back as greedy."""

@@ -115,6 +115,7 @@ SETTINGS = [LiftSettings(), LiftSettings(leaf=0.3, score_cut=0.2), LiftSettings(
                                                                                   crop_hi=(60.0, 30.0, 2.0))]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sim", [SimSettings(beams=32), SimSettings(beams=32, fov=180.0, az_step=0.3, clutter=0.05,
                                                                     dropout=0.1)])
 def test_one_scan_at_a_time_equals_the_whole_sequence_on_simulated_scenes(tmp_path, sim):
@@ -129,6 +130,7 @@ def test_one_scan_at_a_time_equals_the_whole_sequence_on_simulated_scenes(tmp_pa
     assert points > 1000
 
 
+@pytest.mark.slow
 def test_one_scan_at_a_time_equals_the_whole_sequence_on_kitti_sequences(kitti_root):
     """Simulated full-turn scans of KITTI's labels at real density, RRC's detections, 40 frames each."""
     points = 0

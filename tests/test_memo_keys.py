@@ -129,6 +129,7 @@ def test_the_config_hash_names_every_parameter_and_option():
         assert config_hash({**row, name: other}) != h, name
 
 
+@pytest.mark.slow
 def test_ab3dmot_lane_digests_name_the_options_and_the_shared_boxes(scene):
     import dfrmot_jax as dm
     from dfrmot_jax.sweep.ab3dmot_lanes import Ab3dmotLanes

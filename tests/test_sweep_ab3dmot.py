@@ -70,6 +70,7 @@ def test_a_sweep_scores_ab3dmot_as_its_written_files(scene, tmp_path, iou, colum
     assert str(df["ab3dmot_IDS"].dtype) == "Int64"
 
 
+@pytest.mark.slow
 def test_the_report_ranks_by_samota_and_refuses_its_folds(scene):
     df = run_sweep(_spec(scene), progress=False, log=lambda m: None)
     rep = sweep_report(df, objective="sAMOTA")

@@ -47,6 +47,7 @@ def test_compacted_detection_slots_change_nothing(kitti_root, monkeypatch):
     assert compact["peak_tracks"].max() > 0
 
 
+@pytest.mark.slow
 def test_option_variants_score_their_own_boxes_on_kitti(kitti_root, tmp_path):
     """Issue 28's repro on sequence 0000: without truncation the ids equal the dfr2023 baseline's but
     the boxes do not; the variant's row is its own (HOTA 79.8436 / LocA 91.3337 / MOTP 90.6241, as

@@ -153,6 +153,7 @@ def test_a_missing_scan_folder_names_data_det3d(scene, tmp_path):
     assert e.value.key == "data.det3d"
 
 
+@pytest.mark.slow
 def test_a_beams_sweep_simulates_each_setting_once(scene, tmp_path):
     root, _ = scene
     cache = tmp_path / "cache"

@@ -230,6 +230,7 @@ def test_cli_tune_prints_the_summary_and_refuses_another_tunes_directory(scene, 
     assert not stale.parent.exists()
 
 
+@pytest.mark.slow
 def test_transfer_scores_the_chosen_config_unchanged_beside_the_other_baseline(scene, tmp_path):
     extra = '[tune.transfer]\ndet3d = "synth3d"\nbaseline = {a_l = 3.0}\n'
     res = run_tune(_write(tmp_path, _tune_text(scene, budget=4, batch=4, extra=extra)), tmp_path / "t", **_quiet())
