@@ -80,7 +80,7 @@ def test_each_setting_is_its_own_split_and_chunks(scene):
     table = expand(spec)
     datas = resolve_data_all(spec)
     assert len(datas) == 6 and len({d.lidar for d in datas}) == 6
-    chunks = plan(table, datas, spec.chunk)
+    chunks = plan(table, datas, spec.chunk, spec.axes)
     # every config in exactly one split's chunks, that split's setting
     seen = sorted(i for c in chunks for i in c.configs)
     assert seen == list(range(len(table)))

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -18,6 +18,12 @@ DISTORTION_KEYS = ("kind", "level", "levels", "seeds", "clutter_slots", "burst_d
                    "burst_len")
 #: Kinds whose level is a probability (<= 1).
 PROBABILITY_KINDS = ("drop", "drop_2d", "drop_3d", "burst_rate")
+#: The per-lane distortion axes of a sweep with a [distortion] table (columns of its config table
+#: and of every result row; part of the config hash when off their default): the kind (one of
+#: ``distort.KINDS``; "none" = undistorted, level 0 of every kind), the level, the seed.
+DISTORTION_AXES: dict[str, Any] = {"distortion.kind": "none", "distortion.level": 0.0, "distortion.seed": 0}
+#: The undistorted lane (level 0 of every kind and seed).
+UNDISTORTED = ("none", 0.0, 0)
 
 
 @dataclass(frozen=True)
@@ -31,6 +37,10 @@ class DistortionAxes:
     ``burst_max`` are the static ``DistortSpec`` fields; ``burst_rate`` is the start rate of kind
     "burst" (whose level is the mean length) and ``burst_len`` the mean length of kind
     "burst_rate" (whose level is the start rate).
+
+    An axis kind of the config table (:class:`~dfrmot_jax.sweep.axes.AxisKind`): every config x the
+    lanes (:meth:`lanes`), the baseline undistorted; a lane's settings off their defaults enter its
+    hash (:meth:`hash_extra`), all of them every chunk's identity (:meth:`identity`).
     """
 
     kinds: tuple[tuple[str, tuple[float, ...]], ...]
@@ -85,6 +95,38 @@ class DistortionAxes:
         """Lanes per config (level 0 counted once)."""
         zero = any(0.0 in lv for _, lv in self.kinds)
         return int(zero) + sum(sum(1 for v in lv if v != 0.0) for _, lv in self.kinds) * len(self.seeds)
+
+    def lanes(self) -> list[tuple[str, float, int]]:
+        """Every lane (kind, level, seed) of a config: level 0 once (undistorted, first), then per kind
+        its nonzero levels x the seeds."""
+        out = [UNDISTORTED] if any(0.0 in lv for _, lv in self.kinds) else []
+        for kind, levels in self.kinds:
+            out.extend((kind, float(v), int(s)) for v in levels if v != 0.0 for s in self.seeds)
+        return out
+
+    # the axis kind (AxisKind)
+    @property
+    def columns(self) -> dict[str, Any]:
+        return dict(DISTORTION_AXES)
+
+    def values(self, baseline: bool) -> list[dict]:
+        """The lanes; the baseline's first is the undistorted one (added when no kind lists level 0)."""
+        lanes = self.lanes()
+        if baseline and UNDISTORTED not in lanes:
+            lanes = [UNDISTORTED] + lanes
+        return [dict(zip(DISTORTION_AXES, lane)) for lane in lanes]
+
+    def size(self, configs: int) -> tuple[int, str, list[tuple[int, str]]]:
+        return configs * self.n_lanes + 1, f"x {self.n_lanes:,} distortion lanes", [(len(self.seeds), "distortion.seeds")]
+
+    def hash_settings(self, row: Mapping) -> dict:
+        return self.hash_extra(row["distortion.kind"])
+
+    def split_key(self, row: Mapping) -> None:
+        return None         # (every lane runs on its config's split)
+
+    def chunk_identity(self) -> dict:
+        return {"distortion": self.identity()}
 
 
 

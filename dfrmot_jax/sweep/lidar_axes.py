@@ -59,7 +59,10 @@ LIDAR_AXES: dict[str, Any] = {**LIFT_COLUMNS, **SIM_COLUMNS}
 @dataclass(frozen=True)
 class LidarAxes:
     """The resolved [lift] / [simulate] tables: ``axes`` ((column, values), ...) in file order
-    (lift first), ``simulate``: whether scans are simulated (a [simulate] table, even empty)."""
+    (lift first), ``simulate``: whether scans are simulated (a [simulate] table, even empty).
+
+    An axis kind of the config table (:class:`~dfrmot_jax.sweep.axes.AxisKind`): every config x
+    every setting; the baseline on :meth:`baseline`; each setting its own split (``lidar_key``)."""
 
     axes: tuple[tuple[str, tuple], ...]
     simulate: bool = False
@@ -70,14 +73,36 @@ class LidarAxes:
         return [dict(zip(names, combo)) for combo in itertools.product(*(v for _, v in self.axes))]
 
     @property
-    def columns(self) -> list[str]:
-        return [c for c, _ in self.axes]
+    def columns(self) -> dict[str, Any]:
+        """The listed columns -> their defaults."""
+        return {c: LIDAR_AXES[c] for c, _ in self.axes}
 
     def baseline(self) -> dict:
         """The setting the baseline runs on: the defaults when the sweep lists them, else the first."""
         every = self.settings()
-        default = {c: LIDAR_AXES[c] for c in self.columns}
+        default = dict(self.columns)
         return default if default in every else every[0]
+
+    def values(self, baseline: bool) -> list[dict]:
+        """Every setting; for the baseline, :meth:`baseline` first."""
+        every = self.settings()
+        if not baseline:
+            return every
+        first = self.baseline()
+        return [first] + [s for s in every if s != first]
+
+    def size(self, configs: int) -> tuple[int, str, list[tuple[int, str]]]:
+        n = len(self.settings())
+        return configs * n, f"x {n:,} LiDAR settings", [(len(v), c) for c, v in self.axes]
+
+    def hash_settings(self, row: Mapping) -> dict:
+        return {}           # (the settings are the row's columns)
+
+    def split_key(self, row: Mapping) -> tuple:
+        return lidar_key(row, self.simulate)
+
+    def chunk_identity(self) -> dict:
+        return {}           # (in the chunks' data identity: DataSettings.lidar)
 
 
 def _values(doc, key: str, source, crop: bool) -> list[tuple[str, Any]]:

@@ -1,6 +1,8 @@
 """Planning a sweep: the data settings resolved and checked, configs grouped by static options (one
 compilation each) and cut into chunks (the resume unit; chunk id = hash of the data settings, the
-chunk's config hashes and, with distortion, the distortion settings)."""
+chunk's config hashes and what the sweep's axis kinds add, ``AxisKind.chunk_identity``: with
+distortion, the distortion settings). An axis kind that needs data of its own (``AxisKind.split_key``:
+the LiDAR settings) gives each of its keys its own split per class."""
 
 from __future__ import annotations
 
@@ -17,9 +19,9 @@ from ..data import detection_dir, sequences_with_class
 from ..io.kitti import KittiFormatError, sequence_lengths
 from ..lidar import lidar_dir
 from ..paths import default_data_root
+from .axes import AxisKind, split_key, split_keys
 from .checks import config_error
 from .distortion import DistortionAxes
-from .lidar_axes import lidar_key
 from .spec import OPTION_NAMES, as_spec
 
 #: Default most tracker output one chunk may hold, GB (``run_sweep(max_memory=...)``, ``dfrmot sweep
@@ -36,7 +38,7 @@ class DataSettings:
     cls: str
     sequences: tuple[str, ...]
     lengths: tuple[int, ...] = ()
-    lidar: tuple | None = None      # a sweep with [lift] / [simulate]: this split's lidar_axes.lidar_key
+    lidar: tuple | None = None      # the split key of an axis kind (AxisKind.split_key: [lift] / [simulate]'s)
 
     def identity(self) -> dict:
         out = {"root": self.root, "det2d": self.det2d, "det3d": self.det3d, "class": self.cls,
@@ -50,12 +52,14 @@ class DataSettings:
 def resolve_data_all(spec, data_root=None) -> tuple[DataSettings, ...]:
     """The data settings of every class of the sweep (``data.class`` order), each checked before any
     work: each class has its own split (the sequences whose ground truth has the class, or
-    ``data.sequences``), and with [lift] / [simulate] each class one split per LiDAR setting."""
+    ``data.sequences``), and with an axis kind that needs data of its own (``AxisKind.split_key``:
+    [lift] / [simulate]) each class one split per key (per LiDAR setting)."""
     spec = as_spec(spec)
     datas = [resolve_data(spec, data_root, cls=c) for c in spec.classes]
-    if spec.lidar is None:
+    keys = split_keys(spec.axes)
+    if not keys:
         return tuple(datas)
-    return tuple(replace(d, lidar=lidar_key(s, spec.lidar.simulate)) for d in datas for s in spec.lidar.settings())
+    return tuple(replace(d, lidar=k) for d in datas for k in keys)
 
 
 def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
@@ -128,20 +132,25 @@ def option_groups(table: pd.DataFrame) -> dict[Options, list[int]]:
 
 
 def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk: int,
-         distortion: DistortionAxes | None = None, ab3dmot: str | None = None) -> list[Chunk]:
+         axes: AxisKind | Sequence[AxisKind] | None = None, ab3dmot: str | None = None) -> list[Chunk]:
     """Group the configs by static options (first appearance order), cut each group into chunks.
 
-    A chunk's id hashes the data settings (its class's), its config hashes and (distortion sweeps)
-    the distortion settings (``DistortionAxes.identity``) and, when the chunks also carry AB3DMOT's
-    figures, their setting ``ab3dmot`` (``SweepSpec.metrics_identity``: ``"3d:0.25"``). ``data``: one
-    class's settings or, for a sweep over several classes, every class's (:func:`resolve_data_all`):
-    the chunks of each class in turn, every config in every class."""
+    ``axes``: the sweep's axis kinds (``SweepSpec.axes``; one kind, e.g. a ``DistortionAxes``, or
+    None). A chunk's id hashes the data settings (its class's), its config hashes, what each axis
+    kind adds (``AxisKind.chunk_identity``: the distortion settings) and, when the chunks also carry
+    AB3DMOT's figures, their setting ``ab3dmot`` (``SweepSpec.metrics_identity``: ``"3d:0.25"``).
+    ``data``: one class's settings or, for a sweep over several classes, every class's
+    (:func:`resolve_data_all`): the chunks of each class in turn, every config in every class; a
+    split of an axis kind's key (``data.lidar``) gets the configs of that key only."""
+    axes = () if axes is None else (axes,) if not isinstance(axes, Sequence) else tuple(axes)
     if not isinstance(data, DataSettings):
-        return [c for d in data for c in plan(table, d, chunk, distortion, ab3dmot)]
-    if data.lidar is not None:      # this LiDAR setting's configs only
-        simulate = data.lidar[1] is not None
-        mine = [lidar_key(r, simulate) == data.lidar for r in table.to_dict("records")]
-        groups = option_groups(table[mine])
+        return [c for d in data for c in plan(table, d, chunk, axes, ab3dmot)]
+    if data.lidar is not None:      # this split's configs only
+        keys = [split_key(axes, r) for r in table.to_dict("records")]
+        if all(k is None for k in keys):
+            raise ValueError(f"a split of key {data.lidar} but no axis kind gives the configs keys: pass the "
+                             f"sweep's axis kinds (plan(..., spec.axes))")
+        groups = option_groups(table[[k == data.lidar for k in keys]])
     else:
         groups = option_groups(table)
     hashes = table["config_hash"].to_numpy()
@@ -151,8 +160,8 @@ def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk
         for a in range(0, len(idx), chunk):
             part = tuple(idx[a:a + chunk])
             doc = {"data": ident, "configs": [hashes[i] for i in part]}
-            if distortion is not None:
-                doc["distortion"] = distortion.identity()
+            for kind in axes:
+                doc.update(kind.chunk_identity())
             if ab3dmot is not None:
                 doc["ab3dmot"] = ab3dmot
             text = json.dumps(doc, sort_keys=True)

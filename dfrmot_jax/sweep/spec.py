@@ -29,7 +29,8 @@ from .checks import (
     is_scalar,
     type_name,
 )
-from .distortion import DistortionAxes, parse_distortion
+from .axes import AxisKind
+from .distortion import DISTORTION_AXES, DistortionAxes, parse_distortion
 from .lidar_axes import LIDAR_AXES, LidarAxes, parse_lidar
 
 PARAM_NAMES: tuple[str, ...] = Params._fields
@@ -43,16 +44,14 @@ LATE_OPTIONS: dict[str, Any] = {"assign": Options._field_defaults["assign"]}
 LATE_PARAMS: dict[str, Any] = {n: Params._field_defaults[n] for n in INHERITED_PARAMS}
 #: Further per-lane axes (columns of the config table, part of the config hash): name -> default
 #: value. A column equal to its default is left out of the hash, so adding an axis keeps existing
-#: hashes. The distortion axes are registered separately (``DISTORTION_AXES``).
+#: hashes. The distortion axes are registered separately (``DISTORTION_AXES``, the columns of
+#: :class:`~.distortion.DistortionAxes`); these are the columns of :class:`~.lidar_axes.LidarAxes`.
 EXTRA_AXES: dict[str, Any] = {**LIDAR_AXES}
-#: The per-lane distortion axes of a sweep with a [distortion] table (columns of its config table
-#: and of every result row; part of the config hash when off their default): the kind (one of
-#: ``distort.KINDS``; "none" = undistorted, level 0 of every kind), the level, the seed.
-DISTORTION_AXES: dict[str, Any] = {"distortion.kind": "none", "distortion.level": 0.0, "distortion.seed": 0}
 CONTRAST_KEYS = ("axis", "high", "low", "by")
 
 
 def extra_axes() -> dict[str, Any]:
+    """Every column an axis kind (:class:`~.axes.AxisKind`) may add -> its default."""
     return {**DISTORTION_AXES, **EXTRA_AXES}
 
 RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
@@ -129,6 +128,12 @@ class SweepSpec:
     def __post_init__(self):
         if not self.classes:
             object.__setattr__(self, "classes", (self.cls,))
+
+    @property
+    def axes(self) -> tuple[AxisKind, ...]:
+        """The sweep's axis kinds beyond parameters and options, in crossing order (innermost last):
+        what :func:`~.table.expand` crosses the configs with and :mod:`.plan` splits them by."""
+        return tuple(a for a in (self.lidar, self.distortion) if a is not None)
 
     def metrics_identity(self) -> str | None:
         """What the chunks' metric columns depend on beyond the 2D metrics (part of the chunk ids):

@@ -21,19 +21,9 @@ from ..config import CLASSES, INT_PARAMS, PRESETS, Options, Params, as_arrays, p
 from ..core.filters import fixed_gain_radius
 from .checks import config_error
 from ..lidar import lidar_dir
-from .distortion import DistortionAxes
-from .lidar_axes import LidarAxes, tie_table_scores
-from .spec import (
-    DISTORTION_AXES,
-    LATE_OPTIONS,
-    LATE_PARAMS,
-    OPTION_NAMES,
-    PARAM_NAMES,
-    Axis,
-    SweepSpec,
-    as_spec,
-    extra_axes,
-)
+from .axes import AxisKind, cross_rows, hash_settings
+from .lidar_axes import tie_table_scores
+from .spec import LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, Axis, SweepSpec, Variant, as_spec, extra_axes
 
 #: The scheme of ``config_hash`` and chunk ids; recorded in the manifest as ``hash_version``.
 HASH_VERSION = 1
@@ -126,8 +116,9 @@ def _draw(axis: Axis, rng: np.random.Generator, n: int) -> list:
 
 def config_count(spec) -> tuple[int, str, str]:
     """(configs, how they are made up, the key of the largest factor) of a sweep, without expanding:
-    per variant the product of its grid axes' value counts x ``samples``, plus the baseline, all x
-    the distortion lanes (an upper bound: configs that hash alike are kept once)."""
+    per variant the product of its grid axes' value counts x ``samples``, plus the baseline, then
+    crossed with each axis kind (``AxisKind.size``: x the LiDAR settings, x the distortion lanes; an
+    upper bound: configs that hash alike are kept once)."""
     spec = as_spec(spec)
     total, parts, factors = 1, [], [(1, "params")]
     for v in spec.variants:
@@ -138,16 +129,10 @@ def config_count(spec) -> tuple[int, str, str]:
         parts.append(f"variant {v.name!r}: " + (" x ".join(f"{name} {c:,}" for c, _, name in counts
                                                            if c > 1 or name != "samples") or "1"))
     desc = "the baseline + " + "; ".join(parts)
-    if spec.lidar is not None:
-        n_lidar = len(spec.lidar.settings())
-        total *= n_lidar
-        desc = f"{desc}; x {n_lidar:,} LiDAR settings"
-        factors += [(len(v), c) for c, v in spec.lidar.axes]
-    if spec.distortion is not None:
-        lanes = spec.distortion.n_lanes
-        total = total * lanes + 1
-        desc = f"{desc}; x {lanes:,} distortion lanes"
-        factors.append((len(spec.distortion.seeds), "distortion.seeds"))
+    for kind in spec.axes:
+        total, text, more = kind.size(total)
+        desc = f"{desc}; {text}"
+        factors += more
     return total, desc, max(factors)[1]
 
 
@@ -160,24 +145,40 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     per config from ``numpy.random.default_rng(seed)``; ``samples`` repeats each variant's grid with
     the random axes redrawn (Ray Tune's ``num_samples``). Configs that hash alike are kept once.
 
-    With a [distortion] table every config (the baseline too) is crossed with the distortion lanes,
-    innermost (kind, then level, then seed), adding the columns ``DISTORTION_AXES``
-    (``distortion.kind``, ``distortion.level``, ``distortion.seed``). Level 0 is the identity for
-    every kind and seed: it is one lane per config, the undistorted one (kind "none", level 0, seed
-    0: the same hash as the config without distortion). Without [distortion] the table is as before
-    (no distortion columns).
+    These configs are then crossed with each axis kind of the sweep in turn (``SweepSpec.axes``,
+    :class:`~.axes.AxisKind`), its columns innermost: with [lift] / [simulate] the LiDAR settings
+    (``lift.*``, ``simulate.*``), with a [distortion] table the distortion lanes (kind, then level,
+    then seed: the columns ``DISTORTION_AXES``, ``distortion.kind``, ``distortion.level``,
+    ``distortion.seed``). Level 0 is the identity for every kind and seed: it is one lane per config,
+    the undistorted one (kind "none", level 0, seed 0: the same hash as the config without
+    distortion). Without them the table has no such columns.
 
     ``max_configs`` (default :data:`MAX_CONFIGS`): a sweep of more configs (:func:`config_count`)
     fails before expanding, with a :class:`SweepConfigError` naming its largest factor.
     """
     spec = as_spec(spec)
-    src = spec.source
+    check_size(spec, max_configs)
+    table = settings_table(spec)
+    for i, kind in enumerate(spec.axes):
+        table = cross(table, kind, spec.axes[:i + 1])
+    table.insert(0, "config", np.arange(len(table), dtype=np.int64))
+    check_configs(table, spec.source)
+    return table
+
+
+def check_size(spec: SweepSpec, max_configs: int | None = None) -> None:
+    """Refuse a sweep of more than ``max_configs`` configs (default :data:`MAX_CONFIGS`) before expanding."""
     limit = MAX_CONFIGS if max_configs is None else int(max_configs)
     n, desc, key = config_count(spec)
     if n > limit:
         raise config_error(key, f"the sweep expands to up to {n:,} configs ({desc}), above the limit of {limit:,} "
                         f"(dfrmot_jax.sweep.MAX_CONFIGS): sweep fewer values, or raise the limit with "
-                        f"--max-configs N (run_sweep(max_configs=N))", src)
+                        f"--max-configs N (run_sweep(max_configs=N))", spec.source)
+
+
+def settings_table(spec: SweepSpec) -> pd.DataFrame:
+    """The sweep's parameter / option settings (the baseline, then every variant's), typed and
+    hashed (:func:`typed_table`), configs that hash alike kept once: the rows the axis kinds cross."""
     single = len(spec.classes) == 1
     base_row, class_base = _baseline_rows(spec)
     # per-class columns: class defaults off the plain baseline, and every per-class axis
@@ -189,27 +190,7 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     first = {**base_row, **{c: class_base[split_class_column(c)[0]][split_class_column(c)[1]] for c in ccols}}
     rows: list[dict] = [{"variant": "baseline", "baseline": True, **first}]
     for v in spec.variants:
-        grid_axes = [a for a in v.params if a.is_grid] + list(v.options)
-        rand_axes = [a for a in v.params if not a.is_grid]
-        plain_set = {a.name for a in v.params if not a.cls}
-        combos = list(itertools.product(*(a.values for a in grid_axes)))
-        n = len(combos) * spec.samples
-        draws = {a.name: _draw(a, rng, n) for a in rand_axes}
-        i = 0
-        for _ in range(spec.samples):
-            for combo in combos:
-                vals = {a.name: val for a, val in zip(grid_axes, combo)}
-                vals.update({name: d[i] for name, d in draws.items()})
-                row = {"variant": v.name, "baseline": False, **base_row}
-                row.update({k: x for k, x in vals.items() if split_class_column(k) is None})
-                if single:           # the one class's per-class axes are its parameters
-                    row.update({split_class_column(k)[1]: x for k, x in vals.items()
-                                if split_class_column(k) is not None})
-                for c in ccols:      # precedence: per-class axis > plain axis > the class's baseline
-                    k, p = split_class_column(c)
-                    row[c] = vals[c] if c in vals else row[p] if p in plain_set else class_base[k][p]
-                rows.append(row)
-                i += 1
+        rows += _variant_rows(spec, v, rng, base_row, class_base, ccols)
     table = pd.DataFrame(rows, columns=["variant", "baseline"] + list(PARAM_NAMES) + ccols + list(OPTION_NAMES))
     for c in ccols:          # a class default that no row moves off the plain value says nothing
         k, p = split_class_column(c)
@@ -217,12 +198,59 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
             table = table.drop(columns=[c])
     if lidar_dir(spec.det3d) is not None:      # lifted boxes carry their 2D score (as dfrmot track)
         table = tie_table_scores(table, {a.name for v in spec.variants for a in v.params})
-    table = typed_table(table).drop_duplicates("config_hash", keep="first").reset_index(drop=True)
-    if spec.lidar is not None:
-        table = _cross_lidar(table, spec.lidar)
-    if spec.distortion is not None:
-        table = _cross_distortion(table, spec.distortion)
-    table.insert(0, "config", np.arange(len(table), dtype=np.int64))
+    return typed_table(table).drop_duplicates("config_hash", keep="first").reset_index(drop=True)
+
+
+def _variant_rows(spec: SweepSpec, v: Variant, rng: np.random.Generator, base_row: dict,
+                  class_base: dict[str, dict], ccols: list[str]) -> list[dict]:
+    """The rows of one variant: its grid axes crossed, its random axes drawn, ``samples`` times."""
+    grid_axes = [a for a in v.params if a.is_grid] + list(v.options)
+    rand_axes = [a for a in v.params if not a.is_grid]
+    plain_set = {a.name for a in v.params if not a.cls}
+    combos = list(itertools.product(*(a.values for a in grid_axes)))
+    n = len(combos) * spec.samples
+    draws = {a.name: _draw(a, rng, n) for a in rand_axes}
+    rows, i = [], 0
+    for _ in range(spec.samples):
+        for combo in combos:
+            vals = {a.name: val for a, val in zip(grid_axes, combo)}
+            vals.update({name: d[i] for name, d in draws.items()})
+            row = {"variant": v.name, "baseline": False, **base_row}
+            row.update({k: x for k, x in vals.items() if split_class_column(k) is None})
+            if len(spec.classes) == 1:      # the one class's per-class axes are its parameters
+                row.update({split_class_column(k)[1]: x for k, x in vals.items()
+                            if split_class_column(k) is not None})
+            for c in ccols:      # precedence: per-class axis > plain axis > the class's baseline
+                k, p = split_class_column(c)
+                row[c] = vals[c] if c in vals else row[p] if p in plain_set else class_base[k][p]
+            rows.append(row)
+            i += 1
+    return rows
+
+
+def cross(table: pd.DataFrame, kind: AxisKind, kinds: Sequence[AxisKind]) -> pd.DataFrame:
+    """Every config of ``table`` x an axis kind's values (:func:`~.axes.cross_rows`: its columns
+    innermost, typed as their defaults; the baseline still first), hashes recomputed with the
+    settings of ``kinds`` (those crossed so far, ``kind`` last), configs that hash alike kept once."""
+    cols = list(table.columns.drop("config_hash"))
+    out = pd.DataFrame(cross_rows(table[cols].to_dict("records"), kind), columns=cols + list(kind.columns))
+    for c in cols:
+        out[c] = out[c].astype(table[c].dtype)
+    for c, d in kind.columns.items():
+        out[c] = out[c].astype(column_dtype(d))
+    out.insert(0, "config_hash", [config_hash(r, hash_settings(kinds, r)) for r in out.to_dict("records")])
+    return out.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
+
+
+def column_dtype(default):
+    """The table's type of a column whose default is ``default`` (bool, int64, float64, or object)."""
+    return bool if isinstance(default, bool) else "int64" if isinstance(default, int) else \
+        "float64" if isinstance(default, float) else object
+
+
+def check_configs(table: pd.DataFrame, src: str | None) -> None:
+    """The checks on a whole table: a config besides the baseline, filtered boxes with stable fixed
+    gains, ``keep_lost`` only with filtered output (a :class:`SweepConfigError` naming the key)."""
     if len(table) < 2:
         raise config_error("params", "the sweep has no config besides the baseline: add parameters or options to sweep",
                    src)
@@ -240,7 +268,6 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
         raise config_error(f"params.{kl}", f"{kl} = {r[kl]} writes lost tracks' predicted boxes and needs "
                                        f"output = \"filtered\" (variant {r['variant']!r} pairs it with output = "
                                        f"\"detections\"); use [[variants]] to give keep_lost its own output", src)
-    return table
 
 
 def unstable_gains(fixed, alpha, beta, gamma) -> np.ndarray:
@@ -301,46 +328,6 @@ def _baseline_rows(spec: SweepSpec) -> tuple[dict, dict[str, dict]]:
     p, o = preset(spec.baseline, spec.baseline_class) if spec.baseline_class else PRESETS[spec.baseline]
     per = {k: preset(spec.baseline, spec.baseline_class or k)[0]._asdict() for k in spec.classes}
     return {**p._asdict(), **o._asdict()}, per
-
-
-def _cross_lidar(table: pd.DataFrame, axes: LidarAxes) -> pd.DataFrame:
-    """Every config x the LiDAR settings (``lift.*`` / ``simulate.*`` columns, innermost); the
-    baseline flag stays on the baseline at ``axes.baseline()``, still the first row; hashes recomputed."""
-    every, first = axes.settings(), axes.baseline()
-    rows = [{**r, **s, "baseline": bool(r["baseline"]) and s == first}
-            for r in table.drop(columns=["config_hash"]).to_dict("records")
-            for s in ([first] + [x for x in every if x != first] if r["baseline"] else every)]
-    out = pd.DataFrame(rows, columns=list(table.columns.drop("config_hash")) + axes.columns)
-    for c in table.columns.drop("config_hash"):
-        out[c] = out[c].astype(table[c].dtype)
-    out.insert(0, "config_hash", [config_hash(r) for r in out.to_dict("records")])
-    return out.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
-
-
-def _cross_distortion(table: pd.DataFrame, dist: DistortionAxes) -> pd.DataFrame:
-    """Every config x the distortion lanes (level 0 once, undistorted), hashes recomputed."""
-    lanes: list[tuple[str, float, int]] = []
-    if any(0.0 in lv for _, lv in dist.kinds):
-        lanes.append(("none", 0.0, 0))
-    for kind, levels in dist.kinds:
-        lanes.extend((kind, float(v), int(s)) for v in levels if v != 0.0 for s in dist.seeds)
-    base = table.drop(columns=["config_hash"]).to_dict("records")
-    rows = []
-    for i, r in enumerate(base):
-        own = lanes if i > 0 or ("none", 0.0, 0) in lanes else [("none", 0.0, 0)] + lanes   # the baseline row stays
-        for kind, level, seed in own:
-            rows.append({**r, "baseline": bool(r["baseline"]) and kind == "none",
-                         "distortion.kind": kind, "distortion.level": level, "distortion.seed": seed})
-    out = pd.DataFrame(rows, columns=list(table.columns.drop("config_hash")) + list(DISTORTION_AXES))
-    for c in table.columns.drop("config_hash"):
-        out[c] = out[c].astype(table[c].dtype)
-    out["distortion.kind"] = out["distortion.kind"].astype(object)
-    out["distortion.level"] = out["distortion.level"].astype("float64")
-    out["distortion.seed"] = out["distortion.seed"].astype("int64")
-    hashes = [config_hash(r, dist.hash_extra(r["distortion.kind"])) for r in out.to_dict("records")]
-    out.insert(0, "config_hash", hashes)
-    return out.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
-
 
 
 def n_settings(table: pd.DataFrame) -> int:
