@@ -178,37 +178,15 @@ def _check_level(kind: str, v, key: str, source, clutter_slots: int, burst_max: 
 
 
 def parse_distortion(d, source) -> DistortionAxes | None:
+    """The [distortion] table of a sweep document (None without it); bad values raise
+    :class:`~dfrmot_jax.sweep.checks.SweepConfigError` naming the key."""
     if d is None:
         return None
     t = Table(d, "distortion", source, DISTORTION_KEYS)
-    kinds_doc = d.get("kind")
     levels_doc = d.get("levels")
     if levels_doc is not None and not isinstance(levels_doc, Mapping):
         raise config_error("distortion.levels", f"expected a table kind = [levels], got {levels_doc!r}", source)
-    if kinds_doc is None:
-        if not levels_doc:
-            raise config_error("distortion.kind", "missing: the distortion kind(s) to sweep, e.g. kind = [\"drop\", "
-                                          "\"burst\"]", source)
-        kinds = [(f"distortion.levels.{k}", k) for k in levels_doc]
-    else:
-        if isinstance(kinds_doc, str):
-            kinds = [("distortion.kind", kinds_doc)]
-        elif isinstance(kinds_doc, list) and kinds_doc:
-            kinds = [(f"distortion.kind[{i}]", k) for i, k in enumerate(kinds_doc)]
-        else:
-            raise config_error("distortion.kind", f"{kinds_doc!r}: expected a kind or a non-empty list of kinds", source)
-    known = tuple(k for k in distort.KINDS if k != "none")
-    for key, k in kinds:
-        if not isinstance(k, str) or k not in known:
-            hint = " (level 0 of every kind is the undistorted run: add 0 to the levels)" if k == "none" else ""
-            raise config_error(key, f"unknown distortion kind {k!r}{hint}; expected one of {list(known)}", source)
-    if len({k for _, k in kinds}) != len(kinds):
-        raise config_error("distortion.kind", "a kind is listed twice", source)
-    if levels_doc:
-        for k in levels_doc:
-            if k not in {kk for _, kk in kinds}:
-                raise config_error(f"distortion.levels.{k}", f"kind {k!r} is not in distortion.kind "
-                                                     f"{[kk for _, kk in kinds]}", source)
+    kinds = _parse_kinds(d.get("kind"), levels_doc, source)
     clutter_slots = t.integer("clutter_slots", 0, minimum=0)
     burst_max = t.integer("burst_max", 30)
     burst_dist = t.choice("burst_dist", "fixed", distort.BURST_DISTS)
@@ -217,12 +195,11 @@ def parse_distortion(d, source) -> DistortionAxes | None:
         raise config_error("distortion.burst_rate", f"{burst_rate!r}: the burst start rate of kind \"burst\" is a "
                                             f"probability in (0, 1]", source)
     burst_len = d.get("burst_len", distort.BURST_LEN)
-    if not is_number(burst_len) or not 0 < float(burst_len) <= (burst_max if any(k == "burst_rate" for _, k in kinds)
-                                                                 else math.inf):
+    if not is_number(burst_len) or not 0 < float(burst_len) <= (burst_max if "burst_rate" in kinds else math.inf):
         raise config_error("distortion.burst_len", f"{burst_len!r}: the mean burst length of kind \"burst_rate\" is in "
                                            f"(0, burst_max = {burst_max}]", source)
     out = []
-    for _, k in kinds:
+    for k in kinds:
         if levels_doc and k in levels_doc:
             raw = _level_values(levels_doc[k], f"distortion.levels.{k}", source)
         elif "level" in d:
@@ -232,25 +209,7 @@ def parse_distortion(d, source) -> DistortionAxes | None:
                                             f"distortion.levels.{k} = [...]", source)
         vals = [_check_level(k, v, key, source, clutter_slots, burst_max) for key, v in raw]
         out.append((k, tuple(sorted(dict.fromkeys(vals)))))
-    seeds_doc = d.get("seeds", 1)
-    if isinstance(seeds_doc, list):
-        if not seeds_doc:
-            raise config_error("distortion.seeds", "empty list: give a count (seeds = 10) or a list of seeds", source)
-        check_count(len(seeds_doc), "distortion.seeds", source)
-        for i, v in enumerate(seeds_doc):
-            if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < 2 ** 31:
-                raise config_error(f"distortion.seeds[{i}]", f"{v!r}: a seed is an integer in [0, 2**31)", source)
-        if len(set(seeds_doc)) != len(seeds_doc):
-            raise config_error("distortion.seeds", "a seed is listed twice", source)
-        seeds = tuple(int(v) for v in seeds_doc)
-    elif isinstance(seeds_doc, int) and not isinstance(seeds_doc, bool):
-        if seeds_doc < 1:
-            raise config_error("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 (seeds 0 .. n-1) or a list of seeds",
-                       source)
-        check_count(seeds_doc, "distortion.seeds", source)
-        seeds = tuple(range(seeds_doc))
-    else:
-        raise config_error("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 or a list of seeds", source)
+    seeds = _parse_seeds(d.get("seeds", 1), source)
     axes = DistortionAxes(tuple(out), seeds, clutter_slots=int(clutter_slots), burst_dist=burst_dist,
                           burst_max=int(burst_max), burst_rate=float(burst_rate), burst_len=float(burst_len))
     try:        # the distortion module's own checks on every lane (belt and braces)
@@ -261,3 +220,49 @@ def parse_distortion(d, source) -> DistortionAxes | None:
     return axes
 
 
+def _parse_kinds(kinds_doc, levels_doc, source) -> list[str]:
+    """``distortion.kind`` (a kind or a list; without it, the kinds of ``distortion.levels``), checked."""
+    if kinds_doc is None:
+        if not levels_doc:
+            raise config_error("distortion.kind", "missing: the distortion kind(s) to sweep, e.g. kind = [\"drop\", "
+                                          "\"burst\"]", source)
+        kinds = [(f"distortion.levels.{k}", k) for k in levels_doc]
+    elif isinstance(kinds_doc, str):
+        kinds = [("distortion.kind", kinds_doc)]
+    elif isinstance(kinds_doc, list) and kinds_doc:
+        kinds = [(f"distortion.kind[{i}]", k) for i, k in enumerate(kinds_doc)]
+    else:
+        raise config_error("distortion.kind", f"{kinds_doc!r}: expected a kind or a non-empty list of kinds", source)
+    known = tuple(k for k in distort.KINDS if k != "none")
+    for key, k in kinds:
+        if not isinstance(k, str) or k not in known:
+            hint = " (level 0 of every kind is the undistorted run: add 0 to the levels)" if k == "none" else ""
+            raise config_error(key, f"unknown distortion kind {k!r}{hint}; expected one of {list(known)}", source)
+    names = [k for _, k in kinds]
+    if len(set(names)) != len(names):
+        raise config_error("distortion.kind", "a kind is listed twice", source)
+    for k in levels_doc or ():
+        if k not in names:
+            raise config_error(f"distortion.levels.{k}", f"kind {k!r} is not in distortion.kind {names}", source)
+    return names
+
+
+def _parse_seeds(seeds_doc, source) -> tuple[int, ...]:
+    """``distortion.seeds``: a count n (seeds 0 .. n-1) or a list of distinct seeds."""
+    if isinstance(seeds_doc, list):
+        if not seeds_doc:
+            raise config_error("distortion.seeds", "empty list: give a count (seeds = 10) or a list of seeds", source)
+        check_count(len(seeds_doc), "distortion.seeds", source)
+        for i, v in enumerate(seeds_doc):
+            if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < 2 ** 31:
+                raise config_error(f"distortion.seeds[{i}]", f"{v!r}: a seed is an integer in [0, 2**31)", source)
+        if len(set(seeds_doc)) != len(seeds_doc):
+            raise config_error("distortion.seeds", "a seed is listed twice", source)
+        return tuple(int(v) for v in seeds_doc)
+    if isinstance(seeds_doc, int) and not isinstance(seeds_doc, bool):
+        if seeds_doc < 1:
+            raise config_error("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 (seeds 0 .. n-1) or a list of "
+                                                   f"seeds", source)
+        check_count(seeds_doc, "distortion.seeds", source)
+        return tuple(range(seeds_doc))
+    raise config_error("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 or a list of seeds", source)

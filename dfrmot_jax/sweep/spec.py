@@ -406,53 +406,9 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     chunk = top.integer("chunk", 64)
     samples = top.integer("samples", 1)
     seed = top.integer("seed", 0, minimum=0)
-
-    data = top.table("data", DATA_KEYS)
-    for k in ("root", "det2d", "det3d"):
-        data.string(k, None)
-    try:
-        lidar_dir(data.get("det3d", ""))                # "lidar:" without its folder
-    except ValueError as e:
-        raise data.error("det3d", str(e)) from None
-    classes = _parse_classes(data.get("class", "car"), source)
-    cls = classes[0]
-    root = data.get("root")
-    if root is not None and source is not None and not Path(root).expanduser().is_absolute():
-        root = str((Path(source).parent / Path(root).expanduser()).resolve())
-    sequences = _parse_sequences(data.get("sequences"), "data.sequences", source)
-
-    base = top.get("baseline", "dfr2023")
-    base_cls = None
-    if isinstance(base, Mapping):
-        bt = top.table("baseline", BASELINE_KEYS)
-        base_cls = bt.get("class")
-        if base_cls is not None and (not isinstance(base_cls, str) or base_cls not in CLASSES):
-            raise bt.error("class", f"{base_cls!r}: expected one of {list(CLASSES)} (every class's baseline is the "
-                                    f"preset as tuned for this class)")
-        base = bt.choice("preset", "dfr2023", sorted(PRESETS), "unknown preset")
-    else:
-        base = top.choice("baseline", "dfr2023", sorted(PRESETS), "unknown preset")
-
-    params = _axes(doc.get("params"), "params", "params", source, classes)
-    options = _axes(doc.get("options"), "options", "options", source)
-    variants_doc = doc.get("variants")
-    variants = []
-    if variants_doc is None:
-        variants.append(Variant("grid", params, options))
-    else:
-        if not isinstance(variants_doc, list) or not variants_doc:
-            raise top.error("variants", "expected a non-empty array of tables ([[variants]])")
-        for i, v in enumerate(variants_doc):
-            vt = Table(v, f"variants[{i}]", source, VARIANT_KEYS)
-            vname = vt.string("name", f"variant{i}")
-            vp = _axes(v.get("params"), "params", f"variants[{i}].params", source, classes)
-            vo = _axes(v.get("options"), "options", f"variants[{i}].options", source)
-            over_p = {a.name for a in vp}
-            over_o = {a.name for a in vo}
-            variants.append(Variant(vname,
-                                    tuple(a for a in params if a.name not in over_p) + vp,
-                                    tuple(a for a in options if a.name not in over_o) + vo))
-
+    data, classes, root, sequences = _parse_data(top, source)
+    base, base_cls = _parse_baseline(top)
+    variants = _parse_variants(doc, top, classes, source)
     rep = top.table("report", REPORT_KEYS)
     try:
         objective = canonical_objective(rep.string("objective", "HOTA"))
@@ -475,8 +431,8 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
                                        "lanes' 3D rows include clutter)")
 
     spec = SweepSpec(name=name, description=desc, chunk=chunk, seed=seed, samples=samples, data_root=root,
-                     det2d=data.get("det2d", "rrc"), det3d=data.get("det3d", "pointrcnn"), cls=cls,
-                     sequences=sequences, baseline=base, variants=tuple(variants), objective=objective,
+                     det2d=data.get("det2d", "rrc"), det3d=data.get("det3d", "pointrcnn"), cls=classes[0],
+                     sequences=sequences, baseline=base, variants=variants, objective=objective,
                      folds=folds, top=top_n, distortion=distortion, contrast=contrast, source=source,
                      raw=dict(doc), classes=classes, baseline_class=base_cls, report_class=report_class,
                      ab3dmot=ab3dmot, ab3dmot_columns=ab3dmot_columns, lidar=parse_lidar(doc, source))
@@ -486,6 +442,58 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
                                   f"variant {v.name!r} has no random parameter (uniform, loguniform, randint, "
                                   f"choice): every config would repeat", source)
     return spec
+
+
+def _parse_data(top: Table, source) -> tuple[Table, tuple[str, ...], str | None, tuple[str, ...] | None]:
+    """The [data] table: (the table, its classes, its root resolved against the file's folder, its sequences)."""
+    data = top.table("data", DATA_KEYS)
+    for k in ("root", "det2d", "det3d"):
+        data.string(k, None)
+    try:
+        lidar_dir(data.get("det3d", ""))                # "lidar:" without its folder
+    except ValueError as e:
+        raise data.error("det3d", str(e)) from None
+    classes = _parse_classes(data.get("class", "car"), source)
+    root = data.get("root")
+    if root is not None and source is not None and not Path(root).expanduser().is_absolute():
+        root = str((Path(source).parent / Path(root).expanduser()).resolve())
+    return data, classes, root, _parse_sequences(data.get("sequences"), "data.sequences", source)
+
+
+def _parse_baseline(top: Table) -> tuple[str, str | None]:
+    """``baseline = "preset"`` or the [baseline] table: (the preset, its class or None)."""
+    base = top.get("baseline", "dfr2023")
+    if not isinstance(base, Mapping):
+        return top.choice("baseline", "dfr2023", sorted(PRESETS), "unknown preset"), None
+    bt = top.table("baseline", BASELINE_KEYS)
+    base_cls = bt.get("class")
+    if base_cls is not None and (not isinstance(base_cls, str) or base_cls not in CLASSES):
+        raise bt.error("class", f"{base_cls!r}: expected one of {list(CLASSES)} (every class's baseline is the "
+                                f"preset as tuned for this class)")
+    return bt.choice("preset", "dfr2023", sorted(PRESETS), "unknown preset"), base_cls
+
+
+def _parse_variants(doc: Mapping, top: Table, classes: tuple[str, ...], source) -> tuple[Variant, ...]:
+    """[params] and [options], and each [[variants]] entry overriding them (one variant "grid" without any)."""
+    params = _axes(doc.get("params"), "params", "params", source, classes)
+    options = _axes(doc.get("options"), "options", "options", source)
+    variants_doc = doc.get("variants")
+    if variants_doc is None:
+        return (Variant("grid", params, options),)
+    if not isinstance(variants_doc, list) or not variants_doc:
+        raise top.error("variants", "expected a non-empty array of tables ([[variants]])")
+    variants = []
+    for i, v in enumerate(variants_doc):
+        vt = Table(v, f"variants[{i}]", source, VARIANT_KEYS)
+        vname = vt.string("name", f"variant{i}")
+        vp = _axes(v.get("params"), "params", f"variants[{i}].params", source, classes)
+        vo = _axes(v.get("options"), "options", f"variants[{i}].options", source)
+        over_p = {a.name for a in vp}
+        over_o = {a.name for a in vo}
+        variants.append(Variant(vname,
+                                tuple(a for a in params if a.name not in over_p) + vp,
+                                tuple(a for a in options if a.name not in over_o) + vo))
+    return tuple(variants)
 
 
 def _parse_metrics(metrics: Table, rep: Table, objective: str, folds: int | None) -> str | None:
