@@ -38,7 +38,8 @@ class AxisKind(Protocol):
 
     def split_key(self, row: Mapping) -> Hashable | None:
         """The data ``row``'s config needs beyond its class's split: configs of different keys run on
-        different splits (``plan.DataSettings.lidar``); None: the class's split."""
+        different splits (``plan.DataSettings.lidar``); None: the class's split. A key is hashable,
+        with ``identity()``: its part of the split's data identity (in every chunk id of the split)."""
 
     def chunk_identity(self) -> dict:
         """What this kind adds to every chunk's identity (part of the chunk ids; {}: nothing)."""
@@ -47,8 +48,9 @@ class AxisKind(Protocol):
 def cross_rows(rows: Sequence[Mapping], kind: AxisKind) -> list[dict]:
     """Every row x the kind's values (innermost); the baseline flag stays on the baseline row's first
     value (the baseline row comes first, so it still does)."""
+    values = {False: kind.values(False), True: kind.values(True)}
     return [{**r, **v, "baseline": bool(r["baseline"]) and i == 0}
-            for r in rows for i, v in enumerate(kind.values(bool(r["baseline"])))]
+            for r in rows for i, v in enumerate(values[bool(r["baseline"])])]
 
 
 def hash_settings(kinds: Sequence[AxisKind], row: Mapping) -> dict:
@@ -57,11 +59,11 @@ def hash_settings(kinds: Sequence[AxisKind], row: Mapping) -> dict:
 
 
 def split_keys(kinds: Sequence[AxisKind]) -> list:
-    """The distinct split keys of the kinds' values (:meth:`AxisKind.split_key`; [] when no kind needs
-    data of its own). One kind at most may need data: a split has one key."""
-    keys = [[k for k in dict.fromkeys(kind.split_key(v) for v in kind.values(False)) if k is not None]
-            for kind in kinds]
-    keys = [k for k in keys if k]
+    """The distinct split keys of the kinds' values (:meth:`AxisKind.split_key`, None among them for
+    the class's own split; [] when no kind needs data of its own). One kind at most may need data: a
+    split has one key."""
+    keys = [list(dict.fromkeys(kind.split_key(v) for v in kind.values(False))) for kind in kinds]
+    keys = [k for k in keys if any(x is not None for x in k)]
     if len(keys) > 1:
         raise ValueError("more than one axis kind needs data of its own: a split has one key")
     return keys[0] if keys else []

@@ -117,6 +117,7 @@ class DistortionAxes:
         return [dict(zip(DISTORTION_AXES, lane)) for lane in lanes]
 
     def size(self, configs: int) -> tuple[int, str, list[tuple[int, str]]]:
+        """Configs x lanes, + the baseline's undistorted lane (when no kind lists level 0)."""
         return configs * self.n_lanes + 1, f"x {self.n_lanes:,} distortion lanes", [(len(self.seeds), "distortion.seeds")]
 
     def hash_settings(self, row: Mapping) -> dict:

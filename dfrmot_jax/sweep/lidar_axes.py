@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -26,7 +26,7 @@ from ..config import CLASSES, Params
 from ..lidar import LIFT_SETTINGS, LiftSettings, SimSettings, lidar_dir, tie_scores, with_setting
 from .checks import Table, config_error, is_number
 
-__all__ = ["LIFT_COLUMNS", "SIM_COLUMNS", "LIDAR_AXES", "LidarAxes", "parse_lidar", "lidar_key", "key_settings",
+__all__ = ["LIFT_COLUMNS", "SIM_COLUMNS", "LIDAR_AXES", "LidarAxes", "LidarKey", "parse_lidar", "lidar_key", "key_settings",
            "tie_table_scores", "describe_key"]
 
 SIM_KEYS = tuple(SimSettings._fields) + ("seed",)
@@ -98,7 +98,7 @@ class LidarAxes:
     def hash_settings(self, row: Mapping) -> dict:
         return {}           # (the settings are the row's columns)
 
-    def split_key(self, row: Mapping) -> tuple:
+    def split_key(self, row: Mapping) -> LidarKey:
         return lidar_key(row, self.simulate)
 
     def chunk_identity(self) -> dict:
@@ -184,15 +184,26 @@ def parse_lidar(doc: Mapping, source=None) -> LidarAxes | None:
     return out
 
 
-def lidar_key(row: Mapping, simulate: bool = False) -> tuple:
-    """A row's LiDAR setting as data: ``(lift, sim)``, ``lift`` the (name, value) pairs of the lifting
-    settings off their defaults, ``sim`` None (scans read from DIR) or every simulation setting's
-    (name, value) pair (scans simulated)."""
+class LidarKey(NamedTuple):
+    """A LiDAR setting as data (:func:`lidar_key`), the split key of :class:`LidarAxes`: ``lift`` the
+    (name, value) pairs of the lifting settings off their defaults, ``sim`` None (scans read from
+    DIR) or every simulation setting's (name, value) pair (scans simulated)."""
+
+    lift: tuple
+    sim: tuple | None
+
+    def identity(self) -> dict:
+        """Its part of its split's data identity (``plan.DataSettings.identity``, in every chunk id)."""
+        return {"lidar": {"lift": dict(self.lift), "simulate": None if self.sim is None else dict(self.sim)}}
+
+
+def lidar_key(row: Mapping, simulate: bool = False) -> LidarKey:
+    """A row's LiDAR setting as data: ``(lift, sim)`` (:class:`LidarKey`)."""
     lift = tuple((c.split(".", 1)[1], row[c]) for c in LIFT_COLUMNS if c in row and row[c] != LIFT_COLUMNS[c])
     if not simulate:
-        return (tuple((n, _plain(v)) for n, v in lift), None)
+        return LidarKey(tuple((n, _plain(v)) for n, v in lift), None)
     sim = tuple((c.split(".", 1)[1], row.get(c, d)) for c, d in SIM_COLUMNS.items())
-    return (tuple((n, _plain(v)) for n, v in lift), tuple((n, _plain(v)) for n, v in sim))
+    return LidarKey(tuple((n, _plain(v)) for n, v in lift), tuple((n, _plain(v)) for n, v in sim))
 
 
 def _plain(v):

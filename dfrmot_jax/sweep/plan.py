@@ -38,14 +38,13 @@ class DataSettings:
     cls: str
     sequences: tuple[str, ...]
     lengths: tuple[int, ...] = ()
-    lidar: tuple | None = None      # the split key of an axis kind (AxisKind.split_key: [lift] / [simulate]'s)
+    lidar: tuple | None = None      # the split key of an axis kind (AxisKind.split_key: a lidar_axes.LidarKey)
 
     def identity(self) -> dict:
         out = {"root": self.root, "det2d": self.det2d, "det3d": self.det3d, "class": self.cls,
                "sequences": list(self.sequences)}
         if self.lidar is not None:
-            out["lidar"] = {"lift": dict(self.lidar[0]),
-                            "simulate": None if self.lidar[1] is None else dict(self.lidar[1])}
+            out.update(self.lidar.identity())
         return out
 
 
@@ -112,7 +111,7 @@ class Chunk:
     options: Options
     configs: tuple[int, ...]
     cls: str = "car"
-    lidar: tuple | None = None      # the LiDAR setting of its split (DataSettings.lidar)
+    lidar: tuple | None = None      # the split key of its split (DataSettings.lidar: a LiDAR setting)
 
     def of(self, data: "DataSettings") -> bool:
         """Whether this chunk runs on ``data``'s split."""
@@ -145,9 +144,9 @@ def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk
     axes = () if axes is None else (axes,) if not isinstance(axes, Sequence) else tuple(axes)
     if not isinstance(data, DataSettings):
         return [c for d in data for c in plan(table, d, chunk, axes, ab3dmot)]
-    if data.lidar is not None:      # this split's configs only
+    if data.lidar is not None or split_keys(axes):      # the configs of this split's key only
         keys = [split_key(axes, r) for r in table.to_dict("records")]
-        if all(k is None for k in keys):
+        if data.lidar is not None and all(k is None for k in keys):
             raise ValueError(f"a split of key {data.lidar} but no axis kind gives the configs keys: pass the "
                              f"sweep's axis kinds (plan(..., spec.axes))")
         groups = option_groups(table[[k == data.lidar for k in keys]])

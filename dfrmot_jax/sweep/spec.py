@@ -44,8 +44,8 @@ LATE_OPTIONS: dict[str, Any] = {"assign": Options._field_defaults["assign"]}
 LATE_PARAMS: dict[str, Any] = {n: Params._field_defaults[n] for n in INHERITED_PARAMS}
 #: Further per-lane axes (columns of the config table, part of the config hash): name -> default
 #: value. A column equal to its default is left out of the hash, so adding an axis keeps existing
-#: hashes. The distortion axes are registered separately (``DISTORTION_AXES``, the columns of
-#: :class:`~.distortion.DistortionAxes`); these are the columns of :class:`~.lidar_axes.LidarAxes`.
+#: hashes. An axis kind (:class:`~.axes.AxisKind`) registers its columns here (the LiDAR settings
+#: of :class:`~.lidar_axes.LidarAxes`) or, the distortion axes, in ``DISTORTION_AXES``.
 EXTRA_AXES: dict[str, Any] = {**LIDAR_AXES}
 CONTRAST_KEYS = ("axis", "high", "low", "by")
 

@@ -157,16 +157,16 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     fails before expanding, with a :class:`SweepConfigError` naming its largest factor.
     """
     spec = as_spec(spec)
-    check_size(spec, max_configs)
+    _check_size(spec, max_configs)
     table = settings_table(spec)
     for i, kind in enumerate(spec.axes):
         table = cross(table, kind, spec.axes[:i + 1])
     table.insert(0, "config", np.arange(len(table), dtype=np.int64))
-    check_configs(table, spec.source)
+    _check_configs(table, spec.source)
     return table
 
 
-def check_size(spec: SweepSpec, max_configs: int | None = None) -> None:
+def _check_size(spec: SweepSpec, max_configs: int | None = None) -> None:
     """Refuse a sweep of more than ``max_configs`` configs (default :data:`MAX_CONFIGS`) before expanding."""
     limit = MAX_CONFIGS if max_configs is None else int(max_configs)
     n, desc, key = config_count(spec)
@@ -232,23 +232,26 @@ def cross(table: pd.DataFrame, kind: AxisKind, kinds: Sequence[AxisKind]) -> pd.
     """Every config of ``table`` x an axis kind's values (:func:`~.axes.cross_rows`: its columns
     innermost, typed as their defaults; the baseline still first), hashes recomputed with the
     settings of ``kinds`` (those crossed so far, ``kind`` last), configs that hash alike kept once."""
+    unknown = [c for c in kind.columns if c not in extra_axes()]
+    if unknown:             # (config_hash and the result rows know a kind's columns from that registry)
+        raise ValueError(f"axis columns {unknown} are not registered in dfrmot_jax.sweep.spec.EXTRA_AXES")
     cols = list(table.columns.drop("config_hash"))
     out = pd.DataFrame(cross_rows(table[cols].to_dict("records"), kind), columns=cols + list(kind.columns))
     for c in cols:
         out[c] = out[c].astype(table[c].dtype)
     for c, d in kind.columns.items():
-        out[c] = out[c].astype(column_dtype(d))
+        out[c] = out[c].astype(_column_dtype(d))
     out.insert(0, "config_hash", [config_hash(r, hash_settings(kinds, r)) for r in out.to_dict("records")])
     return out.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
 
 
-def column_dtype(default):
+def _column_dtype(default):
     """The table's type of a column whose default is ``default`` (bool, int64, float64, or object)."""
     return bool if isinstance(default, bool) else "int64" if isinstance(default, int) else \
         "float64" if isinstance(default, float) else object
 
 
-def check_configs(table: pd.DataFrame, src: str | None) -> None:
+def _check_configs(table: pd.DataFrame, src: str | None) -> None:
     """The checks on a whole table: a config besides the baseline, filtered boxes with stable fixed
     gains, ``keep_lost`` only with filtered output (a :class:`SweepConfigError` naming the key)."""
     if len(table) < 2:
