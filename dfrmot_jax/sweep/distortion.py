@@ -118,7 +118,8 @@ class DistortionAxes:
 
     def size(self, configs: int) -> tuple[int, str, list[tuple[int, str]]]:
         """Configs x lanes, + the baseline's undistorted lane (when no kind lists level 0)."""
-        return configs * self.n_lanes + 1, f"x {self.n_lanes:,} distortion lanes", [(len(self.seeds), "distortion.seeds")]
+        n = self.n_lanes
+        return configs * n + 1, f"x {n:,} distortion lanes", [(len(self.seeds), "distortion.seeds")]
 
     def hash_settings(self, row: Mapping) -> dict:
         return self.hash_extra(row["distortion.kind"])
@@ -262,8 +263,8 @@ def _parse_seeds(seeds_doc, source) -> tuple[int, ...]:
         return tuple(int(v) for v in seeds_doc)
     if isinstance(seeds_doc, int) and not isinstance(seeds_doc, bool):
         if seeds_doc < 1:
-            raise config_error("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 (seeds 0 .. n-1) or a list of "
-                                                   f"seeds", source)
+            raise config_error("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 (seeds 0 .. n-1) or a "
+                                                   f"list of seeds", source)
         check_count(seeds_doc, "distortion.seeds", source)
         return tuple(range(seeds_doc))
     raise config_error("distortion.seeds", f"{seeds_doc!r}: expected a count >= 1 or a list of seeds", source)

@@ -26,8 +26,8 @@ from ..config import CLASSES, Params
 from ..lidar import LIFT_SETTINGS, LiftSettings, SimSettings, lidar_dir, tie_scores, with_setting
 from .checks import Table, config_error, is_number
 
-__all__ = ["LIFT_COLUMNS", "SIM_COLUMNS", "LIDAR_AXES", "LidarAxes", "LidarKey", "parse_lidar", "lidar_key", "key_settings",
-           "tie_table_scores", "describe_key"]
+__all__ = ["LIFT_COLUMNS", "SIM_COLUMNS", "LIDAR_AXES", "LidarAxes", "LidarKey", "parse_lidar", "lidar_key",
+           "key_settings", "tie_table_scores", "describe_key"]
 
 SIM_KEYS = tuple(SimSettings._fields) + ("seed",)
 _SIM_INT = ("beams", "seed")
