@@ -1,6 +1,6 @@
 """Inputs of the AB3DMOT KITTI metrics: ground truth, result files and seqmaps, read by its rules.
 
-:mod:`dfrmot_jax.metrics.ab3dmot` scores what this module reads. The reference is
+:mod:`dfrmot_jax.metrics.ab3dmot.evaluate` scores what this module reads. The reference is
 ``scripts/KITTI/evaluate.py`` of xinshuoweng/AB3DMOT (``trackingEvaluation._loadData``); its rules:
 
 * **Rows of a class.** A row is loaded when its lower-cased type *contains* one of the class's
@@ -50,8 +50,8 @@ import numpy as np
 
 from dfrmot_jax.io.kitti import KittiFormatError, quoted, read_text_file, read_tracking_labels
 from dfrmot_jax.io.memo import FileMemo, file_stamps
-from dfrmot_jax.metrics.fields3d import PLACEHOLDER_DIMS, PLACEHOLDER_LOC, box3d_problem, parse_floats, placeholder_rows
-from dfrmot_jax.metrics.pairs import segment_starts
+from dfrmot_jax.metrics.common.fields3d import PLACEHOLDER_DIMS, PLACEHOLDER_LOC, box3d_problem, parse_floats, placeholder_rows
+from dfrmot_jax.metrics.common.pairs import segment_starts
 
 __all__ = ["AB3D_CLASSES", "Ab3dGT", "Ab3dTracker", "prepare_ab3dmot_gt", "cached_ab3dmot_gt",
            "read_ab3dmot_results", "read_seqmap", "clear_cache", "PLACEHOLDER_DIMS", "PLACEHOLDER_LOC"]

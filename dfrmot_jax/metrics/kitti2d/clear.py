@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from dfrmot_jax.metrics.boxes import EPS
-from dfrmot_jax.metrics.kitti import EvalBatch
+from dfrmot_jax.metrics.kitti2d.boxes import EPS
+from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
 from scipy.optimize import linear_sum_assignment
 
-from dfrmot_jax.metrics.pairs import crowded_segments, segment_pairs, segment_rows, segment_starts, solve_blocks
+from dfrmot_jax.metrics.common.pairs import crowded_segments, segment_pairs, segment_rows, segment_starts, solve_blocks
 
 THRESHOLD = 0.5
 MAIN_INTEGER_FIELDS = ("CLR_TP", "CLR_FN", "CLR_FP", "IDSW", "MT", "PT", "ML", "Frag")
@@ -70,7 +70,7 @@ def _solve_round(ready: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.nda
     """Solve lane-frames whose previous active frame's matches are final in ``matched``, all at once.
 
     Each frame's matrix is TrackEval's ``1000 * continues + sim`` (zero where ``sim < 0.5 - eps``),
-    solved by :func:`~dfrmot_jax.metrics.pairs.solve_blocks` (scipy on each full matrix).
+    solved by :func:`~dfrmot_jax.metrics.common.pairs.solve_blocks` (scipy on each full matrix).
     """
     NG = max(len(b.gt.gid_count), 1)
     ps = b.pair_start

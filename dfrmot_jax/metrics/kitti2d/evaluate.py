@@ -26,13 +26,13 @@ does) is the plain mean over the classes; nothing is recomputed from the sums.
 Similarity: every entry point takes ``similarity='2d'`` (TrackEval's image IoU, the default),
 ``'3d'`` (3D IoU of the rotated boxes) or ``'bev'`` (bird's-eye-view IoU): the same definitions and
 the same KITTI preprocessing, only the similarity the metrics match on changes (see
-:mod:`dfrmot_jax.metrics.kitti`: distractors and DontCare stay 2D, as KITTI's; a row without a 3D
+:mod:`dfrmot_jax.metrics.kitti2d.kitti`: distractors and DontCare stay 2D, as KITTI's; a row without a 3D
 box is unmatched in 3D). Files are then read with their 3D fields (located errors); arrays need
 ``box3d``. The result fields keep their names (``HOTA``, ``DetA``, ...): the caller labels them
 (e.g. ``HOTA_3d``).
 
 Sweeps (:mod:`dfrmot_jax.sweep`) score padded tracker output with
-:class:`dfrmot_jax.metrics.lane_scorer.LaneScorer` (each distinct output of each sequence scored
+:class:`dfrmot_jax.metrics.kitti2d.lane_scorer.LaneScorer` (each distinct output of each sequence scored
 once, in sub-batches of lanes, optionally in a :func:`worker_pool`), keep TrackEval's summary view
 per row (:func:`summary_columns`), re-combine any subset of sequences
 from the per-alpha fields :data:`RAW_FIELDS` (:func:`combine_sequences`) and average classes
@@ -52,8 +52,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from dfrmot_jax.io.memo import FileMemo, file_stamps
-from dfrmot_jax.metrics import clear, hota, identity, table
-from dfrmot_jax.metrics.kitti import (
+from dfrmot_jax.metrics.kitti2d import clear, hota, identity, table
+from dfrmot_jax.metrics.kitti2d.kitti import (
     PreparedGT,
     TrackerDets,
     class_sequences,
@@ -61,9 +61,9 @@ from dfrmot_jax.metrics.kitti import (
     preprocess,
     seq_name,
 )
-from dfrmot_jax.metrics.similarity import parse_similarity
-from dfrmot_jax.metrics.table import classes_table
-from dfrmot_jax.metrics.tracker_files import read_tracker_files
+from dfrmot_jax.metrics.kitti2d.similarity import parse_similarity
+from dfrmot_jax.metrics.kitti2d.table import classes_table
+from dfrmot_jax.metrics.kitti2d.tracker_files import read_tracker_files
 from dfrmot_jax.paths import default_data_root
 
 COUNT_FIELDS = ("Dets", "GT_Dets", "IDs", "GT_IDs")
@@ -107,7 +107,7 @@ def _label_stamp(label_dir: Path) -> tuple:
 
 
 def cached_class_sequences(root, cls: str = "car") -> tuple:
-    """:func:`dfrmot_jax.metrics.kitti.class_sequences` of every ``label_02`` sequence, memoised on
+    """:func:`dfrmot_jax.metrics.kitti2d.kitti.class_sequences` of every ``label_02`` sequence, memoised on
     (root, class) with the stamp of every label file (names too: a sequence added or removed is seen)."""
     label_dir = Path(root) / "label_02"
     key = (str(Path(root).resolve()), cls.lower())
@@ -277,7 +277,7 @@ def evaluate_files_classes(results_dir, root=None, classes: Sequence[str] | str 
 def evaluate_classes(results_dir, root=None, classes: Sequence[str] | str = EVAL_CLASSES,
                      sequences: Sequence | None = None, missing: str = "empty", tracker: str | None = None,
                      similarity: str = "2d"):
-    """:func:`evaluate_files_classes` as a tidy pandas DataFrame (:func:`dfrmot_jax.metrics.table.classes_table`).
+    """:func:`evaluate_files_classes` as a tidy pandas DataFrame (:func:`dfrmot_jax.metrics.kitti2d.table.classes_table`).
 
     Columns ``[tracker,] class, seq`` and TrackEval's summary fields (ratios x100, counts int); one
     row per (class, sequence), each class's ``COMBINED``, and with two or more classes a last row

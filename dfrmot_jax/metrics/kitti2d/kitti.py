@@ -21,14 +21,14 @@ What TrackEval does (``trackeval/datasets/kitti_2d_box.py`` and ``_base_dataset.
   (score > eps) to a distractor GT are removed. Of the unmatched tracker boxes, those with height
   ``y2 - y1 <= 25 + eps`` px or with intersection-over-own-area ``> 0.5 + eps`` with any DontCare
   region are removed. Distractor GT are then dropped.
-* **Similarity** (``similarity=``, :mod:`dfrmot_jax.metrics.similarity`): TrackEval's image-box
+* **Similarity** (``similarity=``, :mod:`dfrmot_jax.metrics.kitti2d.similarity`): TrackEval's image-box
   IoU (``'2d'``, the default), or, with the rest unchanged, the 3D IoU of the rotated boxes (``'3d'``) or their
-  bird's-eye-view IoU (``'bev'``) (:mod:`dfrmot_jax.metrics.box3d`), which then feeds HOTA, CLEAR
+  bird's-eye-view IoU (``'bev'``) (:mod:`dfrmot_jax.metrics.common.box3d`), which then feeds HOTA, CLEAR
   and Identity in place of the 2D IoU (their thresholds unchanged: CLEAR and Identity match at
   similarity >= 0.5, HOTA over alpha = 0.05..0.95). The preprocessing stays 2D, as KITTI's: the
   distractor matching (image IoU >= 0.5), the 25 px height and the DontCare overlap use the image
   boxes whatever the similarity. A row without a 3D box (the 2D-only placeholder
-  ``-1 -1 -1 -1000 -1000 -1000``, or all NaN in arrays; :mod:`dfrmot_jax.metrics.fields3d`) has 3D /
+  ``-1 -1 -1 -1000 -1000 -1000``, or all NaN in arrays; :mod:`dfrmot_jax.metrics.common.fields3d`) has 3D /
   BEV similarity 0 to every object: in 3D it is never matched (a false positive unless removed by
   the 2D preprocessing), and a ground-truth object without one is never matched either (a miss).
 * **Ids.** GT and tracker ids are relabelled per sequence to ``0..n-1`` in sorted order (this
@@ -51,11 +51,11 @@ import pandas as pd
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.io.plain_table import read_ahead
-from dfrmot_jax.metrics.box_table import box_table, candidate_pairs, pair_iou
-from dfrmot_jax.metrics.boxes import EPS, columns
-from dfrmot_jax.metrics.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows
-from dfrmot_jax.metrics.pairs import enumerate_pairs, match_entries, segment_starts
-from dfrmot_jax.metrics.similarity import pair_similarity_3d, parse_similarity
+from dfrmot_jax.metrics.kitti2d.box_table import box_table, candidate_pairs, pair_iou
+from dfrmot_jax.metrics.kitti2d.boxes import EPS, columns
+from dfrmot_jax.metrics.common.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows
+from dfrmot_jax.metrics.common.pairs import enumerate_pairs, match_entries, segment_starts
+from dfrmot_jax.metrics.kitti2d.similarity import pair_similarity_3d, parse_similarity
 
 __all__ = [
     "CLASS_NAME_TO_ID",
@@ -370,7 +370,7 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     ``seq_offsets[s] : seq_offsets[s] + gt.lengths[s]``; other frames of T are ignored.
     box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot, or None (3D fields not needed). A slot
     without a 3D box holds the placeholder or all NaN; any other value that is no box
-    (:mod:`dfrmot_jax.metrics.fields3d`) raises ValueError naming config, frame, slot and field.
+    (:mod:`dfrmot_jax.metrics.common.fields3d`) raises ValueError naming config, frame, slot and field.
     """
     seq_offsets = check_arrays(gt, ids, boxes, seq_offsets)
     ids, boxes = np.asarray(ids), np.asarray(boxes)

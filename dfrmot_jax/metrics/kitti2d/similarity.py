@@ -1,8 +1,8 @@
 """The similarity HOTA / CLEAR / Identity score with: image IoU, 3D IoU or bird's-eye-view IoU.
 
-``'2d'`` is TrackEval's image-box IoU (computed bit-identically by :mod:`dfrmot_jax.metrics.boxes`
-inside :func:`dfrmot_jax.metrics.kitti.preprocess`); ``'3d'`` the IoU of the rotated KITTI 3D boxes
-and ``'bev'`` their ground-plane IoU (:mod:`dfrmot_jax.metrics.box3d`, the one rotated-box overlap
+``'2d'`` is TrackEval's image-box IoU (computed bit-identically by :mod:`dfrmot_jax.metrics.kitti2d.boxes`
+inside :func:`dfrmot_jax.metrics.kitti2d.kitti.preprocess`); ``'3d'`` the IoU of the rotated KITTI 3D boxes
+and ``'bev'`` their ground-plane IoU (:mod:`dfrmot_jax.metrics.common.box3d`, the one rotated-box overlap
 of the package, also AB3DMOT's). A pair where either side has no 3D box has similarity 0.
 Many outputs of a sweep carry the same boxes: :func:`pair_similarity_3d` computes each distinct
 (ground-truth row, box) pair once, boxes told apart by :func:`row_ids`.
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from dfrmot_jax.metrics.box3d import bev_iou, iou_3d
+from dfrmot_jax.metrics.common.box3d import bev_iou, iou_3d
 
 __all__ = ["SIMILARITIES", "parse_similarity", "row_ids", "distinct_rows", "pair_similarity_3d"]
 

@@ -18,8 +18,8 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files
-from dfrmot_jax.metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, name_list
+from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
+from dfrmot_jax.metrics.kitti2d.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, name_list
 
 __all__ = ["METRIC_FAMILIES", "AB3DMOT_COLUMNS", "RATIO_SCALE", "parse_metric_families", "ab3dmot_columns",
            "ab3dmot_class_average", "evaluate_ab3dmot_classes", "ab3dmot_table", "add_ab3dmot_columns"]

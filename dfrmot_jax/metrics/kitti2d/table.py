@@ -7,17 +7,17 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from dfrmot_jax.metrics import clear, hota, identity
+from dfrmot_jax.metrics.kitti2d import clear, hota, identity
 
 # TrackEval's summary fields, in its order (HOTA, CLEAR, Identity, Count). In a class average row
 # (``class = 'average'``) the PERCENT_FIELDS (ratios) are the mean over the classes and the
-# COUNT_FIELDS are summed (see dfrmot_jax.metrics.evaluate.class_average).
+# COUNT_FIELDS are summed (see dfrmot_jax.metrics.kitti2d.evaluate.class_average).
 PERCENT_FIELDS = (hota.FLOAT_ARRAY_FIELDS + hota.FLOAT_FIELDS + clear.MAIN_FLOAT_FIELDS + identity.FLOAT_FIELDS)
 COUNT_FIELDS = clear.MAIN_INTEGER_FIELDS + identity.INTEGER_FIELDS + ("Dets", "GT_Dets", "IDs", "GT_IDs")
 TABLE_FIELDS = (hota.FLOAT_ARRAY_FIELDS + hota.FLOAT_FIELDS + clear.MAIN_FLOAT_FIELDS + clear.MAIN_INTEGER_FIELDS
                 + identity.FLOAT_FIELDS + identity.INTEGER_FIELDS + ("Dets", "GT_Dets", "IDs", "GT_IDs"))
 COMPACT_FIELDS = ("HOTA", "DetA", "AssA", "MOTA", "MOTP", "IDSW", "IDF1", "MT", "ML", "Frag")
-#: AB3DMOT's figures as table columns (:mod:`dfrmot_jax.metrics.ab3dmot_table`): ratios (x100, as
+#: AB3DMOT's figures as table columns (:mod:`dfrmot_jax.metrics.ab3dmot.table`): ratios (x100, as
 #: the table's other ratios) and counts, prefixed ``ab3dmot_`` where CLEAR has a column of the name
 AB3DMOT_RATIO_COLUMNS = ("sAMOTA", "AMOTA", "AMOTP", "ab3dmot_MOTA", "ab3dmot_MOTP")
 AB3DMOT_COUNT_COLUMNS = ("ab3dmot_IDS", "ab3dmot_FRAG", "ab3dmot_FP", "ab3dmot_FN")
@@ -74,7 +74,7 @@ def classes_table(results_by_class: Mapping[str, Mapping[str, Mapping[str, objec
     """Tidy table of several classes: columns ``[tracker,] class, seq`` and the summary fields.
 
     results_by_class: ``{cls: {seq or 'COMBINED': {field: value}}}`` as from
-    :func:`dfrmot_jax.metrics.evaluate.evaluate_files_classes` (a class ``'average'`` holds only
+    :func:`dfrmot_jax.metrics.kitti2d.evaluate.evaluate_files_classes` (a class ``'average'`` holds only
     ``COMBINED``: ratios averaged over the classes, counts summed). Rows: per class its sequences
     then ``COMBINED``, classes in the given order; a plain RangeIndex.
     """
