@@ -4,8 +4,8 @@ as result files: the two fixture outputs packed into [B, T, K] arrays, 2D and 3D
 import numpy as np
 import pytest
 
-from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
 from dfrmot_jax.metrics.ab3dmot.arrays import evaluate_ab3dmot_arrays
+from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
 from dfrmot_jax.metrics.ab3dmot.prep import prepare_ab3dmot_gt
 from dfrmot_jax.paths import default_data_root
 

@@ -61,7 +61,8 @@ def test_file_memo_sees_a_same_size_rewrite_a_rename_and_a_fresh_file(tmp_path):
 
 def test_ground_truth_caches_see_an_edited_label_file(scene, tmp_path):
     from dfrmot_jax.metrics.ab3dmot.prep import cached_ab3dmot_gt
-    from dfrmot_jax.metrics.kitti2d.evaluate import cached_class_sequences, cached_gt
+    from dfrmot_jax.metrics.common.sequences import cached_class_sequences
+    from dfrmot_jax.metrics.kitti2d.evaluate import cached_gt
 
     root = tmp_path / "root"
     shutil.copytree(scene, root)

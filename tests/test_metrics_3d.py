@@ -8,11 +8,11 @@ import pytest
 from dfrmot_jax.io.kitti import KittiFormatError
 from dfrmot_jax.metrics.kitti2d.boxes import pair_iou
 from dfrmot_jax.metrics.kitti2d.evaluate import evaluate_classes, evaluate_files
+from dfrmot_jax.metrics.kitti2d.kitti import prepare_gt
 from dfrmot_jax.metrics.kitti2d.lane_scorer import evaluate_arrays
 from dfrmot_jax.metrics.kitti2d.lane_scorer import LaneScorer
-from dfrmot_jax.metrics.kitti2d.kitti import prepare_gt
-from dfrmot_jax.metrics.kitti2d.tracker_files import read_tracker_files
 from dfrmot_jax.metrics.kitti2d.similarity import pair_similarity_3d
+from dfrmot_jax.metrics.kitti2d.tracker_files import read_tracker_files
 from dfrmot_jax.paths import default_data_root
 
 PLACEHOLDER = (-1, -1, -1, -1000, -1000, -1000, -10)

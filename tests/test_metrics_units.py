@@ -8,11 +8,11 @@ import pytest
 from scipy.optimize import linear_sum_assignment
 
 from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, metrics_table, prepare_gt
-from dfrmot_jax.metrics.kitti2d.boxes import columns, gather_iou, pair_ioa, pair_iou
-from dfrmot_jax.testing.metric_edits import SeqResults, f32, pack_arrays, write_results
 from dfrmot_jax.metrics.common import pairs
 from dfrmot_jax.metrics.common.pairs import (assign_frames, enumerate_pairs, nontrivial_segments, numpy_col_sums,
-                                      numpy_row_sums, segment_starts, solve_blocks)
+                                             numpy_row_sums, segment_starts, solve_blocks)
+from dfrmot_jax.metrics.kitti2d.boxes import columns, gather_iou, pair_ioa, pair_iou
+from dfrmot_jax.testing.metric_edits import SeqResults, f32, pack_arrays, write_results
 
 
 def _random_boxes(rng, n):

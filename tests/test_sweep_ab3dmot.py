@@ -12,8 +12,7 @@ import pytest
 from dfrmot_jax.api import track
 from dfrmot_jax.data import load_split
 from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
-from dfrmot_jax.metrics.ab3dmot.table import ab3dmot_columns
-from dfrmot_jax.metrics.kitti2d.table import AB3DMOT_COLUMNS
+from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS, ab3dmot_columns
 from dfrmot_jax.results import ClassRun, write_runs
 from dfrmot_jax.sweep import SweepConfigError, expand, params_of, parse_spec, plan, resolve_data, run_sweep, sweep_report
 from dfrmot_jax.sweep.plan import option_groups

@@ -58,18 +58,17 @@ from ..metrics.ab3dmot.table import (
     evaluate_ab3dmot_classes,
     parse_metric_families,
 )
+from ..metrics.common.sequences import CLASS_NAME_TO_ID, cached_class_sequences
 from ..metrics.kitti2d.evaluate import (
     AVERAGE,
     EVAL_CLASSES,
-    cached_class_sequences,
     cached_gt,
     class_average,
     evaluate_dets,
     parse_classes,
 )
-from ..metrics.kitti2d.kitti import CLASS_NAME_TO_ID
-from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
 from ..metrics.kitti2d.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
+from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
 from ..paths import default_data_root
 from .errors import guarded
 from .track import parse_seqs
@@ -167,8 +166,8 @@ def _warn(message: str) -> None:
 
 
 def _check_folder(d: Path, found, n_seqs: int, label_dir: Path, allow_missing: bool) -> None:
-    """Raise ValueError naming everything wrong with result folder ``d`` (a ``metrics.kitti2d.tracker_files.ResultFolder``
-    for ``n_seqs`` sequences); with ``allow_missing`` warn about missing files instead."""
+    """Raise ValueError naming everything wrong with result folder ``d`` (a
+    ``metrics.kitti2d.tracker_files.ResultFolder`` for ``n_seqs`` sequences); with ``allow_missing`` warn about missing files instead."""
     problems = [f"{path} {why}, not a result file" for path, why in found.unreadable]
     missing = f"no result file for {len(found.missing)} of {n_seqs} sequences ({_names(found.missing)})"
     if found.missing and not allow_missing:

@@ -25,11 +25,12 @@ Typical use::
     metrics_table(res)                                   # pandas, TrackEval summary (x100)
 """
 
+from dfrmot_jax.metrics.common.sequences import class_sequences
 from dfrmot_jax.metrics.kitti2d.evaluate import (ALL_FIELDS, CLASS_AVERAGED_FIELDS, CLASS_SUMMED_FIELDS, cached_gt,
-                                         class_average, evaluate_batch, evaluate_classes, evaluate_files,
-                                         evaluate_files_classes)
+                                                 class_average, evaluate_batch, evaluate_classes, evaluate_files,
+                                                 evaluate_files_classes)
+from dfrmot_jax.metrics.kitti2d.kitti import DuplicateIdError, PreparedGT, prepare_gt
 from dfrmot_jax.metrics.kitti2d.lane_scorer import evaluate_arrays
-from dfrmot_jax.metrics.kitti2d.kitti import DuplicateIdError, PreparedGT, class_sequences, prepare_gt
 from dfrmot_jax.metrics.kitti2d.table import classes_table, metrics_table
 
 __all__ = ["PreparedGT", "prepare_gt", "cached_gt", "class_sequences", "evaluate_files", "evaluate_files_classes",

@@ -24,9 +24,8 @@ from ..api import TrackResult
 from ..data import Split
 from ..metrics.ab3dmot.arrays import evaluate_ab3dmot_rows
 from ..metrics.ab3dmot.prep import Ab3dGT
-from ..metrics.ab3dmot.table import ab3dmot_columns
+from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, ab3dmot_columns
 from ..metrics.kitti2d.lane_scorer import LaneScorer
-from ..metrics.kitti2d.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
 from ..results import kitti_rows
 from .table import COMBINED
 

@@ -38,9 +38,9 @@ from dfrmot_jax.metrics.ab3dmot.evaluate import (
 from dfrmot_jax.metrics.ab3dmot.passes import run_passes_many
 from dfrmot_jax.metrics.ab3dmot.prep import Ab3dGT, Ab3dTracker
 from dfrmot_jax.metrics.common.box3d import iou_3d
+from dfrmot_jax.metrics.common.distinct import distinct_rows
 from dfrmot_jax.metrics.common.fields3d import box3d_problem, no_box_rows
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
-from dfrmot_jax.metrics.kitti2d.similarity import distinct_rows
 
 __all__ = ["evaluate_ab3dmot_arrays", "evaluate_ab3dmot_rows", "tracker_rows_from_arrays"]
 
@@ -190,7 +190,7 @@ def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_off
 def _pairs(gt: Ab3dGT, rows: _Rows, kind: str, threshold: float, key: np.ndarray | None = None) -> list:
     """Candidate pairs of every output (by frame, object, row within each): the distinct (frame, box)
     values' pairs with the ground truth (IoU once each), joined back to every output's rows.
-    ``key`` [R]: the rows' value keys (:func:`~dfrmot_jax.metrics.kitti2d.similarity.distinct_rows`), or None."""
+    ``key`` [R]: the rows' value keys (:func:`~dfrmot_jax.metrics.common.distinct.distinct_rows`), or None."""
     B = len(rows.n_tracks)
     vals, live = (rows.box, np.ones(len(rows.frame), dtype=bool)) if kind == "2d" else (rows.box3d, rows.has3d)
     sel = np.flatnonzero(live)

@@ -26,8 +26,9 @@ components) done once and shared by its ~42 evaluation passes. Inputs are read b
    unmatched non-ignored objects, ``FP`` = kept rows - matches - ignored rows, ``n_gt`` = non-ignored
    objects; ``IDS`` / ``FRAG`` from each object trajectory's per-frame matched track (the
    reference's trajectory pass: a frame of an ignored object resets the last id; its exact rules
-   in :func:`~dfrmot_jax.metrics.ab3dmot.passes.ids_frag`); ``MOTA = 1 - (FN + FP + IDS) / n_gt``, ``MOTP`` = sum of matched IoUs
-   (``1 - c``) / TP, ``sMOTA = min(1, max(0, 1 - (FN + FP + IDS - (1 - r) n_gt) / (r n_gt)))``.
+   in :func:`~dfrmot_jax.metrics.ab3dmot.passes.ids_frag`); ``MOTA = 1 - (FN + FP + IDS) / n_gt``,
+   ``MOTP`` = sum of matched IoUs (``1 - c``) / TP,
+   ``sMOTA = min(1, max(0, 1 - (FN + FP + IDS - (1 - r) n_gt) / (r n_gt)))``.
 
 The evaluation: pass 0 keeps every track (``thr = -10000``, ``r = 1``); its matched rows' scores,
 sorted descending, give up to 40 thresholds at recall ``0.025 k`` (``getThresholds``: a score is
@@ -81,8 +82,8 @@ from dfrmot_jax.metrics.ab3dmot.prep import (
     read_seqmap,
 )
 from dfrmot_jax.metrics.common.box3d import iou_3d
-from dfrmot_jax.metrics.kitti2d.evaluate import cached_class_sequences
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
+from dfrmot_jax.metrics.common.sequences import cached_class_sequences
 from dfrmot_jax.paths import default_data_root
 
 __all__ = ["AB3DMOT_FIELDS", "parse_iou", "Ab3dPrepared", "prepare_passes", "static_ignore", "seq_sum_rows",

@@ -1,4 +1,5 @@
-"""AB3DMOT's evaluation passes, all thresholds of one output at once (the rules: :mod:`dfrmot_jax.metrics.ab3dmot.evaluate`).
+"""AB3DMOT's evaluation passes, all thresholds of one output at once (the rules:
+:mod:`dfrmot_jax.metrics.ab3dmot.evaluate`).
 
 The reference runs ~42 passes, each a full per-frame assignment and count. Most of a pass is fixed
 by the candidate pairs, which do not change between passes; only which tracks are kept changes

@@ -2,7 +2,7 @@
 
 The outputs of a sweep (and the lanes of one batch) mostly carry the same boxes: the detector's,
 frame by frame. :func:`box_table` finds the distinct (frame, box) values of the tracker rows
-(:func:`~dfrmot_jax.metrics.kitti2d.similarity.distinct_rows`), computes their IoU with every class row of
+(:func:`~dfrmot_jax.metrics.common.distinct.distinct_rows`), computes their IoU with every class row of
 the frame's ground truth once (TrackEval's formula bit for bit, :func:`~dfrmot_jax.metrics.kitti2d.boxes.gather_iou`),
 and keeps, per distinct value, its candidate rows (IoU >= 0.5 - eps, the preprocessing's matching
 threshold) and whether it lies mostly inside a DontCare region (intersection over its own area
@@ -19,9 +19,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from dfrmot_jax.metrics.kitti2d.boxes import EPS, columns, gather_iou, pair_ioa
+from dfrmot_jax.metrics.common.distinct import distinct_rows
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
-from dfrmot_jax.metrics.kitti2d.similarity import distinct_rows
+from dfrmot_jax.metrics.kitti2d.boxes import EPS, columns, gather_iou, pair_ioa
 
 __all__ = ["BoxTable", "MATCH_IOU", "box_table", "pair_iou", "candidate_pairs"]
 

@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from dfrmot_jax.metrics.common.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
+                                             segment_rows)
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
 from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
-from dfrmot_jax.metrics.common.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
-                                      segment_rows)
 
 ALPHAS = np.arange(0.05, 0.99, 0.05)  # TrackEval's array_labels, [19]
 NA = len(ALPHAS)

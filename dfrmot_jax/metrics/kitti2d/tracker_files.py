@@ -13,7 +13,8 @@ from dfrmot_jax.io import kitti as kio
 from dfrmot_jax.io.plain_table import read_ahead
 from dfrmot_jax.io.result_rows import read_result_rows
 from dfrmot_jax.metrics.common.fields3d import read_box3d_columns
-from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets, class_ids, seq_name
+from dfrmot_jax.metrics.common.sequences import seq_name
+from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets, class_ids
 
 __all__ = ["ResultFolder", "inspect_results", "read_tracker_files", "result_file_problem", "result_paths"]
 
