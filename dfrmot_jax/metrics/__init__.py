@@ -1,19 +1,22 @@
-"""TrackEval-identical KITTI 2D-box tracking metrics (HOTA, CLEAR, Identity), fast and batched.
+"""KITTI tracking metrics, exact to their reference evaluators, fast and batched: two families.
 
-Modules: :mod:`~dfrmot_jax.metrics.kitti2d.kitti` (ground truth and tracker preprocessing, as TrackEval's
-Kitti2DBox), :mod:`~dfrmot_jax.metrics.kitti2d.hota`, :mod:`~dfrmot_jax.metrics.kitti2d.clear`,
-:mod:`~dfrmot_jax.metrics.kitti2d.identity` (the metrics), :mod:`~dfrmot_jax.metrics.kitti2d.boxes` (IoU),
-:mod:`~dfrmot_jax.metrics.common.pairs` (per-frame pair bookkeeping and assignments),
-:mod:`~dfrmot_jax.metrics.kitti2d.evaluate` (entry points), :mod:`~dfrmot_jax.metrics.kitti2d.table`,
-:mod:`~dfrmot_jax.cli.eval` (``dfrmot eval``), :mod:`~dfrmot_jax.testing.trackeval_adapter`
+* :mod:`~dfrmot_jax.metrics.kitti2d`: TrackEval's KITTI 2D-box HOTA, CLEAR and Identity
+  (``kitti``: ground truth and tracker preprocessing, as TrackEval's Kitti2DBox; ``hota``,
+  ``clear``, ``identity``: the metrics; ``boxes``: TrackEval's IoU; ``evaluate``: entry points;
+  ``lane_scorer``: many padded outputs; ``table``: its columns). With ``similarity='3d'`` or
+  ``'bev'`` on every entry point the metrics match on the 3D or bird's-eye-view IoU instead of the
+  image IoU (``similarity``; the KITTI preprocessing stays 2D). ``dfrmot_jax.metrics`` offers this
+  family's entry points (``__all__``, typical use below).
+* :mod:`~dfrmot_jax.metrics.ab3dmot`: AB3DMOT's KITTI 3D MOT metrics, sAMOTA, AMOTA, AMOTP and its
+  best-threshold CLEAR figures, exact to its evaluator (``evaluate``: ``evaluate_ab3dmot_files``;
+  ``prep`` reading its inputs, ``passes``, ``arrays`` scoring padded outputs, ``table`` its columns).
+
+What both use is :mod:`~dfrmot_jax.metrics.common`, the one place where they meet (neither imports
+the other): the rotated 3D / BEV box IoU (``box3d``), the one set of rules for a row's 3D fields
+(``fields3d``), pair bookkeeping (``pairs``), distinct rows (``distinct``), a class's sequence list
+(``sequences``). Both families' columns together, for sweeps and tunes: :mod:`~dfrmot_jax.metrics.columns`.
+Around them: :mod:`~dfrmot_jax.cli.eval` (``dfrmot eval``), :mod:`~dfrmot_jax.testing.trackeval_adapter`
 (running the reference ``trackeval`` package) and :mod:`~dfrmot_jax.testing.metric_edits` (test outputs).
-AB3DMOT's KITTI 3D MOT metrics (sAMOTA, AMOTA, AMOTP, exact to its evaluator):
-:mod:`~dfrmot_jax.metrics.ab3dmot.evaluate` (with ``ab3dmot_prep`` reading its inputs, ``ab3dmot_arrays``
-scoring padded outputs, ``ab3dmot_table`` the CLI's columns); the rotated 3D / BEV box IoU:
-:mod:`~dfrmot_jax.metrics.common.box3d`. HOTA / CLEAR / Identity with that similarity instead of the
-image IoU: ``similarity='3d'`` or ``'bev'`` on every entry point (:mod:`~dfrmot_jax.metrics.kitti2d.similarity`;
-the KITTI preprocessing stays 2D); the 3D fields of a row are read by one set of rules,
-:mod:`~dfrmot_jax.metrics.common.fields3d`.
 
 Typical use::
 
