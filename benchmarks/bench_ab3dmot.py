@@ -51,9 +51,9 @@ def _times(fn, repeats):
 def main() -> None:
     from machine import machine_info
 
-    from dfrmot_jax.metrics import ab3dmot_prep
-    from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files
-    from dfrmot_jax.metrics.ab3dmot_arrays import evaluate_ab3dmot_arrays
+    from dfrmot_jax.metrics.ab3dmot import prep as ab3dmot_prep
+    from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
+    from dfrmot_jax.metrics.ab3dmot.arrays import evaluate_ab3dmot_arrays
     from dfrmot_jax.paths import default_data_root
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

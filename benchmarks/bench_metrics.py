@@ -41,7 +41,7 @@ def main() -> None:
     from dfrmot_jax.io.kitti import read_tracking_labels, sequence_lengths
     from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, prepare_gt
     from dfrmot_jax.testing.metric_edits import load_results, pack_arrays, stress_edit
-    from dfrmot_jax.metrics.evaluate import clear_caches
+    from dfrmot_jax.metrics.kitti2d.evaluate import clear_caches
     from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, make_tracker_folder, run_trackeval
     from dfrmot_jax.paths import default_data_root
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from dfrmot_jax.io.kitti import KittiFormatError
-from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files, parse_iou
-from dfrmot_jax.metrics.ab3dmot_passes import ids_frag, traj_layout
-from dfrmot_jax.metrics.ab3dmot_prep import prepare_ab3dmot_gt, read_seqmap
+from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files, parse_iou
+from dfrmot_jax.metrics.ab3dmot.passes import ids_frag, traj_layout
+from dfrmot_jax.metrics.ab3dmot.prep import prepare_ab3dmot_gt, read_seqmap
 from dfrmot_jax.paths import default_data_root
 
 FIXTURES = default_data_root() / "reference" / "ab3dmot_eval"

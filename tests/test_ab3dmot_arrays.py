@@ -1,12 +1,12 @@
-"""AB3DMOT's metrics from padded arrays (dfrmot_jax.metrics.ab3dmot_arrays) equal scoring the same rows
+"""AB3DMOT's metrics from padded arrays (dfrmot_jax.metrics.ab3dmot.arrays) equal scoring the same rows
 as result files: the two fixture outputs packed into [B, T, K] arrays, 2D and 3D."""
 
 import numpy as np
 import pytest
 
-from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files
-from dfrmot_jax.metrics.ab3dmot_arrays import evaluate_ab3dmot_arrays
-from dfrmot_jax.metrics.ab3dmot_prep import prepare_ab3dmot_gt
+from dfrmot_jax.metrics.ab3dmot.arrays import evaluate_ab3dmot_arrays
+from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
+from dfrmot_jax.metrics.ab3dmot.prep import prepare_ab3dmot_gt
 from dfrmot_jax.paths import default_data_root
 
 FIXTURES = default_data_root() / "reference" / "ab3dmot_eval"

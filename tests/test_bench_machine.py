@@ -21,7 +21,7 @@ def _self() -> float:
 
 
 def test_cpu_time_counts_forkserver_workers():
-    """A pool like ``metrics.evaluate.worker_pool`` (forkserver) burns CPU while this process waits:
+    """A pool like ``metrics.kitti2d.evaluate.worker_pool`` (forkserver) burns CPU while this process waits:
     the benchmark's CPU time must grow by about as much as the workers burned."""
     ctx = mp.get_context("forkserver")
     c0, s0 = cpu_time(), _self()

@@ -1,4 +1,4 @@
-"""Rotated 3D / BEV box IoU (dfrmot_jax.metrics.box3d) against an independent computation: Shapely
+"""Rotated 3D / BEV box IoU (dfrmot_jax.metrics.common.box3d) against an independent computation: Shapely
 polygons for the ground rectangles times the overlap of the height ranges, on random boxes and the
 special cases (identical, touching, nested, zero-volume, rotated by 90 degrees)."""
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from dfrmot_jax.metrics.box3d import bev_intersection, bev_iou, iou_3d
+from dfrmot_jax.metrics.common.box3d import bev_intersection, bev_iou, iou_3d
 
 shapely = pytest.importorskip("shapely")
 from shapely.geometry import Polygon  # noqa: E402

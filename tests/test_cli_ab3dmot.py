@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from dfrmot_jax.metrics.ab3dmot_table import AB3DMOT_COLUMNS
+from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS
 from dfrmot_jax.paths import default_data_root
 from dfrmot_jax.testing.cli import error_line, run_cli
 

@@ -234,7 +234,7 @@ def test_both_column_sets_score_identically(dfr2023, written, kitti_root, tmp_pa
 def test_readers_accept_both_column_sets(dfr2023, written, kitti_root):
     from dfrmot_jax.metrics import prepare_gt
     from dfrmot_jax.testing.metric_edits import load_results
-    from dfrmot_jax.metrics.tracker_files import read_tracker_files
+    from dfrmot_jax.metrics.kitti2d.tracker_files import read_tracker_files
 
     seqs, split, *_ = dfr2023
     a = {s: read_tracking_labels(written / "authors" / f"{s}.txt") for s in split.names}

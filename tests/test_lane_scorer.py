@@ -9,9 +9,9 @@ import pytest
 import dfrmot_jax as dm
 from dfrmot_jax.config import Params
 from dfrmot_jax.metrics import evaluate_arrays, evaluate_batch, prepare_gt
-from dfrmot_jax.metrics.evaluate import result_dicts
-from dfrmot_jax.metrics.kitti import tracker_dets_from_arrays
-from dfrmot_jax.metrics.lane_scorer import LaneScorer
+from dfrmot_jax.metrics.kitti2d.evaluate import result_dicts
+from dfrmot_jax.metrics.kitti2d.kitti import tracker_dets_from_arrays
+from dfrmot_jax.metrics.kitti2d.lane_scorer import LaneScorer
 from dfrmot_jax.synthetic import make_scene
 
 
@@ -119,7 +119,7 @@ def test_errors_name_the_lane_not_the_virtual_lane(outputs):
 def test_evaluate_arrays_scores_repeated_outputs_once(outputs, monkeypatch):
     """evaluate_arrays packs repeated (config, sequence) outputs into virtual lanes: the same dicts as
     scoring every lane as it is, with fewer lanes scored."""
-    from dfrmot_jax.metrics import evaluate
+    from dfrmot_jax.metrics.kitti2d import evaluate
 
     gt, split, ids, boxes = outputs
     want = _alone(gt, ids, boxes, split.offsets)

@@ -61,7 +61,9 @@ def _graph() -> dict[str, dict[str, list]]:
 def _closure(start: set[str]) -> set[str]:
     """Every package module reachable from ``start`` through import statements (``start`` included;
     importing a module also runs the ``__init__`` of each package it sits in, except the package
-    root's, which is the public entry point that imports everything and is no place's dependency)."""
+    root's, which is the public entry point that imports everything and is no place's dependency,
+    and the ``__init__`` of a package split into places (``metrics/``: the public API of the
+    places inside it), which is no dependency of the places inside it either)."""
     seen, todo = set(), list(start)
     while todo:
         m = todo.pop()
@@ -69,20 +71,27 @@ def _closure(start: set[str]) -> set[str]:
             continue
         seen.add(m)
         parents = [".".join(m.split(".")[:i]) for i in range(1, m.count(".") + 1)]
-        todo.extend(p for p in parents if p in _modules() and p != "dfrmot_jax")
+        todo.extend(p for p in parents if p in _modules() and p != "dfrmot_jax" and not _above_place(p, m))
         todo.extend(_graph().get(m, {}))
     return seen
+
+
+def _above_place(package: str, module: str) -> bool:
+    """``package`` holds ``module``'s place without being it: a package split into places."""
+    place = _place_of(module)
+    return place != package and place.startswith(package + ".")
 
 
 # ---------------------------------------------------------------------------------------------
 # The table of ARCHITECTURE.md
 
 def _place_key(cell: str) -> str:
-    """``core/`` -> ``dfrmot_jax.core``; ``config.py`` -> ``dfrmot_jax.config``; ``__init__.py`` -> the root."""
+    """``core/`` -> ``dfrmot_jax.core``; ``metrics/common/`` -> ``dfrmot_jax.metrics.common``;
+    ``config.py`` -> ``dfrmot_jax.config``; ``__init__.py`` -> the root."""
     cell = cell.strip("`")
     if cell == "__init__.py":
         return "dfrmot_jax"
-    return "dfrmot_jax." + cell.removesuffix("/").removesuffix(".py")
+    return "dfrmot_jax." + cell.removesuffix("/").removesuffix(".py").replace("/", ".")
 
 
 @lru_cache(maxsize=None)
@@ -204,6 +213,25 @@ def test_the_table_holds_transitively():
 
 # ---------------------------------------------------------------------------------------------
 # Rules the table cannot say
+
+METRIC_FAMILIES = ("dfrmot_jax.metrics.kitti2d", "dfrmot_jax.metrics.ab3dmot")
+METRICS_COMMON = "dfrmot_jax.metrics.common"
+
+
+def test_the_metric_families_meet_only_in_metrics_common():
+    """TrackEval's family (``metrics/kitti2d/``) and AB3DMOT's (``metrics/ab3dmot/``) reach nothing of
+    each other through any chain of imports, ``metrics/common/`` reaches neither, and both use it."""
+    mods = _modules()
+    bad = []
+    for fam in METRIC_FAMILIES:
+        other = [f for f in METRIC_FAMILIES if f != fam]
+        reach = _closure({m for m in mods if _matches(m, fam)})
+        bad += [f"{fam} reaches {m}" for m in sorted(reach) if any(_matches(m, o) for o in other)]
+        assert any(_matches(m, METRICS_COMMON) for m in reach), f"{fam} uses nothing of {METRICS_COMMON}"
+    reach = _closure({m for m in mods if _matches(m, METRICS_COMMON)})
+    bad += [f"{METRICS_COMMON} reaches {m}" for m in sorted(reach) if any(_matches(m, f) for f in METRIC_FAMILIES)]
+    assert not bad, "\n".join(bad)
+
 
 def test_core_reaches_only_itself_and_config():
     core = {m for m in _modules() if _matches(m, "dfrmot_jax.core")}

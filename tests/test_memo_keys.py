@@ -60,8 +60,9 @@ def test_file_memo_sees_a_same_size_rewrite_a_rename_and_a_fresh_file(tmp_path):
 
 
 def test_ground_truth_caches_see_an_edited_label_file(scene, tmp_path):
-    from dfrmot_jax.metrics.ab3dmot_prep import cached_ab3dmot_gt
-    from dfrmot_jax.metrics.evaluate import cached_class_sequences, cached_gt
+    from dfrmot_jax.metrics.ab3dmot.prep import cached_ab3dmot_gt
+    from dfrmot_jax.metrics.common.sequences import cached_class_sequences
+    from dfrmot_jax.metrics.kitti2d.evaluate import cached_gt
 
     root = tmp_path / "root"
     shutil.copytree(scene, root)
@@ -133,7 +134,7 @@ def test_the_config_hash_names_every_parameter_and_option():
 def test_ab3dmot_lane_digests_name_the_options_and_the_shared_boxes(scene):
     import dfrmot_jax as dm
     from dfrmot_jax.sweep.ab3dmot_lanes import Ab3dmotLanes
-    from dfrmot_jax.metrics.ab3dmot_prep import cached_ab3dmot_gt
+    from dfrmot_jax.metrics.ab3dmot.prep import cached_ab3dmot_gt
 
     split = dm.load_split(scene, "synth2d", "synth3d", "car")
     lanes = Ab3dmotLanes(cached_ab3dmot_gt(scene, "car", split.names), split, "2d:0.5")

@@ -1,4 +1,4 @@
-"""HOTA / CLEAR / Identity with 3D or bird's-eye-view similarity (metrics.evaluate, similarity=):
+"""HOTA / CLEAR / Identity with 3D or bird's-eye-view similarity (metrics.kitti2d.evaluate, similarity=):
 equal to the 2D scores where the boxes agree, hand-computed small cases, 2D-only rows unmatched in
 3D, located errors, arrays equal to files, and a real KITTI output."""
 
@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from dfrmot_jax.io.kitti import KittiFormatError
-from dfrmot_jax.metrics.boxes import pair_iou
-from dfrmot_jax.metrics.evaluate import evaluate_classes, evaluate_files
-from dfrmot_jax.metrics.lane_scorer import evaluate_arrays
-from dfrmot_jax.metrics.lane_scorer import LaneScorer
-from dfrmot_jax.metrics.kitti import prepare_gt
-from dfrmot_jax.metrics.tracker_files import read_tracker_files
-from dfrmot_jax.metrics.similarity import pair_similarity_3d
+from dfrmot_jax.metrics.kitti2d.boxes import pair_iou
+from dfrmot_jax.metrics.kitti2d.evaluate import evaluate_classes, evaluate_files
+from dfrmot_jax.metrics.kitti2d.kitti import prepare_gt
+from dfrmot_jax.metrics.kitti2d.lane_scorer import evaluate_arrays
+from dfrmot_jax.metrics.kitti2d.lane_scorer import LaneScorer
+from dfrmot_jax.metrics.kitti2d.similarity import pair_similarity_3d
+from dfrmot_jax.metrics.kitti2d.tracker_files import read_tracker_files
 from dfrmot_jax.paths import default_data_root
 
 PLACEHOLDER = (-1, -1, -1, -1000, -1000, -1000, -10)

@@ -15,8 +15,8 @@ import pytest
 
 from dfrmot_jax.metrics import (CLASS_AVERAGED_FIELDS, CLASS_SUMMED_FIELDS, class_average, class_sequences,
                                 classes_table, evaluate_classes, evaluate_files, evaluate_files_classes, prepare_gt)
-from dfrmot_jax.metrics.evaluate import ALL_FIELDS, parse_classes
-from dfrmot_jax.metrics.table import COUNT_FIELDS, PERCENT_FIELDS
+from dfrmot_jax.metrics.kitti2d.evaluate import ALL_FIELDS, parse_classes
+from dfrmot_jax.metrics.kitti2d.table import COUNT_FIELDS, PERCENT_FIELDS
 
 REF = "reference/dfr_fastmot_rrc_pointrcnn"
 TE_SEQS = ["0000", "0003", "0012", "0013", "0017"]  # 0003: no pedestrians, 0013: 'Person' distractors, 0017: no cars

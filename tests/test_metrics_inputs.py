@@ -9,7 +9,7 @@ import pytest
 
 from dfrmot_jax.io.kitti import KittiFormatError
 from dfrmot_jax.metrics import DuplicateIdError, evaluate_arrays, evaluate_files, prepare_gt
-from dfrmot_jax.metrics.kitti import class_sequences
+from dfrmot_jax.metrics.common.sequences import class_sequences
 
 ROW = "{f} {i} {t} -1 -1 -10 {x1} {y1} {x2} {y2} -1 -1 -1 -1000 -1000 -1000 -10 1\n"
 

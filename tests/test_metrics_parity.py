@@ -14,9 +14,10 @@ import pytest
 trackeval = pytest.importorskip("trackeval")
 
 from dfrmot_jax.io.kitti import read_detections_2d, read_tracking_labels  # noqa: E402
-from dfrmot_jax.metrics import clear, evaluate_arrays, evaluate_files, prepare_gt  # noqa: E402
+from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, prepare_gt  # noqa: E402
+from dfrmot_jax.metrics.kitti2d import clear  # noqa: E402
 from dfrmot_jax.testing.metric_edits import (SeqResults, f32, load_results, naive_tracks, pack_arrays,  # noqa: E402
-                                      stress_edit, write_results)
+                                             stress_edit, write_results)
 from dfrmot_jax.testing.trackeval_adapter import make_gt_folder, run_trackeval  # noqa: E402
 
 REF = "reference/dfr_fastmot_rrc_pointrcnn"

@@ -8,11 +8,11 @@ import pytest
 from scipy.optimize import linear_sum_assignment
 
 from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, metrics_table, prepare_gt
-from dfrmot_jax.metrics.boxes import columns, gather_iou, pair_ioa, pair_iou
+from dfrmot_jax.metrics.common import pairs
+from dfrmot_jax.metrics.common.pairs import (assign_frames, enumerate_pairs, nontrivial_segments, numpy_col_sums,
+                                             numpy_row_sums, segment_starts, solve_blocks)
+from dfrmot_jax.metrics.kitti2d.boxes import columns, gather_iou, pair_ioa, pair_iou
 from dfrmot_jax.testing.metric_edits import SeqResults, f32, pack_arrays, write_results
-from dfrmot_jax.metrics import pairs
-from dfrmot_jax.metrics.pairs import (assign_frames, enumerate_pairs, nontrivial_segments, numpy_col_sums,
-                                      numpy_row_sums, segment_starts, solve_blocks)
 
 
 def _random_boxes(rng, n):
@@ -266,7 +266,7 @@ def test_random_scenes_vs_trackeval(tmp_path, cls):
 # ------------------------------------------------------------------ table and CLI
 
 def test_metrics_table(kitti_root):
-    from dfrmot_jax.metrics.table import COUNT_FIELDS
+    from dfrmot_jax.metrics.kitti2d.table import COUNT_FIELDS
 
     res = evaluate_files(kitti_root / "reference" / "dfr_fastmot_rrc_pointrcnn", kitti_root, "car", ["0000", "0001"])
     df = metrics_table(res, tracker="dfr")
@@ -313,7 +313,7 @@ def test_cli_eval(kitti_root, tmp_path, capsys):
 
 
 def test_identity_matching_value_equals_trackeval_formulation():
-    from dfrmot_jax.metrics.identity import max_matching_value
+    from dfrmot_jax.metrics.kitti2d.identity import max_matching_value
 
     rng = np.random.default_rng(5)
     for _ in range(30):

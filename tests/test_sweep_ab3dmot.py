@@ -11,9 +11,8 @@ import pytest
 
 from dfrmot_jax.api import track
 from dfrmot_jax.data import load_split
-from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files
-from dfrmot_jax.metrics.ab3dmot_table import ab3dmot_columns
-from dfrmot_jax.metrics.table import AB3DMOT_COLUMNS
+from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
+from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS, ab3dmot_columns
 from dfrmot_jax.results import ClassRun, write_runs
 from dfrmot_jax.sweep import SweepConfigError, expand, params_of, parse_spec, plan, resolve_data, run_sweep, sweep_report
 from dfrmot_jax.sweep.plan import option_groups
@@ -191,8 +190,8 @@ def test_rows_scored_by_their_keys_equal_rows_scored_by_their_values(scene, outp
     """The sweep's AB3DMOT lanes find distinct boxes from slot / 3D-source keys (results.kitti_rows):
     the same figures as finding them from the values' bits, and as the padded arrays, some lanes only too."""
     from dfrmot_jax.config import Options, Params, stack_params
-    from dfrmot_jax.metrics.ab3dmot_arrays import evaluate_ab3dmot_arrays, evaluate_ab3dmot_rows
-    from dfrmot_jax.metrics.ab3dmot_prep import prepare_ab3dmot_gt
+    from dfrmot_jax.metrics.ab3dmot.arrays import evaluate_ab3dmot_arrays, evaluate_ab3dmot_rows
+    from dfrmot_jax.metrics.ab3dmot.prep import prepare_ab3dmot_gt
     from dfrmot_jax.results import kitti_row_arrays, kitti_rows
 
     split = load_split(scene, "synth2d", "synth3d", "car")

@@ -293,8 +293,8 @@ def test_tidy_table_rows_per_class_and_average(run):
 
 @pytest.mark.slow
 def test_average_rows_are_trackeval_class_average(run):
-    from dfrmot_jax.metrics.evaluate import CLASS_SUMMED_FIELDS, class_average
-    from dfrmot_jax.metrics.table import TABLE_FIELDS
+    from dfrmot_jax.metrics.kitti2d.evaluate import CLASS_SUMMED_FIELDS, class_average
+    from dfrmot_jax.metrics.kitti2d.table import TABLE_FIELDS
 
     df, _ = run
     comb = df[df["sequence"] == COMBINED]

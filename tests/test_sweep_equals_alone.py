@@ -171,7 +171,7 @@ objectives = ["HOTA"]
 
 def test_the_scores_key_names_the_boxes_the_lanes_share(ground):
     """LaneScorer.seq_digests / digests: equal ids with other shared boxes are another output."""
-    from dfrmot_jax.metrics.lane_scorer import LaneScorer
+    from dfrmot_jax.metrics.kitti2d.lane_scorer import LaneScorer
 
     split, gt = ground
     sc = LaneScorer(gt, split.offsets)

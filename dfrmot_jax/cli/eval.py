@@ -31,8 +31,8 @@ COMBINED counts as TrackEval does for the same sequence list.
 
 ``--metrics`` picks the metric families: ``kitti2d`` (TrackEval's, the default) and ``ab3dmot``
 (AB3DMOT's KITTI sAMOTA / AMOTA / AMOTP and its best-threshold MOTA, MOTP, IDS, FRAG, FP, FN:
-:mod:`dfrmot_jax.metrics.ab3dmot`, IoU from ``--ab3dmot-iou``, ``2d:T`` or ``3d:T``, default
-``3d:0.25``), which adds the columns of :mod:`dfrmot_jax.metrics.ab3dmot_table` to the CSV (on the
+:mod:`dfrmot_jax.metrics.ab3dmot.evaluate`, IoU from ``--ab3dmot-iou``, ``2d:T`` or ``3d:T``, default
+``3d:0.25``), which adds the columns of :mod:`dfrmot_jax.metrics.ab3dmot.table` to the CSV (on the
 ``COMBINED`` rows; percent like the other ratio columns). ``--seqmap FILE`` evaluates the sequences
 of a KITTI seqmap (e.g. AB3DMOT's validation split), like ``--seqs``; a seqmap naming a sequence
 without ground truth is refused with its file and line.
@@ -49,27 +49,26 @@ import pandas as pd
 
 from ..io.kitti import KittiFormatError
 from ..io.result_rows import read_result_rows
-from ..metrics.ab3dmot import parse_iou
-from ..metrics.ab3dmot_prep import read_seqmap
-from ..metrics.ab3dmot_table import (
+from ..metrics.ab3dmot.evaluate import parse_iou
+from ..metrics.ab3dmot.prep import read_seqmap
+from ..metrics.ab3dmot.table import (
     AB3DMOT_COLUMNS,
     ab3dmot_table,
     add_ab3dmot_columns,
     evaluate_ab3dmot_classes,
     parse_metric_families,
 )
-from ..metrics.evaluate import (
+from ..metrics.common.sequences import CLASS_NAME_TO_ID, cached_class_sequences
+from ..metrics.kitti2d.evaluate import (
     AVERAGE,
     EVAL_CLASSES,
-    cached_class_sequences,
     cached_gt,
     class_average,
     evaluate_dets,
     parse_classes,
 )
-from ..metrics.kitti import CLASS_NAME_TO_ID
-from ..metrics.tracker_files import inspect_results, read_tracker_files
-from ..metrics.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
+from ..metrics.kitti2d.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
+from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
 from ..paths import default_data_root
 from .errors import guarded
 from .track import parse_seqs
@@ -167,8 +166,8 @@ def _warn(message: str) -> None:
 
 
 def _check_folder(d: Path, found, n_seqs: int, label_dir: Path, allow_missing: bool) -> None:
-    """Raise ValueError naming everything wrong with result folder ``d`` (a ``metrics.tracker_files.ResultFolder``
-    for ``n_seqs`` sequences); with ``allow_missing`` warn about missing files instead."""
+    """Raise ValueError naming everything wrong with result folder ``d`` (a
+    ``metrics.kitti2d.tracker_files.ResultFolder`` for ``n_seqs`` sequences); with ``allow_missing`` warn about missing files instead."""
     problems = [f"{path} {why}, not a result file" for path, why in found.unreadable]
     missing = f"no result file for {len(found.missing)} of {n_seqs} sequences ({_names(found.missing)})"
     if found.missing and not allow_missing:

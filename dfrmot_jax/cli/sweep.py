@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..metrics.table import canonical_objective
+from ..metrics.columns import canonical_objective
 from ..sweep import OPTION_NAMES, class_columns, load_spec, n_settings, prepare_sweep, run_sweep, sweep_report
 from .backend import add_backend_arguments, backend_from
 from .errors import guarded

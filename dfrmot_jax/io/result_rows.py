@@ -15,7 +15,7 @@ file is read as TrackEval's Kitti2DBox reads it (``_BaseDataset._load_simple_tex
   nothing else of it is looked at (it needs only a third column).
 * Of a kept row every column but the type is a number (``nan`` and ``inf`` included, except in
   the box); the type is looked up, and the frame checked against the sequence, by
-  :func:`dfrmot_jax.metrics.tracker_files.read_tracker_files`.
+  :func:`dfrmot_jax.metrics.kitti2d.tracker_files.read_tracker_files`.
 
 Refused with file, line and field (:class:`~dfrmot_jax.io.kitti.KittiFormatError`): what TrackEval
 cannot read (a frame or id that is no finite number, a row of fewer than 3 columns, a kept row of

@@ -1,19 +1,22 @@
-"""TrackEval-identical KITTI 2D-box tracking metrics (HOTA, CLEAR, Identity), fast and batched.
+"""KITTI tracking metrics, exact to their reference evaluators, fast and batched: two families.
 
-Modules: :mod:`~dfrmot_jax.metrics.kitti` (ground truth and tracker preprocessing, as TrackEval's
-Kitti2DBox), :mod:`~dfrmot_jax.metrics.hota`, :mod:`~dfrmot_jax.metrics.clear`,
-:mod:`~dfrmot_jax.metrics.identity` (the metrics), :mod:`~dfrmot_jax.metrics.boxes` (IoU),
-:mod:`~dfrmot_jax.metrics.pairs` (per-frame pair bookkeeping and assignments),
-:mod:`~dfrmot_jax.metrics.evaluate` (entry points), :mod:`~dfrmot_jax.metrics.table`,
-:mod:`~dfrmot_jax.cli.eval` (``dfrmot eval``), :mod:`~dfrmot_jax.testing.trackeval_adapter`
+* :mod:`~dfrmot_jax.metrics.kitti2d`: TrackEval's KITTI 2D-box HOTA, CLEAR and Identity
+  (``kitti``: ground truth and tracker preprocessing, as TrackEval's Kitti2DBox; ``hota``,
+  ``clear``, ``identity``: the metrics; ``boxes``: TrackEval's IoU; ``evaluate``: entry points;
+  ``lane_scorer``: many padded outputs; ``table``: its columns). With ``similarity='3d'`` or
+  ``'bev'`` on every entry point the metrics match on the 3D or bird's-eye-view IoU instead of the
+  image IoU (``similarity``; the KITTI preprocessing stays 2D). ``dfrmot_jax.metrics`` offers this
+  family's entry points (``__all__``, typical use below).
+* :mod:`~dfrmot_jax.metrics.ab3dmot`: AB3DMOT's KITTI 3D MOT metrics, sAMOTA, AMOTA, AMOTP and its
+  best-threshold CLEAR figures, exact to its evaluator (``evaluate``: ``evaluate_ab3dmot_files``;
+  ``prep`` reading its inputs, ``passes``, ``arrays`` scoring padded outputs, ``table`` its columns).
+
+What both use is :mod:`~dfrmot_jax.metrics.common`, the one place where they meet (neither imports
+the other): the rotated 3D / BEV box IoU (``box3d``), the one set of rules for a row's 3D fields
+(``fields3d``), pair bookkeeping (``pairs``), distinct rows (``distinct``), a class's sequence list
+(``sequences``). Both families' columns together, for sweeps and tunes: :mod:`~dfrmot_jax.metrics.columns`.
+Around them: :mod:`~dfrmot_jax.cli.eval` (``dfrmot eval``), :mod:`~dfrmot_jax.testing.trackeval_adapter`
 (running the reference ``trackeval`` package) and :mod:`~dfrmot_jax.testing.metric_edits` (test outputs).
-AB3DMOT's KITTI 3D MOT metrics (sAMOTA, AMOTA, AMOTP, exact to its evaluator):
-:mod:`~dfrmot_jax.metrics.ab3dmot` (with ``ab3dmot_prep`` reading its inputs, ``ab3dmot_arrays``
-scoring padded outputs, ``ab3dmot_table`` the CLI's columns); the rotated 3D / BEV box IoU:
-:mod:`~dfrmot_jax.metrics.box3d`. HOTA / CLEAR / Identity with that similarity instead of the
-image IoU: ``similarity='3d'`` or ``'bev'`` on every entry point (:mod:`~dfrmot_jax.metrics.similarity`;
-the KITTI preprocessing stays 2D); the 3D fields of a row are read by one set of rules,
-:mod:`~dfrmot_jax.metrics.fields3d`.
 
 Typical use::
 
@@ -25,12 +28,13 @@ Typical use::
     metrics_table(res)                                   # pandas, TrackEval summary (x100)
 """
 
-from dfrmot_jax.metrics.evaluate import (ALL_FIELDS, CLASS_AVERAGED_FIELDS, CLASS_SUMMED_FIELDS, cached_gt,
-                                         class_average, evaluate_batch, evaluate_classes, evaluate_files,
-                                         evaluate_files_classes)
-from dfrmot_jax.metrics.lane_scorer import evaluate_arrays
-from dfrmot_jax.metrics.kitti import DuplicateIdError, PreparedGT, class_sequences, prepare_gt
-from dfrmot_jax.metrics.table import classes_table, metrics_table
+from dfrmot_jax.metrics.common.sequences import class_sequences
+from dfrmot_jax.metrics.kitti2d.evaluate import (ALL_FIELDS, CLASS_AVERAGED_FIELDS, CLASS_SUMMED_FIELDS, cached_gt,
+                                                 class_average, evaluate_batch, evaluate_classes, evaluate_files,
+                                                 evaluate_files_classes)
+from dfrmot_jax.metrics.kitti2d.kitti import DuplicateIdError, PreparedGT, prepare_gt
+from dfrmot_jax.metrics.kitti2d.lane_scorer import evaluate_arrays
+from dfrmot_jax.metrics.kitti2d.table import classes_table, metrics_table
 
 __all__ = ["PreparedGT", "prepare_gt", "cached_gt", "class_sequences", "evaluate_files", "evaluate_files_classes",
            "evaluate_classes", "class_average", "evaluate_arrays", "evaluate_batch", "metrics_table", "classes_table",

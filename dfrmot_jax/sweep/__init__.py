@@ -36,7 +36,7 @@ folder belongs to one sweep or tune), :mod:`.store` (the directory: chunk files,
 numbers and text in one ``SweepReport``), :mod:`.html` (``html_report``, ``write_html``: that report as one
 self-contained page) and :mod:`.figures` (its plots). The metrics
 (summary columns, sequence re-combination, lane scoring, worker pools) are
-:mod:`dfrmot_jax.metrics.evaluate`'s. ``dfrmot_jax.sweep.sweep(...)`` is a deprecated alias of
+:mod:`dfrmot_jax.metrics.kitti2d.evaluate`'s. ``dfrmot_jax.sweep.sweep(...)`` is a deprecated alias of
 ``run_sweep`` (one release, with a ``DeprecationWarning``).
 
 See ``sweeps/README.md`` for the file format. Python use::
@@ -53,7 +53,7 @@ See ``sweeps/README.md`` for the file format. Python use::
 
 from __future__ import annotations
 
-from ..metrics.evaluate import combine_sequences, summary_columns
+from ..metrics.kitti2d.evaluate import combine_sequences, summary_columns
 from .analysis import (MINIMISE, OBJECTIVES, axis_profiles, class_view, cross_validate, make_folds, objective_on, per_sequence_arrays,
                        sensitivity)
 from .backend import LocalBackend, RayBackend, make_backend

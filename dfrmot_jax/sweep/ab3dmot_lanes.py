@@ -5,7 +5,7 @@ Each lane is scored on the values its ``--columns kitti`` result file would carr
 (:func:`dfrmot_jax.results.kitti_rows`: the row's own 3D detection, or the filtered box with
 ``output = "filtered"``; rows without one count as unmatched in 3D; every value as the file reads
 it back), against the class's
-ground truth over the split's sequences together (:func:`dfrmot_jax.metrics.ab3dmot_arrays.
+ground truth over the split's sequences together (:func:`dfrmot_jax.metrics.ab3dmot.arrays.
 evaluate_ab3dmot_rows`): the same figures as ``dfrmot eval --metrics ab3dmot`` of the written
 files. AB3DMOT's figures exist for a whole sequence list only, so they fill a config's ``COMBINED``
 row; its per-sequence rows hold NaN. Identical outputs (the same ids and 3D sources per row; with
@@ -22,11 +22,10 @@ import pandas as pd
 
 from ..api import TrackResult
 from ..data import Split
-from ..metrics.ab3dmot_arrays import evaluate_ab3dmot_rows
-from ..metrics.ab3dmot_prep import Ab3dGT
-from ..metrics.ab3dmot_table import ab3dmot_columns
-from ..metrics.lane_scorer import LaneScorer
-from ..metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
+from ..metrics.ab3dmot.arrays import evaluate_ab3dmot_rows
+from ..metrics.ab3dmot.prep import Ab3dGT
+from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, ab3dmot_columns
+from ..metrics.kitti2d.lane_scorer import LaneScorer
 from ..results import kitti_rows
 from .table import COMBINED
 
@@ -48,7 +47,7 @@ class Ab3dmotLanes:
         (``src3``, ``own3``); with output "filtered" also the lane's own 3D boxes. (With output
         "detections" a row's score and 3D box follow from the options, its slot and its 3D source,
         on the one split; the split, ground truth, IoU and columns are the instance's own.) ``base``: the lanes' digests of ids and own image boxes
-        (:meth:`dfrmot_jax.metrics.lane_scorer.LaneScorer.digests` or ``lane_digests``, made here
+        (:meth:`dfrmot_jax.metrics.kitti2d.lane_scorer.LaneScorer.digests` or ``lane_digests``, made here
         when not given), extended here instead of hashing them again."""
         ids = np.asarray(res.ids)
         if base is None:

@@ -8,9 +8,11 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
-from ..metrics import clear, identity
-from ..metrics.evaluate import RAW_FIELDS, class_average_columns, combine_sequences, summary_columns
-from ..metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, TABLE_FIELDS, canonical_objective  # noqa: F401
+from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
+from ..metrics.columns import canonical_objective, class_average_columns  # noqa: F401
+from ..metrics.kitti2d import clear, identity
+from ..metrics.kitti2d.evaluate import RAW_FIELDS, combine_sequences, summary_columns
+from ..metrics.kitti2d.table import TABLE_FIELDS
 from .spec import AVERAGE, OPTION_NAMES, PARAM_NAMES, extra_axes
 from .table import COMBINED, RAW_COLUMN, class_columns, split_class_column
 

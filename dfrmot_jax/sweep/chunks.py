@@ -31,9 +31,9 @@ from ..api import TrackResult, default_capacity, track
 from ..config import Options
 from ..data import cached_split, compact_split, prepare_frames
 from ..lidar import LIDAR_PREFIX, lidar_dir, simulate_cached
-from ..metrics.ab3dmot_prep import cached_ab3dmot_gt
-from ..metrics.evaluate import cached_gt, worker_pool
-from ..metrics.lane_scorer import LaneScorer
+from ..metrics.ab3dmot.prep import cached_ab3dmot_gt
+from ..metrics.kitti2d.evaluate import cached_gt, worker_pool
+from ..metrics.kitti2d.lane_scorer import LaneScorer
 from ..version import __version__
 from .ab3dmot_lanes import Ab3dmotLanes, add_columns
 from .distortion import DistortionAxes

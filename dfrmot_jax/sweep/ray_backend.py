@@ -39,7 +39,7 @@ import jax
 import pandas as pd
 
 from ..core.devices import setup_host_devices
-from ..metrics.evaluate import worker_pool
+from ..metrics.kitti2d.evaluate import worker_pool
 from .checks import SweepConfigError
 from .chunks import ChunkRunner, Keep, load_data
 from .plan import Chunk, DataSettings

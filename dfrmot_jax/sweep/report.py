@@ -13,7 +13,7 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from ..metrics.table import canonical_objective
+from ..metrics.columns import canonical_objective
 from .analysis import (
     check_objective,
     class_view,

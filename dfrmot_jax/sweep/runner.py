@@ -96,7 +96,7 @@ def run_sweep(spec, out=None, *, data_root=None, chunk: int | None = None, folds
     Several classes (``data.class = ["car", "pedestrian"]``): every config is run for every class,
     each on its own split; rows carry their ``class``, and each config gets one more row, ``class =
     "average"``, ``sequence = COMBINED``: the class average (TrackEval's / KITTI's: ratios averaged
-    over the classes, counts summed; :func:`dfrmot_jax.metrics.evaluate.class_average`).
+    over the classes, counts summed; :func:`dfrmot_jax.metrics.kitti2d.evaluate.class_average`).
     """
     backend = make_backend(backend, workers=workers, address=address, worker_cpus=worker_cpus)
     prep = prepare_sweep(spec, data_root=data_root, chunk=chunk, folds=folds, table=table,

@@ -16,8 +16,9 @@ import numpy as np
 
 from ..config import CLASSES, INHERITED_PARAMS, INT_PARAMS, PRESETS, Options, Params, option_problem, param_problem
 from ..lidar import lidar_dir
-from ..metrics.ab3dmot import DEFAULT_AB3DMOT_IOU, parse_iou
-from ..metrics.table import AB3DMOT_COLUMNS, canonical_objective
+from ..metrics.ab3dmot.evaluate import DEFAULT_AB3DMOT_IOU, parse_iou
+from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
+from ..metrics.columns import canonical_objective
 from .checks import (
     GRID_KINDS,
     SweepConfigError,

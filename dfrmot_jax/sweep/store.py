@@ -29,7 +29,8 @@ import numpy as np
 import pandas as pd
 
 from ..io.atomic import TMP_NAME, naming, sha256, write_parquet_atomic, write_text_atomic
-from ..metrics.evaluate import RAW_FIELDS, class_average_columns, class_combiner, summary_columns
+from ..metrics.columns import class_average_columns, class_combiner
+from ..metrics.kitti2d.evaluate import RAW_FIELDS, summary_columns
 from .folder import SweepDirectoryError, claim
 from .plan import Chunk, DataSettings
 from .spec import AVERAGE, LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, SweepSpec, contrast_doc, extra_axes

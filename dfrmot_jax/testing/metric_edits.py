@@ -15,7 +15,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from dfrmot_jax.io.kitti import read_tracking_labels
-from dfrmot_jax.metrics.boxes import pair_iou
+from dfrmot_jax.metrics.kitti2d.boxes import pair_iou
 
 __all__ = ["SeqResults", "load_results", "write_results", "pack_arrays", "stress_edit", "naive_tracks",
            "f32"]

@@ -5,7 +5,7 @@ sequences together, so a figure over a set of sequences must be computed on that
 once (a table's per-sequence rows cannot be re-combined, as TrackEval's can). Here each chosen
 config and the baseline are tracked once over the whole split (``track(detail=True)``), their rows
 turned into the values a ``--columns kitti`` file carries (:func:`dfrmot_jax.results.kitti_row_arrays`),
-and scored with :func:`dfrmot_jax.metrics.ab3dmot_arrays.evaluate_ab3dmot_arrays`:
+and scored with :func:`dfrmot_jax.metrics.ab3dmot.arrays.evaluate_ab3dmot_arrays`:
 
 - ``held_out`` of fold f: config f on fold f's sequences together;
 - ``cross_validated``: every sequence with the rows of the config chosen without it, all sequences
@@ -22,9 +22,9 @@ import pandas as pd
 
 from ..api import track
 from ..data import cached_split
-from ..metrics.ab3dmot_arrays import evaluate_ab3dmot_arrays
-from ..metrics.ab3dmot_prep import cached_ab3dmot_gt
-from ..metrics.ab3dmot_table import ab3dmot_columns
+from ..metrics.ab3dmot.arrays import evaluate_ab3dmot_arrays
+from ..metrics.ab3dmot.prep import cached_ab3dmot_gt
+from ..metrics.ab3dmot.table import ab3dmot_columns
 from ..results import kitti_row_arrays
 from ..sweep.plan import DataSettings, option_groups
 from ..sweep.table import params_of

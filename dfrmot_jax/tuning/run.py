@@ -11,8 +11,8 @@ from typing import Mapping
 
 from ..io.atomic import write_text_atomic
 from ..io.lock import folder_lock
-from ..metrics.ab3dmot import DEFAULT_AB3DMOT_IOU
-from ..metrics.table import AB3DMOT_COLUMNS
+from ..metrics.ab3dmot.evaluate import DEFAULT_AB3DMOT_IOU
+from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
 from ..sweep.backend import make_backend
 from ..sweep.plan import resolve_data
 from ..sweep.runner import run_sweep

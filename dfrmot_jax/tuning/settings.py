@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Mapping
 
 from ..config import param_problem
-from ..metrics.table import canonical_objective
+from ..metrics.columns import canonical_objective
 from ..sweep.analysis import MINIMISE
 from ..sweep.checks import Table, is_number, type_name
 from ..sweep.spec import PARAM_NAMES, SweepConfigError, SweepSpec, parse_spec, read_toml

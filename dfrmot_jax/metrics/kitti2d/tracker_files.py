@@ -12,8 +12,9 @@ import numpy as np
 from dfrmot_jax.io import kitti as kio
 from dfrmot_jax.io.plain_table import read_ahead
 from dfrmot_jax.io.result_rows import read_result_rows
-from dfrmot_jax.metrics.fields3d import read_box3d_columns
-from dfrmot_jax.metrics.kitti import PreparedGT, TrackerDets, class_ids, seq_name
+from dfrmot_jax.metrics.common.fields3d import read_box3d_columns
+from dfrmot_jax.metrics.common.sequences import seq_name
+from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets, class_ids
 
 __all__ = ["ResultFolder", "inspect_results", "read_tracker_files", "result_file_problem", "result_paths"]
 
@@ -84,7 +85,7 @@ def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty", need
     ``missing='empty'`` (TrackEval itself refuses to run without every file; an empty file there
     gives the same numbers) or raises with ``missing='error'``. need_3d: also read the 3D fields
     ``h w l x y z rot_y`` (columns 11-17) of the kept rows, by the rules of
-    :mod:`dfrmot_jax.metrics.fields3d` (the placeholder: no 3D box; anything else that is no box, a
+    :mod:`dfrmot_jax.metrics.common.fields3d` (the placeholder: no 3D box; anything else that is no box, a
     missing column or a non-number: ``KittiFormatError`` with file, line and field). The files are
     parsed ahead in two threads (:func:`~dfrmot_jax.io.plain_table.read_ahead`). Returns one lane.
     """

@@ -11,11 +11,11 @@ from typing import Sequence
 import numpy as np
 
 from dfrmot_jax.io.columns import as_written
-from dfrmot_jax.metrics.evaluate import (PoolParts, combine_sequences, evaluate_lanes, lane_slice, result_dicts,
-                                         run_in_worker, worker_pool)
-from dfrmot_jax.metrics.kitti import PreparedGT, TrackerDets, check_arrays, tracker_dets_from_arrays
-from dfrmot_jax.metrics.pairs import segment_starts
-from dfrmot_jax.metrics.similarity import parse_similarity
+from dfrmot_jax.metrics.common.pairs import segment_starts
+from dfrmot_jax.metrics.kitti2d.evaluate import (PoolParts, combine_sequences, evaluate_lanes, lane_slice, result_dicts,
+                                                 run_in_worker, worker_pool)
+from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets, check_arrays, tracker_dets_from_arrays
+from dfrmot_jax.metrics.kitti2d.similarity import parse_similarity
 
 __all__ = ["LaneScorer", "evaluate_arrays", "REPEATS_WORTH"]
 
@@ -220,7 +220,7 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None,
     values are used as float64). seq_offsets: [S] first frame along T of each of ``gt.sequences``
     (default: the sequences back to back, ``gt.offsets[:-1]``). Within a frame, slots are taken in
     order k = 0..K-1 (the order of rows in a result file; it decides ties exactly as in TrackEval).
-    similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (:mod:`~dfrmot_jax.metrics.evaluate`); 3D
+    similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (:mod:`~dfrmot_jax.metrics.kitti2d.evaluate`); 3D
     and BEV need box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot (the 3D box the result file would carry; a
     slot without one holds the placeholder ``-1 -1 -1 -1000 -1000 -1000`` or all NaN: unmatched in 3D).
     chunk: configs per vectorised batch (peak memory ~ chunk x 60 MB for all of KITTI car).
@@ -231,7 +231,7 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None,
     Each distinct output of each sequence is scored once (:class:`LaneScorer`'s virtual lanes) when
     at least 1 - ``REPEATS_WORTH`` of the (config, sequence) outputs repeat; the results are the same.
     Returns a list of B dicts ``{seq: {field: value}, 'COMBINED': {...}}`` like
-    :func:`~dfrmot_jax.metrics.evaluate.evaluate_files`.
+    :func:`~dfrmot_jax.metrics.kitti2d.evaluate.evaluate_files`.
     """
     if seq_offsets is None:
         seq_offsets = gt.offsets[:-1]

@@ -1,6 +1,6 @@
 """Inputs of the AB3DMOT KITTI metrics: ground truth, result files and seqmaps, read by its rules.
 
-:mod:`dfrmot_jax.metrics.ab3dmot` scores what this module reads. The reference is
+:mod:`dfrmot_jax.metrics.ab3dmot.evaluate` scores what this module reads. The reference is
 ``scripts/KITTI/evaluate.py`` of xinshuoweng/AB3DMOT (``trackingEvaluation._loadData``); its rules:
 
 * **Rows of a class.** A row is loaded when its lower-cased type *contains* one of the class's
@@ -50,8 +50,10 @@ import numpy as np
 
 from dfrmot_jax.io.kitti import KittiFormatError, quoted, read_text_file, read_tracking_labels
 from dfrmot_jax.io.memo import FileMemo, file_stamps
-from dfrmot_jax.metrics.fields3d import PLACEHOLDER_DIMS, PLACEHOLDER_LOC, box3d_problem, parse_floats, placeholder_rows
-from dfrmot_jax.metrics.pairs import segment_starts
+from dfrmot_jax.metrics.common.fields3d import (PLACEHOLDER_DIMS, PLACEHOLDER_LOC, box3d_problem, parse_floats,
+                                                placeholder_rows)
+from dfrmot_jax.metrics.common.pairs import segment_starts
+from dfrmot_jax.metrics.common.sequences import seq_name
 
 __all__ = ["AB3D_CLASSES", "Ab3dGT", "Ab3dTracker", "prepare_ab3dmot_gt", "cached_ab3dmot_gt",
            "read_ab3dmot_results", "read_seqmap", "clear_cache", "PLACEHOLDER_DIMS", "PLACEHOLDER_LOC"]
@@ -62,10 +64,6 @@ AB3D_CLASSES = {"car": (("car", "van", "dontcare"), "van"),
 MAX_TRUNCATION, MAX_OCCLUSION, MIN_HEIGHT = 0, 2, 25
 _NAMES = ("frame", "track_id", "type", "truncated", "occluded", "alpha", "x1", "y1", "x2", "y2",
           "h", "w", "l", "x", "y", "z", "rot_y", "score")
-
-
-def _seq_name(s) -> str:
-    return f"{s:04d}" if isinstance(s, (int, np.integer)) else str(s)
 
 
 def _loaded(types: np.ndarray, cls: str) -> np.ndarray:
@@ -165,7 +163,7 @@ def prepare_ab3dmot_gt(root, cls: str = "car", sequences: Sequence | None = None
     neighbour = AB3D_CLASSES[cls][1]
     label_dir = Path(root) / "label_02"
     names = (sorted(p.stem for p in label_dir.glob("*.txt")) if sequences is None
-             else [_seq_name(s) for s in sequences])
+             else [seq_name(s) for s in sequences])
     if not names:
         raise FileNotFoundError(f"no ground truth files in {label_dir}")
     lengths, frames, trajs, ign, boxes, boxes3d, dcf, dcb = [], [], [], [], [], [], [], []
@@ -220,7 +218,7 @@ def cached_ab3dmot_gt(root, cls: str = "car", sequences: Sequence | None = None)
         return root
     label_dir = Path(root) / "label_02"
     names = (tuple(sorted(p.stem for p in label_dir.glob("*.txt"))) if sequences is None
-             else tuple(_seq_name(s) for s in sequences))
+             else tuple(seq_name(s) for s in sequences))
     stamp = file_stamps(label_dir / f"{n}.txt" for n in names)
     key = (str(Path(root).resolve()), str(cls).lower(), names)
     return _GT_CACHE.get(key, stamp, lambda: prepare_ab3dmot_gt(root, cls, names))

@@ -13,13 +13,15 @@ Arrays: ``L`` configs, ``S`` sequences, ``NA = 19`` alphas.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import pandas as pd
 
-from dfrmot_jax.metrics.boxes import EPS
-from dfrmot_jax.metrics.kitti import EvalBatch
-from dfrmot_jax.metrics.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
-                                      segment_rows)
+from dfrmot_jax.metrics.common.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
+                                             segment_rows)
+from dfrmot_jax.metrics.kitti2d.boxes import EPS
+from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
 
 ALPHAS = np.arange(0.05, 0.99, 0.05)  # TrackEval's array_labels, [19]
 NA = len(ALPHAS)
@@ -51,16 +53,35 @@ def _rev_cum(hist: np.ndarray) -> np.ndarray:
 
 def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     """HOTA fields per (config, sequence): arrays [L, S, NA] and [L, S] (``FIELDS``)."""
+    row_lf, row_first = segment_rows(b.lf_eval_count, b.det_count, b.pair_start)
+    combos = _alignment(b, row_lf, row_first)
+    matched = _assign(b, combos.score, row_lf, row_first)
+    res = _alpha_fields(b, combos, matched)
+    return _early_sequences(b, res)
+
+
+class _Combos(NamedTuple):
+    """The (tracker id, GT id) combos that ever overlap and the global alignment score of step (1)."""
+    pos: np.ndarray      # [Q] the pairs with sim > 0
+    inv: np.ndarray      # [Q] the combo of each, 0..C-1 in sorted order of (tracker id, GT id)
+    n: int               # C combos
+    c_tid: np.ndarray    # [C] the combo's tracker id
+    gc: np.ndarray       # [C] detections of its GT id
+    tc: np.ndarray       # [C] detections of its tracker id
+    score: np.ndarray    # [P] alignment score x sim of each pair (0 where sim = 0)
+
+
+def _alignment(b: EvalBatch, row_lf: np.ndarray, row_first: np.ndarray) -> _Combos:
+    """Step (1): ``sim / (rowsum + colsum - sim)`` accumulated per (tracker id, GT id) combo into
+    the global alignment score ``A``, times each pair's similarity."""
     gt = b.gt
-    L, F, S = b.n_lanes, gt.n_frames, len(gt.sequences)
     NG = len(gt.gid_count)
     P = len(b.sim)
     sim = b.sim
     ng_e = b.lf_eval_count
     nk = b.det_count
 
-    # (1) sim_iou = sim / (colsum + rowsum - sim), sums exactly as numpy
-    row_lf, row_first = segment_rows(ng_e, nk, b.pair_start)
+    # sim_iou = sim / (colsum + rowsum - sim), sums exactly as numpy
     row_len = nk[row_lf]
     rowsum = np.repeat(numpy_row_sums(sim, row_first, row_len), row_len)
     colsum = numpy_col_sums(sim, b.p_k, len(b.det_lf), b.det_lf, ng_e, nk, b.pair_start)[b.p_k]
@@ -82,14 +103,24 @@ def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     gas = pm / (gc + tc - pm)
     score = np.zeros(P)
     score[pos] = gas[inv] * sim[pos]
+    return _Combos(pos, inv, len(uniq), c_tid, gc, tc, score)
 
-    # (2) per-frame assignment
+
+def _assign(b: EvalBatch, score: np.ndarray, row_lf: np.ndarray, row_first: np.ndarray) -> np.ndarray:
+    """Step (2): the per-frame assignment maximising ``score`` -> [P] bool, the matched pairs."""
     positive = score > 0
     matched = positive.copy()
     hard = crowded_segments(positive, row_lf, row_first, b.p_k, b.det_lf)
-    assign_frames(hard, b.pair_start, ng_e, nk, score, matched, 0.0)
+    assign_frames(hard, b.pair_start, b.lf_eval_count, b.det_count, score, matched, 0.0)
+    return matched
 
-    # (3) statistics per alpha
+
+def _alpha_fields(b: EvalBatch, co: _Combos, matched: np.ndarray) -> dict[str, np.ndarray]:
+    """Step (3): the matches' statistics per alpha -> every field, [L, S, NA] and [L, S]."""
+    gt = b.gt
+    L, F, S = b.n_lanes, gt.n_frames, len(gt.sequences)
+    P = len(b.sim)
+    sim = b.sim
     h = np.flatnonzero(matched)
     sim_h = sim[h]
     na = np.searchsorted(ALPHAS - EPS, sim_h, side="right")  # alphas passed: sim >= alpha - eps
@@ -101,12 +132,12 @@ def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     loc_sum = _rev_cum(loc_hist)
 
     combo_of_pair = np.full(P, -1, dtype=np.int64)
-    combo_of_pair[pos] = inv
+    combo_of_pair[co.pos] = co.inv
     ch = combo_of_pair[h]
-    C = len(uniq)
+    C = co.n
     mc = _rev_cum(np.bincount(ch * (NA + 1) + na, minlength=C * (NA + 1)).reshape(C, NA + 1)).astype(np.float64)
-    ls_c = b.tid_lane[c_tid] * S + b.tid_seq[c_tid]
-    gc2, tc2 = gc[:, None], tc[:, None]
+    ls_c = b.tid_lane[co.c_tid] * S + b.tid_seq[co.c_tid]
+    gc2, tc2 = co.gc[:, None], co.tc[:, None]
     ass_a = mc / np.maximum(1, gc2 + tc2 - mc)
     ass_re = mc / np.maximum(1, gc2)
     ass_pr = mc / np.maximum(1, tc2)
@@ -127,9 +158,15 @@ def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     res["AssRe"] = per_ls(ass_re) / den
     res["AssPr"] = per_ls(ass_pr) / den
     res["LocA"] = np.maximum(1e-10, loc_sum) / np.maximum(1e-10, tp)
-    res = _final_fields(res)
+    return _final_fields(res)
 
-    # sequences TrackEval returns early for (no tracker dets, or no GT dets)
+
+def _early_sequences(b: EvalBatch, res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The fields of the sequences TrackEval returns early for (no tracker dets, or no GT dets)."""
+    gt = b.gt
+    L, S = b.n_lanes, len(gt.sequences)
+    n_gt = np.broadcast_to(gt.n_gt_dets[None, :, None], (L, S, 1)).astype(np.float64)
+    n_tr = b.n_tr_dets[:, :, None].astype(np.float64)
     no_tr = b.n_tr_dets == 0
     no_gt = (gt.n_gt_dets[None, :] == 0) & ~no_tr
     early = no_tr | no_gt

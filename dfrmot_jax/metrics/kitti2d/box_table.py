@@ -2,15 +2,15 @@
 
 The outputs of a sweep (and the lanes of one batch) mostly carry the same boxes: the detector's,
 frame by frame. :func:`box_table` finds the distinct (frame, box) values of the tracker rows
-(:func:`~dfrmot_jax.metrics.similarity.distinct_rows`), computes their IoU with every class row of
-the frame's ground truth once (TrackEval's formula bit for bit, :func:`~dfrmot_jax.metrics.boxes.gather_iou`),
+(:func:`~dfrmot_jax.metrics.common.distinct.distinct_rows`), computes their IoU with every class row of
+the frame's ground truth once (TrackEval's formula bit for bit, :func:`~dfrmot_jax.metrics.kitti2d.boxes.gather_iou`),
 and keeps, per distinct value, its candidate rows (IoU >= 0.5 - eps, the preprocessing's matching
 threshold) and whether it lies mostly inside a DontCare region (intersection over its own area
-> 0.5 + eps with any, :func:`~dfrmot_jax.metrics.boxes.pair_ioa`). :func:`pair_iou` looks pairs
+> 0.5 + eps with any, :func:`~dfrmot_jax.metrics.kitti2d.boxes.pair_ioa`). :func:`pair_iou` looks pairs
 up; :func:`candidate_pairs` joins the candidates back to the rows.
 
 Arrays: ``F`` frames, ``M`` tracker rows, ``U`` distinct values (sorted by frame), class rows of
-the ground truth as in :class:`~dfrmot_jax.metrics.kitti.PreparedGT` (``row_start`` [F+1]).
+the ground truth as in :class:`~dfrmot_jax.metrics.kitti2d.kitti.PreparedGT` (``row_start`` [F+1]).
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from dfrmot_jax.metrics.boxes import EPS, columns, gather_iou, pair_ioa
-from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
-from dfrmot_jax.metrics.similarity import distinct_rows
+from dfrmot_jax.metrics.common.distinct import distinct_rows
+from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
+from dfrmot_jax.metrics.kitti2d.boxes import EPS, columns, gather_iou, pair_ioa
 
 __all__ = ["BoxTable", "MATCH_IOU", "box_table", "pair_iou", "candidate_pairs"]
 
@@ -53,7 +53,7 @@ def box_table(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_b
     """The :class:`BoxTable` of tracker rows ``frame`` [M] (global frame) and ``box`` [M, 4] float64.
 
     row_start: [F+1] class rows of each frame; row_cols: the class rows' boxes as four columns
-    (:func:`~dfrmot_jax.metrics.boxes.columns`); dc_start [F+1], dc_box [D, 4]: DontCare regions."""
+    (:func:`~dfrmot_jax.metrics.kitti2d.boxes.columns`); dc_start [F+1], dc_box [D, 4]: DontCare regions."""
     F = len(row_start) - 1
     first, ids = distinct_rows(frame, box)
     ufr = frame[first]

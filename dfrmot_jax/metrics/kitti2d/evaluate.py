@@ -26,17 +26,17 @@ does) is the plain mean over the classes; nothing is recomputed from the sums.
 Similarity: every entry point takes ``similarity='2d'`` (TrackEval's image IoU, the default),
 ``'3d'`` (3D IoU of the rotated boxes) or ``'bev'`` (bird's-eye-view IoU): the same definitions and
 the same KITTI preprocessing, only the similarity the metrics match on changes (see
-:mod:`dfrmot_jax.metrics.kitti`: distractors and DontCare stay 2D, as KITTI's; a row without a 3D
+:mod:`dfrmot_jax.metrics.kitti2d.kitti`: distractors and DontCare stay 2D, as KITTI's; a row without a 3D
 box is unmatched in 3D). Files are then read with their 3D fields (located errors); arrays need
 ``box3d``. The result fields keep their names (``HOTA``, ``DetA``, ...): the caller labels them
 (e.g. ``HOTA_3d``).
 
 Sweeps (:mod:`dfrmot_jax.sweep`) score padded tracker output with
-:class:`dfrmot_jax.metrics.lane_scorer.LaneScorer` (each distinct output of each sequence scored
+:class:`dfrmot_jax.metrics.kitti2d.lane_scorer.LaneScorer` (each distinct output of each sequence scored
 once, in sub-batches of lanes, optionally in a :func:`worker_pool`), keep TrackEval's summary view
 per row (:func:`summary_columns`), re-combine any subset of sequences
 from the per-alpha fields :data:`RAW_FIELDS` (:func:`combine_sequences`) and average classes
-column-wise (:func:`class_average_columns`).
+column-wise (:func:`dfrmot_jax.metrics.columns.class_average_columns`, with AB3DMOT's columns).
 """
 
 from __future__ import annotations
@@ -52,18 +52,19 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from dfrmot_jax.io.memo import FileMemo, file_stamps
-from dfrmot_jax.metrics import clear, hota, identity, table
-from dfrmot_jax.metrics.kitti import (
+from dfrmot_jax.metrics.common.names import name_list
+from dfrmot_jax.metrics.common.sequences import cached_class_sequences, seq_name
+from dfrmot_jax.metrics.common.sequences import clear_cache as clear_sequence_cache
+from dfrmot_jax.metrics.kitti2d import clear, hota, identity, table
+from dfrmot_jax.metrics.kitti2d.kitti import (
     PreparedGT,
     TrackerDets,
-    class_sequences,
     prepare_gt,
     preprocess,
-    seq_name,
 )
-from dfrmot_jax.metrics.similarity import parse_similarity
-from dfrmot_jax.metrics.table import classes_table
-from dfrmot_jax.metrics.tracker_files import read_tracker_files
+from dfrmot_jax.metrics.kitti2d.similarity import parse_similarity
+from dfrmot_jax.metrics.kitti2d.table import classes_table
+from dfrmot_jax.metrics.kitti2d.tracker_files import read_tracker_files
 from dfrmot_jax.paths import default_data_root
 
 COUNT_FIELDS = ("Dets", "GT_Dets", "IDs", "GT_IDs")
@@ -97,37 +98,19 @@ def cached_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Prep
     return _GT_CACHE.get(key, stamp, lambda: prepare_gt(root, cls, names))
 
 
-_SEQ_CACHE = FileMemo()
-
-
-def _label_stamp(label_dir: Path) -> tuple:
-    """The label files' names and :class:`~dfrmot_jax.io.memo.FileStamp` s (a file added or removed is seen)."""
-    paths = sorted(label_dir.glob("*.txt"))
-    return tuple(p.stem for p in paths), file_stamps(paths)
-
-
-def cached_class_sequences(root, cls: str = "car") -> tuple:
-    """:func:`dfrmot_jax.metrics.kitti.class_sequences` of every ``label_02`` sequence, memoised on
-    (root, class) with the stamp of every label file (names too: a sequence added or removed is seen)."""
-    label_dir = Path(root) / "label_02"
-    key = (str(Path(root).resolve()), cls.lower())
-    stamp = _label_stamp(label_dir)
-    return _SEQ_CACHE.get(key, stamp, lambda: class_sequences(root, cls))
-
-
 def clear_caches() -> None:
     """Forget the memoised ground truth and class sequences (``cached_gt``, ``cached_class_sequences``):
     the next call reads the files again, as a cold start does."""
     _GT_CACHE.clear()
-    _SEQ_CACHE.clear()
+    clear_sequence_cache()
 
 
 def parse_classes(classes) -> tuple:
     """``'car,pedestrian'`` / ``['Car', 'pedestrian']`` -> ``('car', 'pedestrian')`` (lower case, in
     the given order, duplicates dropped). Raises ValueError for an empty list or a class TrackEval's
     KITTI 2D box cannot evaluate (only ``car`` and ``pedestrian``)."""
-    return table.name_list(classes, EVAL_CLASSES, lambda c: f"class {c!r} is not evaluatable (TrackEval's KITTI 2D "
-                                                            f"box: {', '.join(EVAL_CLASSES)})", "no class given")
+    return name_list(classes, EVAL_CLASSES, lambda c: f"class {c!r} is not evaluatable (TrackEval's KITTI 2D "
+                                                      f"box: {', '.join(EVAL_CLASSES)})", "no class given")
 
 
 def class_average(per_class: Mapping[str, Mapping[str, object]]) -> dict[str, object]:
@@ -277,7 +260,8 @@ def evaluate_files_classes(results_dir, root=None, classes: Sequence[str] | str 
 def evaluate_classes(results_dir, root=None, classes: Sequence[str] | str = EVAL_CLASSES,
                      sequences: Sequence | None = None, missing: str = "empty", tracker: str | None = None,
                      similarity: str = "2d"):
-    """:func:`evaluate_files_classes` as a tidy pandas DataFrame (:func:`dfrmot_jax.metrics.table.classes_table`).
+    """:func:`evaluate_files_classes` as a tidy pandas DataFrame
+    (:func:`dfrmot_jax.metrics.kitti2d.table.classes_table`).
 
     Columns ``[tracker,] class, seq`` and TrackEval's summary fields (ratios x100, counts int); one
     row per (class, sequence), each class's ``COMBINED``, and with two or more classes a last row
@@ -434,30 +418,4 @@ def summary_columns(seq: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
             out[f] = np.rint(np.asarray(seq[f], np.float64)).astype(np.int64)
     if "MOTP_sum" in seq:
         out["MOTP_sum"] = np.asarray(seq["MOTP_sum"], np.float64)
-    return out
-
-
-def class_combiner(field: str) -> str | None:
-    """How the class average treats a field or summary column: "sum" (:data:`CLASS_SUMMED_FIELDS`),
-    "mean" (:data:`CLASS_AVERAGED_FIELDS`) or None (not a metric)."""
-    if field in CLASS_SUMMED_FIELDS or field in table.AB3DMOT_COUNT_COLUMNS:
-        return "sum"
-    if field in CLASS_AVERAGED_FIELDS or field in table.AB3DMOT_RATIO_COLUMNS:
-        return "mean"
-    return None
-
-
-def class_average_columns(per_class: Sequence[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
-    """The class average of summary columns (arrays [C] per class, x100 ratios): TrackEval's
-    ``combine_classes_class_averaged`` as :func:`class_average` does it (``CLASS_SUMMED_FIELDS``
-    summed, ``CLASS_AVERAGED_FIELDS`` averaged), vectorised over rows. A summary column is a linear
-    function of its field (a ratio x100, HOTA's the mean over alphas), so averaging the columns
-    equals the summary of the averaged fields."""
-    out = {}
-    for f in per_class[0]:
-        how = class_combiner(f)
-        if how is None or not all(f in p for p in per_class):
-            continue
-        stack = np.stack([np.asarray(p[f]) for p in per_class])
-        out[f] = stack.sum(axis=0) if how == "sum" else stack.astype(np.float64).mean(axis=0)
     return out

@@ -16,8 +16,8 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from dfrmot_jax.metrics.kitti import EvalBatch
-from dfrmot_jax.metrics.pairs import segment_starts
+from dfrmot_jax.metrics.common.pairs import segment_starts
+from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
 
 THRESHOLD = 0.5
 INTEGER_FIELDS = ("IDTP", "IDFN", "IDFP")

@@ -7,23 +7,16 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from dfrmot_jax.metrics import clear, hota, identity
+from dfrmot_jax.metrics.kitti2d import clear, hota, identity
 
 # TrackEval's summary fields, in its order (HOTA, CLEAR, Identity, Count). In a class average row
 # (``class = 'average'``) the PERCENT_FIELDS (ratios) are the mean over the classes and the
-# COUNT_FIELDS are summed (see dfrmot_jax.metrics.evaluate.class_average).
+# COUNT_FIELDS are summed (see dfrmot_jax.metrics.kitti2d.evaluate.class_average).
 PERCENT_FIELDS = (hota.FLOAT_ARRAY_FIELDS + hota.FLOAT_FIELDS + clear.MAIN_FLOAT_FIELDS + identity.FLOAT_FIELDS)
 COUNT_FIELDS = clear.MAIN_INTEGER_FIELDS + identity.INTEGER_FIELDS + ("Dets", "GT_Dets", "IDs", "GT_IDs")
 TABLE_FIELDS = (hota.FLOAT_ARRAY_FIELDS + hota.FLOAT_FIELDS + clear.MAIN_FLOAT_FIELDS + clear.MAIN_INTEGER_FIELDS
                 + identity.FLOAT_FIELDS + identity.INTEGER_FIELDS + ("Dets", "GT_Dets", "IDs", "GT_IDs"))
 COMPACT_FIELDS = ("HOTA", "DetA", "AssA", "MOTA", "MOTP", "IDSW", "IDF1", "MT", "ML", "Frag")
-#: AB3DMOT's figures as table columns (:mod:`dfrmot_jax.metrics.ab3dmot_table`): ratios (x100, as
-#: the table's other ratios) and counts, prefixed ``ab3dmot_`` where CLEAR has a column of the name
-AB3DMOT_RATIO_COLUMNS = ("sAMOTA", "AMOTA", "AMOTP", "ab3dmot_MOTA", "ab3dmot_MOTP")
-AB3DMOT_COUNT_COLUMNS = ("ab3dmot_IDS", "ab3dmot_FRAG", "ab3dmot_FP", "ab3dmot_FN")
-AB3DMOT_COLUMNS = AB3DMOT_RATIO_COLUMNS + AB3DMOT_COUNT_COLUMNS
-#: every column an objective (a sweep's report, a tune) may name
-OBJECTIVE_FIELDS = TABLE_FIELDS + AB3DMOT_COLUMNS
 
 
 def summary_row(res: Mapping[str, object]) -> dict[str, object]:
@@ -74,7 +67,7 @@ def classes_table(results_by_class: Mapping[str, Mapping[str, Mapping[str, objec
     """Tidy table of several classes: columns ``[tracker,] class, seq`` and the summary fields.
 
     results_by_class: ``{cls: {seq or 'COMBINED': {field: value}}}`` as from
-    :func:`dfrmot_jax.metrics.evaluate.evaluate_files_classes` (a class ``'average'`` holds only
+    :func:`dfrmot_jax.metrics.kitti2d.evaluate.evaluate_files_classes` (a class ``'average'`` holds only
     ``COMBINED``: ratios averaged over the classes, counts summed). Rows: per class its sequences
     then ``COMBINED``, classes in the given order; a plain RangeIndex.
     """
@@ -90,30 +83,3 @@ def classes_table(results_by_class: Mapping[str, Mapping[str, Mapping[str, objec
         if f in out:
             out[f] = out[f].astype("int64")
     return out
-
-
-def name_list(text, allowed, unknown, empty: str) -> tuple:
-    """``'a,b'`` or a list -> the names, stripped and lower case, in the given order, duplicates
-    dropped. ValueError(``unknown(name)``) for a name not in ``allowed``, ValueError(``empty``) for none."""
-    out = []
-    for name in (text.split(",") if isinstance(text, str) else list(text)):
-        name = str(name).strip().lower()
-        if not name:
-            continue
-        if name not in allowed:
-            raise ValueError(unknown(name))
-        if name not in out:
-            out.append(name)
-    if not out:
-        raise ValueError(empty)
-    return tuple(out)
-
-
-def canonical_objective(objective) -> str:
-    """A metric name in any case (``hota``, ``idf1``) -> its column name (``HOTA``, ``IDF1``);
-    ValueError naming the metrics when it is none of them."""
-    if isinstance(objective, str):
-        by_lower = {f.lower(): f for f in OBJECTIVE_FIELDS}
-        if objective.lower() in by_lower:
-            return by_lower[objective.lower()]
-    raise ValueError(f"objective {objective!r}: not a metric; expected one of {list(OBJECTIVE_FIELDS)} (any case)")

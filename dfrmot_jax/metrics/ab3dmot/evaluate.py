@@ -4,14 +4,14 @@ The reference is ``scripts/KITTI/evaluate.py`` of xinshuoweng/AB3DMOT (the KITTI
 ``trackingEvaluation`` with 3D IoU and recall-averaged metrics), reimplemented independently,
 vectorised, with every preprocessing step (reading, filtering, IoU, DontCare overlap, graph
 components) done once and shared by its ~42 evaluation passes. Inputs are read by
-:mod:`dfrmot_jax.metrics.ab3dmot_prep` (its docstring: which rows load, what is ignored, the
+:mod:`dfrmot_jax.metrics.ab3dmot.prep` (its docstring: which rows load, what is ignored, the
 3D-field and seqmap rules). Per pass, for a score threshold ``thr``:
 
 1. **Track scores.** Every row's score becomes the mean score of its track (per sequence); tracks
    whose mean is ``< thr`` are dropped whole.
 2. **Matching, per frame.** Cost ``c = 1 - IoU`` between ground-truth objects (ignored ones
    included) and kept tracker rows, IoU the image-box IoU (``2d``) or the 3D IoU of the rotated
-   boxes (``3d``, :mod:`dfrmot_jax.metrics.box3d`); pairs with ``c <= 1 - T`` (T the IoU
+   boxes (``3d``, :mod:`dfrmot_jax.metrics.common.box3d`); pairs with ``c <= 1 - T`` (T the IoU
    threshold, in floats) are candidates, others cost 1e9. The reference's Munkres on that matrix
    maximises the number of candidate pairs, then minimises their cost; here the same optimum per
    connected component of the candidate graph (one pair: matched outright; larger:
@@ -26,8 +26,9 @@ components) done once and shared by its ~42 evaluation passes. Inputs are read b
    unmatched non-ignored objects, ``FP`` = kept rows - matches - ignored rows, ``n_gt`` = non-ignored
    objects; ``IDS`` / ``FRAG`` from each object trajectory's per-frame matched track (the
    reference's trajectory pass: a frame of an ignored object resets the last id; its exact rules
-   in :func:`~dfrmot_jax.metrics.ab3dmot_passes.ids_frag`); ``MOTA = 1 - (FN + FP + IDS) / n_gt``, ``MOTP`` = sum of matched IoUs
-   (``1 - c``) / TP, ``sMOTA = min(1, max(0, 1 - (FN + FP + IDS - (1 - r) n_gt) / (r n_gt)))``.
+   in :func:`~dfrmot_jax.metrics.ab3dmot.passes.ids_frag`); ``MOTA = 1 - (FN + FP + IDS) / n_gt``,
+   ``MOTP`` = sum of matched IoUs (``1 - c``) / TP,
+   ``sMOTA = min(1, max(0, 1 - (FN + FP + IDS - (1 - r) n_gt) / (r n_gt)))``.
 
 The evaluation: pass 0 keeps every track (``thr = -10000``, ``r = 1``); its matched rows' scores,
 sorted descending, give up to 40 thresholds at recall ``0.025 k`` (``getThresholds``: a score is
@@ -71,8 +72,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from dfrmot_jax.metrics.ab3dmot_passes import run_passes
-from dfrmot_jax.metrics.ab3dmot_prep import (
+from dfrmot_jax.metrics.ab3dmot.passes import run_passes
+from dfrmot_jax.metrics.ab3dmot.prep import (
     MIN_HEIGHT,
     Ab3dGT,
     Ab3dTracker,
@@ -80,9 +81,9 @@ from dfrmot_jax.metrics.ab3dmot_prep import (
     read_ab3dmot_results,
     read_seqmap,
 )
-from dfrmot_jax.metrics.box3d import iou_3d
-from dfrmot_jax.metrics.evaluate import cached_class_sequences
-from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
+from dfrmot_jax.metrics.common.box3d import iou_3d
+from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
+from dfrmot_jax.metrics.common.sequences import cached_class_sequences
 from dfrmot_jax.paths import default_data_root
 
 __all__ = ["AB3DMOT_FIELDS", "parse_iou", "Ab3dPrepared", "prepare_passes", "static_ignore", "seq_sum_rows",
@@ -232,7 +233,7 @@ def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: fl
                    track_mean: np.ndarray | None = None) -> Ab3dPrepared:
     """The shared preprocessing of :func:`ab3dmot_metrics` (see :class:`Ab3dPrepared`).
 
-    Computed for many outputs at once by :mod:`dfrmot_jax.metrics.ab3dmot_arrays`, and then given:
+    Computed for many outputs at once by :mod:`dfrmot_jax.metrics.ab3dmot.arrays`, and then given:
     pairs, the candidate pairs ``(e_g, e_t, e_c)`` (by frame, object, row); static, the rows'
     :func:`static_ignore`; track_mean, the tracks' mean scores (:func:`seq_sum_rows` / length)."""
     kind, threshold = parse_iou((kind, threshold))
@@ -278,12 +279,12 @@ def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: fl
 
 def ab3dmot_metrics(prep: Ab3dPrepared) -> dict:
     """The reference's full evaluation on prepared inputs (module docstring) -> dict of figures;
-    its passes computed together (:mod:`dfrmot_jax.metrics.ab3dmot_passes`)."""
+    its passes computed together (:mod:`dfrmot_jax.metrics.ab3dmot.passes`)."""
     return run_passes(prep)
 
 
 def evaluate_ab3dmot(gt: Ab3dGT, trk: Ab3dTracker, iou="3d:0.25") -> dict:
-    """Score one tracker output (:func:`~dfrmot_jax.metrics.ab3dmot_prep.read_ab3dmot_results`)."""
+    """Score one tracker output (:func:`~dfrmot_jax.metrics.ab3dmot.prep.read_ab3dmot_results`)."""
     kind, thr = parse_iou(iou)
     return ab3dmot_metrics(prepare_passes(gt, trk, kind, thr))
 
@@ -293,7 +294,7 @@ def evaluate_ab3dmot_files(results_dir, root=None, cls: str = "car", sequences: 
     """AB3DMOT's KITTI evaluation of ``results_dir/SSSS.txt`` (one class) -> dict of figures.
 
     root: KITTI training root (default :func:`dfrmot_jax.paths.default_data_root`) or an
-    :class:`~dfrmot_jax.metrics.ab3dmot_prep.Ab3dGT`; sequences: names or ints (default: the
+    :class:`~dfrmot_jax.metrics.ab3dmot.prep.Ab3dGT`; sequences: names or ints (default: the
     seqmap's, else every ``label_02`` sequence whose ground truth has the class); seqmap: a KITTI
     seqmap file (e.g. AB3DMOT's ``evaluate_tracking.seqmap.val``); iou: ``'3d:0.25'`` (default),
     ``'2d:0.5'``, ... (:func:`parse_iou`). missing: a sequence without a file is scored as an empty

@@ -21,14 +21,14 @@ What TrackEval does (``trackeval/datasets/kitti_2d_box.py`` and ``_base_dataset.
   (score > eps) to a distractor GT are removed. Of the unmatched tracker boxes, those with height
   ``y2 - y1 <= 25 + eps`` px or with intersection-over-own-area ``> 0.5 + eps`` with any DontCare
   region are removed. Distractor GT are then dropped.
-* **Similarity** (``similarity=``, :mod:`dfrmot_jax.metrics.similarity`): TrackEval's image-box
+* **Similarity** (``similarity=``, :mod:`dfrmot_jax.metrics.kitti2d.similarity`): TrackEval's image-box
   IoU (``'2d'``, the default), or, with the rest unchanged, the 3D IoU of the rotated boxes (``'3d'``) or their
-  bird's-eye-view IoU (``'bev'``) (:mod:`dfrmot_jax.metrics.box3d`), which then feeds HOTA, CLEAR
+  bird's-eye-view IoU (``'bev'``) (:mod:`dfrmot_jax.metrics.common.box3d`), which then feeds HOTA, CLEAR
   and Identity in place of the 2D IoU (their thresholds unchanged: CLEAR and Identity match at
   similarity >= 0.5, HOTA over alpha = 0.05..0.95). The preprocessing stays 2D, as KITTI's: the
   distractor matching (image IoU >= 0.5), the 25 px height and the DontCare overlap use the image
   boxes whatever the similarity. A row without a 3D box (the 2D-only placeholder
-  ``-1 -1 -1 -1000 -1000 -1000``, or all NaN in arrays; :mod:`dfrmot_jax.metrics.fields3d`) has 3D /
+  ``-1 -1 -1 -1000 -1000 -1000``, or all NaN in arrays; :mod:`dfrmot_jax.metrics.common.fields3d`) has 3D /
   BEV similarity 0 to every object: in 3D it is never matched (a false positive unless removed by
   the 2D preprocessing), and a ground-truth object without one is never matched either (a miss).
 * **Ids.** GT and tracker ids are relabelled per sequence to ``0..n-1`` in sorted order (this
@@ -51,20 +51,18 @@ import pandas as pd
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.io.plain_table import read_ahead
-from dfrmot_jax.metrics.box_table import box_table, candidate_pairs, pair_iou
-from dfrmot_jax.metrics.boxes import EPS, columns
-from dfrmot_jax.metrics.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows
-from dfrmot_jax.metrics.pairs import enumerate_pairs, match_entries, segment_starts
-from dfrmot_jax.metrics.similarity import pair_similarity_3d, parse_similarity
+from dfrmot_jax.metrics.common.fields3d import FIELDS_3D, box3d_problem, box_rows, no_box_rows
+from dfrmot_jax.metrics.common.pairs import enumerate_pairs, match_entries, segment_starts
+from dfrmot_jax.metrics.common.sequences import CLASS_NAME_TO_ID, DISTRACTORS, distinct_types, seq_name
+from dfrmot_jax.metrics.kitti2d.box_table import BoxTable, box_table, candidate_pairs, pair_iou
+from dfrmot_jax.metrics.kitti2d.boxes import EPS, columns
+from dfrmot_jax.metrics.kitti2d.similarity import pair_similarity_3d, parse_similarity
 
 __all__ = [
-    "CLASS_NAME_TO_ID",
     "PreparedGT",
     "TrackerDets",
     "EvalBatch",
     "prepare_gt",
-    "class_sequences",
-    "seq_name",
     "class_ids",
     "check_arrays",
     "tracker_dets_from_arrays",
@@ -72,9 +70,6 @@ __all__ = [
     "DuplicateIdError",
 ]
 
-CLASS_NAME_TO_ID = {"car": 1, "van": 2, "truck": 3, "pedestrian": 4, "person": 5, "cyclist": 6, "tram": 7,
-                    "misc": 8, "dontcare": 9, "car_2": 1}
-_DISTRACTORS = {"car": (2,), "pedestrian": (5,)}
 MAX_OCCLUSION = 2
 MAX_TRUNCATION = 0
 MIN_HEIGHT = 25
@@ -88,16 +83,12 @@ def _kitti_io():
     return kio
 
 
-def seq_name(s) -> str:
-    return f"{s:04d}" if isinstance(s, (int, np.integer)) else str(s)
-
-
 def class_ids(types: np.ndarray, path, kio, rows: np.ndarray | None = None) -> np.ndarray:
     """[R] object type names -> [R] int64 class ids (lower-cased lookup, as TrackEval).
 
     ``rows`` [R]: file row of each entry (for the error's line number); default 0..R-1.
     """
-    return coded_class_ids(*_distinct(types), path, kio, rows)
+    return coded_class_ids(*distinct_types(types), path, kio, rows)
 
 
 def coded_class_ids(code: np.ndarray, names: np.ndarray, path, kio, rows: np.ndarray | None = None) -> np.ndarray:
@@ -118,13 +109,6 @@ def coded_class_ids(code: np.ndarray, names: np.ndarray, path, kio, rows: np.nda
                                        f"{', '.join(sorted(CLASS_NAME_TO_ID))}; case-insensitive)")
         ids[k] = cid
     return ids[code]
-
-
-def _distinct(types: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """[R] object type names -> ([R] int64 index into the names, [U] str the distinct names in order of
-    appearance). pandas' hashing factorize: over all KITTI labels ~1 ms, np.unique ~6 ms, np.char.lower ~12 ms."""
-    code, uniq = pd.factorize(types, use_na_sentinel=False)   # every value its own name (no -1 for missing)
-    return code.astype(np.int64), np.asarray(uniq, dtype=str).reshape(-1)
 
 
 @dataclass(eq=False)
@@ -201,10 +185,10 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
     """
     kio = _kitti_io()
     cls = cls.lower()
-    if cls not in _DISTRACTORS:
+    if cls not in DISTRACTORS:
         raise ValueError(f"class {cls!r} is not evaluatable (TrackEval's KITTI 2D box: 'car' or 'pedestrian')")
     cls_id = CLASS_NAME_TO_ID[cls]
-    classes = (cls_id,) + _DISTRACTORS[cls]
+    classes = (cls_id,) + DISTRACTORS[cls]
     label_dir = Path(root) / "label_02"
     if sequences is None:
         names = sorted(p.stem for p in label_dir.glob("*.txt"))
@@ -213,52 +197,70 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
     else:
         names = [seq_name(s) for s in sequences]
 
-    lengths, boxes, boxes3d, evals, ids, frames, dcb, dcf = [], [], [], [], [], [], [], []
+    parts = []
     offset = 0
     gid_off = 0
-    n_ids, n_dets, gid_counts = [], [], []
     labels = read_ahead(kio.read_tracking_labels, [label_dir / f"{name}.txt" for name in names])
     for name in names:
-        path = label_dir / f"{name}.txt"
-        lab = next(labels)
-        length = int(lab.frame.max()) + 1 if lab.frame.size else 0
-        lengths.append(length)
-        code, uniq = _distinct(lab.type)
-        is_dc = (np.char.lower(uniq) == "dontcare")[code]
-        cid = np.zeros(len(code), dtype=np.int64)
-        nd = ~is_dc & (lab.track_id >= 0)  # TrackEval skips negative ids before mapping class names
-        cid[nd] = coded_class_ids(code[nd], uniq, path, kio, np.flatnonzero(nd))
-        use = nd & np.logical_or.reduce([cid == c for c in classes])
-        occ = lab.occluded.astype(np.int64)
-        trunc = lab.truncated.astype(np.int64)
-        is_eval = (occ <= MAX_OCCLUSION) & (trunc <= MAX_TRUNCATION) & (cid == cls_id)
-        sel = np.flatnonzero(use)
-        order = sel[np.argsort(lab.frame[sel], kind="stable")]
-        boxes.append(lab.box[order])
-        boxes3d.append(np.concatenate([lab.dims[order], lab.loc[order], lab.rot_y[order, None]], axis=1))
-        evals.append(is_eval[order])
-        frames.append(lab.frame[order] + offset)
-        # relabel eval ids contiguously per sequence (sorted unique, as TrackEval)
-        ev = order[is_eval[order]]
-        uniq, inv, cnt = np.unique(lab.track_id[ev], return_inverse=True, return_counts=True)
-        gid = np.full(len(order), -1, dtype=np.int64)
-        gid[is_eval[order]] = inv.reshape(-1) + gid_off
-        ids.append(gid)
-        # duplicate GT ids within a frame (TrackEval raises)
-        key = lab.frame[ev] * (len(uniq) + 1) + inv.reshape(-1)
-        if len(key) and (np.bincount(key).max() > 1 if key.max() < 64 * len(key) else len(np.unique(key)) < len(key)):
-            raise ValueError(f"{path}: ground truth has the same id twice in one frame")
-        n_ids.append(len(uniq))
-        n_dets.append(len(ev))
-        gid_counts.append(cnt.astype(np.float64))
-        gid_off += len(uniq)
-        dsel = np.flatnonzero(is_dc)
-        dsel = dsel[np.argsort(lab.frame[dsel], kind="stable")]
-        dcb.append(lab.box[dsel])
-        dcf.append(lab.frame[dsel] + offset)
-        offset += length
+        part = _sequence_gt(next(labels), label_dir / f"{name}.txt", kio, cls_id, classes, offset, gid_off)
+        parts.append(part)
+        gid_off += part.n_ids
+        offset += part.length
+    return _joined_gt(cls, cls_id, names, parts, root)
 
-    lengths_a = np.asarray(lengths, dtype=np.int64)
+
+class _SequenceGT(NamedTuple):
+    """One sequence's ground truth of a class, its frames and ids already global (:func:`prepare_gt`)."""
+    length: int              # frames: max label frame + 1
+    box: np.ndarray          # [n, 4] class rows (evaluated class + distractors), by frame
+    box3d: np.ndarray        # [n, 7] ``h w l x y z rot_y``
+    eval: np.ndarray         # [n] bool: kept for evaluation
+    frame: np.ndarray        # [n] global frame
+    gid: np.ndarray          # [n] global GT id of an eval row (-1 for distractors)
+    n_ids: int               # eval GT ids
+    n_dets: int              # eval rows
+    gid_count: np.ndarray    # [n_ids] float64 detections per GT id
+    dc_box: np.ndarray       # [d, 4] DontCare regions, by frame
+    dc_frame: np.ndarray     # [d] their global frames
+
+
+def _sequence_gt(lab, path: Path, kio, cls_id: int, classes: tuple, offset: int, gid_off: int) -> _SequenceGT:
+    """The class rows, eval ids and DontCare regions of one sequence's labels (TrackEval's rules,
+    module docstring); its frames start at global frame ``offset``, its GT ids at ``gid_off``."""
+    length = int(lab.frame.max()) + 1 if lab.frame.size else 0
+    code, uniq = distinct_types(lab.type)
+    is_dc = (np.char.lower(uniq) == "dontcare")[code]
+    cid = np.zeros(len(code), dtype=np.int64)
+    nd = ~is_dc & (lab.track_id >= 0)  # TrackEval skips negative ids before mapping class names
+    cid[nd] = coded_class_ids(code[nd], uniq, path, kio, np.flatnonzero(nd))
+    use = nd & np.logical_or.reduce([cid == c for c in classes])
+    occ = lab.occluded.astype(np.int64)
+    trunc = lab.truncated.astype(np.int64)
+    is_eval = (occ <= MAX_OCCLUSION) & (trunc <= MAX_TRUNCATION) & (cid == cls_id)
+    sel = np.flatnonzero(use)
+    order = sel[np.argsort(lab.frame[sel], kind="stable")]
+    box3d = np.concatenate([lab.dims[order], lab.loc[order], lab.rot_y[order, None]], axis=1)
+    # relabel eval ids contiguously per sequence (sorted unique, as TrackEval)
+    ev = order[is_eval[order]]
+    uniq, inv, cnt = np.unique(lab.track_id[ev], return_inverse=True, return_counts=True)
+    gid = np.full(len(order), -1, dtype=np.int64)
+    gid[is_eval[order]] = inv.reshape(-1) + gid_off
+    # duplicate GT ids within a frame (TrackEval raises)
+    key = lab.frame[ev] * (len(uniq) + 1) + inv.reshape(-1)
+    if len(key) and (np.bincount(key).max() > 1 if key.max() < 64 * len(key) else len(np.unique(key)) < len(key)):
+        raise ValueError(f"{path}: ground truth has the same id twice in one frame")
+    dsel = np.flatnonzero(is_dc)
+    dsel = dsel[np.argsort(lab.frame[dsel], kind="stable")]
+    return _SequenceGT(length, lab.box[order], box3d, is_eval[order], lab.frame[order] + offset, gid, len(uniq),
+                       len(ev), cnt.astype(np.float64), lab.box[dsel], lab.frame[dsel] + offset)
+
+
+def _joined_gt(cls: str, cls_id: int, names: list, parts: list[_SequenceGT], root) -> PreparedGT:
+    """The sequences' ground truth joined into one :class:`PreparedGT`."""
+    lengths_a = np.asarray([p.length for p in parts], dtype=np.int64)
+    boxes, boxes3d, evals = [p.box for p in parts], [p.box3d for p in parts], [p.eval for p in parts]
+    frames, ids, gid_counts = [p.frame for p in parts], [p.gid for p in parts], [p.gid_count for p in parts]
+    dcb, dcf = [p.dc_box for p in parts], [p.dc_frame for p in parts]
     offsets = segment_starts(lengths_a)
     F = int(offsets[-1])
     row_frame = np.concatenate(frames) if frames else np.zeros(0, np.int64)
@@ -274,44 +276,18 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
     gid_count = np.concatenate(gid_counts) if gid_counts else np.zeros(0)
     row_box3d = np.concatenate(boxes3d).reshape(-1, 7).astype(np.float64) if boxes3d else np.zeros((0, 7))
     row_has3d = box_rows(row_box3d)              # ground truth whose 3D fields are no box: no 3D box
-    n_gt_ids = np.asarray(n_ids, dtype=np.int64)
+    n_gt_ids = np.asarray([p.n_ids for p in parts], dtype=np.int64)
     return PreparedGT(
         cls=cls, cls_id=cls_id, sequences=tuple(names), lengths=lengths_a, offsets=offsets,
         seq_of_frame=np.repeat(np.arange(len(names)), lengths_a),
         row_box=np.ascontiguousarray(row_box), row_eval=row_eval, row_eval_index=eval_idx, row_start=row_start,
         eval_gid=row_gid[row_eval], eval_start=segment_starts(eval_count), eval_count=eval_count,
         gid_count=gid_count, gid_seq=np.repeat(np.arange(len(names)), n_gt_ids), gid_start=segment_starts(n_gt_ids),
-        n_gt_ids=n_gt_ids, n_gt_dets=np.asarray(n_dets, dtype=np.int64),
+        n_gt_ids=n_gt_ids, n_gt_dets=np.asarray([p.n_dets for p in parts], dtype=np.int64),
         dc_box=np.concatenate(dcb).reshape(-1, 4).astype(np.float64) if dcb else np.zeros((0, 4)),
         dc_start=segment_starts(np.bincount(dc_frame, minlength=F)),
         row_box3d=np.ascontiguousarray(row_box3d), row_has3d=row_has3d, root=str(root),
     )
-
-
-def class_sequences(root, cls: str = "car", sequences: Sequence | None = None) -> tuple:
-    """The sequences of ``root/label_02`` whose ground truth has at least one object of class ``cls``.
-
-    An object of the class is any row whose type maps to the class id (``Car``/``car_2`` for car,
-    ``Pedestrian`` for pedestrian; any case, track id, occlusion or truncation; not the distractors
-    ``Van``/``Person``). sequences: the candidates (default every ``label_02/*.txt``, sorted).
-    On KITTI training: car 20 of 21 (not 0017), pedestrian 15. Returns a tuple of names.
-    """
-    kio = _kitti_io()
-    cls = cls.lower()
-    if cls not in _DISTRACTORS:
-        raise ValueError(f"class {cls!r} is not evaluatable (TrackEval's KITTI 2D box: 'car' or 'pedestrian')")
-    names_of_cls = {n for n, i in CLASS_NAME_TO_ID.items() if i == CLASS_NAME_TO_ID[cls]}
-    label_dir = Path(root) / "label_02"
-    if sequences is None:
-        cand = sorted(p.stem for p in label_dir.glob("*.txt"))
-    else:
-        cand = [seq_name(s) for s in sequences]
-    out = []
-    for name in cand:
-        uniq = _distinct(kio.read_tracking_labels(label_dir / f"{name}.txt").type)[1]
-        if np.isin(np.char.lower(uniq), list(names_of_cls)).any():
-            out.append(name)
-    return tuple(out)
 
 
 class TrackerDets(NamedTuple):
@@ -370,7 +346,7 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     ``seq_offsets[s] : seq_offsets[s] + gt.lengths[s]``; other frames of T are ignored.
     box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot, or None (3D fields not needed). A slot
     without a 3D box holds the placeholder or all NaN; any other value that is no box
-    (:mod:`dfrmot_jax.metrics.fields3d`) raises ValueError naming config, frame, slot and field.
+    (:mod:`dfrmot_jax.metrics.common.fields3d`) raises ValueError naming config, frame, slot and field.
     """
     seq_offsets = check_arrays(gt, ids, boxes, seq_offsets)
     ids, boxes = np.asarray(ids), np.asarray(boxes)
@@ -482,14 +458,43 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     L = int(dets.n_lanes)
     F = gt.n_frames
     S = len(gt.sequences)
-    M = len(dets.lane)
     lf = dets.lane * F + dets.frame
-    nd = np.bincount(lf, minlength=L * F).astype(np.int64)
-    d_start = segment_starts(nd)
     g_of_lf = np.tile(np.arange(F, dtype=np.int64), L)
     # IoU of each distinct (frame, box) with the frame's class rows and its DontCare overlap, once
     box = np.asarray(dets.box, dtype=np.float64)
     tab = box_table(gt.row_start, gt.row_cols, gt.dc_start, gt.dc_box, dets.frame, box)
+    kidx = np.flatnonzero(_kept(gt, dets, tab, box, lf, g_of_lf))
+    k_lf, grp, det_gid, tid_grp, tid_count = _tracker_ids(gt, dets, kidx, lf)
+    nk = np.bincount(k_lf, minlength=L * F).astype(np.int64)
+
+    # --- metric pairs: eval GT x kept dets of each lane-frame, row-major; IoU looked up in the table
+    ng_e = gt.eval_count[g_of_lf]
+    p_lf, p_e, p_k, pair_start = enumerate_pairs(ng_e, gt.eval_start[g_of_lf], nk, segment_starts(nk)[:-1])
+    ev_rows = np.flatnonzero(gt.row_eval)             # class row of each eval row
+    if similarity == "2d":
+        sim = pair_iou(tab, gt.row_start, ev_rows, p_e, kidx, p_k)
+    else:
+        sim = pair_similarity_3d(gt.row_box3d, gt.row_has3d, ev_rows[p_e], dets.box3d, dets.has3d, kidx[p_k],
+                                 similarity)
+    n_tr_dets = np.bincount(grp, minlength=L * S).reshape(L, S).astype(np.int64)
+    n_tr_ids = np.bincount(tid_grp, minlength=L * S).reshape(L, S).astype(np.int64)
+    return EvalBatch(gt=gt, n_lanes=L, det_lf=k_lf, det_gid=det_gid, det_start=segment_starts(nk), det_count=nk,
+                     tid_lane=tid_grp // S, tid_seq=tid_grp % S, tid_count=tid_count,
+                     p_lf=p_lf, p_e=p_e, p_k=p_k, sim=sim, pair_start=pair_start,
+                     n_tr_dets=n_tr_dets, n_tr_ids=n_tr_ids)
+
+
+def _kept(gt: PreparedGT, dets: TrackerDets, tab: BoxTable, box: np.ndarray, lf: np.ndarray,
+          g_of_lf: np.ndarray) -> np.ndarray:
+    """[M] bool: the tracker boxes TrackEval's preprocessing keeps (module docstring: a box matched to
+    a distractor is removed, and so is an unmatched box too low or mostly inside a DontCare region).
+    ``tab``: the boxes' :func:`~dfrmot_jax.metrics.kitti2d.box_table.box_table`; ``box`` [M, 4]
+    float64; ``lf`` [M] lane-frames; ``g_of_lf`` [L*F] the frame of each lane-frame."""
+    L = int(dets.n_lanes)
+    F = gt.n_frames
+    M = len(dets.lane)
+    nd = np.bincount(lf, minlength=L * F).astype(np.int64)
+    d_start = segment_starts(nd)
     # removed if left unmatched (step 3): too small, or mostly inside a DontCare region
     fragile = (box[:, 3] - box[:, 1] <= MIN_HEIGHT + EPS) | tab.in_dontcare[tab.value]
 
@@ -510,10 +515,16 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     to_remove[c_det[matched & ~gt.row_eval[c_row]]] = True
     # --- step 3: unmatched fragile boxes
     to_remove |= ~det_matched & fragile
-    keep = ~to_remove
+    return ~to_remove
 
-    # --- kept dets, ids
-    kidx = np.flatnonzero(keep)
+
+def _tracker_ids(gt: PreparedGT, dets: TrackerDets, kidx: np.ndarray, lf: np.ndarray) -> tuple:
+    """The kept boxes ``kidx``' tracker ids, one global index per (lane, sequence, id) in sorted order ->
+    (lane-frame [KD], lane x sequence [KD], id index [KD], lane x sequence of each id [NT], boxes
+    per id [NT] float64). Raises (:func:`_duplicate_error`) when an id repeats within a frame."""
+    L = int(dets.n_lanes)
+    F = gt.n_frames
+    S = len(gt.sequences)
     k_lane = dets.lane[kidx]
     k_frame = dets.frame[kidx]
     k_tid = dets.track_id[kidx]
@@ -540,20 +551,4 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
         dup = (k_lf[o2][1:] == k_lf[o2][:-1]) & (det_gid[o2][1:] == det_gid[o2][:-1])
         if dup.any():
             raise _duplicate_error(gt, dets, int(kidx[o2[1:][dup][0]]))
-    nk = np.bincount(k_lf, minlength=L * F).astype(np.int64)
-
-    # --- metric pairs: eval GT x kept dets of each lane-frame, row-major; IoU looked up in the table
-    ng_e = gt.eval_count[g_of_lf]
-    p_lf, p_e, p_k, pair_start = enumerate_pairs(ng_e, gt.eval_start[g_of_lf], nk, segment_starts(nk)[:-1])
-    ev_rows = np.flatnonzero(gt.row_eval)             # class row of each eval row
-    if similarity == "2d":
-        sim = pair_iou(tab, gt.row_start, ev_rows, p_e, kidx, p_k)
-    else:
-        sim = pair_similarity_3d(gt.row_box3d, gt.row_has3d, ev_rows[p_e], dets.box3d, dets.has3d, kidx[p_k],
-                                 similarity)
-    n_tr_dets = np.bincount(grp, minlength=L * S).reshape(L, S).astype(np.int64)
-    n_tr_ids = np.bincount(tid_grp, minlength=L * S).reshape(L, S).astype(np.int64)
-    return EvalBatch(gt=gt, n_lanes=L, det_lf=k_lf, det_gid=det_gid, det_start=segment_starts(nk), det_count=nk,
-                     tid_lane=tid_grp // S, tid_seq=tid_grp % S, tid_count=tid_count,
-                     p_lf=p_lf, p_e=p_e, p_k=p_k, sim=sim, pair_start=pair_start,
-                     n_tr_dets=n_tr_dets, n_tr_ids=n_tr_ids)
+    return k_lf, grp, det_gid, tid_grp, tid_count

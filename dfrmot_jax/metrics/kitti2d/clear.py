@@ -15,12 +15,11 @@ known, in rounds of frames whose previous frame is final (vectorised), then the 
 from __future__ import annotations
 
 import numpy as np
-
-from dfrmot_jax.metrics.boxes import EPS
-from dfrmot_jax.metrics.kitti import EvalBatch
 from scipy.optimize import linear_sum_assignment
 
-from dfrmot_jax.metrics.pairs import crowded_segments, segment_pairs, segment_rows, segment_starts, solve_blocks
+from dfrmot_jax.metrics.common.pairs import crowded_segments, segment_pairs, segment_rows, segment_starts, solve_blocks
+from dfrmot_jax.metrics.kitti2d.boxes import EPS
+from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
 
 THRESHOLD = 0.5
 MAIN_INTEGER_FIELDS = ("CLR_TP", "CLR_FN", "CLR_FP", "IDSW", "MT", "PT", "ML", "Frag")
@@ -70,7 +69,7 @@ def _solve_round(ready: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.nda
     """Solve lane-frames whose previous active frame's matches are final in ``matched``, all at once.
 
     Each frame's matrix is TrackEval's ``1000 * continues + sim`` (zero where ``sim < 0.5 - eps``),
-    solved by :func:`~dfrmot_jax.metrics.pairs.solve_blocks` (scipy on each full matrix).
+    solved by :func:`~dfrmot_jax.metrics.common.pairs.solve_blocks` (scipy on each full matrix).
     """
     NG = max(len(b.gt.gid_count), 1)
     ps = b.pair_start
@@ -185,22 +184,31 @@ def _solve_in_order(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.n
 
 def clear_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     """CLEAR fields per (config, sequence): arrays [L, S] (``FIELDS``; counts as int64)."""
+    p_gid = b.gt.eval_gid[b.p_e]
+    p_tid = b.det_gid[b.p_k]
+    matched = _matched_pairs(b, p_gid, p_tid)
+    res = _counts(b, matched, p_gid, p_tid)
+    return _early_sequences(b, res)
+
+
+def _matched_pairs(b: EvalBatch, p_gid: np.ndarray, p_tid: np.ndarray) -> np.ndarray:
+    """[P] bool: TrackEval's per-frame matches (``sim >= 0.5 - eps``; the frames where a GT or
+    tracker box has two candidates solved with the continuation bonus, :func:`_solve_sequential`)."""
+    sim = b.sim
+    positive = sim >= THRESHOLD - EPS
+    matched = positive.copy()
+    hard = crowded_segments(positive, *segment_rows(b.lf_eval_count, b.det_count, b.pair_start), b.p_k, b.det_lf)
+    if hard.size:
+        _solve_sequential(hard, b, sim, p_gid, p_tid, matched)
+    return matched
+
+
+def _counts(b: EvalBatch, matched: np.ndarray, p_gid: np.ndarray, p_tid: np.ndarray) -> dict[str, np.ndarray]:
+    """The matches' counts per (lane, seq) -> every field, [L, S]."""
     gt = b.gt
     L, F, S = b.n_lanes, gt.n_frames, len(gt.sequences)
     NG = len(gt.gid_count)
     sim = b.sim
-    ng_e = b.lf_eval_count
-    nk = b.det_count
-    p_gid = gt.eval_gid[b.p_e]
-    p_tid = b.det_gid[b.p_k]
-
-    positive = sim >= THRESHOLD - EPS
-    matched = positive.copy()
-    hard = crowded_segments(positive, *segment_rows(ng_e, nk, b.pair_start), b.p_k, b.det_lf)
-    if hard.size:
-        _solve_sequential(hard, b, sim, p_gid, p_tid, matched)
-
-    # --- counts per (lane, seq)
     m = np.flatnonzero(matched)
     m_lf = b.p_lf[m]
     m_lane = m_lf // F
@@ -212,24 +220,8 @@ def clear_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     motp_sum = np.bincount(m_ls, weights=sim[m], minlength=L * S).reshape(L, S)
     n_gt = np.broadcast_to(gt.n_gt_dets[None, :], (L, S)).astype(np.int64)
     n_tr = b.n_tr_dets
-
-    # IDSW: matched tracker id of a GT id changes between consecutive matches (per lane)
     key = m_lane * max(NG, 1) + m_gid
-    order = np.lexsort((m_lf, key))
-    k_s, t_s, ls_s = key[order], m_tid[order], m_ls[order]
-    same_gt = k_s[1:] == k_s[:-1]
-    idsw_ev = same_gt & (t_s[1:] != t_s[:-1])
-    idsw = np.bincount(ls_s[1:][idsw_ev], minlength=L * S).reshape(L, S)
-
-    # Frag: runs of matches over consecutive "active" frames (both GT and tracker boxes present)
-    active_lf = (ng_e * nk) > 0
-    a_idx = np.cumsum(active_lf) - 1  # rank of each active lane-frame
-    r_s = a_idx[m_lf[order]]
-    cont = same_gt & (r_s[1:] == r_s[:-1] + 1)
-    new_run = np.ones(len(order), dtype=bool)
-    new_run[1:] = ~cont
-    runs = np.bincount(key[order], weights=new_run, minlength=L * max(NG, 1))
-    frag_per_gid = np.maximum(runs - 1, 0).reshape(L, max(NG, 1))[:, :NG]
+    idsw, frag_per_gid = _switches_and_fragments(b, key, m_lf, m_tid, m_ls)
 
     # MT / PT / ML
     matched_per_gid = np.bincount(key, minlength=L * max(NG, 1)).reshape(L, max(NG, 1))[:, :NG]
@@ -253,8 +245,41 @@ def clear_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
         "CLR_Frames": np.broadcast_to(gt.lengths[None, :], (L, S)).astype(np.int64),
         "MOTP_sum": motp_sum,
     }
-    res = _final_fields(res)
+    return _final_fields(res)
 
+
+def _switches_and_fragments(b: EvalBatch, key: np.ndarray, m_lf: np.ndarray, m_tid: np.ndarray,
+                            m_ls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """IDSW [L, S] and fragmentations per (lane, GT id) [L, NG] of the matches (``key`` = lane x GT id,
+    lane-frame, tracker id, lane x sequence of each)."""
+    gt = b.gt
+    L, S = b.n_lanes, len(gt.sequences)
+    NG = len(gt.gid_count)
+    # IDSW: matched tracker id of a GT id changes between consecutive matches (per lane)
+    order = np.lexsort((m_lf, key))
+    k_s, t_s, ls_s = key[order], m_tid[order], m_ls[order]
+    same_gt = k_s[1:] == k_s[:-1]
+    idsw_ev = same_gt & (t_s[1:] != t_s[:-1])
+    idsw = np.bincount(ls_s[1:][idsw_ev], minlength=L * S).reshape(L, S)
+
+    # Frag: runs of matches over consecutive "active" frames (both GT and tracker boxes present)
+    active_lf = (b.lf_eval_count * b.det_count) > 0
+    a_idx = np.cumsum(active_lf) - 1  # rank of each active lane-frame
+    r_s = a_idx[m_lf[order]]
+    cont = same_gt & (r_s[1:] == r_s[:-1] + 1)
+    new_run = np.ones(len(order), dtype=bool)
+    new_run[1:] = ~cont
+    runs = np.bincount(key[order], weights=new_run, minlength=L * max(NG, 1))
+    frag_per_gid = np.maximum(runs - 1, 0).reshape(L, max(NG, 1))[:, :NG]
+    return idsw, frag_per_gid
+
+
+def _early_sequences(b: EvalBatch, res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The fields of the sequences TrackEval returns early for (no tracker dets, or no GT dets)."""
+    gt = b.gt
+    L, S = b.n_lanes, len(gt.sequences)
+    n_gt = np.broadcast_to(gt.n_gt_dets[None, :], (L, S)).astype(np.int64)
+    n_tr = b.n_tr_dets
     no_tr = n_tr == 0
     no_gt = (n_gt == 0) & ~no_tr
     early = no_tr | no_gt

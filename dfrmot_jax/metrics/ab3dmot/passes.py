@@ -1,4 +1,5 @@
-"""AB3DMOT's evaluation passes, all thresholds of one output at once (the rules: :mod:`dfrmot_jax.metrics.ab3dmot`).
+"""AB3DMOT's evaluation passes, all thresholds of one output at once (the rules:
+:mod:`dfrmot_jax.metrics.ab3dmot.evaluate`).
 
 The reference runs ~42 passes, each a full per-frame assignment and count. Most of a pass is fixed
 by the candidate pairs, which do not change between passes; only which tracks are kept changes
@@ -36,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from dfrmot_jax.metrics.pairs import segment_starts
+from dfrmot_jax.metrics.common.pairs import segment_starts
 
 __all__ = ["N_SAMPLE_POINTS", "ALL_TRACKS", "score_rounds", "thresholds", "TrajLayout", "traj_layout", "ids_frag",
            "run_passes", "run_passes_many"]
@@ -320,7 +321,7 @@ def _figures(c: dict, j: int, n_gt: int, recall: float) -> dict:
 
 
 def run_passes(prep) -> dict:
-    """The reference's full evaluation of one prepared output (:mod:`dfrmot_jax.metrics.ab3dmot`)."""
+    """The reference's full evaluation of one prepared output (:mod:`dfrmot_jax.metrics.ab3dmot.evaluate`)."""
     return run_passes_many([prep])[0]
 
 

@@ -18,12 +18,18 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from dfrmot_jax.metrics.ab3dmot import evaluate_ab3dmot_files
-from dfrmot_jax.metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, name_list
+from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
+from dfrmot_jax.metrics.common.names import name_list
 
-__all__ = ["METRIC_FAMILIES", "AB3DMOT_COLUMNS", "RATIO_SCALE", "parse_metric_families", "ab3dmot_columns",
-           "ab3dmot_class_average", "evaluate_ab3dmot_classes", "ab3dmot_table", "add_ab3dmot_columns"]
+__all__ = ["METRIC_FAMILIES", "AB3DMOT_RATIO_COLUMNS", "AB3DMOT_COUNT_COLUMNS", "AB3DMOT_COLUMNS", "RATIO_SCALE",
+           "parse_metric_families", "ab3dmot_columns", "ab3dmot_class_average", "evaluate_ab3dmot_classes",
+           "ab3dmot_table", "add_ab3dmot_columns"]
 
+#: AB3DMOT's figures as table columns (:func:`ab3dmot_columns`): ratios (x100, as the table's other
+#: ratios) and counts, prefixed ``ab3dmot_`` where CLEAR has a column of the name
+AB3DMOT_RATIO_COLUMNS = ("sAMOTA", "AMOTA", "AMOTP", "ab3dmot_MOTA", "ab3dmot_MOTP")
+AB3DMOT_COUNT_COLUMNS = ("ab3dmot_IDS", "ab3dmot_FRAG", "ab3dmot_FP", "ab3dmot_FN")
+AB3DMOT_COLUMNS = AB3DMOT_RATIO_COLUMNS + AB3DMOT_COUNT_COLUMNS
 #: metric families ``dfrmot eval --metrics`` can pick
 METRIC_FAMILIES = ("kitti2d", "ab3dmot")
 #: the result dict's keys -> column names

@@ -7,7 +7,7 @@ would hold: slot ``k`` of frame ``t`` with ``ids >= 0`` is a row (within a frame
 or the filtered box with ``output=filtered``; the caller chooses). A row without a 3D box is the
 placeholder ``-1 -1 -1 -1000 -1000 -1000`` (any rot_y) or all NaN: unmatched in 3D, as in a file.
 Every row is of the evaluated class (no neighbouring-class rows). The 3D rules are the files'
-(:mod:`dfrmot_jax.metrics.ab3dmot_prep`): a bad box raises ValueError naming config, sequence,
+(:mod:`dfrmot_jax.metrics.ab3dmot.prep`): a bad box raises ValueError naming config, sequence,
 frame and slot.
 
 Everything that does not depend on the output's tracks is done once for all outputs: the rows of
@@ -15,7 +15,7 @@ every output are flattened together, the distinct (frame, box) values found (the
 mostly carry the same detections' boxes), their candidate pairs with the ground truth (IoU) and the
 static ignore rule computed once each and joined back to every output's rows; track means in one
 call. The passes then run per output (all its thresholds together,
-:mod:`~dfrmot_jax.metrics.ab3dmot_passes`). Results are the
+:mod:`~dfrmot_jax.metrics.ab3dmot.passes`). Results are the
 dicts of :func:`~dfrmot_jax.metrics.ab3dmot.ab3dmot_metrics`, identical to scoring the written
 files with :func:`~dfrmot_jax.metrics.ab3dmot.evaluate_ab3dmot_files`.
 """
@@ -28,19 +28,19 @@ import numpy as np
 
 import pandas as pd
 
-from dfrmot_jax.metrics.ab3dmot import (
+from dfrmot_jax.metrics.ab3dmot.evaluate import (
     iou_2d_pairs,
     parse_iou,
     prepare_passes,
     seq_sum_rows,
     static_ignore,
 )
-from dfrmot_jax.metrics.ab3dmot_passes import run_passes_many
-from dfrmot_jax.metrics.ab3dmot_prep import Ab3dGT, Ab3dTracker
-from dfrmot_jax.metrics.box3d import iou_3d
-from dfrmot_jax.metrics.fields3d import box3d_problem, no_box_rows
-from dfrmot_jax.metrics.pairs import enumerate_pairs, segment_starts
-from dfrmot_jax.metrics.similarity import distinct_rows
+from dfrmot_jax.metrics.ab3dmot.passes import run_passes_many
+from dfrmot_jax.metrics.ab3dmot.prep import Ab3dGT, Ab3dTracker
+from dfrmot_jax.metrics.common.box3d import iou_3d
+from dfrmot_jax.metrics.common.distinct import distinct_rows
+from dfrmot_jax.metrics.common.fields3d import box3d_problem, no_box_rows
+from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
 
 __all__ = ["evaluate_ab3dmot_arrays", "evaluate_ab3dmot_rows", "tracker_rows_from_arrays"]
 
@@ -178,7 +178,7 @@ def _flat_rows(gt: Ab3dGT, lane, t, slot, ids, box, score, box3d, n_lanes: int, 
 
 
 def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None) -> list[Ab3dTracker]:
-    """[B, T, K] padded output -> one :class:`~dfrmot_jax.metrics.ab3dmot_prep.Ab3dTracker` per config.
+    """[B, T, K] padded output -> one :class:`~dfrmot_jax.metrics.ab3dmot.prep.Ab3dTracker` per config.
 
     ids [B, T, K] int (negative: empty slot; ids per sequence); boxes [B, T, K, 4] image boxes;
     scores [B, T, K]; box3d [B, T, K, 7] or None (2D IoU only); seq_offsets [S] first frame along T
@@ -190,7 +190,7 @@ def tracker_rows_from_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_off
 def _pairs(gt: Ab3dGT, rows: _Rows, kind: str, threshold: float, key: np.ndarray | None = None) -> list:
     """Candidate pairs of every output (by frame, object, row within each): the distinct (frame, box)
     values' pairs with the ground truth (IoU once each), joined back to every output's rows.
-    ``key`` [R]: the rows' value keys (:func:`~dfrmot_jax.metrics.similarity.distinct_rows`), or None."""
+    ``key`` [R]: the rows' value keys (:func:`~dfrmot_jax.metrics.common.distinct.distinct_rows`), or None."""
     B = len(rows.n_tracks)
     vals, live = (rows.box, np.ones(len(rows.frame), dtype=bool)) if kind == "2d" else (rows.box3d, rows.has3d)
     sel = np.flatnonzero(live)
@@ -234,7 +234,7 @@ def evaluate_ab3dmot_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offs
                             iou="3d:0.25") -> list[dict]:
     """AB3DMOT's figures of B padded outputs (module docstring) -> a list of B result dicts.
 
-    gt: :func:`~dfrmot_jax.metrics.ab3dmot_prep.prepare_ab3dmot_gt`; ids [B, T, K]; boxes
+    gt: :func:`~dfrmot_jax.metrics.ab3dmot.prep.prepare_ab3dmot_gt`; ids [B, T, K]; boxes
     [B, T, K, 4]; scores [B, T, K]; box3d [B, T, K, 7] (needed for ``3d`` IoU); iou ``'3d:0.25'``,
     ``'2d:0.5'``, ...; seq_offsets as in :func:`tracker_rows_from_arrays`."""
     kind, _ = parse_iou(iou)
