@@ -139,7 +139,7 @@ class InOrderScoring:
 
     What may overlap: a chunk's scoring (start, metrics, AB3DMOT figures) with the tracking of the
     next chunks (the tracker's compiled code runs without Python's lock); the metric processes with
-    the tracker; at most ``max(1, workers)`` chunks in flight.
+    the tracker; at most ``max(1, workers)`` chunks in flight while the next one tracks.
 
     What happens in order: the ``prep`` and ``ab3dmot`` threads take the chunks one at a time in
     submission order (so AB3DMOT's memo is written in order, by its thread alone), and chunks
