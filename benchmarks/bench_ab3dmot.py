@@ -129,8 +129,7 @@ def _sweep_path(n: int, iou: str, root) -> dict:
     spec.setdefault("metrics", {})["ab3dmot"] = iou
     spec["chunk"] = n
     ps = prepare_sweep(spec)
-    runner = ChunkRunner(ps.spec, ps.table, ps.datas[0], workers=0)
-    runner.setup(list(ps.chunks))
+    runner = ChunkRunner.load(ps.spec, ps.table, ps.datas[0], ps.chunks)
     score_s = detail_s = plain_s = 0.0
     configs = distinct = 0
     for c in (ps.chunks[0], ps.chunks[-1]):
@@ -138,19 +137,19 @@ def _sweep_path(n: int, iou: str, root) -> dict:
         params = params_of(ps.table, c.configs, "car")
         opts = c.options._replace(capacity=c.options.capacity or 40)
         for detail in (False, True):
-            track(frames, params, opts, chunk=32, detail=detail)        # compiled
+            track(frames, params, opts, lanes_per_call=32, detail=detail)        # compiled
             t = time.perf_counter()
-            res = track(frames, params, opts, chunk=32, detail=detail)
+            res = track(frames, params, opts, lanes_per_call=32, detail=detail)
             if detail:
                 detail_s += time.perf_counter() - t
             else:
                 plain_s += time.perf_counter() - t
-        runner.ab3dmot.memo.clear()
+        runner.scoring.ab3dmot.memo.clear()
         t = time.perf_counter()
-        runner.ab3dmot.score(res)
+        runner.scoring.ab3dmot.score(res)
         score_s += time.perf_counter() - t
         configs += len(c.configs)
-        distinct += len(runner.ab3dmot.memo)
+        distinct += len(runner.scoring.ab3dmot.memo)
     return {"sweep_configs": configs, "sweep_distinct": distinct, "sweep_score_s": round(score_s, 4),
             "sweep_configs_per_s": round(configs / score_s, 1), "detail_track_s": round(detail_s, 3),
             "plain_track_s": round(plain_s, 3)}

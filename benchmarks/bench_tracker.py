@@ -6,10 +6,11 @@ the same batches on the split compacted to the batch's loosest score thresholds,
 (``data.compact_split``; JSON keys ``compact_b*``; ``--no-compact`` skips them), then through the
 public call ``dfrmot_jax.track`` on the whole split (JSON keys ``track_b*``: it compacts the split
 itself, groups lanes by merge settings and gives the output back in the split's layout).
-Batches larger than ``--chunk`` run chunk by chunk (each chunk split over the host's devices).
+Batches larger than ``--lanes-per-call`` run in several compiled calls (each call's lanes split over the
+host's devices). (Records before the rename name it ``chunk`` / ``--chunk``, still accepted.)
 The last line is one JSON object.
 
-    python benchmarks/bench_tracker.py [--sizes 1,8,64,256,1024] [--chunk 16]
+    python benchmarks/bench_tracker.py [--sizes 1,8,64,256,1024] [--lanes-per-call 16]
 """
 
 from __future__ import annotations
@@ -47,7 +48,8 @@ def settings(b: int, seed: int = 0) -> Params:
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", default="1,8,64,256,1024")
-    ap.add_argument("--chunk", type=int, default=16, help="lanes per compiled call for large batches")
+    ap.add_argument("--lanes-per-call", "--chunk", dest="lanes_per_call", type=int, default=16,
+                    help="lanes per compiled call for large batches (--chunk: its old name)")
     ap.add_argument("--reference-seqs", type=int, default=21, help="sequences the reference runs (frames/s)")
     ap.add_argument("--no-compact", action="store_true", help="skip the compacted-split runs")
     args = ap.parse_args()
@@ -75,7 +77,7 @@ def main() -> int:
     ref_fps = n_ref / (time.perf_counter() - t0)
     print(f"reference (NumPy, 1 core): {ref_fps:,.0f} frames/s over {n_ref} frames")
 
-    out = {"frames": T, "capacity": cap, "chunk": args.chunk, "reference_frames_per_s": round(ref_fps, 1)}
+    out = {"frames": T, "capacity": cap, "lanes_per_call": args.lanes_per_call, "reference_frames_per_s": round(ref_fps, 1)}
     compile_s = {}
     runs = [("", frames)]
     if not args.no_compact:
@@ -86,7 +88,7 @@ def main() -> int:
     for prefix, fr in runs:
         for b in sizes:
             p = Params(*(np.asarray(v)[:b] for v in big))
-            width = min(b, args.chunk)
+            width = min(b, args.lanes_per_call)
             lanes = [Params(*(np.asarray(v)[i:i + width] for v in p)) for i in range(0, b, width)]
             t0 = time.perf_counter()
             first = tracker.run_batch(lanes[0], fr, options, cap)
@@ -106,9 +108,9 @@ def main() -> int:
     # batch's loosest thresholds, groups lanes by merge settings and moves the output back)
     for b in sizes:
         p = Params(*(np.asarray(v)[:b] for v in big))
-        track(split, p, options, chunk=args.chunk)                 # compiled
+        track(split, p, options, lanes_per_call=args.lanes_per_call)    # compiled
         t0 = time.perf_counter()
-        res = track(split, p, options, chunk=args.chunk)
+        res = track(split, p, options, lanes_per_call=args.lanes_per_call)
         dt = time.perf_counter() - t0
         rate = b * T / dt
         print(f"track B={b:5d}: {rate:12,.0f} config-frames/s  ({dt:7.2f} s; overflow {int(res.overflow.sum())}; "

@@ -1,9 +1,9 @@
 """High-level tracking: a ``Params`` batch over a split, with capacity chosen from the data.
 
-``track(split, params, options)`` runs the batch in chunks, picks the track capacity from the data
-when ``options.capacity`` is 0, and re-runs any lane whose memory overflowed with twice the
-capacity (``grow=True``), so that no track is dropped silently. Lanes that still overflow are
-reported in ``TrackResult.overflow`` and with a warning.
+``track(split, params, options)`` runs the batch in compiled calls of ``lanes_per_call`` lanes,
+picks the track capacity from the data when ``options.capacity`` is 0, and re-runs any lane whose
+memory overflowed with twice the capacity (``grow=True``), so that no track is dropped silently.
+Lanes that still overflow are reported in ``TrackResult.overflow`` and with a warning.
 """
 
 from __future__ import annotations
@@ -94,14 +94,15 @@ def prepare_distortion(split: Split, frames: Frames, options: Options, dps: dist
     return distort.pad_for_clutter(frames, spec), (spec, gid2, gid3)
 
 
-def track(split: Split | Frames, params: Params, options: Options = Options(), *, chunk: int = 64,
+def track(split: Split | Frames, params: Params, options: Options = Options(), *, lanes_per_call: int = 64,
           grow: bool = True, progress=None, distortion: distort.DistortParams | None = None,
           spec: distort.DistortSpec | None = None, clutter_slots: int = 0, detail: bool = False,
-          small_frames_min: int | None = SMALL_FRAMES_MIN_T, compact: bool = True) -> TrackResult:
+          small_frames_min: int | None = SMALL_FRAMES_MIN_T, compact: bool = True,
+          chunk: int | None = None) -> TrackResult:
     """Track every lane of ``params`` (leaves scalar or [B]) over the split.
 
-    chunk: lanes per compiled call (memory: chunk x T x K int32 ids); progress: a callable(n) told
-    how many lanes finished, e.g. a tqdm bar's ``update``.
+    lanes_per_call: lanes per compiled call (memory: lanes_per_call x T x K int32 ids); progress: a
+    callable(n) told how many lanes finished, e.g. a tqdm bar's ``update``.
     distortion: ``DistortParams`` with leaves [B] (or scalars): lane b's detections are distorted by
     its own levels and seed inside the scan (``dfrmot_jax.distort``); needs a ``Split`` (ground truth).
     spec / clutter_slots: the static ``DistortSpec`` (default from the data and the levels used).
@@ -113,13 +114,60 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     (:func:`dfrmot_jax.data.compact_slots`: the detections no lane keeps dropped, the rest packed to
     the front) and give the output back in the split's own slot layout: the same result, fewer dead
     slots per step (not with a distortion or the Hungarian assignment).
+    chunk: deprecated name of ``lanes_per_call`` (kept for one release, with a ``DeprecationWarning``).
     """
+    if chunk is not None:
+        warnings.warn("track(chunk=...) is deprecated: use track(lanes_per_call=...) (a sweep's chunk is "
+                      "its unit of configs)", DeprecationWarning, stacklevel=2)
+        lanes_per_call = chunk
     setup_host_devices()          # before this call's first JAX operation
     options = options.validate()
     validate_params(params)
     params = as_arrays(params)
     if options.output == "detections" and np.any(np.asarray(params.keep_lost) > 0):
         raise ValueError("parameter keep_lost > 0 writes lost tracks' predicted boxes: it needs output='filtered'")
+    b = batch_size(params)
+    inputs = _inputs(split, params, options, compact, distortion, spec, clutter_slots)
+    frames, extra, distortion = inputs.frames, inputs.extra, inputs.distortion
+    per_lane_boxes = options.output == "filtered" or extra is not None
+    cap0 = options.capacity or default_capacity(frames, params, options)
+    per_slot = ["ids"] + (["boxes"] if per_lane_boxes else []) + (["src3", "own3"] if detail else []) \
+        + (["box3"] if detail and options.output == "filtered" else [])
+    outputs = _Outputs(b, cap0, per_slot)
+    todo = np.arange(b)
+    cap = cap0
+    keys = None if extra is not None else merge_keys(params)
+    objs: dict = {}
+    while todo.size:
+        for lanes, key in _calls(todo, lanes_per_call, keys):
+            hook = None if extra is None else FrameHook(distort.FrameDistortion(extra[0]), _take(distortion, lanes),
+                                                        extra[1:])
+            if key is not None and key not in objs:
+                objs[key] = split_objects(_take(params, lanes[:1]), frames, options)
+            out = run_batch(_take(params, lanes), frames, options, cap, hook=hook, detail=detail,
+                            small_frames_min=small_frames_min, objs=None if key is None else objs[key])
+            outputs.put(lanes, out, cap)
+            if progress is not None and cap == cap0:
+                progress(len(lanes))
+        todo = todo[outputs.overflow[todo] > 0]
+        if not todo.size or not grow or cap * 2 > MAX_CAPACITY:
+            break
+        cap *= 2
+    return outputs.result(inputs, options, per_lane_boxes)
+
+
+class _Inputs(namedtuple("_Inputs", "frames full_frames packed distortion extra")):
+    """What ``track`` runs on: ``frames`` (prepared; compacted, or padded for a distortion's clutter),
+    ``full_frames`` (the split's own, the output's layout), ``packed`` (a compaction's (frames,
+    order2, order3), or None), ``distortion`` ([B] leaves, or None) and ``extra`` (the distortion
+    hook's (spec, gid2, gid3), or None)."""
+
+    __slots__ = ()
+
+
+def _inputs(split: Split | Frames, params: Params, options: Options, compact: bool,
+            distortion: distort.DistortParams | None, spec: distort.DistortSpec | None, clutter_slots: int) -> _Inputs:
+    """The frames ``track`` runs the lanes on (checked to fit ``MAX_OBJECTS``), and its distortion."""
     frames = prepare_frames(split, options) if isinstance(split, Split) else split
     b = batch_size(params)
     packed = None
@@ -137,67 +185,69 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
             raise ValueError(f"distortion has {nd} lanes, params {b}")
         distortion = distort.DistortParams(*(np.broadcast_to(np.asarray(v), (b,)) for v in distortion))
         frames, extra = prepare_distortion(split, frames, options, distortion, spec, clutter_slots)
-    per_lane_boxes = options.output == "filtered" or extra is not None
     n_objects = object_slots(options, frames.valid2[:1], frames.valid3[:1]).shape[1]
     if n_objects > MAX_OBJECTS:
         raise ValueError(f"a frame holds up to {frames.box2.shape[1]} 2D and {frames.box3.shape[1]} 3D detection slots "
                          f"({n_objects} objects with modality {options.modality!r}, clutter slots included): at most "
                          f"{MAX_OBJECTS} objects per frame are supported")
-    cap0 = options.capacity or default_capacity(frames, params, options)
-    per_slot = ["ids"] + (["boxes"] if per_lane_boxes else []) + (["src3", "own3"] if detail else []) \
-        + (["box3"] if detail and options.output == "filtered" else [])
-    fill = {"ids": -1, "src3": -1}
-    got: dict[str, np.ndarray] = {}
-    dropped = None
-    overflow = np.zeros(b, np.int64); peak = np.zeros(b, np.int64); capacity = np.full(b, cap0, np.int64)
-    todo = np.arange(b)
-    cap = cap0
-    keys = None if extra is not None else merge_keys(params)
-    objs: dict = {}
-    while todo.size:
-        for lanes, key in _calls(todo, chunk, keys):
-            hook = None if extra is None else FrameHook(distort.FrameDistortion(extra[0]), _take(distortion, lanes),
-                                                        extra[1:])
-            if key is not None and key not in objs:
-                objs[key] = split_objects(_take(params, lanes[:1]), frames, options)
-            out = run_batch(_take(params, lanes), frames, options, cap, hook=hook, detail=detail,
-                            small_frames_min=small_frames_min, objs=None if key is None else objs[key])
-            if dropped is None:
-                dropped = np.empty((b,) + out.dropped.shape[1:], np.int32)
-            # contiguous lanes (every first pass) are written through a slice: no fancy-index copy
-            at = slice(lanes[0], lanes[-1] + 1) if lanes[-1] - lanes[0] + 1 == lanes.size else lanes
-            for name in per_slot:
-                v = getattr(out, name)
-                if name not in got and lanes.size == b:
-                    got[name] = v                     # the whole batch in one call: run_batch's own arrays
-                    continue
-                if name not in got:
-                    got[name] = np.empty((b,) + v.shape[1:], v.dtype)
-                # a lane re-run with more track slots ("filtered": slots are tracks) widens axis 2
-                got[name] = _widen(got[name], v.shape[2], fill.get(name, 0))
-                k = v.shape[2]
-                got[name][at, :, :k] = v
-                if got[name].shape[2] > k:
-                    got[name][at, :, k:] = fill.get(name, 0)
-            dropped[lanes] = out.dropped; overflow[lanes] = out.overflow; peak[lanes] = out.peak
-            capacity[lanes] = cap
-            if progress is not None and cap == cap0:
-                progress(len(lanes))
-        todo = todo[overflow[todo] > 0]
-        if not todo.size or not grow or cap * 2 > MAX_CAPACITY:
-            break
-        cap *= 2
-    if np.any(overflow > 0):
-        bad = np.flatnonzero(overflow > 0)
-        warnings.warn(f"track memory overflow in {bad.size} lane(s) (e.g. lane {bad[0]}: {overflow[bad[0]]} births "
-                      f"dropped at capacity {capacity[bad[0]]}); raise Options.capacity", RuntimeWarning, stacklevel=2)
-    if packed is not None:
-        got = _full_layout(got, packed[1], packed[2], full_frames, options)
-        frames = full_frames
-    boxes = got["boxes"] if per_lane_boxes else output_boxes(frames, options)
-    return TrackResult(ids=got["ids"], boxes=boxes, dropped=dropped, overflow=overflow, peak=peak,
-                       src3=got.get("src3"), own3=got.get("own3"), box3=got.get("box3"), capacity=capacity,
-                       frames=frames, options=options)
+    return _Inputs(frames, full_frames, packed, distortion, extra)
+
+
+class _Outputs:
+    """A batch's outputs gathered over its compiled calls: per-slot arrays (``names`` of
+    ``core.run.BatchOutput``) and per-lane counts; a lane re-run with more track slots overwrites
+    its first run."""
+
+    FILL = {"ids": -1, "src3": -1}
+
+    def __init__(self, b: int, cap0: int, names: list[str]):
+        self.b, self.names = b, names
+        self.got: dict[str, np.ndarray] = {}
+        self.dropped: np.ndarray | None = None
+        self.overflow = np.zeros(b, np.int64)
+        self.peak = np.zeros(b, np.int64)
+        self.capacity = np.full(b, cap0, np.int64)
+
+    def put(self, lanes: np.ndarray, out: BatchOutput, cap: int) -> None:
+        """The output of one call on ``lanes`` with ``cap`` track slots."""
+        b, got = self.b, self.got
+        if self.dropped is None:
+            self.dropped = np.empty((b,) + out.dropped.shape[1:], np.int32)
+        # contiguous lanes (every first pass) are written through a slice: no fancy-index copy
+        at = slice(lanes[0], lanes[-1] + 1) if lanes[-1] - lanes[0] + 1 == lanes.size else lanes
+        for name in self.names:
+            v = getattr(out, name)
+            fill = self.FILL.get(name, 0)
+            if name not in got and lanes.size == b:
+                got[name] = v                     # the whole batch in one call: run_batch's own arrays
+                continue
+            if name not in got:
+                got[name] = np.empty((b,) + v.shape[1:], v.dtype)
+            # a lane re-run with more track slots ("filtered": slots are tracks) widens axis 2
+            got[name] = _widen(got[name], v.shape[2], fill)
+            k = v.shape[2]
+            got[name][at, :, :k] = v
+            if got[name].shape[2] > k:
+                got[name][at, :, k:] = fill
+        self.dropped[lanes] = out.dropped; self.overflow[lanes] = out.overflow; self.peak[lanes] = out.peak
+        self.capacity[lanes] = cap
+
+    def result(self, inputs: _Inputs, options: Options, per_lane_boxes: bool) -> TrackResult:
+        """The ``TrackResult`` (in the split's own slot layout), with a warning if a lane overflowed."""
+        overflow, capacity = self.overflow, self.capacity
+        if np.any(overflow > 0):
+            bad = np.flatnonzero(overflow > 0)
+            warnings.warn(f"track memory overflow in {bad.size} lane(s) (e.g. lane {bad[0]}: {overflow[bad[0]]} births "
+                          f"dropped at capacity {capacity[bad[0]]}); raise Options.capacity", RuntimeWarning,
+                          stacklevel=3)
+        got, frames = self.got, inputs.frames
+        if inputs.packed is not None:
+            got = _full_layout(got, inputs.packed[1], inputs.packed[2], inputs.full_frames, options)
+            frames = inputs.full_frames
+        boxes = got["boxes"] if per_lane_boxes else output_boxes(frames, options)
+        return TrackResult(ids=got["ids"], boxes=boxes, dropped=self.dropped, overflow=overflow, peak=self.peak,
+                           src3=got.get("src3"), own3=got.get("own3"), box3=got.get("box3"), capacity=capacity,
+                           frames=frames, options=options)
 
 
 def _compacted(split: Split, params: Params, options: Options):
@@ -256,18 +306,18 @@ def merge_keys(params: Params) -> np.ndarray | None:
     return first[inv.reshape(-1)]            # the first lane of each setting names it
 
 
-def _calls(todo: np.ndarray, chunk: int, keys: np.ndarray | None):
-    """(lanes, key) of each compiled call: ``todo``'s lanes in chunks of at most ``chunk``; with
+def _calls(todo: np.ndarray, per_call: int, keys: np.ndarray | None):
+    """(lanes, key) of each compiled call: ``todo``'s lanes, at most ``per_call`` per call; with
     ``keys``, the lanes of one call share their key (key None: objects made in the scan)."""
     if keys is None:
-        for start in range(0, todo.size, chunk):
-            yield todo[start:start + chunk], None
+        for start in range(0, todo.size, per_call):
+            yield todo[start:start + per_call], None
         return
     k = keys[todo]
     for key in k[np.sort(np.unique(k, return_index=True)[1])]:
         group = todo[k == key]
-        for start in range(0, group.size, chunk):
-            yield group[start:start + chunk], int(key)
+        for start in range(0, group.size, per_call):
+            yield group[start:start + per_call], int(key)
 
 
 def _widen(a: np.ndarray, k: int, fill=0) -> np.ndarray:

@@ -66,6 +66,7 @@ gives byte-identical files.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -329,12 +330,33 @@ def _fmt_calib(calib: dict) -> str:
 
 
 def _make_sequence(rng: np.random.Generator, n_frames: int, n_cars: int, P2: np.ndarray, noise: dict):
-    W, H = IMAGE_SIZE
+    """One sequence: (label lines, 2D detections, 3D detections). Every random draw is taken in a
+    fixed order (the scene, its DontCare regions, then per frame the 2D detector, the 3D detector and
+    the false positives), so a seed gives one scene."""
     v_ego = float(rng.choice([0.0, rng.uniform(4.0, 12.0)], p=[0.2, 0.8]))
     frames, info = _simulate(rng, n_frames, n_cars, v_ego, noise)
+    dontcare = _dontcare_regions(rng, n_frames)
+    uid_to_track: dict[int, int] = {}
+    labels, det2d, det3d = [], [], []
+    for t, objs in enumerate(frames):
+        for (a, b), box in dontcare:
+            if a <= t <= b:
+                labels.append(f"{t} -1 DontCare -1 -1 -10.000000 {box[0]:.6f} {box[1]:.6f} {box[2]:.6f} "
+                              f"{box[3]:.6f} -1000.000000 -1000.000000 -1000.000000 -10.000000 -1.000000 "
+                              f"-1.000000 -1.000000")
+        seen = _visible(objs, P2)
+        if seen is not None:
+            labels.extend(_label_rows(t, seen, uid_to_track))
+            _detect_2d(rng, t, seen, info, noise, det2d)
+            _detect_3d(rng, t, seen, info, noise, P2, det3d)
+        _false_positives(rng, t, noise, P2, det2d, det3d)
+    return labels, det2d, det3d
 
-    # DontCare regions: one for the whole sequence (guarantees a label row in every frame),
-    # one for a stretch of frames.
+
+def _dontcare_regions(rng: np.random.Generator, n_frames: int) -> list:
+    """DontCare regions ((first, last frame), box): one for the whole sequence (guarantees a label
+    row in every frame), one for a stretch of frames."""
+    W, _ = IMAGE_SIZE
     dontcare = []
     for k in range(2):
         w, h = rng.uniform(40, 120), rng.uniform(18, 40)
@@ -346,106 +368,137 @@ def _make_sequence(rng: np.random.Generator, n_frames: int, n_cars: int, P2: np.
             a = int(rng.integers(0, max(1, n_frames - 10)))
             span = (a, min(n_frames - 1, a + int(rng.integers(10, 31))))
         dontcare.append((span, (x1, y1, x1 + w, y1 + h)))
+    return dontcare
 
-    uid_to_track: dict[int, int] = {}
-    labels, det2d, det3d = [], [], []
-    for t, objs in enumerate(frames):
-        for (a, b), box in dontcare:
-            if a <= t <= b:
-                labels.append(f"{t} -1 DontCare -1 -1 -10.000000 {box[0]:.6f} {box[1]:.6f} {box[2]:.6f} "
-                              f"{box[3]:.6f} -1000.000000 -1000.000000 -1000.000000 -10.000000 -1.000000 "
-                              f"-1.000000 -1.000000")
-        if objs:
-            uids = np.array([o[0] for o in objs])
-            vans = np.array([o[1] for o in objs])
-            dims = np.stack([o[2] for o in objs])
-            loc = np.stack([o[3] for o in objs])
-            rot = np.array([o[4] for o in objs])
-            box = project_box3d_to_image(dims, loc, rot, P2, IMAGE_SIZE)
-            raw = project_box3d_to_image(dims, loc, rot, P2, IMAGE_SIZE, clip=False)
-            finite = np.all(np.isfinite(box), axis=1)
-            bw = np.where(finite, box[:, 2] - box[:, 0], 0.0)
-            bh = np.where(finite, box[:, 3] - box[:, 1], 0.0)
-            vis = finite & (bw >= 2.0) & (bh >= 2.0)
-        else:
-            vis = np.zeros(0, dtype=bool)
-        idx = np.flatnonzero(vis)
-        if len(idx):
-            uids, vans, dims, loc, rot = uids[idx], vans[idx], dims[idx], loc[idx], rot[idx]
-            box, raw, bw, bh = box[idx], raw[idx], bw[idx], bh[idx]
-            area = bw * bh
-            raw_area = (raw[:, 2] - raw[:, 0]) * (raw[:, 3] - raw[:, 1])
-            trunc = 1.0 - area / np.maximum(raw_area, 1e-9)
-            all_front = np.all(np.isfinite(raw), axis=1) & (loc[:, 2] - 0.5 * np.hypot(dims[:, 1], dims[:, 2]) > 0.1)
-            trunc = np.where(all_front, trunc, np.maximum(trunc, 0.5))
-            dist = np.hypot(loc[:, 0], loc[:, 2])
-            occ = _coverage(box, dist)
-            alpha = _wrap(rot - np.arctan2(loc[:, 0], loc[:, 2]))
-            trunc_lvl, occ_lvl = _level(trunc), _level(occ)
-            for j in np.argsort(uids, kind="stable"):
-                u = int(uids[j])
-                if u not in uid_to_track:
-                    uid_to_track[u] = len(uid_to_track)
-                labels.append(
-                    f"{t} {uid_to_track[u]} {'Van' if vans[j] else 'Car'} {trunc_lvl[j]} {occ_lvl[j]} "
-                    f"{alpha[j]:.6f} {box[j, 0]:.6f} {box[j, 1]:.6f} {box[j, 2]:.6f} {box[j, 3]:.6f} "
-                    f"{dims[j, 0]:.6f} {dims[j, 1]:.6f} {dims[j, 2]:.6f} "
-                    f"{loc[j, 0]:.6f} {loc[j, 1]:.6f} {loc[j, 2]:.6f} {rot[j]:.6f}"
-                )
-            # ---- 2D detector -------------------------------------------------------------
-            for j in range(len(idx)):
-                u = int(uids[j])
-                if not info[u][0] or occ[j] > noise["occlusion_miss"]:
-                    continue
-                if bh[j] < noise["det2d_min_height"] or bw[j] < 8.0:
-                    continue
-                if rng.random() < noise["det2d_miss_rate"]:
-                    continue
-                s = noise["det2d_box_sigma"]
-                d = box[j] + rng.normal(0.0, s, 4) * np.array([bw[j], bh[j], bw[j], bh[j]])
-                d = np.array([min(d[0], d[2]), min(d[1], d[3]), max(d[0], d[2]), max(d[1], d[3])])
-                d = np.clip(d, 0.0, [W - 1, H - 1, W - 1, H - 1])
-                logit = (3.5 + info[u][2] + rng.normal(0.0, 0.8) - 4.0 * occ[j]
-                         - 1.5 * (bh[j] < 30) - 1.0 * (trunc[j] > 0.3))
-                score = float(_sigmoid(logit))
-                if score < 0.1 or d[2] - d[0] < 1 or d[3] - d[1] < 1:
-                    continue
-                det2d.append((t, d, score))
-            # ---- 3D detector -------------------------------------------------------------
-            R = noise["det3d_max_range"]
-            for j in range(len(idx)):
-                u = int(uids[j])
-                if not info[u][1] or occ[j] > noise["occlusion_miss"]:
-                    continue
-                if dist[j] > R or loc[j, 2] < 1.0:
-                    continue
-                p_miss = noise["det3d_miss_rate"] + 0.5 * np.clip((dist[j] - 0.65 * R) / (0.35 * R), 0.0, 1.0)
-                if rng.random() < p_miss:
-                    continue
-                sp = noise["det3d_pos_sigma"] * (1.0 + dist[j] / 40.0)
-                l3 = loc[j] + rng.normal(0.0, 1.0, 3) * np.array([sp, 0.3 * sp, sp])
-                d3 = np.maximum(dims[j] + rng.normal(0.0, noise["det3d_dim_sigma"], 3), 0.5)
-                r3 = rot[j] + rng.normal(0.0, noise["det3d_rot_sigma"])
-                if rng.random() < noise["det3d_flip_rate"]:
-                    r3 += np.pi
-                score = (8.0 + info[u][3] + rng.normal(0.0, 1.2) - 6.0 * occ[j]
-                         - 4.0 * np.clip((dist[j] - 30.0) / 30.0, 0.0, 1.0))
-                _add_det3d(det3d, t, d3, l3, float(_wrap(r3)), float(np.clip(score, -1.0, 16.0)), P2)
-        # ---- false positives ---------------------------------------------------------------
-        for _ in range(rng.poisson(noise["det2d_fp_rate"])):
-            h = rng.uniform(20.0, 90.0)
-            w = h * rng.uniform(1.0, 2.0)
-            cx, y2 = rng.uniform(0, W - 1), rng.uniform(180.0, 260.0)
-            d = np.clip([cx - w / 2, y2 - h, cx + w / 2, y2], 0.0, [W - 1, H - 1, W - 1, H - 1])
-            if d[2] - d[0] >= 1 and d[3] - d[1] >= 1:
-                det2d.append((t, d, float(rng.uniform(0.1, 0.45))))
-        for _ in range(rng.poisson(noise["det3d_fp_rate"])):
-            z = rng.uniform(5.0, 50.0)
-            x = z * np.tan(rng.uniform(-0.6, 0.6))
-            l3 = np.array([x, _GROUND_Y + rng.normal(0.0, 0.1), z])
-            d3 = np.array([rng.normal(1.5, 0.15), rng.normal(1.6, 0.15), rng.normal(3.8, 0.5)]).clip(0.5)
-            _add_det3d(det3d, t, d3, l3, float(rng.uniform(-np.pi, np.pi)), float(rng.uniform(-1.0, 3.0)), P2)
-    return labels, det2d, det3d
+
+class _Seen(NamedTuple):
+    """A frame's visible vehicles (image box at least 2 x 2 px): ids, van flags, 3D boxes, image
+    boxes and their width and height, truncation, distance, occlusion (coverage by nearer boxes)."""
+    uids: np.ndarray
+    vans: np.ndarray
+    dims: np.ndarray
+    loc: np.ndarray
+    rot: np.ndarray
+    box: np.ndarray
+    bw: np.ndarray
+    bh: np.ndarray
+    trunc: np.ndarray
+    dist: np.ndarray
+    occ: np.ndarray
+
+
+def _visible(objs: list, P2: np.ndarray) -> _Seen | None:
+    """The frame's visible vehicles of ``objs`` (``_simulate``'s), or None when none is."""
+    if not objs:
+        return None
+    uids = np.array([o[0] for o in objs])
+    vans = np.array([o[1] for o in objs])
+    dims = np.stack([o[2] for o in objs])
+    loc = np.stack([o[3] for o in objs])
+    rot = np.array([o[4] for o in objs])
+    box = project_box3d_to_image(dims, loc, rot, P2, IMAGE_SIZE)
+    raw = project_box3d_to_image(dims, loc, rot, P2, IMAGE_SIZE, clip=False)
+    finite = np.all(np.isfinite(box), axis=1)
+    bw = np.where(finite, box[:, 2] - box[:, 0], 0.0)
+    bh = np.where(finite, box[:, 3] - box[:, 1], 0.0)
+    idx = np.flatnonzero(finite & (bw >= 2.0) & (bh >= 2.0))
+    if not len(idx):
+        return None
+    uids, vans, dims, loc, rot = uids[idx], vans[idx], dims[idx], loc[idx], rot[idx]
+    box, raw, bw, bh = box[idx], raw[idx], bw[idx], bh[idx]
+    area = bw * bh
+    raw_area = (raw[:, 2] - raw[:, 0]) * (raw[:, 3] - raw[:, 1])
+    trunc = 1.0 - area / np.maximum(raw_area, 1e-9)
+    all_front = np.all(np.isfinite(raw), axis=1) & (loc[:, 2] - 0.5 * np.hypot(dims[:, 1], dims[:, 2]) > 0.1)
+    trunc = np.where(all_front, trunc, np.maximum(trunc, 0.5))
+    dist = np.hypot(loc[:, 0], loc[:, 2])
+    return _Seen(uids, vans, dims, loc, rot, box, bw, bh, trunc, dist, _coverage(box, dist))
+
+
+def _label_rows(t: int, v: _Seen, uid_to_track: dict) -> list[str]:
+    """Frame ``t``'s label lines of its visible vehicles, by id (a new vehicle takes the next track id)."""
+    alpha = _wrap(v.rot - np.arctan2(v.loc[:, 0], v.loc[:, 2]))
+    trunc_lvl, occ_lvl = _level(v.trunc), _level(v.occ)
+    box, dims, loc, rot = v.box, v.dims, v.loc, v.rot
+    rows = []
+    for j in np.argsort(v.uids, kind="stable"):
+        u = int(v.uids[j])
+        if u not in uid_to_track:
+            uid_to_track[u] = len(uid_to_track)
+        rows.append(
+            f"{t} {uid_to_track[u]} {'Van' if v.vans[j] else 'Car'} {trunc_lvl[j]} {occ_lvl[j]} "
+            f"{alpha[j]:.6f} {box[j, 0]:.6f} {box[j, 1]:.6f} {box[j, 2]:.6f} {box[j, 3]:.6f} "
+            f"{dims[j, 0]:.6f} {dims[j, 1]:.6f} {dims[j, 2]:.6f} "
+            f"{loc[j, 0]:.6f} {loc[j, 1]:.6f} {loc[j, 2]:.6f} {rot[j]:.6f}"
+        )
+    return rows
+
+
+def _detect_2d(rng: np.random.Generator, t: int, v: _Seen, info: dict, noise: dict, det2d: list) -> None:
+    """The 2D detector on frame ``t``'s visible vehicles: misses, box noise, scores."""
+    W, H = IMAGE_SIZE
+    for j in range(len(v.uids)):
+        u = int(v.uids[j])
+        if not info[u][0] or v.occ[j] > noise["occlusion_miss"]:
+            continue
+        if v.bh[j] < noise["det2d_min_height"] or v.bw[j] < 8.0:
+            continue
+        if rng.random() < noise["det2d_miss_rate"]:
+            continue
+        s = noise["det2d_box_sigma"]
+        d = v.box[j] + rng.normal(0.0, s, 4) * np.array([v.bw[j], v.bh[j], v.bw[j], v.bh[j]])
+        d = np.array([min(d[0], d[2]), min(d[1], d[3]), max(d[0], d[2]), max(d[1], d[3])])
+        d = np.clip(d, 0.0, [W - 1, H - 1, W - 1, H - 1])
+        logit = (3.5 + info[u][2] + rng.normal(0.0, 0.8) - 4.0 * v.occ[j]
+                 - 1.5 * (v.bh[j] < 30) - 1.0 * (v.trunc[j] > 0.3))
+        score = float(_sigmoid(logit))
+        if score < 0.1 or d[2] - d[0] < 1 or d[3] - d[1] < 1:
+            continue
+        det2d.append((t, d, score))
+
+
+def _detect_3d(rng: np.random.Generator, t: int, v: _Seen, info: dict, noise: dict, P2: np.ndarray,
+               det3d: list) -> None:
+    """The 3D detector on frame ``t``'s visible vehicles: range, misses, position / size / heading
+    noise, flips, scores."""
+    R = noise["det3d_max_range"]
+    dist, loc, dims, rot, occ = v.dist, v.loc, v.dims, v.rot, v.occ
+    for j in range(len(v.uids)):
+        u = int(v.uids[j])
+        if not info[u][1] or occ[j] > noise["occlusion_miss"]:
+            continue
+        if dist[j] > R or loc[j, 2] < 1.0:
+            continue
+        p_miss = noise["det3d_miss_rate"] + 0.5 * np.clip((dist[j] - 0.65 * R) / (0.35 * R), 0.0, 1.0)
+        if rng.random() < p_miss:
+            continue
+        sp = noise["det3d_pos_sigma"] * (1.0 + dist[j] / 40.0)
+        l3 = loc[j] + rng.normal(0.0, 1.0, 3) * np.array([sp, 0.3 * sp, sp])
+        d3 = np.maximum(dims[j] + rng.normal(0.0, noise["det3d_dim_sigma"], 3), 0.5)
+        r3 = rot[j] + rng.normal(0.0, noise["det3d_rot_sigma"])
+        if rng.random() < noise["det3d_flip_rate"]:
+            r3 += np.pi
+        score = (8.0 + info[u][3] + rng.normal(0.0, 1.2) - 6.0 * occ[j]
+                 - 4.0 * np.clip((dist[j] - 30.0) / 30.0, 0.0, 1.0))
+        _add_det3d(det3d, t, d3, l3, float(_wrap(r3)), float(np.clip(score, -1.0, 16.0)), P2)
+
+
+def _false_positives(rng: np.random.Generator, t: int, noise: dict, P2: np.ndarray, det2d: list, det3d: list) -> None:
+    """Frame ``t``'s false positives: 2D boxes on the road, then 3D boxes on the ground."""
+    W, H = IMAGE_SIZE
+    for _ in range(rng.poisson(noise["det2d_fp_rate"])):
+        h = rng.uniform(20.0, 90.0)
+        w = h * rng.uniform(1.0, 2.0)
+        cx, y2 = rng.uniform(0, W - 1), rng.uniform(180.0, 260.0)
+        d = np.clip([cx - w / 2, y2 - h, cx + w / 2, y2], 0.0, [W - 1, H - 1, W - 1, H - 1])
+        if d[2] - d[0] >= 1 and d[3] - d[1] >= 1:
+            det2d.append((t, d, float(rng.uniform(0.1, 0.45))))
+    for _ in range(rng.poisson(noise["det3d_fp_rate"])):
+        z = rng.uniform(5.0, 50.0)
+        x = z * np.tan(rng.uniform(-0.6, 0.6))
+        l3 = np.array([x, _GROUND_Y + rng.normal(0.0, 0.1), z])
+        d3 = np.array([rng.normal(1.5, 0.15), rng.normal(1.6, 0.15), rng.normal(3.8, 0.5)]).clip(0.5)
+        _add_det3d(det3d, t, d3, l3, float(rng.uniform(-np.pi, np.pi)), float(rng.uniform(-1.0, 3.0)), P2)
 
 
 def _add_det3d(out: list, t: int, dims, loc, rot: float, score: float, P2) -> None:

@@ -179,7 +179,7 @@ def test_stress_parity_clear_rounds_and_frame_loop(stress_run, monkeypatch, roun
     monkeypatch.setattr(clear, "ROUND_MIN", round_min)
     names = ["ties", "heavy"]
     ids, boxes, offsets = pack_arrays([lanes[n] for n in names], STRESS_SEQS, gt.lengths)
-    for name, res in zip(names, evaluate_arrays(gt, ids, boxes, offsets, chunk=2)):
+    for name, res in zip(names, evaluate_arrays(gt, ids, boxes, offsets, lanes_per_batch=2)):
         assert_same(te[name], res, tag=f"{name} ROUND_MIN={round_min}")
 
 
@@ -191,7 +191,7 @@ def test_arrays_equal_files_car(stress_run):
     lane_list = [lanes[n] for n in names] + [{}]
     ids, boxes, offsets = pack_arrays(lane_list, STRESS_SEQS, gt.lengths)
     assert ids.dtype == np.int32 and boxes.dtype == np.float32 and ids.shape[0] == 5
-    got = evaluate_arrays(gt, ids, boxes, offsets, chunk=2)
+    got = evaluate_arrays(gt, ids, boxes, offsets, lanes_per_batch=2)
     for name, res in zip(names + ["nothing"], got):
         assert_same(evaluate_files(dirs[name], gt), res, exact=True, tag=name)
 

@@ -349,8 +349,8 @@ def test_evaluate_arrays_in_worker_processes(kitti_root):
     ids, boxes, offsets = pack_arrays([ref] * 3, seqs, gt.lengths)
     ids[1, ::3] = -1
     ids[2, :, 1:] = -1
-    one = evaluate_arrays(gt, ids, boxes, offsets, chunk=2)
-    two = evaluate_arrays(gt, ids, boxes, offsets, chunk=1, workers=2)
+    one = evaluate_arrays(gt, ids, boxes, offsets, lanes_per_batch=2)
+    two = evaluate_arrays(gt, ids, boxes, offsets, lanes_per_batch=1, workers=2)
     for a, b in zip(one, two):
         for seq in a:
             for f in a[seq]:

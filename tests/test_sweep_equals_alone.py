@@ -131,7 +131,7 @@ def test_evaluate_arrays_of_mixed_option_groups_equals_each_alone(ground):
         ids.append(res.ids[0])
         boxes.append(np.broadcast_to(res.lane_boxes(0), res.ids.shape[1:] + (4,)))
     ids, boxes = np.stack(ids), np.stack(boxes).astype(np.float64)
-    batch = evaluate_arrays(gt, ids, boxes, split.offsets, chunk=2)
+    batch = evaluate_arrays(gt, ids, boxes, split.offsets, lanes_per_batch=2)
     for b in range(len(ids)):
         one = evaluate_arrays(gt, ids[b:b + 1], boxes[b:b + 1], split.offsets)[0]
         assert metrics_table(batch[b]).equals(metrics_table(one)), b

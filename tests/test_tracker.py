@@ -76,7 +76,7 @@ def test_vmap_batch_equals_loop_of_single_runs(scene):
     rng = np.random.default_rng(5)
     options = Options(filter="kalman", output="filtered", capacity=48)
     settings = [random_params(rng, "filtered") for _ in range(32)]
-    batch = track(split, stack_params(settings), options, chunk=32)
+    batch = track(split, stack_params(settings), options, lanes_per_call=32)
     for b, p in enumerate(settings):
         single = track(split, stack_params([p]), options)
         k = single.ids.shape[2]

@@ -133,13 +133,41 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: b
     index ``t * M3 + slot`` (default: this frame's slots; a frame cut to its first slots passes the
     full count); objs: the frame's :class:`Objects` when made outside (they must be ``objects`` of
     these params and this frame), else made here. Runs under ``jax.enable_x64``: arithmetic and parameters in float64, scores
-    compared in float32.
+    compared in float32. (Its phases are plain Python functions, traced inline: one computation.)
     """
-    kind = options.filter
     mem = memory.reset(mem, frame.reset)
     box, z3, has3, valid, slot3 = objects(params, frame, options) if objs is None else objs
+    a = associate_objects(params, mem, box, z3, has3, valid, options)
+    u = update_filters(params, mem, a, box, z3, has3, options)
+    mem, born_id = next_memory(params, mem, a, u, slot3, frame, detail, t, stride3)
+    empty = jnp.zeros((0,), jnp.int32), jnp.zeros((0,), bool), jnp.zeros((0, 6), jnp.float32)
+    writable = mem.hits >= params.min_hits
+    if options.output == "detections":
+        out = write_detections(params, a, mem, born_id, box, has3, valid, detail, empty)
+    else:
+        out = write_filtered(params, a, u, mem, writable, detail, empty)
+    return memory.end_of_frame(mem, params.epsilon), out
 
-    # Association on the tracks' predictions.
+
+class Association(NamedTuple):
+    """A frame's O objects matched with the N track slots: match [O, N] (an object takes over a
+    live track), birth [O, N] (a newborn object starts a track in a free slot), assign = match |
+    birth; newborn [O] (objects matched with no track), rank [O] (their birth order), dropped []
+    (births lost for want of a slot); per slot [N]: matched_obj, born, observed = matched_obj | born."""
+
+    match: jnp.ndarray
+    birth: jnp.ndarray
+    assign: jnp.ndarray
+    newborn: jnp.ndarray
+    rank: jnp.ndarray
+    dropped: jnp.ndarray
+    matched_obj: jnp.ndarray
+    born: jnp.ndarray
+    observed: jnp.ndarray
+
+
+def associate_objects(params: Params, mem: Memory, box, z3, has3, valid, options: Options) -> Association:
+    """Association on the tracks' predictions (fused affinity, greedy or Hungarian), then births."""
     f = mem.filt
     iou = boxes.iou_matrix(box, boxes.predicted_boxes(f.p[:, :4], options.truncate))
     dist = associate.centroid_distance(z3, f.p[:, 4:])
@@ -156,19 +184,40 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: b
     assign = match | birth
     born = jnp.any(birth, axis=0)
     observed = matched_obj | born
+    return Association(match, birth, assign, newborn, rank, dropped, matched_obj, born, observed)
 
-    # Measurements moved into the slots; filter modes per slot.
-    z = memory.gather_rows(assign, jnp.concatenate([box, z3], axis=1))        # [N, 10]
-    z_has3 = memory.gather_rows(assign, has3)                                    # [N]
-    had3 = mem.has3d & ~born
-    start3 = z_has3 & ~had3                                                      # first 3D observation
-    upd2 = matched_obj
-    upd3 = matched_obj & z_has3 & had3
+
+class SlotUpdate(NamedTuple):
+    """The N track slots' filters after a frame: prior (before it), updated (measured, not yet
+    predicted), filt (the next frame's); z [N, 10] the measurement moved into each slot (2D box,
+    3D corners), z_has3 [N] it has 3D, had3 [N] the slot's track had a 3D filter, start3 [N] its
+    first 3D observation."""
+
+    prior: filters.FilterState
+    updated: filters.FilterState
+    filt: filters.FilterState
+    z: jnp.ndarray
+    z_has3: jnp.ndarray
+    had3: jnp.ndarray
+    start3: jnp.ndarray
+
+
+def update_filters(params: Params, mem: Memory, a: Association, box, z3, has3, options: Options) -> SlotUpdate:
+    """Measurements moved into the slots; the filter modes per slot and coordinate (update, start,
+    predict), the filters stepped."""
+    kind = options.filter
+    f = mem.filt
+    z = memory.gather_rows(a.assign, jnp.concatenate([box, z3], axis=1))        # [N, 10]
+    z_has3 = memory.gather_rows(a.assign, has3)                                    # [N]
+    had3 = mem.has3d & ~a.born
+    start3 = z_has3 & ~had3                                                        # first 3D observation
+    upd2 = a.matched_obj
+    upd3 = a.matched_obj & z_has3 & had3
     pred3 = had3 & mem.alive
     is2d = jnp.arange(memory.N_COORDS) < 4
     do_update = jnp.where(is2d[None, :], upd2[:, None], upd3[:, None])
-    do_init = jnp.where(is2d[None, :], born[:, None], (born | matched_obj)[:, None] & start3[:, None])
-    do_predict = jnp.where(is2d[None, :], (mem.alive & ~born)[:, None], pred3[:, None])
+    do_init = jnp.where(is2d[None, :], a.born[:, None], (a.born | a.matched_obj)[:, None] & start3[:, None])
+    do_predict = jnp.where(is2d[None, :], (mem.alive & ~a.born)[:, None], pred3[:, None])
 
     gains = (params.gain_alpha, params.gain_beta, params.gain_gamma)
     kf_q, kf_r = kalman_noise(params)
@@ -176,38 +225,55 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: b
     predicted = filters.select(do_predict, filters.predict(updated, kind, kf_q), updated)
     cov0 = mem.cov0 if kind == "kalman" and options.kalman_init == "steady" else None
     filt = filters.select(do_init, filters.init(z, kind, kf_r, params.kf_p0, cov0), predicted)
+    return SlotUpdate(f, updated, filt, z, z_has3, had3, start3)
 
-    born_id = mem.next_id + rank                                                  # [O]
-    tid = jnp.where(born, memory.gather_rows(birth, born_id), mem.tid)
-    hits = jnp.where(born, 1, mem.hits + matched_obj.astype(jnp.int32))
+
+def next_memory(params: Params, mem: Memory, a: Association, u: SlotUpdate, slot3, frame: Frames, detail: bool,
+                t, stride3: int | None) -> tuple[Memory, jnp.ndarray]:
+    """The memory after the frame (before ageing) and the ids the newborn objects would take [O]."""
+    born, observed = a.born, a.observed
+    born_id = mem.next_id + a.rank                                                # [O]
+    tid = jnp.where(born, memory.gather_rows(a.birth, born_id), mem.tid)
+    hits = jnp.where(born, 1, mem.hits + a.matched_obj.astype(jnp.int32))
     age = jnp.where(observed, 0, mem.age)
     alive = mem.alive | born
     last3 = mem.last3
     if detail:
         m3 = frame.valid3.shape[0] if stride3 is None else stride3
-        z_src3 = memory.gather_rows(assign, t * m3 + slot3)
-        last3 = jnp.where(observed & z_has3, z_src3, jnp.where(born, -1, last3))
-    mem = Memory(alive=alive, tid=tid, age=age, hits=hits, has3d=had3 | z_has3, filt=filt,
-                 next_id=mem.next_id + jnp.sum(newborn, dtype=jnp.int32), overflow=mem.overflow + dropped,
+        z_src3 = memory.gather_rows(a.assign, t * m3 + slot3)
+        last3 = jnp.where(observed & u.z_has3, z_src3, jnp.where(born, -1, last3))
+    mem = Memory(alive=alive, tid=tid, age=age, hits=hits, has3d=u.had3 | u.z_has3, filt=u.filt,
+                 next_id=mem.next_id + jnp.sum(a.newborn, dtype=jnp.int32), overflow=mem.overflow + a.dropped,
                  peak=jnp.maximum(mem.peak, jnp.sum(alive, dtype=jnp.int32)), cov0=mem.cov0, last3=last3)
-    src3, own3, box3 = jnp.zeros((0,), jnp.int32), jnp.zeros((0,), bool), jnp.zeros((0, 6), jnp.float32)
+    return mem, born_id
 
-    writable = hits >= params.min_hits
-    if options.output == "detections":
-        obj_id = jnp.sum(jnp.where(match, tid[None, :], 0), axis=1, dtype=jnp.int32) + jnp.where(newborn, born_id, 0)
-        obj_hits = (jnp.sum(jnp.where(assign, hits[None, :], 0), axis=1, dtype=jnp.int32)
-                    + jnp.where(newborn & ~jnp.any(birth, 1), 1, 0))
-        ids = jnp.where(valid & (obj_hits >= params.min_hits), obj_id, -1)
-        if detail:
-            src3 = jnp.where(jnp.any(assign, axis=1), jnp.sum(jnp.where(assign, last3[None, :], 0), axis=1), -1)
-            own3 = has3 & valid
-        out = StepOutput(ids, box.astype(jnp.float32), dropped, src3, own3, box3)
-    else:
-        shown = jnp.where(born[:, None], z[:, :4], jnp.where(matched_obj[:, None], updated.p[:, :4], f.p[:, :4]))
-        shown = boxes.predicted_boxes(shown, False)  # filter corners may cross: x2 = x1 + |x2 - x1|
-        ids = jnp.where(alive & writable & (age <= params.keep_lost), tid, -1)
-        if detail:
-            src3, own3 = last3, observed & z_has3
-            box3 = jnp.where(start3[:, None], z[:, 4:], updated.p[:, 4:]).astype(jnp.float32)
-        out = StepOutput(ids, shown.astype(jnp.float32), dropped, src3, own3, box3)
-    return memory.end_of_frame(mem, params.epsilon), out
+
+def write_detections(params: Params, a: Association, mem: Memory, born_id, box, has3, valid, detail: bool,
+                     empty: tuple) -> StepOutput:
+    """Output "detections": each object written with its track's id (once the track has
+    ``min_hits``) and its own box; ``empty``: the detail fields' empty (src3, own3, box3)."""
+    src3, own3, box3 = empty
+    match, assign = a.match, a.assign
+    obj_id = jnp.sum(jnp.where(match, mem.tid[None, :], 0), axis=1, dtype=jnp.int32) + jnp.where(a.newborn, born_id, 0)
+    obj_hits = (jnp.sum(jnp.where(assign, mem.hits[None, :], 0), axis=1, dtype=jnp.int32)
+                + jnp.where(a.newborn & ~jnp.any(a.birth, 1), 1, 0))
+    ids = jnp.where(valid & (obj_hits >= params.min_hits), obj_id, -1)
+    if detail:
+        src3 = jnp.where(jnp.any(assign, axis=1), jnp.sum(jnp.where(assign, mem.last3[None, :], 0), axis=1), -1)
+        own3 = has3 & valid
+    return StepOutput(ids, box.astype(jnp.float32), a.dropped, src3, own3, box3)
+
+
+def write_filtered(params: Params, a: Association, u: SlotUpdate, mem: Memory, writable, detail: bool,
+                   empty: tuple) -> StepOutput:
+    """Output "filtered": each writable live track (``writable``: it has ``min_hits``; unobserved
+    for at most ``keep_lost`` frames) with its filtered box; ``empty`` as in :func:`write_detections`."""
+    src3, own3, box3 = empty
+    f, z, updated = u.prior, u.z, u.updated
+    shown = jnp.where(a.born[:, None], z[:, :4], jnp.where(a.matched_obj[:, None], updated.p[:, :4], f.p[:, :4]))
+    shown = boxes.predicted_boxes(shown, False)  # filter corners may cross: x2 = x1 + |x2 - x1|
+    ids = jnp.where(mem.alive & writable & (mem.age <= params.keep_lost), mem.tid, -1)
+    if detail:
+        src3, own3 = mem.last3, a.observed & u.z_has3
+        box3 = jnp.where(u.start3[:, None], z[:, 4:], updated.p[:, 4:]).astype(jnp.float32)
+    return StepOutput(ids, shown.astype(jnp.float32), a.dropped, src3, own3, box3)

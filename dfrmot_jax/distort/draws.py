@@ -23,7 +23,8 @@ lanes, under x64 as the tracker's step; KITTI-car slot counts (M2 = 14, M3 = 19)
                               rbg        2.14 (3.54)      42.0 (65.7)
 
 The tracker's step itself costs ~30 us per lane-frame, so keys would make the robustness study's
-tracking ~2-3x slower and add seconds to each compilation (one per option group and chunk shape).
+tracking ~2-3x slower and add seconds to each compilation (one per option group and lanes per
+compiled call).
 The cost is the bursts: a frame needs ``(M2 + M3) x burst_max`` (~1000) draws, one stream per
 (object, start frame), so that an object's burst depends neither on the slot it lands in nor on
 the frame it is tested from; with keys that is ~1000 ``fold_in`` per lane-frame (one key per start

@@ -28,7 +28,8 @@ Modules: :mod:`.checks` (``SweepConfigError`` and the value checks every table s
 (the file: dataclasses, parsing, validation), :mod:`.distortion` (the [distortion] table),
 :mod:`.table` (``expand``, ``config_hash``, ``HASH_VERSION``), :mod:`.plan` (data settings, option
 groups, chunks), :mod:`.chunks` (``ChunkRunner``: one class's chunks tracked and scored, the unit
-every backend runs), :mod:`.backend` (local or Ray: ``check()`` and ``run_chunks(...)``),
+every backend runs), :mod:`.scoring` (``ChunkScorer``, ``InOrderScoring``: the chunks' metrics beside
+the tracker, completed in order), :mod:`.backend` (local or Ray: ``check()`` and ``run_chunks(...)``),
 :mod:`.ray_backend`, :mod:`.runner` (``prepare_sweep``, ``run_sweep``), :mod:`.folder` (``claim``: a
 folder belongs to one sweep or tune), :mod:`.store` (the directory: chunk files, manifest,
 ``load_results``), :mod:`.analysis` (ranking, sensitivity, folds, cross-validation),

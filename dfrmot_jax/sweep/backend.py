@@ -40,7 +40,7 @@ class LocalBackend:
     def run_chunks(self, spec: SweepSpec, table: pd.DataFrame, data: DataSettings, todo: Sequence[Chunk],
                    keep: Keep, bar, log, *, compact: bool = True) -> None:
         """Track and score ``todo`` here; ``keep(chunk, table)`` each in order."""
-        ChunkRunner(spec, table, data, self.workers, compact).run(todo, keep, bar, log)
+        ChunkRunner.load(spec, table, data, todo, compact=compact).run(keep, bar, log, self.workers)
 
 
 @dataclass(frozen=True)

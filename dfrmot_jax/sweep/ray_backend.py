@@ -58,7 +58,9 @@ class _ChunkWorker:
     Two ``compute`` calls run at once (its "compute" concurrency group; one chunk running, one
     queued): while one chunk's outputs are scored, in metric processes beside it when the worker
     has 2 or more CPUs (as the local backend's), the next chunk is tracked. Tracking and the
-    runner's state are taken one call at a time (``lock``). ``info`` / ``load`` / ``begin`` run in
+    runner's state (the scorer's memo too) are taken one call at a time (``lock``). The two calls'
+    chunks complete in any order, so each scores all of its new outputs itself
+    (:meth:`~dfrmot_jax.sweep.scoring.ChunkScorer.start`). ``info`` / ``load`` / ``begin`` run in
     their own group ("control"), in the order sent; a ``compute`` waits for its run's ``begin``."""
     def __init__(self, cpus: int = 1):
         self.devices = setup_host_devices()
@@ -87,8 +89,7 @@ class _ChunkWorker:
               compact: bool) -> None:
         with self.lock:
             split, gt = self.data[data]
-            runner = ChunkRunner(spec, table, data, workers=0, compact=compact)
-            runner.setup(todo, split=split, gt=gt)
+            runner = ChunkRunner.load(spec, table, data, todo, compact=compact, split=split, gt=gt)
             self.runner, self.run_key, self.pool = runner, run_key, self.pools.get(data)
             self.begun.notify_all()
 
@@ -97,11 +98,17 @@ class _ChunkWorker:
             if not self.begun.wait_for(lambda: self.run_key == run_key, timeout=START_TIMEOUT):
                 raise RuntimeError("a chunk reached this worker before its run began")
             runner, pool = self.runner, self.pool
-            p = runner.start(chunk, runner.frames_of(chunk.options), pool)
+            p, res = runner.track_chunk(chunk)
+            # this actor's chunks complete in any order (two calls at once, the driver takes each
+            # table as it comes): so each scores all of its new outputs itself, relying on no other
+            # chunk in flight (the local backend's in-order rule, sweep.scoring.InOrderScoring, does
+            # not hold here); an output two chunks score at once is stored once
+            runner.scoring.start(p, res, pool)
+            del res                              # (its per-row arrays: not held while the pool scores)
         if p.future is not None:
             p.future.result()                    # scored in the pool while the other call tracks
         with self.lock:
-            return runner.chunk_table(p)
+            return runner.chunk_table(p, *runner.scoring.finish(p))
 
 
 @dataclass

@@ -157,116 +157,174 @@ def stress_edit(res: Mapping[str, SeqResults], gt_labels: Mapping[str, object], 
     out = {}
     for seq, r in res.items():
         r = SeqResults(r.frame.copy(), r.track_id.copy(), r.type.astype("<U16"), r.box.copy())
-        lab = gt_labels.get(seq)
-        nxt = int(r.track_id.max()) + 1000 if len(r) else 1000
-        extra = []
-        n = len(r)
-        if "swap" in kinds and n:
-            ids = np.unique(r.track_id)
-            for _ in range(int(rng.integers(1, 4 + 6 * strength))):
-                if len(ids) < 2:
-                    break
-                a, b = rng.choice(ids, 2, replace=False)
-                t0 = int(rng.integers(r.frame.min(), r.frame.max() + 1))
-                late = r.frame >= t0
-                ma, mb = late & (r.track_id == a), late & (r.track_id == b)
-                r.track_id[ma], r.track_id[mb] = b, a
-        if "jitter" in kinds and n:
-            sel = rng.random(n) < 0.15 * strength
-            scale = rng.choice([0.5, 2.0, 8.0, 20.0], sel.sum())[:, None]
-            r.box[sel] = f32(r.box[sel] + rng.normal(0, 1, (sel.sum(), 4)) * scale)
-            bs = r.box[sel]
-            r.box[sel] = np.stack([np.minimum(bs[:, 0], bs[:, 2]), np.minimum(bs[:, 1], bs[:, 3]),
-                                   np.maximum(bs[:, 0], bs[:, 2]), np.maximum(bs[:, 1], bs[:, 3])], 1)
-        if "drop" in kinds and n:
-            keep = rng.random(n) >= 0.1 * strength
-            # also drop whole stretches of a few tracks (fragmentation)
-            for tid in rng.choice(np.unique(r.track_id), min(3, len(np.unique(r.track_id))), replace=False):
-                t0 = int(rng.integers(r.frame.min(), r.frame.max() + 1))
-                keep &= ~((r.track_id == tid) & (r.frame >= t0) & (r.frame < t0 + int(rng.integers(1, 15))))
-            r = r.take(np.flatnonzero(keep))
-        frames_all = np.arange(int(lab.frame.max()) + 1) if lab is not None and lab.frame.size else np.arange(1)
+        out[seq] = _stress_sequence(r, gt_labels.get(seq), rng, kinds, strength, cls_name)
+    return out
 
-        def add(fr, bx, ids=None, types=None):
-            nonlocal nxt
-            m = len(fr)
-            if m == 0:
-                return
-            if ids is None:
-                ids = np.arange(nxt, nxt + m)
-                nxt += m
-            if types is None:
-                types = np.full(m, cls_name, dtype="<U16")
-            extra.append(SeqResults(np.asarray(fr, np.int64), np.asarray(ids, np.int64), np.asarray(types, "<U16"),
+
+def _stress_sequence(r: SeqResults, lab, rng: np.random.Generator, kinds: Sequence[str], strength: float,
+                     cls_name: str) -> SeqResults:
+    """:func:`stress_edit` of one sequence's rows ``r`` (a copy, edited in place), ``lab`` its
+    labels or None: the edits in a fixed order (each seed one output), added rows shuffled in."""
+    adds = _Additions(int(r.track_id.max()) + 1000 if len(r) else 1000, cls_name)
+    n = len(r)
+    if "swap" in kinds and n:
+        _swap_ids(r, rng, strength)
+    if "jitter" in kinds and n:
+        _jitter_boxes(r, rng, strength)
+    if "drop" in kinds and n:
+        r = _drop_rows(r, rng, strength)
+    frames_all = np.arange(int(lab.frame.max()) + 1) if lab is not None and lab.frame.size else np.arange(1)
+    if "add" in kinds:
+        _add_random(adds, rng, strength, frames_all)
+    if "dontcare" in kinds and lab is not None:
+        _add_dontcare(adds, rng, strength, lab)
+    if "tiny" in kinds:
+        _add_tiny(adds, rng, strength, frames_all, lab)
+    if "van" in kinds and lab is not None:
+        _add_distractors(adds, rng, strength, lab)
+    if "dup" in kinds and len(r):
+        _add_duplicates(adds, rng, strength, r)
+    if "other" in kinds and len(r):
+        _add_other(adds, rng, r)
+    if adds.rows:
+        allr = SeqResults.concat([r] + adds.rows)
+        # random order within frames, then stable by frame
+        perm = rng.permutation(len(allr))
+        allr = allr.take(perm)
+        r = allr.sorted()
+    return r
+
+
+class _Additions:
+    """Rows added to one sequence: new ids from ``nxt`` on, of class ``cls_name`` unless given."""
+
+    def __init__(self, nxt: int, cls_name: str):
+        self.nxt, self.cls_name = nxt, cls_name
+        self.rows: list[SeqResults] = []
+
+    def new_id(self) -> int:
+        self.nxt += 1
+        return self.nxt - 1
+
+    def add(self, fr, bx, ids=None, types=None) -> None:
+        m = len(fr)
+        if m == 0:
+            return
+        if ids is None:
+            ids = np.arange(self.nxt, self.nxt + m)
+            self.nxt += m
+        if types is None:
+            types = np.full(m, self.cls_name, dtype="<U16")
+        self.rows.append(SeqResults(np.asarray(fr, np.int64), np.asarray(ids, np.int64), np.asarray(types, "<U16"),
                                     f32(bx)))
 
-        if "add" in kinds:
-            m = int(rng.integers(5, 20 + 40 * strength))
-            fr = rng.choice(frames_all, m)
-            # some added boxes become short tracks: same id over consecutive frames
-            add(fr, _rand_boxes(rng, m))
-            t0 = int(rng.choice(frames_all))
-            L_ = int(rng.integers(3, 12))
-            fr2 = np.arange(t0, min(t0 + L_, frames_all[-1] + 1))
-            add(fr2, np.repeat(_rand_boxes(rng, 1), len(fr2), 0), ids=np.full(len(fr2), nxt))
-            nxt += 1
-        if "dontcare" in kinds and lab is not None:
-            dc = np.flatnonzero(np.char.lower(lab.type.astype(str)) == "dontcare")
-            if dc.size:
-                pick = rng.choice(dc, min(dc.size, int(10 + 30 * strength)), replace=False)
-                b = lab.box[pick]
-                w, h = b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]
-                # mostly inside (IoA > 0.5), some half-outside (IoA ~ 0.5), some covering
-                fx = rng.uniform(-0.6, 0.4, len(pick))
-                nb = np.stack([b[:, 0] + fx * w, b[:, 1] + 0.1 * h, b[:, 0] + (fx + 1.0) * w, b[:, 3] - 0.1 * h], 1)
-                nb[:, 3] = np.maximum(nb[:, 3], nb[:, 1] + rng.choice([10.0, 25.0, 30.0, 60.0], len(pick)))
-                add(lab.frame[pick], nb)
-                add(lab.frame[pick[:3]], b[:3])  # exactly the region
-        if "tiny" in kinds:
-            m = int(rng.integers(5, 10 + 20 * strength))
-            fr = rng.choice(frames_all, m)
-            bx = _rand_boxes(rng, m)
-            hts = rng.choice([20.0, 24.5, 25.0, 25.0000001, 26.0], m)
-            y1 = np.round(bx[:, 1])
-            bx[:, 1], bx[:, 3] = y1, y1 + hts
-            add(fr, bx)
-            # tiny boxes on real (small) GT objects too
-            if lab is not None:
-                small = np.flatnonzero((lab.box[:, 3] - lab.box[:, 1] < 40) & (lab.track_id >= 0))
-                if small.size:
-                    pick = rng.choice(small, min(small.size, 10), replace=False)
-                    add(lab.frame[pick], lab.box[pick])
-        if "van" in kinds and lab is not None:
-            t = np.char.lower(lab.type.astype(str))
-            distract = np.flatnonzero(((t == "van") | (t == "person") | (lab.occluded > 2) | (lab.truncated > 0))
-                                      & (t != "dontcare"))
-            if distract.size:
-                pick = rng.choice(distract, min(distract.size, int(10 + 40 * strength)), replace=False)
-                bx = lab.box[pick] + rng.normal(0, 2.0, (len(pick), 4)) * (rng.random((len(pick), 1)) < 0.5)
-                bx = np.stack([np.minimum(bx[:, 0], bx[:, 2]), np.minimum(bx[:, 1], bx[:, 3]),
-                               np.maximum(bx[:, 0], bx[:, 2]), np.maximum(bx[:, 1], bx[:, 3])], 1)
-                add(lab.frame[pick], bx)
-        if "dup" in kinds and len(r):
-            pick = rng.choice(len(r), min(len(r), int(5 + 20 * strength)), replace=False)
-            add(r.frame[pick], r.box[pick])
-            # a duplicated track segment (ties in HOTA's assignment)
-            tid = int(rng.choice(np.unique(r.track_id)))
-            seg = np.flatnonzero(r.track_id == tid)[:20]
-            add(r.frame[seg], r.box[seg], ids=np.full(len(seg), nxt))
-            nxt += 1
-        if "other" in kinds and len(r):
-            pick = rng.choice(len(r), min(len(r), 10), replace=False)
-            add(r.frame[pick], r.box[pick], types=rng.choice(["Pedestrian", "Cyclist", "Van", "DontCare"], len(pick)))
-            pick = rng.choice(len(r), min(len(r), 5), replace=False)
-            add(r.frame[pick], r.box[pick], ids=-np.ones(len(pick), np.int64))
-        if extra:
-            allr = SeqResults.concat([r] + extra)
-            # random order within frames, then stable by frame
-            perm = rng.permutation(len(allr))
-            allr = allr.take(perm)
-            r = allr.sorted()
-        out[seq] = r
-    return out
+
+def _ordered(bx: np.ndarray) -> np.ndarray:
+    """Boxes with their corners in order (x1 <= x2, y1 <= y2)."""
+    return np.stack([np.minimum(bx[:, 0], bx[:, 2]), np.minimum(bx[:, 1], bx[:, 3]),
+                     np.maximum(bx[:, 0], bx[:, 2]), np.maximum(bx[:, 1], bx[:, 3])], 1)
+
+
+def _swap_ids(r: SeqResults, rng, strength: float) -> None:
+    """``swap``: ids of two tracks swapped from a random frame on, a few times."""
+    ids = np.unique(r.track_id)
+    for _ in range(int(rng.integers(1, 4 + 6 * strength))):
+        if len(ids) < 2:
+            break
+        a, b = rng.choice(ids, 2, replace=False)
+        t0 = int(rng.integers(r.frame.min(), r.frame.max() + 1))
+        late = r.frame >= t0
+        ma, mb = late & (r.track_id == a), late & (r.track_id == b)
+        r.track_id[ma], r.track_id[mb] = b, a
+
+
+def _jitter_boxes(r: SeqResults, rng, strength: float) -> None:
+    """``jitter``: float32 jitter of some boxes at a few scales (around IoU 0.5)."""
+    sel = rng.random(len(r)) < 0.15 * strength
+    scale = rng.choice([0.5, 2.0, 8.0, 20.0], sel.sum())[:, None]
+    r.box[sel] = f32(r.box[sel] + rng.normal(0, 1, (sel.sum(), 4)) * scale)
+    r.box[sel] = _ordered(r.box[sel])
+
+
+def _drop_rows(r: SeqResults, rng, strength: float) -> SeqResults:
+    """``drop``: rows removed, and whole stretches of a few tracks (fragmentation)."""
+    keep = rng.random(len(r)) >= 0.1 * strength
+    for tid in rng.choice(np.unique(r.track_id), min(3, len(np.unique(r.track_id))), replace=False):
+        t0 = int(rng.integers(r.frame.min(), r.frame.max() + 1))
+        keep &= ~((r.track_id == tid) & (r.frame >= t0) & (r.frame < t0 + int(rng.integers(1, 15))))
+    return r.take(np.flatnonzero(keep))
+
+
+def _add_random(adds: _Additions, rng, strength: float, frames_all: np.ndarray) -> None:
+    """``add``: random boxes with new ids, and one short track (the same id over consecutive frames)."""
+    m = int(rng.integers(5, 20 + 40 * strength))
+    fr = rng.choice(frames_all, m)
+    adds.add(fr, _rand_boxes(rng, m))
+    t0 = int(rng.choice(frames_all))
+    L_ = int(rng.integers(3, 12))
+    fr2 = np.arange(t0, min(t0 + L_, frames_all[-1] + 1))
+    adds.add(fr2, np.repeat(_rand_boxes(rng, 1), len(fr2), 0), ids=np.full(len(fr2), adds.new_id()))
+
+
+def _add_dontcare(adds: _Additions, rng, strength: float, lab) -> None:
+    """``dontcare``: boxes in DontCare regions: mostly inside (IoA > 0.5), some half outside (IoA
+    ~ 0.5), some covering, and three exactly the region."""
+    dc = np.flatnonzero(np.char.lower(lab.type.astype(str)) == "dontcare")
+    if not dc.size:
+        return
+    pick = rng.choice(dc, min(dc.size, int(10 + 30 * strength)), replace=False)
+    b = lab.box[pick]
+    w, h = b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]
+    fx = rng.uniform(-0.6, 0.4, len(pick))
+    nb = np.stack([b[:, 0] + fx * w, b[:, 1] + 0.1 * h, b[:, 0] + (fx + 1.0) * w, b[:, 3] - 0.1 * h], 1)
+    nb[:, 3] = np.maximum(nb[:, 3], nb[:, 1] + rng.choice([10.0, 25.0, 30.0, 60.0], len(pick)))
+    adds.add(lab.frame[pick], nb)
+    adds.add(lab.frame[pick[:3]], b[:3])  # exactly the region
+
+
+def _add_tiny(adds: _Additions, rng, strength: float, frames_all: np.ndarray, lab) -> None:
+    """``tiny``: boxes 20..26 px tall (exactly 25 among them), and on small ground-truth objects."""
+    m = int(rng.integers(5, 10 + 20 * strength))
+    fr = rng.choice(frames_all, m)
+    bx = _rand_boxes(rng, m)
+    hts = rng.choice([20.0, 24.5, 25.0, 25.0000001, 26.0], m)
+    y1 = np.round(bx[:, 1])
+    bx[:, 1], bx[:, 3] = y1, y1 + hts
+    adds.add(fr, bx)
+    if lab is not None:
+        small = np.flatnonzero((lab.box[:, 3] - lab.box[:, 1] < 40) & (lab.track_id >= 0))
+        if small.size:
+            pick = rng.choice(small, min(small.size, 10), replace=False)
+            adds.add(lab.frame[pick], lab.box[pick])
+
+
+def _add_distractors(adds: _Additions, rng, strength: float, lab) -> None:
+    """``van``: copies (half of them jittered) of vans, persons, occluded or truncated ground truth."""
+    t = np.char.lower(lab.type.astype(str))
+    distract = np.flatnonzero(((t == "van") | (t == "person") | (lab.occluded > 2) | (lab.truncated > 0))
+                              & (t != "dontcare"))
+    if distract.size:
+        pick = rng.choice(distract, min(distract.size, int(10 + 40 * strength)), replace=False)
+        bx = lab.box[pick] + rng.normal(0, 2.0, (len(pick), 4)) * (rng.random((len(pick), 1)) < 0.5)
+        adds.add(lab.frame[pick], _ordered(bx))
+
+
+def _add_duplicates(adds: _Additions, rng, strength: float, r: SeqResults) -> None:
+    """``dup``: exact copies of boxes under new ids, and a duplicated track segment (ties in HOTA's
+    assignment)."""
+    pick = rng.choice(len(r), min(len(r), int(5 + 20 * strength)), replace=False)
+    adds.add(r.frame[pick], r.box[pick])
+    tid = int(rng.choice(np.unique(r.track_id)))
+    seg = np.flatnonzero(r.track_id == tid)[:20]
+    adds.add(r.frame[seg], r.box[seg], ids=np.full(len(seg), adds.new_id()))
+
+
+def _add_other(adds: _Additions, rng, r: SeqResults) -> None:
+    """``other``: copies of rows as other classes, and with negative ids (both ignored by TrackEval)."""
+    pick = rng.choice(len(r), min(len(r), 10), replace=False)
+    adds.add(r.frame[pick], r.box[pick], types=rng.choice(["Pedestrian", "Cyclist", "Van", "DontCare"], len(pick)))
+    pick = rng.choice(len(r), min(len(r), 5), replace=False)
+    adds.add(r.frame[pick], r.box[pick], ids=-np.ones(len(pick), np.int64))
 
 
 def naive_tracks(frame: np.ndarray, box: np.ndarray, iou_min: float = 0.3) -> np.ndarray:

@@ -323,6 +323,7 @@ def hungarian_match(cost: np.ndarray, limit: F64) -> list[tuple[int, int]]:
     return [(int(i), int(j)) for i, j in zip(rows, cols) if ok[i, j]]
 
 
+# Whole on purpose (over 80 lines): the oracle reads straight through, one frame as the spec states it.
 def track_sequence(seq: SequenceDets, params: Params, options: Options,
                    image_size=(1242, 375)) -> list[tuple]:
     """Run one sequence; returns output rows ``(frame, id, x1, y1, x2, y2, kind, index, row3, own3, box3)``.

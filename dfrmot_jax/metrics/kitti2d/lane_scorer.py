@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import warnings
 from concurrent.futures import ProcessPoolExecutor
 from typing import Sequence
 
@@ -179,7 +180,7 @@ class LaneScorer:
         return evaluate_lanes(self.gt, dets, self.lanes_per_batch, self.similarity)
 
     def submit(self, pool: ProcessPoolExecutor, dets: TrackerDets) -> "PoolParts":
-        """Score ``dets`` in the pool, ``lanes_per_batch`` lanes per task (one chunk's lanes spread over
+        """Score ``dets`` in the pool, ``lanes_per_batch`` lanes per task (a sweep chunk's lanes spread over
         every process): a future-like :class:`PoolParts` whose ``result()`` equals :meth:`evaluate`'s."""
         n = self.lanes_per_batch
         return PoolParts(pool.submit(run_in_worker, lane_slice(dets, a, min(a + n, dets.n_lanes)), self.similarity)
@@ -211,8 +212,8 @@ class LaneScorer:
 
 
 def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None, similarity: str = "2d",
-                    chunk: int = 4, workers: int | None = 1,
-                    start_method: str | None = None) -> list[dict[str, dict[str, object]]]:
+                    lanes_per_batch: int = 4, workers: int | None = 1,
+                    start_method: str | None = None, chunk: int | None = None) -> list[dict[str, dict[str, object]]]:
     """Evaluate B tracker configs straight from padded output; one result dict per config.
 
     gt: :class:`PreparedGT` from :func:`prepare_gt`. ids: [B, T, K] int (``-1`` / negative = empty
@@ -223,16 +224,21 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None,
     similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (:mod:`~dfrmot_jax.metrics.kitti2d.evaluate`); 3D
     and BEV need box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot (the 3D box the result file would carry; a
     slot without one holds the placeholder ``-1 -1 -1 -1000 -1000 -1000`` or all NaN: unmatched in 3D).
-    chunk: configs per vectorised batch (peak memory ~ chunk x 60 MB for all of KITTI car).
-    workers: processes for chunks (default 1; ``None`` = 2 when B >= 64 and 2+ CPUs). With
-    workers > 1 a process pool (``start_method``, default ``'forkserver'`` on Linux, else
-    ``'spawn'``; both are safe in a process running JAX threads) evaluates chunks in parallel; as
+    lanes_per_batch: configs per vectorised batch (peak memory ~ lanes_per_batch x 60 MB for all of
+    KITTI car). workers: processes for the batches (default 1; ``None`` = 2 when B >= 64 and 2+
+    CPUs). With workers > 1 a process pool (``start_method``, default ``'forkserver'`` on Linux,
+    else ``'spawn'``; both are safe in a process running JAX threads) evaluates batches in parallel; as
     always with these start methods, a calling script needs an ``if __name__ == "__main__":`` guard.
     Each distinct output of each sequence is scored once (:class:`LaneScorer`'s virtual lanes) when
     at least 1 - ``REPEATS_WORTH`` of the (config, sequence) outputs repeat; the results are the same.
     Returns a list of B dicts ``{seq: {field: value}, 'COMBINED': {...}}`` like
-    :func:`~dfrmot_jax.metrics.kitti2d.evaluate.evaluate_files`.
+    :func:`~dfrmot_jax.metrics.kitti2d.evaluate.evaluate_files`. ``chunk``: deprecated name of
+    ``lanes_per_batch`` (kept for one release, with a ``DeprecationWarning``).
     """
+    if chunk is not None:
+        warnings.warn("evaluate_arrays(chunk=...) is deprecated: use evaluate_arrays(lanes_per_batch=...)",
+                      DeprecationWarning, stacklevel=2)
+        lanes_per_batch = chunk
     if seq_offsets is None:
         seq_offsets = gt.offsets[:-1]
     similarity = parse_similarity(similarity)
@@ -244,7 +250,7 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None,
     B = ids.shape[0]
     if B == 0:
         return []
-    sc = LaneScorer(gt, seq_offsets, max(1, int(chunk)), similarity)
+    sc = LaneScorer(gt, seq_offsets, max(1, int(lanes_per_batch)), similarity)
     # a repeated output repeats its ids: the boxes are hashed only when some ids repeat
     by_ids = sc.seq_digests(ids, None)
     S = len(gt.sequences)
