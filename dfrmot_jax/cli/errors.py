@@ -14,7 +14,7 @@ from contextlib import contextmanager
 from typing import Callable
 
 from ..io.kitti import KittiFormatError
-from ..sweep.checks import SweepConfigError
+from ..checks import SweepConfigError
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_OVERFLOW, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 

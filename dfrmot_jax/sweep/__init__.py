@@ -24,8 +24,8 @@ The pipeline::
         with distortion: the objective per level and kind (mean ± SE over seeds) per setting, and
         an optional contrast of two groups of an axis (e.g. long vs short memory) paired by seed
 
-Modules: :mod:`.checks` (``SweepConfigError`` and the value checks every table shares), :mod:`.spec`
-(the file: dataclasses, parsing, validation), :mod:`.distortion` (the [distortion] table),
+Modules: :mod:`.spec` (the file: dataclasses, parsing, validation; its value checks and
+``SweepConfigError`` are :mod:`dfrmot_jax.checks`'), :mod:`.distortion` (the [distortion] table),
 :mod:`.table` (``expand``, ``config_hash``, ``HASH_VERSION``), :mod:`.plan` (data settings, option
 groups, chunks), :mod:`.chunks` (``ChunkRunner``: one class's chunks tracked and scored, the unit
 every backend runs), :mod:`.backend` (local or Ray: ``check()`` and ``run_chunks(...)``),
@@ -57,7 +57,7 @@ from ..metrics.evaluate import combine_sequences, summary_columns
 from .analysis import (MINIMISE, OBJECTIVES, axis_profiles, class_view, cross_validate, make_folds, objective_on, per_sequence_arrays,
                        sensitivity)
 from .backend import LocalBackend, RayBackend, make_backend
-from .checks import SweepConfigError
+from ..checks import SweepConfigError
 from .distortion import DistortionAxes
 from .html import html_report, render_html, write_html
 from .plan import MAX_MEMORY_GB, DataSettings, check_memory, plan, resolve_data, resolve_data_all

@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import distort
 from ..config import Options
-from .checks import GRID_KINDS, Table, check_count, clean_float, config_error, is_number
+from ..checks import GRID_KINDS, Table, check_count, clean_float, config_error, is_number
 
 DISTORTION_KEYS = ("kind", "level", "levels", "seeds", "clutter_slots", "burst_dist", "burst_max", "burst_rate",
                    "burst_len")

@@ -24,7 +24,7 @@ import pandas as pd
 
 from ..config import CLASSES, Params
 from ..lidar import LIFT_SETTINGS, LiftSettings, SimSettings, lidar_dir, tie_scores, with_setting
-from .checks import Table, config_error, is_number
+from ..checks import Table, config_error, is_number
 
 __all__ = ["LIFT_COLUMNS", "SIM_COLUMNS", "LIDAR_AXES", "LidarAxes", "parse_lidar", "lidar_key", "key_settings",
            "tie_table_scores", "describe_key"]
@@ -131,7 +131,7 @@ def _sim_axis(name: str, doc, key: str, source) -> tuple:
 
 def parse_lidar(doc: Mapping, source=None) -> LidarAxes | None:
     """The ``[lift]`` and ``[simulate]`` tables of a sweep document (None without either); bad
-    values raise :class:`~dfrmot_jax.sweep.checks.SweepConfigError` naming the key."""
+    values raise :class:`~dfrmot_jax.checks.SweepConfigError` naming the key."""
     lift, sim = doc.get("lift"), doc.get("simulate")
     if lift is None and sim is None:
         return None

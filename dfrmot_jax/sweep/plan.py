@@ -17,7 +17,7 @@ from ..data import detection_dir, sequences_with_class
 from ..io.kitti import KittiFormatError, sequence_lengths
 from ..lidar import lidar_dir
 from ..paths import default_data_root
-from .checks import config_error
+from ..checks import config_error
 from .distortion import DistortionAxes
 from .lidar_axes import lidar_key
 from .spec import OPTION_NAMES, as_spec

@@ -15,7 +15,7 @@ import pandas as pd
 
 from ..io.lock import folder_lock
 from .backend import make_backend
-from .checks import SweepConfigError
+from ..checks import SweepConfigError
 from .chunks import progress_bar
 from .lidar_axes import describe_key
 from .plan import Chunk, DataSettings, check_memory, plan, resolve_data_all

@@ -18,7 +18,7 @@ from ..config import CLASSES, INHERITED_PARAMS, INT_PARAMS, PRESETS, Options, Pa
 from ..lidar import lidar_dir
 from ..metrics.ab3dmot import DEFAULT_AB3DMOT_IOU, parse_iou
 from ..metrics.table import AB3DMOT_COLUMNS, canonical_objective
-from .checks import (
+from ..checks import (
     GRID_KINDS,
     SweepConfigError,
     Table,
@@ -394,7 +394,7 @@ def _parse_classes(v, source) -> tuple[str, ...]:
 
 def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     """Validate a sweep given as a dict (the parsed TOML); raises :class:`SweepConfigError`
-    naming the full key (every table is read through a :class:`~.checks.Table`)."""
+    naming the full key (every table is read through a :class:`~dfrmot_jax.checks.Table`)."""
     top = Table(doc, "", source, TOP_KEYS)
     name = top.string("name", Path(source).stem if source else "sweep")
     desc = top.string("description", "", empty=True)

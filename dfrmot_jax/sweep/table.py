@@ -19,7 +19,7 @@ import pandas as pd
 
 from ..config import CLASSES, INT_PARAMS, PRESETS, Options, Params, as_arrays, preset
 from ..core.filters import fixed_gain_radius
-from .checks import config_error
+from ..checks import config_error
 from ..lidar import lidar_dir
 from .distortion import DistortionAxes
 from .lidar_axes import LidarAxes, tie_table_scores

@@ -25,7 +25,7 @@ from typing import Mapping
 from ..config import param_problem
 from ..metrics.table import canonical_objective
 from ..sweep.analysis import MINIMISE
-from ..sweep.checks import Table, is_number, type_name
+from ..checks import Table, is_number, type_name
 from ..sweep.spec import PARAM_NAMES, SweepConfigError, SweepSpec, parse_spec, read_toml
 
 SAMPLERS = ("tpe", "cmaes", "gp", "pairwise", "nsga2", "random", "grid")
