@@ -17,6 +17,9 @@ ROOT = Path(__file__).resolve().parent.parent
 PKG = ROOT / "dfrmot_jax"
 MAX_LINES = 650
 ORACLE = "dfrmot_jax.testing.reference"
+REPORT = "dfrmot_jax.report"
+#: third-party packages that are (or import) JAX
+JAX_PACKAGES = ("jax", "jaxlib", "optax")
 
 
 def _module_name(path: Path) -> str:
@@ -216,6 +219,27 @@ def test_the_oracle_reaches_nothing_of_the_tracker():
     chain, so the parity tests compare two independent implementations."""
     bad = sorted(m for m in _closure({ORACLE}) if _matches(m, "dfrmot_jax.core"))
     assert not bad, f"the oracle reaches {bad} through {sorted(_graph()[ORACLE])}"
+
+
+def _imports_jax(module: str) -> bool:
+    """Whether ``module`` has an import statement (anywhere in it) of JAX or of a package built on it."""
+    for node in ast.walk(ast.parse(_modules()[module].read_text())):
+        names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+            [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else []
+        if any(n == p or n.startswith(p + ".") for n in names for p in JAX_PACKAGES):
+            return True
+    return False
+
+
+def test_the_report_reaches_no_jax_core_or_api():
+    """``report/`` reads stored tables: nothing it reaches through any chain of imports (the
+    ``__init__`` of every package on the way included) is ``core/`` or ``api`` or imports JAX, so
+    that ``dfrmot report`` starts without them (``tests/test_cli_startup.py`` runs it where JAX
+    cannot be imported)."""
+    reach = _closure({m for m in _modules() if _matches(m, REPORT)})
+    assert "dfrmot_jax.report.columns" in reach and "dfrmot_jax.metrics.evaluate" in reach
+    bad = sorted(m for m in reach if _matches(m, "dfrmot_jax.core") or _matches(m, "dfrmot_jax.api") or _imports_jax(m))
+    assert not bad, f"report/ reaches {bad}"
 
 
 def test_no_import_cycle():

@@ -21,10 +21,11 @@ import numpy as np
 
 from ..config import preset
 from ..io.lock import folder_lock
-from ..sweep import SweepReport, load_spec, run_sweep, sweep_report, write_html
-from ..sweep.analysis import fmt_value
+from ..report import SweepReport, sweep_report, write_html
+from ..report.analysis import fmt_value
+from ..report.text import paragraph, text_table
+from ..sweep import load_spec, run_sweep
 from ..sweep.folder import clear, read_old_manifest
-from ..sweep.text import paragraph, text_table
 from ..synthetic import make_scene
 from .errors import guarded
 

@@ -17,7 +17,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..sweep import RAW_COLUMN, load_results, report_folds, sweep_report, write_html
+from ..report import RAW_COLUMN, load_results, report_folds, sweep_report, write_html
 from .errors import guarded
 
 __all__ = ["add_parser", "run", "parse_contrast"]

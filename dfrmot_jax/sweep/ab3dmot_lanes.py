@@ -28,7 +28,7 @@ from ..metrics.ab3dmot_table import ab3dmot_columns
 from ..metrics.lane_scorer import LaneScorer
 from ..metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
 from ..results import kitti_rows
-from .table import COMBINED
+from ..report.columns import COMBINED
 
 
 class Ab3dmotLanes:

@@ -20,7 +20,8 @@ from ..paths import default_data_root
 from ..checks import config_error
 from .distortion import DistortionAxes
 from .lidar_axes import lidar_key
-from .spec import OPTION_NAMES, as_spec
+from ..report.columns import OPTION_NAMES
+from .spec import as_spec
 
 #: Default most tracker output one chunk may hold, GB (``run_sweep(max_memory=...)``, ``dfrmot sweep
 #: --max-memory``), checked before any work (:func:`check_memory`).

@@ -11,8 +11,8 @@ import pandas as pd
 from ..metrics import clear, identity
 from ..metrics.evaluate import RAW_FIELDS, class_average_columns, combine_sequences, summary_columns
 from ..metrics.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, TABLE_FIELDS, canonical_objective  # noqa: F401
-from .spec import AVERAGE, OPTION_NAMES, PARAM_NAMES, extra_axes
-from .table import COMBINED, RAW_COLUMN, class_columns, split_class_column
+from .columns import (AVERAGE, COMBINED, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, class_columns, extra_axes,
+                      split_class_column)
 
 #: Objectives the report knows by name (any metric column works); these are minimised.
 MINIMISE = frozenset({"IDSW", "Frag", "ML", "CLR_FN", "CLR_FP", "IDFN", "IDFP", "PT", "MLR", "FP_per_frame",
