@@ -71,8 +71,9 @@ from ..metrics.kitti import CLASS_NAME_TO_ID
 from ..metrics.tracker_files import inspect_results, read_tracker_files
 from ..metrics.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
 from ..paths import default_data_root
+from .commands import HELP
 from .errors import guarded
-from .track import parse_seqs
+from .track_parser import parse_seqs
 
 __all__ = ["add_parser", "run"]
 
@@ -108,7 +109,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``eval`` on an argparse ``subparsers`` object; returns its parser."""
     p = sub.add_parser(
         "eval",
-        help="evaluate KITTI tracking result folders (TrackEval's KITTI 2D box HOTA/CLEAR/Identity)",
+        help=HELP["eval"],
         description="Evaluate KITTI tracking results (RESULTS_DIR/SSSS.txt) exactly like TrackEval's Kitti2DBox "
                     "(files are read as TrackEval reads them: rows in any order, x2 < x1 allowed). Refused: a "
                     "sequence without a result file (see --allow-missing), a result file name that is a "
