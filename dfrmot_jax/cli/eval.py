@@ -230,6 +230,24 @@ def _print_ab3dmot(df, seq_lists: dict, iou: str, note_avg: str) -> None:
     print(rows[cols].to_string(index=False, formatters=fmt))
 
 
+def _ground_truth(root: Path, cls, seqs, kitti2d: bool) -> tuple[dict, dict]:
+    """(class -> prepared ground truth, for the kitti2d family only; class -> its sequences: ``seqs``,
+    else those whose ground truth has the class); anything wrong with the ground truth is a
+    ValueError that says so."""
+    try:
+        gts, seq_lists = {}, {}
+        for c in parse_classes(cls):
+            cs = seqs if seqs is not None else cached_class_sequences(root, c)
+            if not cs:
+                raise ValueError(f"no sequence of {root / 'label_02'} has ground truth of class {c!r}")
+            seq_lists[c] = tuple(cs)
+            if kitti2d:
+                gts[c] = cached_gt(root, c, cs)
+    except (KittiFormatError, FileNotFoundError, ValueError) as e:
+        raise ValueError(f"ground truth: {e}") from e
+    return gts, seq_lists
+
+
 def run(args) -> int:
     """Run ``eval`` for parsed ``args``: 0, or raises (bad ground truth, results or arguments)."""
     root = Path(args.data) if args.data else default_data_root()
@@ -243,18 +261,7 @@ def run(args) -> int:
         if seqs is not None:
             raise ValueError("--seqs and --seqmap both name the sequences: give one")
         seqs = list(read_seqmap(args.seqmap, root))
-    try:
-        classes = parse_classes(args.cls)
-        gts, seq_lists = {}, {}
-        for c in classes:
-            cs = seqs if seqs is not None else cached_class_sequences(root, c)
-            if not cs:
-                raise ValueError(f"no sequence of {label_dir} has ground truth of class {c!r}")
-            seq_lists[c] = tuple(cs)
-            if "kitti2d" in families:
-                gts[c] = cached_gt(root, c, cs)
-    except (KittiFormatError, FileNotFoundError, ValueError) as e:
-        raise ValueError(f"ground truth: {e}") from e
+    gts, seq_lists = _ground_truth(root, args.cls, seqs, "kitti2d" in families)
     wanted = sorted({s for cs in seq_lists.values() for s in cs})
     known = None if seqs is not None else sorted(p.stem for p in label_dir.glob("*.txt"))
     folders = [Path(d) for d in args.results]
