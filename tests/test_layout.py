@@ -15,7 +15,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PKG = ROOT / "dfrmot_jax"
-MAX_LINES = 650
+MAX_LINES = 600
 ORACLE = "dfrmot_jax.testing.reference"
 REPORT = "dfrmot_jax.report"
 #: third-party packages that are (or import) JAX
