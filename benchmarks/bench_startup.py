@@ -3,7 +3,8 @@
 Each command runs ``--runs`` times (default 3) in a new process (``python -m dfrmot_jax.cli ...``,
 the interpreter this script runs under; no pyenv shim); the wall time of each run is measured from
 the parent and the median printed. ``--path DIR`` puts ``DIR`` first on the children's
-``PYTHONPATH`` (default: this checkout), so an older commit extracted with
+``PYTHONPATH`` and runs them in it (``python -c`` / ``-m`` look in their working directory first;
+default: this checkout), so an older commit extracted with
 ``git archive COMMIT dfrmot_jax | tar -x -C DIR`` gives a before / after on the same machine, back to
 back. ``--importtime`` also runs each command once under ``python -X importtime`` and lists the
 heavy dependencies it imports (NumPy, JAX, pandas, pyarrow, SciPy's parts, ...: cumulative seconds
@@ -42,16 +43,17 @@ def commands(eval_dir: str | None, report_dir: str | None) -> dict[str, list[str
     out = {"import dfrmot_jax": ["-c", "import dfrmot_jax"], "dfrmot --help": cli + ["--help"],
            "dfrmot track --help": cli + ["track", "--help"]}
     if eval_dir:
-        out["dfrmot eval"] = cli + ["eval", eval_dir]
+        out["dfrmot eval"] = cli + ["eval", str(Path(eval_dir).resolve())]
     if report_dir:
-        out["dfrmot report"] = cli + ["report", report_dir]
+        out["dfrmot report"] = cli + ["report", str(Path(report_dir).resolve())]
     return out
 
 
-def timed(args: list[str], env: dict) -> float:
+def timed(args: list[str], env: dict, cwd: str) -> float:
     """Wall seconds of one child run (its output discarded; a failure stops the benchmark)."""
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, *args], env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    subprocess.run([sys.executable, *args], env=env, cwd=cwd, check=True, stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL)
     return time.perf_counter() - t0
 
 
@@ -59,10 +61,11 @@ HEAVY = ("numpy", "jax", "optax", "pandas", "pyarrow", "scipy", "scipy.optimize"
          "matplotlib", "optuna", "tqdm", "filelock")
 
 
-def heavy_imports(args: list[str], env: dict) -> dict[str, float]:
+def heavy_imports(args: list[str], env: dict, cwd: str) -> dict[str, float]:
     """Seconds (cumulative, ``-X importtime``) of each of :data:`HEAVY` the command imports, at
     whatever depth it was first imported."""
-    r = subprocess.run([sys.executable, "-X", "importtime", *args], env=env, capture_output=True, text=True, check=True)
+    r = subprocess.run([sys.executable, "-X", "importtime", *args], env=env, cwd=cwd, capture_output=True, text=True,
+                       check=True)
     out = {}
     for line in r.stderr.splitlines():
         if not line.startswith("import time:") or "cumulative" in line:
@@ -86,12 +89,12 @@ def main() -> None:
     load_before = os.getloadavg()
     result = {}
     for name, cmd in commands(args.eval, args.report).items():
-        runs = [timed(cmd, env) for _ in range(args.runs)]
+        runs = [timed(cmd, env, args.path) for _ in range(args.runs)]
         result[name] = {"median_s": round(statistics.median(runs), 3), "runs_s": [round(t, 3) for t in runs]}
         line = f"{name:22s} median {statistics.median(runs):6.2f} s  (runs {', '.join(f'{t:.2f}' for t in runs)})"
         print(line, flush=True)
         if args.importtime:
-            heavy = heavy_imports(cmd, env)
+            heavy = heavy_imports(cmd, env, args.path)
             result[name]["imports_s"] = heavy
             print("    imports: " + (", ".join(f"{m} {t:.2f} s" for m, t in heavy.items()) or "none of them"), flush=True)
 
