@@ -77,7 +77,7 @@ def _replay_on_grid(grid, spec, space, folds, sampler: str, batch: int, seed: in
     the training objective read from the scored grid table instead of tracking; returns the trials'
     params per fold, the cross-validated best at each budget and the distinct configs each fold
     needed to reach its training optimum (None: not within ``budget``)."""
-    from dfrmot_jax.sweep.analysis import objective_on, per_sequence_arrays, pooled_objective
+    from dfrmot_jax.report.analysis import objective_on, per_sequence_arrays, pooled_objective
     from dfrmot_jax.tuning.settings import TuneSettings
     from dfrmot_jax.tuning.study import Evaluator, search, trials_frame
 

@@ -29,7 +29,7 @@ from .io.sequence import SequenceDets  # public here too: load_sequences returns
 from .core.boxes import truncate_2d_box, truncate_3d_box
 from .core.step import Frames
 from .config import Options
-from .lidar.lift import LiftSettings
+from .lidar_settings import LiftSettings
 from .lidar.scans import scan_stamps
 from .lidar.source import lidar_dir, lift_sequence
 from .paths import missing_data_message

@@ -5,6 +5,10 @@ out. ``dfrmot_jax.distort`` traces the very same function inside the tracker's s
 3D boxes). The one projection that stays separate is the distortions' in-scan clutter projection
 (``distort.exact.project_box``): see :func:`project_box3d_to_image` for why.
 
+This module does not import JAX (the stored tables' readers, ``dfrmot_jax.report``, reach it through
+``io``): :func:`box3d_extent` computes with ``jax.numpy`` when given a jax array (which exists only
+once JAX is imported), with NumPy otherwise.
+
 The box rules the step itself uses (the one IoU, the loaders' integer truncation) live in
 ``core.boxes``; this module imports nothing of the tracker, so that the test oracle
 (``testing.reference``) can use the dataset's geometry and stay independent of ``core``.
@@ -24,8 +28,8 @@ Conventions (KITTI object / tracking labels, rectified camera-0 coordinates):
 
 from __future__ import annotations
 
-import jax
-import jax.numpy as jnp
+import sys
+
 import numpy as np
 
 #: Default KITTI image size (width, height) of camera 02.
@@ -160,7 +164,8 @@ def box3d_extent(dims, loc, centroid: str):
     one float32 operation on float32 inputs (``0.5 * l`` is exact), so no multiply-add can be
     contracted differently in different XLA programs.
     """
-    xp = jnp if isinstance(dims, jax.Array) or isinstance(loc, jax.Array) else np
+    jax = sys.modules.get("jax")            # a jax array exists only once JAX is imported
+    xp = jax.numpy if jax is not None and (isinstance(dims, jax.Array) or isinstance(loc, jax.Array)) else np
     h, w, l = (xp.asarray(dims[..., i]).astype(xp.float32) for i in range(3))
     x, y, z = (xp.asarray(loc[..., i]).astype(xp.float32) for i in range(3))
     if centroid == "legacy":

@@ -21,7 +21,7 @@ from .data import CLASS_NAMES, Frames, Split, object_boxes, object_slots
 from .io.atomic import write_text_atomic
 from .io.columns import (COLUMN_SETS, PLACEHOLDER_DIMS, PLACEHOLDER_LOC, PLACEHOLDER_ROT_Y, PLACEHOLDER_SCORE,
                          as_written, invert_box3d_extent)
-from .io.kitti import tracking_lines
+from .io.result_writer import tracking_lines
 
 
 class LaneRows(NamedTuple):

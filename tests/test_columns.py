@@ -10,7 +10,8 @@ import pytest
 from dfrmot_jax.data import box3d_extent, load_sequences, pack, prepare_frames
 from dfrmot_jax.io.columns import (COLUMN_SETS, authors_box_columns, fmt_cxx, fmt_exact, format_lines,
                                   invert_box3d_extent)
-from dfrmot_jax.io.kitti import read_tracking_labels, write_tracking_results
+from dfrmot_jax.io.kitti import read_tracking_labels
+from dfrmot_jax.io.result_writer import write_tracking_results
 from dfrmot_jax.config import Options, Params, preset
 from dfrmot_jax.testing.parity import reference_lane, reference_rows
 from dfrmot_jax.testing.reference import track_sequence

@@ -14,7 +14,7 @@ import pytest
 from dfrmot_jax.cli.demo import GRID, sweep_file
 from dfrmot_jax.config import preset
 from dfrmot_jax.sweep import COMBINED, load_results
-from dfrmot_jax.sweep.store import read_manifest
+from dfrmot_jax.report.stored import read_manifest
 from dfrmot_jax.testing.cli import error_line, run_cli
 
 SMALL = ["--sequences", "2", "--frames", "40"]

@@ -222,7 +222,7 @@ def test_sweep_over_assign_and_chunks_written_before_the_option(tmp_path):
     """A sweep over both assignments runs them as two option groups; chunks written before the option
     existed (no ``assign`` column, same hashes and chunk ids) read back as greedy."""
     from dfrmot_jax.sweep import run_sweep
-    from dfrmot_jax.sweep.store import finish_table
+    from dfrmot_jax.report.stored import finish_table
 
     root = make_scene(tmp_path / "scene", n_sequences=1, n_frames=40, n_cars=6, seed=2, det2d_fp_rate=2.0)
     spec = {"name": "assign", "chunk": 2, "data": {"root": str(root), "det2d": "synth2d", "det3d": "synth3d"},

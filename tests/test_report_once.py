@@ -13,7 +13,7 @@ import sys
 import pytest
 
 from dfrmot_jax.sweep import html_report, load_results, report_folds, run_sweep, sweep_report, write_html
-from dfrmot_jax.sweep import report as report_module
+from dfrmot_jax.report import report as report_module
 from dfrmot_jax.synthetic import make_scene
 from dfrmot_jax.testing.cli import run_cli
 

@@ -20,14 +20,21 @@ exit 130    interrupted (Ctrl-C)
 ``dfrmot --debug CMD ...`` (or ``dfrmot CMD --debug ...``) lets every exception through with its
 traceback. Without it no traceback reaches the user, and each Python warning a command raises (a
 lock taken over from a killed run, ...) is one line ``dfrmot CMD: warning: MESSAGE``.
+
+Each command imports what it uses, and only when it runs: the parser lists every command from
+:mod:`.commands` (names and help) and builds in full only the subparser of the command named on the
+command line, importing that command's parser module (``dfrmot --help`` imports none; ``dfrmot
+track --help`` only ``config``, through :mod:`.track_parser`; ``dfrmot eval`` the metrics, not JAX).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import sys
 
 from ..version import __version__
-from . import demo, eval, lidar, report, sweep, track, tune
+from .commands import HELP, PARSERS
 from .errors import (EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_OVERFLOW, CommandParser,
                      guarded)
 
@@ -35,8 +42,8 @@ __all__ = ["main", "build_parser", "guarded", "EXIT_OK", "EXIT_INTERNAL", "EXIT_
            "EXIT_INTERRUPTED"]
 
 
-#: The subcommand modules, in the order ``dfrmot --help`` lists them.
-COMMANDS = (track, demo, eval, sweep, tune, report, lidar)
+#: The subcommands, in the order ``dfrmot --help`` lists them.
+COMMANDS = tuple(HELP)
 
 DESCRIPTION = ("DFR-FastMOT camera+LiDAR tracking as batched JAX: track KITTI splits, score them "
                "exactly like TrackEval, run and report parameter sweeps.")
@@ -44,23 +51,39 @@ EPILOG = ("exit status: 0 ok, 1 unexpected error (rerun with --debug for the tra
           "3 a lane overflowed its track memory, 130 interrupted. 'dfrmot COMMAND --help' describes a command.")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``dfrmot`` parser: global ``--version`` / ``--debug`` and one subparser per command."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``dfrmot`` parser: global ``--version`` / ``--debug`` and one subparser per command.
+
+    ``command``: build only that command's subparser in full (importing its parser module, the
+    per-command lazy import of ARCHITECTURE.md's rules); every other command is listed by its name
+    and help alone, and its module not imported (a name of no command, e.g. "": none is built, as
+    for ``dfrmot --help``). None (the default): every subparser in full."""
     p = CommandParser(prog="dfrmot", description=DESCRIPTION, epilog=EPILOG)
     p.add_argument("--version", action="version", version=f"dfrmot {__version__}")
     p.add_argument("--debug", action="store_true", help="let errors through with their Python traceback")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for module in COMMANDS:
-        sp = module.add_parser(sub)
+    for name in COMMANDS:
+        if command is not None and name != command:
+            sub.add_parser(name, help=HELP[name], add_help=False)         # listed, never parsed
+            continue
+        sp = importlib.import_module(f"{__name__}.{PARSERS[name]}").add_parser(sub)
         # also accepted after the command; SUPPRESS keeps a global --debug from being reset
         sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
     return p
+
+
+def command_of(argv) -> str | None:
+    """The command ``argv`` names: its first argument that is no option (the global options take no
+    value); None when there is none."""
+    return next((a for a in argv if not a.startswith("-")), None)
 
 
 def main(argv=None) -> int:
     """Run ``dfrmot`` with ``argv`` (default ``sys.argv[1:]``); returns the exit status.
 
     Argument errors, ``--help`` and ``--version`` raise ``SystemExit`` (argparse); everything else
-    returns a status (see the module docstring)."""
-    args = build_parser().parse_args(argv)
+    returns a status (see the module docstring). Only the named command's parser module is imported
+    (:func:`build_parser`); the command's own module when it runs."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(command_of(argv) or "").parse_args(argv)
     return args.func(args)

@@ -21,11 +21,13 @@ import numpy as np
 
 from ..config import preset
 from ..io.lock import folder_lock
-from ..sweep import SweepReport, load_spec, run_sweep, sweep_report, write_html
-from ..sweep.analysis import fmt_value
+from ..report import SweepReport, sweep_report, write_html
+from ..report.analysis import fmt_value
+from ..report.text import paragraph, text_table
+from ..sweep import load_spec, run_sweep
 from ..sweep.folder import clear, read_old_manifest
-from ..sweep.text import paragraph, text_table
 from ..synthetic import make_scene
+from .commands import HELP
 from .errors import guarded
 
 __all__ = ["add_parser", "run", "GRID", "sweep_file"]
@@ -39,7 +41,7 @@ NAME = "demo"
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``demo`` on an argparse ``subparsers`` object; returns its parser."""
-    d = sub.add_parser("demo", help="a small parameter sweep on a synthetic scene, with its HTML report (no data needed)",
+    d = sub.add_parser("demo", help=HELP["demo"],
                        description="Generate a synthetic KITTI-layout scene, sweep a grid of settings over it "
                                    f"(the dfr2023 preset as baseline and a {_shape()} grid of {', '.join(GRID)}, "
                                    "tracked in one vmapped call and scored), print the best configs "

@@ -1,20 +1,23 @@
 """The ``dfrmot`` command line's one error handler (:func:`guarded`) and exit statuses; see
 :mod:`dfrmot_jax.cli` for what each status means. It also shows each Python warning raised while a
 command runs as one line, ``dfrmot CMD: warning: MESSAGE`` (``--debug``: Python's own format, with
-the source line)."""
+the source line). :func:`run_later` is the handler of a command whose parser is built without its
+module (``track``): the module is imported when the command runs.
+
+Bad input is a ``ValueError`` (``KittiFormatError`` and ``SweepConfigError`` are ValueErrors) or an
+``OSError`` naming a file; this module imports neither class (nor anything of the package), so that
+the parser costs no import of the commands' dependencies."""
 
 from __future__ import annotations
 
 import argparse
 import functools
+import importlib
 import re
 import sys
 import warnings
 from contextlib import contextmanager
 from typing import Callable
-
-from ..io.kitti import KittiFormatError
-from ..sweep.checks import SweepConfigError
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_OVERFLOW, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
@@ -37,7 +40,7 @@ def _one_line(text) -> str:
 
 def _input_error(e: BaseException) -> str | None:
     """The message of a known bad-input error, None for anything else."""
-    if isinstance(e, (KittiFormatError, SweepConfigError, ValueError)):
+    if isinstance(e, ValueError):                 # KittiFormatError and SweepConfigError among them
         return str(e) or type(e).__name__
     if isinstance(e, OSError) and (e.filename is not None or isinstance(e, (FileNotFoundError, PermissionError))):
         if e.filename is None:
@@ -92,3 +95,14 @@ def guarded(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Name
             return EXIT_INTERNAL
 
     return func
+
+
+def run_later(module: str) -> Callable[[argparse.Namespace], int]:
+    """The parser's ``func`` of a command whose parser is built without its module: imports
+    ``module`` (e.g. ``"dfrmot_jax.cli.track"``) when the command runs and calls its ``run(args)``
+    behind :func:`guarded` (the module's ``run`` as it is then: a test may replace it)."""
+    def run(args) -> int:
+        return guarded(importlib.import_module(module).run)(args)
+
+    run.module = module
+    return run

@@ -70,8 +70,9 @@ from ..metrics.kitti2d.evaluate import (
 from ..metrics.kitti2d.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
 from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
 from ..paths import default_data_root
+from .commands import HELP
 from .errors import guarded
-from .track import parse_seqs
+from .track_parser import parse_seqs
 
 __all__ = ["add_parser", "run"]
 
@@ -107,7 +108,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``eval`` on an argparse ``subparsers`` object; returns its parser."""
     p = sub.add_parser(
         "eval",
-        help="evaluate KITTI tracking result folders (TrackEval's KITTI 2D box HOTA/CLEAR/Identity)",
+        help=HELP["eval"],
         description="Evaluate KITTI tracking results (RESULTS_DIR/SSSS.txt) exactly like TrackEval's Kitti2DBox "
                     "(files are read as TrackEval reads them: rows in any order, x2 < x1 allowed). Refused: a "
                     "sequence without a result file (see --allow-missing), a result file name that is a "
@@ -228,6 +229,24 @@ def _print_ab3dmot(df, seq_lists: dict, iou: str, note_avg: str) -> None:
     print(rows[cols].to_string(index=False, formatters=fmt))
 
 
+def _ground_truth(root: Path, cls, seqs, kitti2d: bool) -> tuple[dict, dict]:
+    """(class -> prepared ground truth, for the kitti2d family only; class -> its sequences: ``seqs``,
+    else those whose ground truth has the class); anything wrong with the ground truth is a
+    ValueError that says so."""
+    try:
+        gts, seq_lists = {}, {}
+        for c in parse_classes(cls):
+            cs = seqs if seqs is not None else cached_class_sequences(root, c)
+            if not cs:
+                raise ValueError(f"no sequence of {root / 'label_02'} has ground truth of class {c!r}")
+            seq_lists[c] = tuple(cs)
+            if kitti2d:
+                gts[c] = cached_gt(root, c, cs)
+    except (KittiFormatError, FileNotFoundError, ValueError) as e:
+        raise ValueError(f"ground truth: {e}") from e
+    return gts, seq_lists
+
+
 def run(args) -> int:
     """Run ``eval`` for parsed ``args``: 0, or raises (bad ground truth, results or arguments)."""
     root = Path(args.data) if args.data else default_data_root()
@@ -241,18 +260,7 @@ def run(args) -> int:
         if seqs is not None:
             raise ValueError("--seqs and --seqmap both name the sequences: give one")
         seqs = list(read_seqmap(args.seqmap, root))
-    try:
-        classes = parse_classes(args.cls)
-        gts, seq_lists = {}, {}
-        for c in classes:
-            cs = seqs if seqs is not None else cached_class_sequences(root, c)
-            if not cs:
-                raise ValueError(f"no sequence of {label_dir} has ground truth of class {c!r}")
-            seq_lists[c] = tuple(cs)
-            if "kitti2d" in families:
-                gts[c] = cached_gt(root, c, cs)
-    except (KittiFormatError, FileNotFoundError, ValueError) as e:
-        raise ValueError(f"ground truth: {e}") from e
+    gts, seq_lists = _ground_truth(root, args.cls, seqs, "kitti2d" in families)
     wanted = sorted({s for cs in seq_lists.values() for s in cs})
     known = None if seqs is not None else sorted(p.stem for p in label_dir.glob("*.txt"))
     folders = [Path(d) for d in args.results]

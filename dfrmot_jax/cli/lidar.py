@@ -18,8 +18,9 @@ from ..data import detection_dir, load_sequences
 from ..io.kitti import read_calib, read_tracking_labels, sequence_lengths
 from ..lidar import LiftSettings, SimSettings, simulate_to_folder, with_setting, write_detections3d
 from ..paths import ENV_VAR, default_data_root
+from .commands import HELP
 from .errors import guarded
-from .track import parse_seqs
+from .track_parser import parse_seqs
 
 __all__ = ["add_parser", "run", "run_simulate", "run_lift", "lift_settings"]
 
@@ -42,7 +43,7 @@ def lift_settings(items) -> LiftSettings:
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``lidar`` (``simulate``, ``lift``) on an argparse ``subparsers`` object."""
-    p = sub.add_parser("lidar", help="simulate LiDAR scans; lift 2D detections to 3D boxes from scans",
+    p = sub.add_parser("lidar", help=HELP["lidar"],
                        description=DESCRIPTION)
     lsub = p.add_subparsers(dest="lidar_command", required=True, metavar="ACTION")
     data_help = f"KITTI tracking training root (default ${ENV_VAR} or ../shared/data/kitti/training)"

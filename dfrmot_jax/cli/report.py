@@ -17,7 +17,8 @@ import json
 import sys
 from pathlib import Path
 
-from ..sweep import RAW_COLUMN, load_results, report_folds, sweep_report, write_html
+from ..report import RAW_COLUMN, load_results, report_folds, sweep_report, write_html
+from .commands import HELP
 from .errors import guarded
 
 __all__ = ["add_parser", "run", "parse_contrast"]
@@ -34,7 +35,7 @@ def output_file(text: str) -> str:
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``report`` on an argparse ``subparsers`` object; returns its parser."""
     p = sub.add_parser(
-        "report", help="best configs, baseline, sensitivity and cross-validation of a sweep directory",
+        "report", help=HELP["report"],
         description="Print the best configs of a sweep (by --objective), the baseline row beside them, how "
                     "sensitive the score is to each swept axis and, with --folds, the cross-validated best "
                     "(a tune directory: also its own figures). The last line is one JSON object. With --html, "

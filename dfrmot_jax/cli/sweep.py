@@ -18,6 +18,7 @@ from pathlib import Path
 from ..metrics.columns import canonical_objective
 from ..sweep import OPTION_NAMES, class_columns, load_spec, n_settings, prepare_sweep, run_sweep, sweep_report
 from .backend import add_backend_arguments, backend_from
+from .commands import HELP
 from .errors import guarded
 
 __all__ = ["add_parser", "run"]
@@ -26,7 +27,7 @@ __all__ = ["add_parser", "run"]
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``sweep`` on an argparse ``subparsers`` object; returns its parser."""
     p = sub.add_parser(
-        "sweep", help="run a sweep file (tracking + metrics for every config), resumable",
+        "sweep", help=HELP["sweep"],
         description="Expand a sweep file (sweeps/*.toml) into configs, track and score them in chunks "
                     "(one compilation per static option value), append each finished chunk to Parquet under "
                     "--out; a rerun skips finished chunks. The result is one tidy table: one row per "

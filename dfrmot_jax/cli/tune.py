@@ -20,6 +20,7 @@ from pathlib import Path
 from ..tuning import load_tune, run_tune
 from ..tuning.settings import SAMPLERS
 from .backend import add_backend_arguments, backend_from
+from .commands import HELP
 from .errors import guarded
 
 __all__ = ["add_parser", "run"]
@@ -28,7 +29,7 @@ __all__ = ["add_parser", "run"]
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``tune`` on an argparse ``subparsers`` object; returns its parser."""
     p = sub.add_parser(
-        "tune", help="tune a sweep file's parameters with batched Optuna search (+ gradient refinement)",
+        "tune", help=HELP["tune"],
         description="Search the [params] / [options] of a tune file (a sweep file with a [tune] table) with an "
                     "Optuna sampler, each batch of trials tracked and scored in one vmapped call; the study lives "
                     "in --out (a rerun resumes). With --folds, nested cross-validation: the tune runs per fold "

@@ -11,8 +11,8 @@ from dfrmot_jax.io.kitti import (
     read_detections_3d,
     read_tracking_labels,
     sequence_lengths,
-    write_tracking_results,
 )
+from dfrmot_jax.io.result_writer import write_tracking_results
 from dfrmot_jax.io.sequence import SequenceDets
 
 __all__ = [

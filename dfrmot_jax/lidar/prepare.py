@@ -22,7 +22,8 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..io.kitti import Calib
-from .lift import (Lifted, LiftSettings, Prepared, contains, crop_mask, detection_boxes, frame_slots, lift_prepared,
+from ..lidar_settings import LiftSettings
+from .lift import (Lifted, Prepared, contains, crop_mask, detection_boxes, frame_slots, lift_prepared,
                    project_pixels, velo_to_image, voxel_grid)
 
 __all__ = ["reduce_scan", "prepare_points", "lift_frames"]

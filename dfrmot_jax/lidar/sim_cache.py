@@ -24,7 +24,8 @@ from pathlib import Path
 
 from ..io.atomic import write_text_atomic
 from ..io.kitti import read_calib, read_tracking_labels
-from .simulate import SIM_VERSION, SimSettings, simulate_to_folder
+from ..lidar_settings import SimSettings
+from .simulate import SIM_VERSION, simulate_to_folder
 
 __all__ = ["simulated_name", "simulate_cached", "marker_text"]
 

@@ -36,58 +36,14 @@ import numpy as np
 
 from ..geometry import box3d_corners
 from ..io.kitti import Calib, TrackingLabels
+from ..lidar_settings import SimSettings
 from .scans import scan_path, write_scan
 
-__all__ = ["SIM_VERSION", "SimSettings", "Sensor", "sensor", "velo_boxes", "cast_frame", "frame_rng",
+__all__ = ["SIM_VERSION", "Sensor", "sensor", "velo_boxes", "cast_frame", "frame_rng",
            "simulate_sequence", "simulate_to_folder"]
 
 #: the simulator's version: bumped whenever its scans change for the same inputs (module docstring)
 SIM_VERSION = 1
-
-
-class SimSettings(NamedTuple):
-    """Settings of the simulated sensor.
-
-    beams:         lasers, evenly spaced in elevation from ``top`` to ``bottom`` (degrees).
-    az_step:       azimuth step (degrees).
-    fov:           half-width of the azimuth range cast, degrees from forward (180: a whole turn).
-    height:        sensor height above the ground plane (m).
-    max_range:     farthest return (m).
-    range_noise:   standard deviation of the range noise (m).
-    dropout:       probability that a return is lost.
-    clutter:       probability that a ray returns from a rain drop (when nearer than its hit).
-    clutter_range: rain drops lie at a uniform range in [1, clutter_range] m.
-    """
-
-    beams: int = 64
-    az_step: float = 0.09
-    fov: float = 45.0
-    height: float = 1.73
-    max_range: float = 120.0
-    range_noise: float = 0.02
-    dropout: float = 0.0
-    clutter: float = 0.0
-    clutter_range: float = 30.0
-    top: float = 2.0
-    bottom: float = -24.9
-
-    def validate(self) -> "SimSettings":
-        beams = float(self.beams)             # (inf / nan first: int() of inf raises OverflowError)
-        if isinstance(self.beams, bool) or not np.isfinite(beams) or not beams.is_integer() or not 1 <= beams <= 512:
-            raise ValueError(f"simulate beams {self.beams}: expected an integer in [1, 512]")
-        if not 0.005 <= float(self.az_step) <= 10:
-            raise ValueError(f"simulate az_step {self.az_step}: expected degrees in [0.005, 10]")
-        if not 0 < float(self.fov) <= 180:
-            raise ValueError(f"simulate fov {self.fov}: expected degrees in (0, 180]")
-        for name in ("range_noise", "height", "max_range", "clutter_range"):
-            if not float(getattr(self, name)) >= 0 or not np.isfinite(float(getattr(self, name))):
-                raise ValueError(f"simulate {name} {getattr(self, name)}: expected a finite number >= 0")
-        for name in ("dropout", "clutter"):
-            if not 0.0 <= float(getattr(self, name)) <= 1.0:
-                raise ValueError(f"simulate {name} {getattr(self, name)}: expected a probability in [0, 1]")
-        if not float(self.bottom) < float(self.top) or abs(float(self.bottom)) >= 90 or abs(float(self.top)) >= 90:
-            raise ValueError(f"simulate elevations {self.top} .. {self.bottom}: expected -90 < bottom < top < 90")
-        return self._replace(beams=int(beams))
 
 
 class Sensor(NamedTuple):

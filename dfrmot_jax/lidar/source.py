@@ -45,7 +45,8 @@ import numpy as np
 from ..io.atomic import write_text_atomic
 from ..io.kitti import Calib, Detections2D, Detections3D, KittiFormatError
 from ..io.memo import FileMemo
-from .lift import PREPARE_FIELDS, Lifted, LiftSettings, Prepared, detection_boxes, lift_prepared
+from ..lidar_settings import LiftSettings
+from .lift import PREPARE_FIELDS, Lifted, Prepared, detection_boxes, lift_prepared
 from .prepare import prepare_points
 from .scans import check_frames, read_scan, scan_stamps
 

@@ -24,18 +24,17 @@ The pipeline::
         with distortion: the objective per level and kind (mean ± SE over seeds) per setting, and
         an optional contrast of two groups of an axis (e.g. long vs short memory) paired by seed
 
-Modules: :mod:`.checks` (``SweepConfigError`` and the value checks every table shares), :mod:`.spec`
-(the file: dataclasses, parsing, validation), :mod:`.distortion` (the [distortion] table),
+Modules: :mod:`.spec` (the file: dataclasses, parsing, validation; its value checks and
+``SweepConfigError`` are :mod:`dfrmot_jax.checks`'), :mod:`.distortion` (the [distortion] table),
 :mod:`.table` (``expand``, ``config_hash``, ``HASH_VERSION``), :mod:`.plan` (data settings, option
 groups, chunks), :mod:`.chunks` (``ChunkRunner``: one class's chunks tracked and scored, the unit
 every backend runs), :mod:`.scoring` (``ChunkScorer``, ``InOrderScoring``: the chunks' metrics beside
 the tracker, completed in order), :mod:`.backend` (local or Ray: ``check()`` and ``run_chunks(...)``),
 :mod:`.ray_backend`, :mod:`.runner` (``prepare_sweep``, ``run_sweep``), :mod:`.folder` (``claim``: a
-folder belongs to one sweep or tune), :mod:`.store` (the directory: chunk files, manifest,
-``load_results``), :mod:`.analysis` (ranking, sensitivity, folds, cross-validation),
-:mod:`.robustness`, :mod:`.text`, :mod:`.report` (``sweep_report``: the report computed once, its
-numbers and text in one ``SweepReport``), :mod:`.html` (``html_report``, ``write_html``: that report as one
-self-contained page) and :mod:`.figures` (its plots). The metrics
+folder belongs to one sweep or tune) and :mod:`.store` (the directory: chunk files, manifest, ledger).
+The reports are :mod:`dfrmot_jax.report`'s (reading the stored tables back, ``load_results``;
+ranking, sensitivity, folds, cross-validation, robustness, ``sweep_report``, the HTML page), which
+imports no JAX; their names are exported here too. The metrics
 (summary columns, sequence re-combination, lane scoring, worker pools) are
 :mod:`dfrmot_jax.metrics.kitti2d.evaluate`'s. ``dfrmot_jax.sweep.sweep(...)`` is a deprecated alias of
 ``run_sweep`` (one release, with a ``DeprecationWarning``).
@@ -54,22 +53,20 @@ See ``sweeps/README.md`` for the file format. Python use::
 
 from __future__ import annotations
 
+from ..checks import SweepConfigError
 from ..metrics.kitti2d.evaluate import combine_sequences, summary_columns
-from .analysis import (MINIMISE, OBJECTIVES, axis_profiles, class_view, cross_validate, make_folds, objective_on, per_sequence_arrays,
-                       sensitivity)
+from ..report import (AVERAGE, COMBINED, DISTORTION_AXES, EXTRA_AXES, MINIMISE, OBJECTIVES, OPTION_NAMES, PARAM_NAMES,
+                      RAW_COLUMN, Contrast, SweepReport, axis_profiles, class_columns, class_view, cross_validate,
+                      html_report, load_results, make_folds, objective_on, per_sequence_arrays, render_html,
+                      report_folds, robustness_contrast, robustness_curves, robustness_summary, sensitivity,
+                      setting_axes, sweep_report, write_html)
 from .backend import LocalBackend, RayBackend, make_backend
-from .checks import SweepConfigError
 from .distortion import DistortionAxes
-from .html import html_report, render_html, write_html
 from .plan import MAX_MEMORY_GB, DataSettings, check_memory, plan, resolve_data, resolve_data_all
-from .report import SweepReport, report_folds, sweep_report
-from .robustness import robustness_contrast, robustness_curves, robustness_summary, setting_axes
 from .runner import PreparedSweep, prepare_sweep, run_sweep, sweep
-from .spec import (AVERAGE, DISTORTION_AXES, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, Axis, Contrast, SweepSpec, load_spec,
-                   parse_spec)
-from .store import HashVersionError, SweepDirectoryError, hash_version, load_results
-from .table import (COMBINED, HASH_VERSION, MAX_CONFIGS, RAW_COLUMN, class_columns, config_count, config_hash, expand,
-                    n_settings, params_of)
+from .spec import Axis, SweepSpec, load_spec, parse_spec
+from .store import HashVersionError, SweepDirectoryError, hash_version
+from .table import (HASH_VERSION, MAX_CONFIGS, config_count, config_hash, expand, n_settings, params_of)
 
 __all__ = [
     "SweepConfigError", "SweepSpec", "DataSettings", "Axis", "load_spec", "parse_spec", "expand", "config_hash",

@@ -27,7 +27,7 @@ from ..metrics.ab3dmot.prep import Ab3dGT
 from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, ab3dmot_columns
 from ..metrics.kitti2d.lane_scorer import LaneScorer
 from ..results import kitti_rows
-from .table import COMBINED
+from ..report.columns import COMBINED
 
 
 class Ab3dmotLanes:

@@ -18,7 +18,7 @@ from typing import Sequence
 import pandas as pd
 
 from . import ray_backend
-from .checks import SweepConfigError
+from ..checks import SweepConfigError
 from .chunks import ChunkRunner, Keep
 from .plan import Chunk, DataSettings
 from .spec import SweepSpec

@@ -12,17 +12,15 @@ import numpy as np
 
 from .. import distort
 from ..config import Options
-from .checks import GRID_KINDS, Table, check_count, clean_float, config_error, is_number
+from ..checks import GRID_KINDS, Table, check_count, clean_float, config_error, is_number
+from ..report.columns import DISTORTION_AXES
 
 DISTORTION_KEYS = ("kind", "level", "levels", "seeds", "clutter_slots", "burst_dist", "burst_max", "burst_rate",
                    "burst_len")
 #: Kinds whose level is a probability (<= 1).
 PROBABILITY_KINDS = ("drop", "drop_2d", "drop_3d", "burst_rate")
-#: The per-lane distortion axes of a sweep with a [distortion] table (columns of its config table
-#: and of every result row; part of the config hash when off their default): the kind (one of
-#: ``distort.KINDS``; "none" = undistorted, level 0 of every kind), the level, the seed.
-DISTORTION_AXES: dict[str, Any] = {"distortion.kind": "none", "distortion.level": 0.0, "distortion.seed": 0}
-#: The undistorted lane (level 0 of every kind and seed).
+#: (The per-lane distortion axes, ``DISTORTION_AXES``, are defined with the stored tables' columns in
+#: ``report.columns``.) The undistorted lane (level 0 of every kind and seed).
 UNDISTORTED = ("none", 0.0, 0)
 
 

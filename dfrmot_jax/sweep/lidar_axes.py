@@ -24,36 +24,14 @@ import pandas as pd
 
 from ..config import CLASSES, Params
 from ..lidar import LIFT_SETTINGS, LiftSettings, SimSettings, lidar_dir, tie_scores, with_setting
-from .checks import Table, config_error, is_number
+from ..checks import Table, config_error, is_number
+from ..report.columns import CROP as _CROP, LIDAR_AXES, LIFT_COLUMNS, SIM_COLUMNS, SIM_INT as _SIM_INT
+from ..report.columns import lift_value as _lift_value
 
 __all__ = ["LIFT_COLUMNS", "SIM_COLUMNS", "LIDAR_AXES", "LidarAxes", "LidarKey", "parse_lidar", "lidar_key",
            "key_settings", "tie_table_scores", "describe_key"]
 
 SIM_KEYS = tuple(SimSettings._fields) + ("seed",)
-_SIM_INT = ("beams", "seed")
-_CROP = ("crop_lo", "crop_hi")
-
-
-def crop_text(v) -> str:
-    """A crop corner as the table holds it: ``"x,y,z"`` (each the shortest text of its double)."""
-    return ",".join(repr(float(x)) for x in v)
-
-
-def _lift_value(name: str, v):
-    """A lifting setting's table value (crop corners as text, ``min_cluster`` int, others float)."""
-    if name in _CROP:
-        return crop_text(v)
-    return int(v) if name == "min_cluster" else float(v)
-
-
-_LIFT_DEFAULTS = LiftSettings()
-#: table column -> default value of every lifting setting (``lift.<name>``)
-LIFT_COLUMNS: dict[str, Any] = {f"lift.{n}": _lift_value(n, getattr(_LIFT_DEFAULTS, n)) for n in LIFT_SETTINGS}
-#: table column -> default value of every simulation setting (``simulate.<name>``; the seed 0)
-SIM_COLUMNS: dict[str, Any] = {f"simulate.{n}": (int(d) if n in _SIM_INT else float(d))
-                               for n, d in {**SimSettings()._asdict(), "seed": 0}.items()}
-#: every LiDAR column of a config table -> its default (the sweep's extra axes)
-LIDAR_AXES: dict[str, Any] = {**LIFT_COLUMNS, **SIM_COLUMNS}
 
 
 @dataclass(frozen=True)
@@ -156,7 +134,7 @@ def _sim_axis(name: str, doc, key: str, source) -> tuple:
 
 def parse_lidar(doc: Mapping, source=None) -> LidarAxes | None:
     """The ``[lift]`` and ``[simulate]`` tables of a sweep document (None without either); bad
-    values raise :class:`~dfrmot_jax.sweep.checks.SweepConfigError` naming the key."""
+    values raise :class:`~dfrmot_jax.checks.SweepConfigError` naming the key."""
     lift, sim = doc.get("lift"), doc.get("simulate")
     if lift is None and sim is None:
         return None

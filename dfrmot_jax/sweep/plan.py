@@ -20,9 +20,10 @@ from ..io.kitti import KittiFormatError, sequence_lengths
 from ..lidar import lidar_dir
 from ..paths import default_data_root
 from .axes import AxisKind, split_key, split_keys
-from .checks import config_error
+from ..checks import config_error
 from .distortion import DistortionAxes
-from .spec import OPTION_NAMES, as_spec
+from ..report.columns import OPTION_NAMES
+from .spec import as_spec
 
 #: Default most tracker output one chunk may hold, GB (``run_sweep(max_memory=...)``, ``dfrmot sweep
 #: --max-memory``), checked before any work (:func:`check_memory`).

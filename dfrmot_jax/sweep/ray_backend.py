@@ -40,7 +40,7 @@ import pandas as pd
 
 from ..core.devices import setup_host_devices
 from ..metrics.kitti2d.evaluate import worker_pool
-from .checks import SweepConfigError
+from ..checks import SweepConfigError
 from .chunks import ChunkRunner, Keep, load_data
 from .plan import Chunk, DataSettings
 

@@ -15,14 +15,15 @@ import pandas as pd
 
 from ..io.lock import folder_lock
 from .backend import make_backend
-from .checks import SweepConfigError
+from ..checks import SweepConfigError
 from .chunks import progress_bar
 from .lidar_axes import describe_key
 from .plan import Chunk, DataSettings, check_memory, plan, resolve_data_all
 from .spec import SweepSpec, as_spec
-from .store import (chunk_path, computed_by, finish_table, finished_chunks, write_chunk, write_manifest,
-                    write_results)
-from .table import RAW_COLUMN, expand, n_settings
+from .store import chunk_path, computed_by, finished_chunks, write_chunk, write_manifest, write_results
+from ..report.columns import RAW_COLUMN
+from ..report.stored import finish_table
+from .table import expand, n_settings
 
 
 @dataclass(frozen=True)

@@ -10,16 +10,16 @@ from __future__ import annotations
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..config import CLASSES, INHERITED_PARAMS, INT_PARAMS, PRESETS, Options, Params, option_problem, param_problem
+from ..config import CLASSES, INT_PARAMS, PRESETS, option_problem, param_problem
 from ..lidar import lidar_dir
 from ..metrics.ab3dmot.evaluate import DEFAULT_AB3DMOT_IOU, parse_iou
 from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
 from ..metrics.columns import canonical_objective
-from .checks import (
+from ..checks import (
     GRID_KINDS,
     SweepConfigError,
     Table,
@@ -27,33 +27,12 @@ from .checks import (
     clean_float,
     config_error,
     is_number,
-    is_scalar,
     type_name,
 )
 from .axes import AxisKind
-from .distortion import DISTORTION_AXES, DistortionAxes, parse_distortion
-from .lidar_axes import LIDAR_AXES, LidarAxes, parse_lidar
-
-PARAM_NAMES: tuple[str, ...] = Params._fields
-OPTION_NAMES: tuple[str, ...] = Options._fields
-#: Options added after config hashes were first written -> their default. At its default such an
-#: option is left out of the hash (a row without its column has the default), so every earlier
-#: config keeps its hash and chunk ids; result rows written before it existed get the default.
-LATE_OPTIONS: dict[str, Any] = {"assign": Options._field_defaults["assign"]}
-#: Parameters added after config hashes were first written -> their default, kept likewise: the
-#: 3D corners' Kalman noise, whose default 0 means "as kf_q / kf_r" (``config.INHERITED_PARAMS``).
-LATE_PARAMS: dict[str, Any] = {n: Params._field_defaults[n] for n in INHERITED_PARAMS}
-#: Further per-lane axes (columns of the config table, part of the config hash): name -> default
-#: value. A column equal to its default is left out of the hash, so adding an axis keeps existing
-#: hashes. An axis kind (:class:`~.axes.AxisKind`) registers its columns here (the LiDAR settings
-#: of :class:`~.lidar_axes.LidarAxes`) or, the distortion axes, in ``DISTORTION_AXES``.
-EXTRA_AXES: dict[str, Any] = {**LIDAR_AXES}
-CONTRAST_KEYS = ("axis", "high", "low", "by")
-
-
-def extra_axes() -> dict[str, Any]:
-    """Every column an axis kind (:class:`~.axes.AxisKind`) may add -> its default."""
-    return {**DISTORTION_AXES, **EXTRA_AXES}
+from .distortion import DistortionAxes, parse_distortion
+from .lidar_axes import LidarAxes, parse_lidar
+from ..report.columns import AVERAGE, OPTION_NAMES, PARAM_NAMES, Contrast, parse_contrast
 
 RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
 
@@ -64,10 +43,6 @@ DATA_KEYS = ("root", "det2d", "det3d", "class", "sequences")
 BASELINE_KEYS = ("preset", "class")
 REPORT_KEYS = ("objective", "folds", "top", "contrast", "class")
 VARIANT_KEYS = ("name", "params", "options")
-#: The ``class`` of the class-average rows of a sweep over several classes (one per config,
-#: ``sequence = COMBINED``) and the report's name for ranking on them.
-AVERAGE = "average"
-
 
 
 
@@ -105,17 +80,6 @@ class Variant:
     name: str
     params: tuple[Axis, ...]
     options: tuple[Axis, ...]
-
-
-@dataclass(frozen=True)
-class Contrast:
-    """Two groups of values of one axis compared level by level (``robustness_contrast``), e.g.
-    long memory (epsilon 30, 60) against short memory (epsilon 1, 2, 3), per value of ``by``."""
-
-    axis: str
-    high: tuple
-    low: tuple
-    by: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -351,35 +315,6 @@ def _parse_sequences(v, key, source) -> tuple[str, ...] | None:
     return tuple(out)
 
 
-def parse_contrast(c, source) -> Contrast | None:
-    if c is None:
-        return None
-    t = Table(c, "report.contrast", source, CONTRAST_KEYS)
-    axis = t.get("axis")
-    if axis not in PARAM_NAMES + OPTION_NAMES:
-        raise t.error("axis", f"{axis!r}: expected a parameter or option name")
-    groups = []
-    for k in ("high", "low"):
-        v = t.get(k)
-        if v is None:
-            raise t.error(k, "missing: the axis values of this group")
-        items = [(f"{k}[{i}]", x) for i, x in enumerate(v)] if isinstance(v, list) else [(k, v)]
-        if not items:
-            raise t.error(k, "empty list")
-        for key, x in items:
-            if not is_scalar(x):
-                raise t.error(key, f"{x!r}: expected a value of {axis}, got {type_name(x)}")
-        groups.append(tuple(x for _, x in items))
-    if set(groups[0]) & set(groups[1]):
-        raise config_error("report.contrast", f"a value is in both groups: {sorted(set(groups[0]) & set(groups[1]), key=str)}",
-                   source)
-    by = t.get("by", [])
-    by = [by] if isinstance(by, str) else by
-    if not isinstance(by, list) or any(b not in PARAM_NAMES + OPTION_NAMES or b == axis for b in by):
-        raise t.error("by", f"{by!r}: expected a list of other parameter / option names")
-    return Contrast(axis, groups[0], groups[1], tuple(by))
-
-
 def _parse_classes(v, source) -> tuple[str, ...]:
     """``data.class``: a class name or a non-empty list of distinct class names."""
     if isinstance(v, str):
@@ -400,7 +335,7 @@ def _parse_classes(v, source) -> tuple[str, ...]:
 
 def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     """Validate a sweep given as a dict (the parsed TOML); raises :class:`SweepConfigError`
-    naming the full key (every table is read through a :class:`~.checks.Table`)."""
+    naming the full key (every table is read through a :class:`~dfrmot_jax.checks.Table`)."""
     top = Table(doc, "", source, TOP_KEYS)
     name = top.string("name", Path(source).stem if source else "sweep")
     desc = top.string("description", "", empty=True)
@@ -530,5 +465,3 @@ def as_spec(spec) -> SweepSpec:
 
 
 
-def contrast_doc(c: Contrast) -> dict:
-    return {"axis": c.axis, "high": list(c.high), "low": list(c.low), "by": list(c.by)}

@@ -17,13 +17,15 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ..config import CLASSES, INT_PARAMS, PRESETS, Options, Params, as_arrays, preset
+from ..config import INT_PARAMS, PRESETS, Options, Params, as_arrays, preset
 from ..core.filters import fixed_gain_radius
-from .checks import config_error
+from ..checks import config_error
 from ..lidar import lidar_dir
 from .axes import AxisKind, cross_rows, hash_settings
 from .lidar_axes import tie_table_scores
-from .spec import LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, Axis, SweepSpec, Variant, as_spec, extra_axes
+from ..report.columns import (LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, class_columns, extra_axes,
+                              split_class_column)
+from .spec import Axis, SweepSpec, Variant, as_spec
 
 #: The scheme of ``config_hash`` and chunk ids; recorded in the manifest as ``hash_version``.
 HASH_VERSION = 1
@@ -31,10 +33,6 @@ HASH_VERSION = 1
 #: sweep --max-configs``), checked before expanding: a config table takes about 3 kB and 50 us per config.
 MAX_CONFIGS = 250_000
 
-COMBINED = "COMBINED"
-RAW_COLUMN = "_hota_alpha"
-#: the per-alpha HOTA fields of a row (``RAW_FIELDS``, flattened, 7 x 19), so that any subset of
-#: sequences can be re-combined exactly as TrackEval combines sequences (cross-validation).
 
 
 def canonical_value(name: str, v):
@@ -48,19 +46,6 @@ def canonical_value(name: str, v):
     if isinstance(v, (float, np.floating)):
         return repr(float(v))
     return str(v)
-
-
-def split_class_column(name: str) -> tuple[str, str] | None:
-    """``"pedestrian.a_l"`` -> ("pedestrian", "a_l"); None for any other column."""
-    if not isinstance(name, str) or "." not in name:
-        return None
-    cls, param = name.split(".", 1)
-    return (cls, param) if cls in CLASSES and param in PARAM_NAMES else None
-
-
-def class_columns(columns) -> list[str]:
-    """The per-class parameter columns (``<class>.<parameter>``) among ``columns``, in their order."""
-    return [c for c in columns if split_class_column(c) is not None]
 
 
 def _class_extra(row: Mapping[str, Any]) -> dict:

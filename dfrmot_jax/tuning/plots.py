@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..sweep import analysis
+from ..report import analysis
 
 
 def pareto_front(trials: pd.DataFrame, settings) -> pd.DataFrame:

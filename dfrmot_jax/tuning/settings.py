@@ -24,9 +24,10 @@ from typing import Mapping
 
 from ..config import param_problem
 from ..metrics.columns import canonical_objective
-from ..sweep.analysis import MINIMISE
-from ..sweep.checks import Table, is_number, type_name
-from ..sweep.spec import PARAM_NAMES, SweepConfigError, SweepSpec, parse_spec, read_toml
+from ..report.analysis import MINIMISE
+from ..report.columns import PARAM_NAMES
+from ..checks import Table, is_number, type_name
+from ..sweep.spec import SweepConfigError, SweepSpec, parse_spec, read_toml
 
 SAMPLERS = ("tpe", "cmaes", "gp", "pairwise", "nsga2", "random", "grid")
 TUNE_KEYS = ("sampler", "budget", "batch", "objectives", "folds", "seed", "refine", "transfer")

@@ -22,7 +22,8 @@ import pandas as pd
 from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
 
 from ..config import INT_PARAMS
-from ..sweep.spec import OPTION_NAMES, PARAM_NAMES, SweepConfigError, SweepSpec
+from ..report.columns import OPTION_NAMES, PARAM_NAMES
+from ..sweep.spec import SweepConfigError, SweepSpec
 from ..sweep.table import baseline_row, canonical_value, config_hash, typed_table
 
 #: the dim of a tune over ``[[variants]]`` (its values are the variants' names)

@@ -46,7 +46,8 @@ from tqdm import tqdm
 from ..io.atomic import write_parquet_atomic, write_text_atomic
 from ..sweep.runner import run_sweep
 from ..sweep.spec import SweepSpec
-from ..sweep.table import COMBINED, unstable_rows
+from ..report.columns import COMBINED
+from ..sweep.table import unstable_rows
 from .pairwise import pairwise_sampler
 from .settings import TuneSettings
 from .space import SearchSpace

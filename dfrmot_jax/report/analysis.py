@@ -13,8 +13,8 @@ from ..metrics.columns import canonical_objective, class_average_columns  # noqa
 from ..metrics.kitti2d import clear, identity
 from ..metrics.kitti2d.evaluate import RAW_FIELDS, combine_sequences, summary_columns
 from ..metrics.kitti2d.table import TABLE_FIELDS
-from .spec import AVERAGE, OPTION_NAMES, PARAM_NAMES, extra_axes
-from .table import COMBINED, RAW_COLUMN, class_columns, split_class_column
+from .columns import (AVERAGE, COMBINED, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, class_columns, extra_axes,
+                      split_class_column)
 
 #: Objectives the report knows by name (any metric column works); these are minimised.
 MINIMISE = frozenset({"IDSW", "Frag", "ML", "CLR_FN", "CLR_FP", "IDFN", "IDFP", "PT", "MLR", "FP_per_frame",

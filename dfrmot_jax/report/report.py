@@ -29,9 +29,8 @@ from .analysis import (
     varied_axes,
 )
 from .robustness import contrast_text, robustness_curves, robustness_text
-from .spec import AVERAGE, Contrast, contrast_doc, parse_contrast
-from .store import load_results, read_manifest
-from .table import COMBINED
+from .columns import AVERAGE, COMBINED, Contrast, contrast_doc, parse_contrast
+from .stored import load_results, read_manifest
 from .text import WIDTH, paragraph, text_table  # noqa: F401  (WIDTH: the report's width)
 
 #: the columns of the top-configs table, after the objective (those the table holds)

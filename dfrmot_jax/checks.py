@@ -1,7 +1,10 @@
 """The value checks every table of a sweep file shares: :class:`SweepConfigError` (a bad file, naming
 the key), :class:`Table` (the one rule by which keys are named: every value is read through its
 table, which names the full key, ``report.folds``, in every error) and the small validators the
-parsers of :mod:`.spec`, :mod:`.distortion` and :mod:`dfrmot_jax.tuning.settings` build on."""
+parsers of :mod:`dfrmot_jax.sweep.spec`, :mod:`dfrmot_jax.sweep.distortion`,
+:mod:`dfrmot_jax.tuning.settings` and the report's contrast (:mod:`dfrmot_jax.report.columns`)
+build on. A module of the package root (NumPy only), so that the report, which imports no JAX, and
+the sweep share it."""
 
 from __future__ import annotations
 
@@ -11,7 +14,7 @@ import numpy as np
 
 #: Most values one count in a sweep file may ask for (a linspace / logspace count, distortion
 #: seeds): checked while parsing, before anything is allocated. The configs of the whole sweep are
-#: limited separately (``table.MAX_CONFIGS``, overridable).
+#: limited separately (``sweep.table.MAX_CONFIGS``, overridable).
 MAX_AXIS_VALUES = 1_000_000
 GRID_KINDS = ("grid", "linspace", "logspace")
 
@@ -118,4 +121,4 @@ def check_count(n: int, key: str, source) -> None:
     """Refuse a count above :data:`MAX_AXIS_VALUES` (before anything of that size is allocated)."""
     if n > MAX_AXIS_VALUES:
         raise config_error(key, f"count {n:,} is above the limit of {MAX_AXIS_VALUES:,} values per axis "
-                                f"(dfrmot_jax.sweep.checks.MAX_AXIS_VALUES)", source)
+                                f"(dfrmot_jax.checks.MAX_AXIS_VALUES)", source)

@@ -11,8 +11,7 @@ import pandas as pd
 from scipy import stats
 
 from .analysis import check_objective, fmt_value, json_value, objective_direction, varied_axes
-from .spec import DISTORTION_AXES, Contrast
-from .table import COMBINED
+from .columns import COMBINED, DISTORTION_AXES, Contrast
 from .text import paragraph, text_table
 
 

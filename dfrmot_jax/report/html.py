@@ -30,9 +30,8 @@ from . import figures
 from .analysis import MINIMISE, axis_profiles, fmt_value, pareto_front, varied_axes
 from .report import SweepReport, report_folds, sweep_report
 from .robustness import robustness_contrast
-from .spec import AVERAGE
-from .store import read_manifest
-from .table import COMBINED
+from .columns import AVERAGE, COMBINED
+from .stored import read_manifest
 
 #: settings drawn per kind in the robustness curves (the report's best first)
 CURVES_SHOWN = 6

@@ -1,0 +1,24 @@
+"""The ``dfrmot`` subcommands: their names in the order ``dfrmot --help`` lists them, each one's line
+of help, and the module that registers its parser (``add_parser(sub)``). A light module: the parser
+lists every command from this table without importing the commands' modules (:mod:`dfrmot_jax.cli`
+imports only the one that runs)."""
+
+from __future__ import annotations
+
+__all__ = ["HELP", "PARSERS"]
+
+#: command -> its line in ``dfrmot --help`` (each command's ``add_parser`` registers it with this help)
+HELP = {
+    "track": "track a KITTI split and write one result file per sequence",
+    "demo": "a small parameter sweep on a synthetic scene, with its HTML report (no data needed)",
+    "eval": "evaluate KITTI tracking result folders (TrackEval's KITTI 2D box HOTA/CLEAR/Identity)",
+    "sweep": "run a sweep file (tracking + metrics for every config), resumable",
+    "tune": "tune a sweep file's parameters with batched Optuna search (+ gradient refinement)",
+    "report": "best configs, baseline, sensitivity and cross-validation of a sweep directory",
+    "lidar": "simulate LiDAR scans; lift 2D detections to 3D boxes from scans",
+}
+
+#: command -> the module (of ``dfrmot_jax.cli``) whose ``add_parser(sub)`` registers it: the command's
+#: own module, except ``track``, whose parser needs only ``config`` (``track_parser``: ``dfrmot track
+#: --help`` lists every parameter, option and preset without importing the tracker)
+PARSERS = {name: name for name in HELP} | {"track": "track_parser"}

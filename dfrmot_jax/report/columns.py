@@ -1,0 +1,152 @@
+"""The columns of a sweep's stored tables, as the sweep writes them and the report reads them.
+
+Row keys: ``sequence`` (a sequence's name, or :data:`COMBINED` for the row combined over them),
+``class`` (a class, or :data:`AVERAGE` for the class-average rows); the per-alpha HOTA fields
+(:data:`RAW_COLUMN`); the configs' columns: every parameter (:data:`PARAM_NAMES`, per class
+``<class>.<parameter>``: :func:`class_columns`) and option (:data:`OPTION_NAMES`), the per-lane axes
+beyond them with their defaults (:func:`extra_axes`: the LiDAR settings, :data:`LIDAR_AXES`, and
+the distortion lanes, :data:`DISTORTION_AXES`) and the defaults of the settings added later
+(:data:`LATE_OPTIONS`, :data:`LATE_PARAMS`). The report's :class:`Contrast` of two groups of an
+axis's values (``[report] contrast``, ``dfrmot report --contrast``; :func:`parse_contrast`).
+
+Moved here from ``sweep.spec``, ``sweep.table`` and ``sweep.lidar_axes`` (which import them from
+here) so that the report (:mod:`dfrmot_jax.report`) reads stored tables without importing JAX.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from ..checks import Table, config_error, is_scalar, type_name
+from ..config import CLASSES, INHERITED_PARAMS, Options, Params
+from ..lidar_settings import LIFT_SETTINGS, LiftSettings, SimSettings
+
+__all__ = ["COMBINED", "RAW_COLUMN", "AVERAGE", "PARAM_NAMES", "OPTION_NAMES", "LATE_OPTIONS", "LATE_PARAMS",
+           "split_class_column", "class_columns", "SIM_INT", "CROP", "crop_text", "lift_value", "LIFT_COLUMNS",
+           "SIM_COLUMNS", "LIDAR_AXES", "EXTRA_AXES", "DISTORTION_AXES", "extra_axes", "CONTRAST_KEYS", "Contrast",
+           "parse_contrast", "contrast_doc"]
+
+COMBINED = "COMBINED"
+#: the per-alpha HOTA fields of a row (``RAW_FIELDS``, flattened, 7 x 19), so that any subset of
+#: sequences can be re-combined exactly as TrackEval combines sequences (cross-validation).
+RAW_COLUMN = "_hota_alpha"
+#: The ``class`` of the class-average rows of a sweep over several classes (one per config,
+#: ``sequence = COMBINED``) and the report's name for ranking on them.
+AVERAGE = "average"
+
+PARAM_NAMES: tuple[str, ...] = Params._fields
+OPTION_NAMES: tuple[str, ...] = Options._fields
+#: Options added after config hashes were first written -> their default. At its default such an
+#: option is left out of the hash (a row without its column has the default), so every earlier
+#: config keeps its hash and chunk ids; result rows written before it existed get the default.
+LATE_OPTIONS: dict[str, Any] = {"assign": Options._field_defaults["assign"]}
+#: Parameters added after config hashes were first written -> their default, kept likewise: the
+#: 3D corners' Kalman noise, whose default 0 means "as kf_q / kf_r" (``config.INHERITED_PARAMS``).
+LATE_PARAMS: dict[str, Any] = {n: Params._field_defaults[n] for n in INHERITED_PARAMS}
+
+
+def split_class_column(name: str) -> tuple[str, str] | None:
+    """``"pedestrian.a_l"`` -> ("pedestrian", "a_l"); None for any other column."""
+    if not isinstance(name, str) or "." not in name:
+        return None
+    cls, param = name.split(".", 1)
+    return (cls, param) if cls in CLASSES and param in PARAM_NAMES else None
+
+
+def class_columns(columns) -> list[str]:
+    """The per-class parameter columns (``<class>.<parameter>``) among ``columns``, in their order."""
+    return [c for c in columns if split_class_column(c) is not None]
+
+
+# ---------------------------------------------------------------------------------------------
+# The per-lane axes beyond parameters and options
+
+#: the simulation settings whose columns hold integers
+SIM_INT = ("beams", "seed")
+#: the lifting settings held as text (``"x,y,z"``: :func:`crop_text`)
+CROP = ("crop_lo", "crop_hi")
+
+
+def crop_text(v) -> str:
+    """A crop corner as the table holds it: ``"x,y,z"`` (each the shortest text of its double)."""
+    return ",".join(repr(float(x)) for x in v)
+
+
+def lift_value(name: str, v):
+    """A lifting setting's table value (crop corners as text, ``min_cluster`` int, others float)."""
+    if name in CROP:
+        return crop_text(v)
+    return int(v) if name == "min_cluster" else float(v)
+
+
+_LIFT_DEFAULTS = LiftSettings()
+#: table column -> default value of every lifting setting (``lift.<name>``)
+LIFT_COLUMNS: dict[str, Any] = {f"lift.{n}": lift_value(n, getattr(_LIFT_DEFAULTS, n)) for n in LIFT_SETTINGS}
+#: table column -> default value of every simulation setting (``simulate.<name>``; the seed 0)
+SIM_COLUMNS: dict[str, Any] = {f"simulate.{n}": (int(d) if n in SIM_INT else float(d))
+                               for n, d in {**SimSettings()._asdict(), "seed": 0}.items()}
+#: every LiDAR column of a config table -> its default (the sweep's extra axes)
+LIDAR_AXES: dict[str, Any] = {**LIFT_COLUMNS, **SIM_COLUMNS}
+#: Further per-lane axes (columns of the config table, part of the config hash): name -> default
+#: value. A column equal to its default is left out of the hash, so adding an axis keeps existing
+#: hashes. The distortion axes are registered separately (``DISTORTION_AXES``).
+EXTRA_AXES: dict[str, Any] = {**LIDAR_AXES}
+#: The per-lane distortion axes of a sweep with a [distortion] table (columns of its config table
+#: and of every result row; part of the config hash when off their default): the kind (one of
+#: ``distort.KINDS``; "none" = undistorted, level 0 of every kind), the level, the seed.
+DISTORTION_AXES: dict[str, Any] = {"distortion.kind": "none", "distortion.level": 0.0, "distortion.seed": 0}
+
+
+def extra_axes() -> dict[str, Any]:
+    return {**DISTORTION_AXES, **EXTRA_AXES}
+
+
+# ---------------------------------------------------------------------------------------------
+# The report's contrast
+
+CONTRAST_KEYS = ("axis", "high", "low", "by")
+
+
+@dataclass(frozen=True)
+class Contrast:
+    """Two groups of values of one axis compared level by level (``robustness_contrast``), e.g.
+    long memory (epsilon 30, 60) against short memory (epsilon 1, 2, 3), per value of ``by``."""
+
+    axis: str
+    high: tuple
+    low: tuple
+    by: tuple[str, ...] = ()
+
+
+def parse_contrast(c, source) -> Contrast | None:
+    if c is None:
+        return None
+    t = Table(c, "report.contrast", source, CONTRAST_KEYS)
+    axis = t.get("axis")
+    if axis not in PARAM_NAMES + OPTION_NAMES:
+        raise t.error("axis", f"{axis!r}: expected a parameter or option name")
+    groups = []
+    for k in ("high", "low"):
+        v = t.get(k)
+        if v is None:
+            raise t.error(k, "missing: the axis values of this group")
+        items = [(f"{k}[{i}]", x) for i, x in enumerate(v)] if isinstance(v, list) else [(k, v)]
+        if not items:
+            raise t.error(k, "empty list")
+        for key, x in items:
+            if not is_scalar(x):
+                raise t.error(key, f"{x!r}: expected a value of {axis}, got {type_name(x)}")
+        groups.append(tuple(x for _, x in items))
+    if set(groups[0]) & set(groups[1]):
+        raise config_error("report.contrast", f"a value is in both groups: {sorted(set(groups[0]) & set(groups[1]), key=str)}",
+                   source)
+    by = t.get("by", [])
+    by = [by] if isinstance(by, str) else by
+    if not isinstance(by, list) or any(b not in PARAM_NAMES + OPTION_NAMES or b == axis for b in by):
+        raise t.error("by", f"{by!r}: expected a list of other parameter / option names")
+    return Contrast(axis, groups[0], groups[1], tuple(by))
+
+
+def contrast_doc(c: Contrast) -> dict:
+    return {"axis": c.axis, "high": list(c.high), "low": list(c.low), "by": list(c.by)}

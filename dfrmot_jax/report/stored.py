@@ -1,0 +1,186 @@
+"""A sweep or tune directory read back: its manifest (:func:`read_manifest`), the ledger's records
+of its files (:func:`read_ledger`, :func:`file_problem`) and its tidy table (:func:`load_results`,
+:func:`finish_table`). The directory's layout and its writing are :mod:`dfrmot_jax.sweep.store`'s;
+these readers were moved here from it so that the report reads a stored table without JAX.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+from typing import NamedTuple, Sequence
+
+import numpy as np
+import pandas as pd
+
+from ..io.atomic import sha256
+from ..metrics.columns import class_average_columns, class_combiner
+from ..metrics.kitti2d.evaluate import RAW_FIELDS
+from .columns import AVERAGE, COMBINED, LATE_OPTIONS, LATE_PARAMS, RAW_COLUMN
+
+__all__ = ["LEDGER", "NO_RECORD", "chunk_name", "Record", "read_ledger", "file_problem", "finish_table", "load_results",
+           "read_manifest"]
+
+
+#: The ledger of a sweep directory (module docstring).
+LEDGER = "ledger.jsonl"
+NO_RECORD = "no checksum record"
+
+
+def chunk_name(chunk_id: str) -> str:
+    """A chunk file's name relative to the sweep directory (its ledger key)."""
+    return f"chunks/{chunk_id}.parquet"
+
+
+class Record(NamedTuple):
+    sha256: str
+    rows: int
+    computed: str = "1"         # what the rows were computed with (:func:`computed_by`); "1": not recorded
+
+
+def read_ledger(out: Path) -> dict[str, Record]:
+    """File name (relative to ``out``) -> its last record; lines that do not parse are skipped."""
+    try:
+        lines = (out / LEDGER).read_bytes().splitlines()
+    except OSError:
+        return {}
+    records = {}
+    for line in lines:
+        try:
+            doc = json.loads(line)
+            name, rec = doc["file"], Record(doc["sha256"], doc["rows"], str(doc.get("computed", "1")))
+        except (ValueError, KeyError, TypeError):
+            continue
+        if isinstance(name, str) and isinstance(rec.sha256, str) and len(rec.sha256) == 64 and \
+                type(rec.rows) is int and rec.rows >= 0:
+            records[name] = rec
+    return records
+
+
+def file_problem(path: Path, rec: Record | None, rows: int | None = None) -> str | None:
+    """Why the file at ``path`` cannot be trusted; None if its bytes are those of its record."""
+    if rec is None:
+        return NO_RECORD
+    if rows is not None and rec.rows != rows:
+        return f"recorded with {rec.rows} rows, expected {rows}"
+    try:
+        digest = sha256(path)
+    except OSError as e:
+        return f"unreadable: {e.strerror or e}"
+    return None if digest == rec.sha256 else "checksum mismatch: changed or truncated"
+
+
+def finish_table(df: pd.DataFrame, classes: Sequence[str] = ()) -> pd.DataFrame:
+    """Rows by config (within a config: classes in order, each its sequences then COMBINED); with
+    several classes, each config's class-average row last (:func:`_average_rows`). Rows of chunks
+    written before an option of ``LATE_OPTIONS`` (a parameter of ``LATE_PARAMS``) existed get its default."""
+    df = df[df["class"] != AVERAGE] if "class" in df.columns else df
+    late = {n: d for n, d in {**LATE_OPTIONS, **LATE_PARAMS}.items() if n in df.columns}
+    df = df.fillna(late) if late else df
+    classes = list(classes) or list(pd.unique(df["class"])) if "class" in df.columns else []
+    if len(classes) > 1:
+        df = pd.concat([df, _average_rows(df, classes)], ignore_index=True)
+        order = {c: i for i, c in enumerate(list(classes) + [AVERAGE])}
+        key = df["class"].map(order).to_numpy()
+        df = df.iloc[np.lexsort((np.arange(len(df)), key, df["config"].to_numpy()))]
+    else:
+        df = df.sort_values("config", kind="mergesort")
+    return df.reset_index(drop=True)
+
+
+def _average_rows(df: pd.DataFrame, classes: Sequence[str]) -> pd.DataFrame:
+    """One ``class = "average"``, ``sequence = COMBINED`` row per config that has every class's
+    COMBINED row: metric columns the class average (:func:`_class_average_columns`), ``frames``
+    and ``overflow`` summed, ``peak_tracks`` and ``capacity_used`` the largest, ``chunk`` empty, the per-alpha column
+    the class average of its fields; the config's other columns as in its rows."""
+    comb = df[df["sequence"] == COMBINED]
+    parts = [comb[comb["class"] == c].set_index("config") for c in classes]
+    configs = parts[0].index
+    for p in parts[1:]:
+        configs = configs.intersection(p.index, sort=False)
+    if not len(configs):
+        return df.iloc[:0]
+    parts = [p.loc[configs] for p in parts]
+    out = parts[0].copy()
+    metrics = class_average_columns([{c: p[c].to_numpy() for c in p.columns if class_combiner(c)}
+                                      for p in parts])
+    for f, v in metrics.items():
+        # counts stay integers (AB3DMOT's are nullable Int64: empty on per-sequence rows)
+        out[f] = pd.array(np.asarray(v, np.int64), dtype=out[f].dtype) if pd.api.types.is_integer_dtype(out[f].dtype) \
+            else v
+    for f, how in (("frames", "sum"), ("overflow", "sum"), ("peak_tracks", "max"), ("capacity_used", "max")):
+        if f in out.columns:
+            stack = np.stack([p[f].to_numpy() for p in parts])
+            out[f] = stack.sum(axis=0) if how == "sum" else stack.max(axis=0)
+    if RAW_COLUMN in out.columns:
+        raws = np.stack([np.stack(p[RAW_COLUMN].to_numpy()) for p in parts])      # [K, C, 7 * 19]
+        raws = raws.reshape(raws.shape[:2] + (len(RAW_FIELDS), -1))
+        avg = np.stack([raws[:, :, i].sum(axis=0) if class_combiner(f) == "sum" else raws[:, :, i].mean(axis=0)
+                        for i, f in enumerate(RAW_FIELDS)], axis=1)
+        out[RAW_COLUMN] = list(avg.reshape(len(configs), -1))
+    out["class"] = AVERAGE
+    if "chunk" in out.columns:
+        out["chunk"] = ""
+    return out.reset_index()[df.columns]
+
+
+def load_results(out, *, allow_partial: bool = False) -> pd.DataFrame:
+    """The tidy table of a sweep directory (``results.parquet``, else its finished chunks).
+
+    Only files that match their ledger record are read (a directory written before the ledger:
+    files that read); damaged chunks are left out with a ``RuntimeWarning`` naming them. Chunks
+    not finished or damaged raise ``FileNotFoundError`` unless ``allow_partial``."""
+    out = Path(out)
+    manifest = read_manifest(out)
+    final = out / "results.parquet"
+    if manifest.get("kind") == "tune":      # a tune directory (dfrmot_jax.tuning): its table is written per batch
+        if not final.is_file():
+            raise FileNotFoundError(f"{out}: the tune has not finished a batch yet (rerun it to resume)")
+        return pd.read_parquet(final)
+    ledger = read_ledger(out) if "ledger" in manifest else None
+    names = [chunk_name(cid) for cid in manifest["chunks"]]
+    tables, damaged = {}, []
+
+    def read(name: str) -> pd.DataFrame | None:
+        rec = ledger.get(name) if ledger is not None else None
+        problem = file_problem(out / name, rec) if ledger is not None else None
+        if problem is None:
+            try:
+                df = pd.read_parquet(out / name)
+            except Exception as e:      # any damage: pyarrow / pandas metadata errors of every kind
+                problem = f"unreadable: {type(e).__name__}: {e}"
+            else:
+                if rec is None or len(df) == rec.rows:
+                    return df
+                problem = f"{len(df)} rows, recorded {rec.rows}"
+        damaged.append(f"{name} ({problem})")
+        return None
+
+    present = [n for n in names if (out / n).is_file()]
+    if len(present) == len(names) and final.is_file():
+        df = read(final.name)
+        if df is not None and set(df.loc[df["chunk"] != "", "chunk"].unique()) == set(manifest["chunks"]):
+            return df
+        damaged.clear()             # a damaged results.parquet: rebuilt from the chunks
+    for n in present:
+        df = read(n)
+        if df is not None:
+            tables[n] = df
+    if damaged:
+        warnings.warn(f"{out}: {len(damaged)} damaged chunk file(s) left out (rerun the sweep to recompute them): "
+                      + "; ".join(damaged), RuntimeWarning, stacklevel=2)
+    if len(tables) < len(names) and not allow_partial:
+        raise FileNotFoundError(f"{out}: {len(names) - len(present)} of {len(names)} chunks not finished"
+                                + (f", {len(present) - len(tables)} damaged" if len(present) > len(tables) else "")
+                                + " (rerun the sweep to resume)")
+    if not tables:
+        raise FileNotFoundError(f"{out}: no finished chunk yet")
+    return finish_table(pd.concat(list(tables.values()), ignore_index=True), manifest.get("classes", ()))
+
+
+def read_manifest(out: Path) -> dict:
+    path = Path(out) / "manifest.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{out} is not a sweep directory (no manifest.json)")
+    return json.loads(path.read_text())
