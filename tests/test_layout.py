@@ -367,3 +367,22 @@ def test_every_package_says_what_it_exports():
 def test_no_module_is_too_long():
     long = {str(p.relative_to(PKG)): n for p in PKG.rglob("*.py") if (n := len(p.read_text().splitlines())) > MAX_LINES}
     assert not long, long
+
+
+#: the longest a function may be; a longer one says why on the line above its ``def`` ("over 80 lines")
+MAX_FUNCTION_LINES = 80
+
+
+def test_no_function_is_too_long_without_a_reason():
+    long = {}
+    for p in PKG.rglob("*.py"):
+        text = p.read_text()
+        lines = text.splitlines()
+        for n in ast.walk(ast.parse(text)):
+            if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                size = n.end_lineno - n.lineno + 1
+                first = min([n.lineno] + [d.lineno for d in n.decorator_list])
+                reason = first >= 2 and "over 80 lines" in lines[first - 2]
+                if size > MAX_FUNCTION_LINES and not reason:
+                    long[f"{p.relative_to(PKG)}:{n.lineno} {n.name}"] = size
+    assert not long, long
