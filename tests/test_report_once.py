@@ -88,3 +88,17 @@ def test_the_folds_the_report_chooses_are_said_in_both(grid):
 def test_a_page_needs_a_directorys_report(grid):
     with pytest.raises(ValueError, match="sweep or tune directory"):
         write_html(sweep_report(load_results(grid)), grid.parent / "no.html")
+
+
+def test_a_page_is_a_function_of_its_report(grid):
+    """The same report drawn twice in one process gives the same page (but its time stamp): the
+    figures' SVG ids once came from a process-wide counter."""
+    from dfrmot_jax.sweep import render_html
+
+    rep = sweep_report(grid, folds=3)
+
+    def page():
+        return [line for line in render_html(rep).splitlines() if " UTC<" not in line]
+
+    first = page()
+    assert 'id="f' in "\n".join(first) and page() == first

@@ -90,7 +90,8 @@ SIM_COLUMNS: dict[str, Any] = {f"simulate.{n}": (int(d) if n in SIM_INT else flo
 LIDAR_AXES: dict[str, Any] = {**LIFT_COLUMNS, **SIM_COLUMNS}
 #: Further per-lane axes (columns of the config table, part of the config hash): name -> default
 #: value. A column equal to its default is left out of the hash, so adding an axis keeps existing
-#: hashes. The distortion axes are registered separately (``DISTORTION_AXES``).
+#: hashes. An axis kind (:class:`dfrmot_jax.sweep.axes.AxisKind`) registers its columns here (the
+#: LiDAR settings of ``sweep.lidar_axes.LidarAxes``) or, the distortion axes, in ``DISTORTION_AXES``.
 EXTRA_AXES: dict[str, Any] = {**LIDAR_AXES}
 #: The per-lane distortion axes of a sweep with a [distortion] table (columns of its config table
 #: and of every result row; part of the config hash when off their default): the kind (one of

@@ -11,6 +11,7 @@ each SVG are prefixed per figure, so that several can share one page.
 from __future__ import annotations
 
 import io
+import hashlib
 import itertools
 import math
 import re
@@ -21,7 +22,6 @@ import pandas as pd
 
 from .analysis import fmt_value
 
-_IDS = itertools.count()
 #: a colour per line, colour-blind safe (Okabe-Ito)
 COLOURS = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000")
 _RC = {"svg.fonttype": "path", "svg.hashsalt": "dfrmot", "font.size": 9, "axes.titlesize": 9,
@@ -35,7 +35,10 @@ def _figure(width: float, height: float):
 
 
 def to_svg(fig) -> str:
-    """One ``<svg>`` element (no XML header), its ids prefixed so that it can share a page."""
+    """One ``<svg>`` element (no XML header), its ids prefixed so that it can share a page: the prefix
+    is a digest of the figure's own SVG, so a page is a function of its report alone (a counter made
+    it depend on the figures the process had drawn before; figures drawn alike share their ids and
+    their content)."""
     import matplotlib
 
     buf = io.StringIO()
@@ -43,7 +46,7 @@ def to_svg(fig) -> str:
         fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": None})
     text = buf.getvalue()
     text = re.sub(r"<metadata>.*?</metadata>\s*", "", text[text.index("<svg"):], flags=re.S)
-    pre = f"f{next(_IDS)}-"
+    pre = f"f{hashlib.sha1(text.encode()).hexdigest()[:10]}-"
     text = re.sub(r'\bid="([^"]+)"', lambda m: f'id="{pre}{m.group(1)}"', text)
     text = re.sub(r'(href=")#([^"]+)"', lambda m: f'{m.group(1)}#{pre}{m.group(2)}"', text)
     return re.sub(r"url\(#([^)]+)\)", lambda m: f"url(#{pre}{m.group(1)})", text)

@@ -219,7 +219,7 @@ def cross(table: pd.DataFrame, kind: AxisKind, kinds: Sequence[AxisKind]) -> pd.
     settings of ``kinds`` (those crossed so far, ``kind`` last), configs that hash alike kept once."""
     unknown = [c for c in kind.columns if c not in extra_axes()]
     if unknown:             # (config_hash and the result rows know a kind's columns from that registry)
-        raise ValueError(f"axis columns {unknown} are not registered in dfrmot_jax.sweep.spec.EXTRA_AXES")
+        raise ValueError(f"axis columns {unknown} are not registered in dfrmot_jax.report.columns.EXTRA_AXES")
     cols = list(table.columns.drop("config_hash"))
     out = pd.DataFrame(cross_rows(table[cols].to_dict("records"), kind), columns=cols + list(kind.columns))
     for c in cols:
