@@ -27,11 +27,12 @@ detection: ``score_3d == score_2d`` (the lifted score is the 2D score; :func:`ti
 
 Lifting is cached in memory (:func:`lift_sequence`), the first stage (voxel grid, crop,
 projection) separately, so that another shrink, tolerance or minimum cluster size reuses it. Both
-keys name everything their value is made from: the scan folder, the sequence, its frame count, the
-size and mtime of every scan, a SHA-256 digest of the 2D detections' arrays and of the
+name everything their value is made from: the scan folder, the sequence, its frame count, a SHA-256 digest of the 2D detections' arrays and of the
 calibration's arrays themselves (so a caller passing changed ``det2`` or ``calib`` for the same
 scans gets a new lifting, whatever files they came from), the class, and the lifting settings (the
-first stage: ``PREPARE_FIELDS``; the whole lifting: all of them). Scans themselves are never kept.
+first stage: ``PREPARE_FIELDS``; the whole lifting: all of them) in the key, and every scan's
+file stamp as the memo's stamp (:class:`~dfrmot_jax.io.memo.FileMemo`: mtime, ctime, size, inode,
+and no reuse of a value built within a second of a scan's change). Scans themselves are never kept.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ __all__ = ["LIDAR_PREFIX", "lidar_dir", "to_detections3d", "inputs_digest", "lif
 
 LIDAR_PREFIX = "lidar:"
 _KITTI_TYPE = {"car": "Car", "pedestrian": "Pedestrian"}
-_PREPARED = FileMemo(size=256)     # keys hold the scans' stamps and the inputs' digests: stamp None
+_PREPARED = FileMemo(size=256)     # stamp: the scans' (the key names the detections and calibration)
 _LIFTED = FileMemo(size=256)
 
 
@@ -151,17 +152,17 @@ def lift_sequence(scan_dir, sequence: str, n_frames: int, det2: Detections2D, ca
             why = f"cannot read the LiDAR scan folder: {e.strerror or e}"
         raise KittiFormatError(str(scan_dir), None, None, f"{why} (lidar:DIR expects DIR/velodyne/SSSS/FFFFFF.bin)")
     paths = check_frames(scan_dir, sequence, n_frames)
-    base = (str(scan_dir.resolve()), str(sequence), int(n_frames), cls, scan_stamps(scan_dir, sequence, n_frames),
-            inputs_digest(det2, calib))
+    base = (str(scan_dir.resolve()), str(sequence), int(n_frames), cls, inputs_digest(det2, calib))
+    stamp = scan_stamps(scan_dir, sequence, n_frames)       # (the memo's stamp: its racy rule applies)
 
     def prepare() -> Prepared:
         return prepare_points(lambda f: read_scan(paths[f]), det2.frame, det2.box, det2.score, calib, s)
 
     def lift() -> Detections3D:
-        prep = _PREPARED.get(base + tuple(getattr(s, f) for f in PREPARE_FIELDS), None, prepare)
+        prep = _PREPARED.get(base + tuple(getattr(s, f) for f in PREPARE_FIELDS), stamp, prepare)
         return to_detections3d(lift_prepared(prep, s), det2, calib, cls)
 
-    return _LIFTED.get(base + (tuple(s),), None, lift)
+    return _LIFTED.get(base + (tuple(s),), stamp, lift)
 
 
 def _num(v: float) -> str:
