@@ -280,9 +280,7 @@ def _early_sequences(b: EvalBatch, res: dict[str, np.ndarray]) -> dict[str, np.n
     L, S = b.n_lanes, len(gt.sequences)
     n_gt = np.broadcast_to(gt.n_gt_dets[None, :], (L, S)).astype(np.int64)
     n_tr = b.n_tr_dets
-    no_tr = n_tr == 0
-    no_gt = (n_gt == 0) & ~no_tr
-    early = no_tr | no_gt
+    no_tr, no_gt, early = b.early_sequences
     if early.any():
         for f in FIELDS:
             res[f] = np.array(res[f], copy=True)

@@ -167,9 +167,7 @@ def _early_sequences(b: EvalBatch, res: dict[str, np.ndarray]) -> dict[str, np.n
     L, S = b.n_lanes, len(gt.sequences)
     n_gt = np.broadcast_to(gt.n_gt_dets[None, :, None], (L, S, 1)).astype(np.float64)
     n_tr = b.n_tr_dets[:, :, None].astype(np.float64)
-    no_tr = b.n_tr_dets == 0
-    no_gt = (gt.n_gt_dets[None, :] == 0) & ~no_tr
-    early = no_tr | no_gt
+    no_tr, no_gt, early = b.early_sequences
     if early.any():
         for f in FLOAT_ARRAY_FIELDS + INTEGER_ARRAY_FIELDS:
             res[f][early] = 0.0

@@ -99,9 +99,7 @@ def identity_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     n_tr = b.n_tr_dets.astype(np.int64)
     res = {"IDTP": idtp, "IDFN": n_gt - idtp, "IDFP": n_tr - idtp}
     res = _final_fields(res)
-    no_tr = n_tr == 0
-    no_gt = (n_gt == 0) & ~no_tr
-    early = no_tr | no_gt
+    no_tr, no_gt, early = b.early_sequences
     if early.any():
         for f in FIELDS:
             res[f] = np.array(res[f], copy=True)

@@ -426,6 +426,14 @@ class EvalBatch:
         """[L*F] eval GT rows per lane-frame."""
         return np.tile(self.gt.eval_count, self.n_lanes)
 
+    @cached_property
+    def early_sequences(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(no_tr, no_gt, early) [L, S] bool: the (lane, sequence)s TrackEval returns early for, each
+        metric with its own fields: no tracker detections, or some but no ground-truth detections."""
+        no_tr = self.n_tr_dets == 0
+        no_gt = (self.gt.n_gt_dets[None, :] == 0) & ~no_tr
+        return no_tr, no_gt, no_tr | no_gt
+
 
 def _duplicate_error(gt: PreparedGT, dets: TrackerDets, idx: int) -> Exception:
     lane = int(dets.lane[idx])
