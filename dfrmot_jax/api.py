@@ -16,7 +16,8 @@ import numpy as np
 from . import distort
 from .core.devices import setup_host_devices
 from .data import Frames, Split, compact_slots, object_slots, prepare_frames
-from .config import MAX_CAPACITY, MIN_CAPACITY, Options, Params, as_arrays, batch_size, validate_params
+from .config import (MAX_CAPACITY, MIN_CAPACITY, OBJECT_PARAMS, Options, Params, as_arrays, batch_size, keep_thresholds,
+                     validate_params)
 from .results import output_boxes
 from .core.associate import MAX_ROWS
 from .core.run import SMALL_FRAMES_MIN_T, BatchOutput, FrameHook, run_batch, split_objects
@@ -57,8 +58,7 @@ def default_capacity(frames: Frames, params: Params, options: Options, clutter_s
     of a step scales with it, so it is tight on purpose: a lane that overflows is re-run by ``track``
     with twice the slots. ``clutter_slots``: a distortion's clutter slots per frame (not in
     ``frames``), room for their births: 3 x as many slots more, a multiple of 8."""
-    s2 = np.min(np.asarray(params.score_2d, np.float32))
-    s3 = np.min(np.asarray(params.score_3d, np.float32))
+    s2, s3 = (np.min(s) for s in keep_thresholds(params))
     n2 = np.sum(frames.valid2 & (frames.score2 >= s2), axis=1)
     n3 = np.sum(frames.valid3 & (frames.score3 >= s3), axis=1)
     if options.modality == "2d":
@@ -253,8 +253,7 @@ class _Outputs:
 def _compacted(split: Split, params: Params, options: Options):
     """(frames of the split compacted to the lanes' loosest thresholds, order2, order3), or None
     when that saves no slot (:func:`dfrmot_jax.data.compact_slots`)."""
-    s2 = float(np.min(np.asarray(params.score_2d)))
-    s3 = float(np.min(np.asarray(params.score_3d)))
+    s2, s3 = (float(np.min(s)) for s in keep_thresholds(params))
     packed, order2, order3 = compact_slots(split, s2, s3)
     if order2.shape[1] + order3.shape[1] >= split.valid2d.shape[1] + split.valid3d.shape[1]:
         return None
@@ -287,18 +286,18 @@ def _full_layout(got: dict, order2: np.ndarray, order3: np.ndarray, frames: Fram
 
 
 #: a batch's lanes share objects made once outside the scan (``core.run.split_objects``) when its
-#: distinct (score_2d, score_3d, merge_iou) settings have this many lanes each on average (or there
+#: distinct settings of ``config.OBJECT_PARAMS`` have this many lanes each on average (or there
 #: is one): fewer lanes per setting would mean many small compiled calls
 SHARED_OBJECTS_MIN_LANES = 8
 
 
 def merge_keys(params: Params) -> np.ndarray | None:
-    """[B] ids of the lanes' distinct (score_2d, score_3d, merge_iou), the settings a frame's
-    objects depend on (``core.step.objects``), or None when objects are better made in the scan
+    """[B] ids of the lanes' distinct ``config.OBJECT_PARAMS`` (score_2d, score_3d, merge_iou, weak_2d,
+    weak_3d), the settings a frame's objects depend on (``core.step.objects``), or None when objects are better made in the scan
     (too few lanes per setting, ``SHARED_OBJECTS_MIN_LANES``)."""
     b = batch_size(params)
     triple = np.stack([np.broadcast_to(np.asarray(v, np.float64), (b,))
-                       for v in (params.score_2d, params.score_3d, params.merge_iou)], axis=1)
+                       for v in (getattr(params, name) for name in OBJECT_PARAMS)], axis=1)
     _, first, inv = np.unique(triple, axis=0, return_index=True, return_inverse=True)
     n = len(first)
     if n > 1 and b < SHARED_OBJECTS_MIN_LANES * n:

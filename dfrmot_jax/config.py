@@ -46,6 +46,12 @@ class Params(NamedTuple):
                 pixels); 0 (the default) = the same as kf_q / kf_r (``INHERITED_PARAMS``).
     keep_lost:  output="filtered" only: frames a lost track keeps being written with its predicted box.
     min_hits:   a track is written only once it has been matched (including its birth) min_hits times.
+    weak_2d, weak_3d:  margins below score_2d / score_3d of "weak" detections (two-stage thresholds, as
+                ByteTrack's low-score detections): a detection with score_2d - weak_2d <= score < score_2d
+                (3D likewise) is kept, may continue a track, but never starts one; an object is weak when
+                every detection it is made of is. 0 (the default): no weak detections.
+    a_weak:     a weak object is matched with a track only where M_f > a_weak (as well as > a_f): the
+                second stage's stricter gate (ByteTrack's).
     """
 
     score_2d: Any = 0.45
@@ -66,6 +72,21 @@ class Params(NamedTuple):
     kf_r3: Any = 0.0
     keep_lost: Any = 0
     min_hits: Any = 1
+    weak_2d: Any = 0.0
+    weak_3d: Any = 0.0
+    a_weak: Any = 0.0
+
+
+#: the parameters a frame's objects depend on (``core.step.objects``): lanes equal in these share them
+OBJECT_PARAMS = ("score_2d", "score_3d", "merge_iou", "weak_2d", "weak_3d")
+
+
+def keep_thresholds(params: Params) -> tuple[np.ndarray, np.ndarray]:
+    """The lowest 2D and 3D scores each lane keeps: ``score - weak`` in float64, as float32 (the
+    comparison ``core.step.objects`` makes); [B] or scalars like the params."""
+    s2 = np.asarray(params.score_2d, np.float64) - np.asarray(params.weak_2d, np.float64)
+    s3 = np.asarray(params.score_3d, np.float64) - np.asarray(params.weak_3d, np.float64)
+    return s2.astype(np.float32), s3.astype(np.float32)
 
 
 INT_PARAMS = frozenset({"epsilon", "keep_lost", "min_hits"})
@@ -92,6 +113,9 @@ PARAM_RANGES: dict[str, tuple[float, float]] = {
     "kf_r3": (0.0, 1e9),
     "keep_lost": (0, 10_000),
     "min_hits": (1, 10_000),
+    "weak_2d": (0.0, 1e9),
+    "weak_3d": (0.0, 1e9),
+    "a_weak": (-1.0, 1.0),
 }
 
 

@@ -8,7 +8,7 @@ import pytest
 from dfrmot_jax.core import run as tracker
 from dfrmot_jax.api import default_capacity, track
 from dfrmot_jax.data import load_sequences, pack, prepare_frames
-from dfrmot_jax.config import Options, Params, stack_params
+from dfrmot_jax.config import OBJECT_PARAMS, Options, Params, stack_params
 from dfrmot_jax.testing.recompile import no_recompile
 from dfrmot_jax.testing.parity import lane_mismatches, reference_rows
 from dfrmot_jax.synthetic import make_scene
@@ -104,6 +104,9 @@ def test_second_call_with_new_values_does_not_recompile(scene):
         tracker.run_batch(stack_params([Params(a_l=3.0)] * 2), frames, Options(), cap + 8)
 
 
+#: a_weak matters only with weak detections: it is changed from a base with weak_3d = 4, under options of
+#: its own (kalman_init only acts with the Kalman filter: the code's tracker, as a separate group)
+WEAK = Options(kalman_init="steady")
 CHANGES = {
     "score_2d": (Options(), 0.8), "score_3d": (Options(), 9.0), "merge_iou": (Options(), 0.9),
     "a_c": (Options(modality="2d"), 0.6), "a_l": (Options(modality="3d"), 1.0), "alpha_c": (Options(), 0.95),
@@ -113,6 +116,7 @@ CHANGES = {
     "kf_p0": (Options(filter="kalman", output="filtered"), 1e-3),
     "kf_q3": (Options(filter="kalman", output="filtered"), 1e4), "kf_r3": (Options(filter="kalman", output="filtered"), 1e4),
     "keep_lost": (Options(output="filtered"), 5), "min_hits": (Options(), 4),
+    "weak_2d": (Options(), 0.4), "weak_3d": (Options(), 4.0), "a_weak": (WEAK, 0.9),
 }
 
 
@@ -125,7 +129,8 @@ def test_every_parameter_changes_the_output(scene):
     for name, (options, value) in CHANGES.items():
         by_options.setdefault(options, []).append((name, value))
     for options, changes in by_options.items():
-        lanes = [Params()] + [Params()._replace(**{n: v}) for n, v in changes]
+        base = Params(weak_3d=4.0) if options == WEAK else Params()
+        lanes = [base] + [base._replace(**{n: v}) for n, v in changes]
         res = track(split, stack_params(lanes), options)
         for b, (name, value) in enumerate(changes, start=1):
             same = np.array_equal(res.ids[b], res.ids[0]) and (
@@ -241,7 +246,7 @@ def test_too_many_objects_per_frame_is_refused_up_front():
 @pytest.mark.parametrize("options", [Options()] + [pytest.param(o, marks=pytest.mark.slow) for o in (
     Options(output="filtered", filter="kalman"), Options(modality="3d"), Options(merge="calib_projection", modality="2d"))])
 def test_lanes_sharing_merge_settings_share_objects_made_outside_the_scan(scene, options, monkeypatch):
-    """Lanes with the same score_2d / score_3d / merge_iou share their objects, made once outside the
+    """Lanes with the same ``config.OBJECT_PARAMS`` (score_2d, score_3d, merge_iou, weak_2d, weak_3d) share their objects, made once outside the
     scan (``core.run.split_objects``): the same arrays as each step making its own, detail included."""
     from dfrmot_jax import api
 
@@ -252,7 +257,7 @@ def test_lanes_sharing_merge_settings_share_objects_made_outside_the_scan(scene,
     for i in range(16):
         p = random_params(rng, options.output)
         t = triples[i % 2]
-        lanes.append(p._replace(score_2d=t.score_2d, score_3d=t.score_3d, merge_iou=t.merge_iou))
+        lanes.append(p._replace(**{name: getattr(t, name) for name in OBJECT_PARAMS}))
     batch = stack_params(lanes)
     assert api.merge_keys(batch) is not None
     shared = track(split, batch, options, detail=True, small_frames_min=0)

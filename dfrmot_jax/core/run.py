@@ -98,7 +98,7 @@ def _object_slots(objs: Objects | None, options: Options, m2: int, m3: int, big2
 
 def split_objects(params: Params, frames: Frames, options: Options) -> Objects:
     """The :class:`~dfrmot_jax.core.step.Objects` of every frame ([T, O, ...]) for one setting of
-    ``score_2d``, ``score_3d``, ``merge_iou`` (``params``: scalars or [1] leaves; the other fields
+    ``config.OBJECT_PARAMS`` (``params``: scalars or [1] leaves; the other fields
     are not read), made in one vmapped call outside the scan, once for every lane that shares them."""
     fn = _OBJECT_PROGRAMS.get(options)
     if fn is None:
@@ -274,7 +274,7 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
     small_frames_min: run frames with few detections on a smaller copy of the step on splits of at
     least this many frames (``small_frames``; None: one size; the results are the same).
     objs: every lane's objects, made once outside the scan (``split_objects``; the lanes must share
-    ``score_2d``, ``score_3d`` and ``merge_iou``; not with a hook); None: each step makes them.
+    ``config.OBJECT_PARAMS``; not with a hook); None: each step makes them.
     Returns BatchOutput (numpy). Lanes are padded to a multiple of the device count and trimmed.
     """
     b = max(np.atleast_1d(np.asarray(v)).shape[0] for v in params)

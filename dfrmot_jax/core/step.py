@@ -88,40 +88,48 @@ class Objects(NamedTuple):
     """A frame's objects after the 2D/3D de-duplication (leading axis T when made for a whole split,
     ``core.run.split_objects``): box [O, 4] float64, z3 [O, 6] float64 (3D min, max corners), has3
     [O] bool, valid [O] bool, slot3 [O] int32 the 3D detection slot of each object (meaningful where
-    has3). O: the 2D slots then the 3D slots (fused), or the one modality's slots."""
+    has3), strong [O] bool it may start a track (not made of weak detections only, ``Params.weak_2d``).
+    O: the 2D slots then the 3D slots (fused), or the one modality's slots."""
 
     box: jnp.ndarray
     z3: jnp.ndarray
     has3: jnp.ndarray
     valid: jnp.ndarray
     slot3: jnp.ndarray
+    strong: jnp.ndarray
 
 
 def objects(params: Params, frame: Frames, options: Options) -> Objects:
-    """This frame's :class:`Objects`. They depend on ``score_2d``, ``score_3d`` and ``merge_iou``
-    only: lanes sharing those share them (``core.run`` then makes them once, outside the scan).
+    """This frame's :class:`Objects`. They depend on ``score_2d``, ``score_3d``, ``weak_2d``,
+    ``weak_3d`` and ``merge_iou`` only (``OBJECT_PARAMS``): lanes sharing those share them
+    (``core.run`` then makes them once, outside the scan).
 
-    Scores are compared in float32 (as parsed); boxes and corners come out in float64.
+    Scores are compared in float32 (as parsed) with the thresholds and with the weak thresholds
+    ``score - weak`` (computed in float64); boxes and corners come out in float64.
     """
-    keep2 = frame.valid2 & (frame.score2 >= params.score_2d.astype(jnp.float32))
-    keep3 = frame.valid3 & (frame.score3 >= params.score_3d.astype(jnp.float32))
+    strong2 = frame.valid2 & (frame.score2 >= params.score_2d.astype(jnp.float32))
+    strong3 = frame.valid3 & (frame.score3 >= params.score_3d.astype(jnp.float32))
+    keep2 = frame.valid2 & (frame.score2 >= (params.score_2d - params.weak_2d).astype(jnp.float32))
+    keep3 = frame.valid3 & (frame.score3 >= (params.score_3d - params.weak_3d).astype(jnp.float32))
     box2 = frame.box2.astype(jnp.float64)
     box3 = frame.box3.astype(jnp.float64)
     z3 = jnp.concatenate([frame.lo3, frame.hi3], axis=-1).astype(jnp.float64)
     slots3 = jnp.arange(keep3.shape[0], dtype=jnp.int32)
     if options.modality == "2d":
         return Objects(box2, jnp.zeros((keep2.shape[0], 6), jnp.float64), jnp.zeros_like(keep2), keep2,
-                       jnp.zeros(keep2.shape, jnp.int32))
+                       jnp.zeros(keep2.shape, jnp.int32), strong2)
     if options.modality == "3d":
-        return Objects(box3, z3, keep3, keep3, slots3)
+        return Objects(box3, z3, keep3, keep3, slots3, strong3)
     pair = associate.greedy_max(boxes.iou_matrix(box2, box3),
                                 keep2[:, None] & keep3[None, :], params.merge_iou)
     paired2 = jnp.any(pair, axis=1)
     lone3 = keep3 & ~jnp.any(pair, axis=0)
     z3_of_2 = memory.gather_rows(pair.T, z3)                       # [M2, 6], zeros where unpaired
+    strong_of_2 = strong2 | memory.gather_rows(pair.T, strong3)
     return Objects(jnp.concatenate([box2, box3]), jnp.concatenate([z3_of_2, z3]),
                    jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]),
-                   jnp.concatenate([memory.gather_rows(pair.T, slots3), slots3]))
+                   jnp.concatenate([memory.gather_rows(pair.T, slots3), slots3]),
+                   jnp.concatenate([strong_of_2, strong3]))
 
 
 def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: bool = False, t=0,
@@ -136,8 +144,8 @@ def step(params: Params, mem: Memory, frame: Frames, options: Options, detail: b
     compared in float32. (Its phases are plain Python functions, traced inline: one computation.)
     """
     mem = memory.reset(mem, frame.reset)
-    box, z3, has3, valid, slot3 = objects(params, frame, options) if objs is None else objs
-    a = associate_objects(params, mem, box, z3, has3, valid, options)
+    box, z3, has3, valid, slot3, strong = objects(params, frame, options) if objs is None else objs
+    a = associate_objects(params, mem, box, z3, has3, valid, strong, options)
     u = update_filters(params, mem, a, box, z3, has3, options)
     mem, born_id = next_memory(params, mem, a, u, slot3, frame, detail, t, stride3)
     empty = jnp.zeros((0,), jnp.int32), jnp.zeros((0,), bool), jnp.zeros((0, 6), jnp.float32)
@@ -166,20 +174,21 @@ class Association(NamedTuple):
     observed: jnp.ndarray
 
 
-def associate_objects(params: Params, mem: Memory, box, z3, has3, valid, options: Options) -> Association:
-    """Association on the tracks' predictions (fused affinity, greedy or Hungarian), then births."""
+def associate_objects(params: Params, mem: Memory, box, z3, has3, valid, strong, options: Options) -> Association:
+    """Association on the tracks' predictions (fused affinity, greedy or Hungarian), then births of
+    the unmatched strong objects (a weak one unmatched is dropped)."""
     f = mem.filt
     iou = boxes.iou_matrix(box, boxes.predicted_boxes(f.p[:, :4], options.truncate))
     dist = associate.centroid_distance(z3, f.p[:, 4:])
     m_f = associate.fused_affinity(iou, mem.age <= params.epsilon, dist, has3[:, None] & mem.has3d[None, :],
                                    params.a_c, params.a_l, params.alpha_c)
-    allowed = valid[:, None] & mem.alive[None, :]
+    allowed = valid[:, None] & mem.alive[None, :] & (strong[:, None] | (m_f > params.a_weak))
     if options.assign == "hungarian":
         match = associate.hungarian_min(-m_f, allowed, -params.a_f)
     else:
         match = associate.greedy_min(-m_f, allowed, mem.tid, -params.a_f)
     matched_obj = jnp.any(match, axis=0)
-    newborn = valid & ~jnp.any(match, axis=1)
+    newborn = valid & strong & ~jnp.any(match, axis=1)
     birth, rank, dropped = memory.births(mem.alive, newborn)
     assign = match | birth
     born = jnp.any(birth, axis=0)

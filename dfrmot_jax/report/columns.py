@@ -42,8 +42,9 @@ OPTION_NAMES: tuple[str, ...] = Options._fields
 #: config keeps its hash and chunk ids; result rows written before it existed get the default.
 LATE_OPTIONS: dict[str, Any] = {"assign": Options._field_defaults["assign"]}
 #: Parameters added after config hashes were first written -> their default, kept likewise: the
-#: 3D corners' Kalman noise, whose default 0 means "as kf_q / kf_r" (``config.INHERITED_PARAMS``).
-LATE_PARAMS: dict[str, Any] = {n: Params._field_defaults[n] for n in INHERITED_PARAMS}
+#: 3D corners' Kalman noise, whose default 0 means "as kf_q / kf_r" (``config.INHERITED_PARAMS``), and
+#: the weak detections' margins and gate (``weak_2d``, ``weak_3d``, ``a_weak``; 0: none).
+LATE_PARAMS: dict[str, Any] = {n: Params._field_defaults[n] for n in (*INHERITED_PARAMS, "weak_2d", "weak_3d", "a_weak")}
 
 
 def split_class_column(name: str) -> tuple[str, str] | None:

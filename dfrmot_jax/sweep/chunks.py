@@ -35,7 +35,7 @@ from tqdm import tqdm
 
 from .. import distort
 from ..api import TrackResult, default_capacity, track
-from ..config import Options
+from ..config import Options, keep_thresholds
 from ..data import Split, cached_split, compact_split, prepare_frames
 from ..lidar import LIDAR_PREFIX, lidar_dir, simulate_cached
 from ..metrics.ab3dmot.prep import cached_ab3dmot_gt
@@ -149,7 +149,7 @@ class ChunkRunner:
             split, gt = load_data(data)
         if compact and spec.distortion is None:     # (distortion draws are keyed by slot)
             every = params_of(table, range(len(table)), data.cls)
-            split = compact_split(split, float(np.min(every.score_2d)), float(np.min(every.score_3d)))
+            split = compact_split(split, *(float(np.min(s)) for s in keep_thresholds(every)))
         ab3dmot = None
         if spec.ab3dmot is not None:
             gt3 = cached_ab3dmot_gt(data.root, data.cls, list(split.names))

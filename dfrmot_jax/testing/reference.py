@@ -47,6 +47,7 @@ class Obj:
     kind: str                     # "2d" (row of the 2D file) or "3d" (unmatched 3D detection)
     index: int                    # file row of the detection it came from
     row3: int = -1                # file row (in seq.det3d) of its 3D detection (paired or lone), -1 = none
+    strong: bool = True           # it may start a track (not only weak detections: Params.weak_2d, weak_3d)
 
 
 @dataclass
@@ -205,8 +206,10 @@ def filter_predict(f: CoordFilter, params: Params, options: Options) -> None:
 def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, image_size) -> list[Obj]:
     """Kept detections of frame t, de-duplicated: 2D objects (file order), then unmatched 3D ones."""
     d2, d3 = seq.det2d, seq.det3d
-    rows2 = [i for i in np.flatnonzero(d2.frame == t) if F32(d2.score[i]) >= F32(params.score_2d)]
-    rows3 = [j for j in np.flatnonzero(d3.frame == t) if F32(d3.score[j]) >= F32(params.score_3d)]
+    low2 = F32(p64(params.score_2d) - p64(params.weak_2d))      # weak thresholds: float64 difference, float32
+    low3 = F32(p64(params.score_3d) - p64(params.weak_3d))
+    rows2 = [i for i in np.flatnonzero(d2.frame == t) if F32(d2.score[i]) >= low2]
+    rows3 = [j for j in np.flatnonzero(d3.frame == t) if F32(d3.score[j]) >= low3]
     if options.modality == "2d":
         rows3 = []
     if options.modality == "3d":
@@ -247,11 +250,12 @@ def frame_objects(seq: SequenceDets, t: int, params: Params, options: Options, i
         lo = hi = None
         if j >= 0:
             lo, hi = extent3(rows3[j])
-        objects.append(Obj(b2[i], lo, hi, "2d", int(r), int(rows3[j]) if j >= 0 else -1))
+        strong = F32(d2.score[r]) >= F32(params.score_2d) or (j >= 0 and F32(d3.score[rows3[j]]) >= F32(params.score_3d))
+        objects.append(Obj(b2[i], lo, hi, "2d", int(r), int(rows3[j]) if j >= 0 else -1, strong))
     for j, r in enumerate(rows3):
         if not taken3[j]:
             lo, hi = extent3(r)
-            objects.append(Obj(b3[j], lo, hi, "3d", int(r), int(r)))
+            objects.append(Obj(b3[j], lo, hi, "3d", int(r), int(r), F32(d3.score[r]) >= F32(params.score_3d)))
     return objects
 
 
@@ -348,6 +352,9 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
         pairs = []
         if tracks and objects:
             affinity = affinity_matrix(objects, tracks, params, options)
+            for i, obj in enumerate(objects):          # a weak object needs M_f > a_weak as well
+                if not obj.strong:
+                    affinity[i, affinity[i] <= p64(params.a_weak)] = -np.inf
             if options.assign == "hungarian":
                 pairs = hungarian_match(-affinity, limit)
             else:
@@ -388,7 +395,7 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
                     trk.out_box3 = trk.f3.p.copy()
                     filter_predict(trk.f3, p3, options)
         for i, obj in enumerate(objects):
-            if i in obj_track:
+            if i in obj_track or not obj.strong:       # a weak object continues a track, never starts one
                 continue
             f3 = filter_init(np.concatenate([obj.lo3, obj.hi3]), p3, options) if obj.lo3 is not None else None
             trk = Track(id=next_id, f2=filter_init(obj.box, params, options), f3=f3,
@@ -400,6 +407,8 @@ def track_sequence(seq: SequenceDets, params: Params, options: Options,
 
         if options.output == "detections":
             for i, obj in enumerate(objects):
+                if i not in obj_track:
+                    continue
                 trk = obj_track[i]
                 if trk.hits >= params.min_hits:
                     own3 = obj.lo3 is not None
