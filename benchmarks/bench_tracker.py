@@ -10,7 +10,7 @@ Batches larger than ``--lanes-per-call`` run in several compiled calls (each cal
 host's devices). (Records before the rename name it ``chunk`` / ``--chunk``, still accepted.)
 The last line is one JSON object.
 
-    python benchmarks/bench_tracker.py [--sizes 1,8,64,256,1024] [--lanes-per-call 16]
+    python benchmarks/bench_tracker.py [--sizes 1,8,64,256,1024] [--lanes-per-call 16] [--preset dfr2023]
 """
 
 from __future__ import annotations
@@ -30,16 +30,16 @@ dfrmot_jax.setup_host_devices()   # one XLA device per core, before any JAX oper
 from dfrmot_jax.core import run as tracker
 from dfrmot_jax.api import default_capacity, track
 from dfrmot_jax.data import compact_split, load_sequences, pack, prepare_frames
-from dfrmot_jax.config import Params, preset, stack_params
+from dfrmot_jax.config import Params, keep_thresholds, preset, stack_params
 from dfrmot_jax.paths import default_data_root
 from dfrmot_jax.testing.reference import track_sequence
 from machine import machine_info, peak_rss_mb
 
 
-def settings(b: int, seed: int = 0) -> Params:
-    """B settings around dfr2023 (a_l, alpha_c, score_2d, epsilon varied)."""
+def settings(b: int, seed: int = 0, name: str = "dfr2023") -> Params:
+    """B settings around the preset ``name`` (a_l, alpha_c, score_2d, epsilon varied)."""
     rng = np.random.default_rng(seed)
-    base, _ = preset("dfr2023")
+    base, _ = preset(name)
     return stack_params([base._replace(a_l=float(rng.uniform(4, 12)), alpha_c=float(rng.uniform(0.3, 0.7)),
                                        score_2d=float(rng.uniform(0.3, 0.6)), epsilon=int(rng.integers(10, 40)))
                          for _ in range(b)])
@@ -52,6 +52,8 @@ def main() -> int:
                     help="lanes per compiled call for large batches (--chunk: its old name)")
     ap.add_argument("--reference-seqs", type=int, default=21, help="sequences the reference runs (frames/s)")
     ap.add_argument("--no-compact", action="store_true", help="skip the compacted-split runs")
+    ap.add_argument("--preset", default="dfr2023", help="settings around this preset, with its options "
+                    "(e.g. tuned_both: weak detections, filtered output)")
     args = ap.parse_args()
     root = default_data_root()
     if not (root / "label_02").is_dir():
@@ -60,11 +62,11 @@ def main() -> int:
     names = [f"{i:04d}" for i in range(21)]
     seqs = load_sequences(root, "rrc", "pointrcnn", "car", names)
     split = pack(seqs)
-    params0, options = preset("dfr2023")
+    params0, options = preset(args.preset)
     frames = prepare_frames(split, options)
     T = split.n_frames
     sizes = [int(s) for s in args.sizes.split(",")]
-    big = settings(max(sizes))
+    big = settings(max(sizes), name=args.preset)
     cap = default_capacity(frames, big, options)
     machine = {**machine_info(), "load_avg_1min": round(os.getloadavg()[0], 2)}
     print(f"# {T} frames, capacity {cap}, {machine}")
@@ -77,11 +79,11 @@ def main() -> int:
     ref_fps = n_ref / (time.perf_counter() - t0)
     print(f"reference (NumPy, 1 core): {ref_fps:,.0f} frames/s over {n_ref} frames")
 
-    out = {"frames": T, "capacity": cap, "lanes_per_call": args.lanes_per_call, "reference_frames_per_s": round(ref_fps, 1)}
+    out = {"preset": args.preset, "frames": T, "capacity": cap, "lanes_per_call": args.lanes_per_call, "reference_frames_per_s": round(ref_fps, 1)}
     compile_s = {}
     runs = [("", frames)]
     if not args.no_compact:
-        packed = compact_split(split, float(np.min(big.score_2d)), float(np.min(big.score_3d)))
+        packed = compact_split(split, *(float(np.min(s)) for s in keep_thresholds(big)))
         out["compact_slots"] = [int(packed.valid2d.shape[1]), int(packed.valid3d.shape[1])]
         out["slots"] = [int(split.valid2d.shape[1]), int(split.valid3d.shape[1])]
         runs.append(("compact_", prepare_frames(packed, options)))

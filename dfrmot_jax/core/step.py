@@ -125,7 +125,7 @@ def objects(params: Params, frame: Frames, options: Options) -> Objects:
     paired2 = jnp.any(pair, axis=1)
     lone3 = keep3 & ~jnp.any(pair, axis=0)
     z3_of_2 = memory.gather_rows(pair.T, z3)                       # [M2, 6], zeros where unpaired
-    strong_of_2 = strong2 | memory.gather_rows(pair.T, strong3)
+    strong_of_2 = strong2 | jnp.any(pair & strong3[None, :], axis=1)       # a reduction, not a gather
     return Objects(jnp.concatenate([box2, box3]), jnp.concatenate([z3_of_2, z3]),
                    jnp.concatenate([paired2, lone3]), jnp.concatenate([keep2, lone3]),
                    jnp.concatenate([memory.gather_rows(pair.T, slots3), slots3]),
