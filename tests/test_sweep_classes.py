@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from dfrmot_jax import config as config_mod
-from dfrmot_jax.config import PRESETS, preset
+from dfrmot_jax.config import PRESETS, Params, preset
 from dfrmot_jax.sweep import (AVERAGE, COMBINED, PARAM_NAMES, RAW_COLUMN, SweepConfigError, class_columns,
                               class_view, config_hash, cross_validate, expand, load_results, load_spec, make_folds,
                               parse_spec, plan, resolve_data_all, run_sweep, sweep_report)
@@ -153,7 +153,7 @@ def test_class_list_and_per_class_axis_forms(no_ped_defaults):
         pd.testing.assert_frame_equal(t, tables[0])
     t = tables[0]
     assert class_columns(t.columns) == ["pedestrian.a_l"]
-    assert list(t.columns).index("pedestrian.a_l") == list(t.columns).index("min_hits") + 1   # after the params
+    assert list(t.columns).index("pedestrian.a_l") == list(t.columns).index(Params._fields[-1]) + 1   # after the params
     assert t["pedestrian.a_l"].dtype == np.float64
     assert len(t) == 1 + 4 and t.loc[0, "pedestrian.a_l"] == 8.0          # the baseline: the preset for both
     grid = t[~t["baseline"]]

@@ -45,6 +45,18 @@ def test_random_settings_match_reference(scene):
         _assert_parity(split, seqs, params, options)
 
 
+@pytest.mark.parametrize("options", [Options(), Options(output="filtered", assign="hungarian"), Options(modality="3d")])
+def test_weak_detections_track_like_the_oracle(scene, options):
+    """Weak detections (``weak_2d``, ``weak_3d``, ``a_weak``) continue tracks and never start one, as the
+    oracle's independent rule; the setting is one where they change the output."""
+    _, seqs, split = scene
+    strict = Params(score_2d=0.6, score_3d=5.0)
+    weak = strict._replace(weak_2d=0.3, weak_3d=3.0, a_weak=0.2)
+    _assert_parity(split, seqs, weak, options)
+    both = track(split, stack_params([strict, weak]), options)
+    assert not np.array_equal(both.ids[0], both.ids[1]), "the weak detections changed nothing: the test proves nothing"
+
+
 @pytest.mark.slow
 def test_small_frames_track_like_the_oracle_and_like_one_size(scene):
     """Frames with few detections run on a smaller copy of the step (``core.run.small_frames``, on

@@ -8,6 +8,9 @@ from ..config import CENTROIDS, FILTERS, KALMAN_INITS, MERGES, MODALITIES, OUTPU
 
 
 def random_params(rng: np.random.Generator, output: str = "detections") -> Params:
+    """Random settings; the weak detections' (added later) from a child of ``rng`` (``Generator.spawn``,
+    which leaves ``rng``'s own stream as it was), so that every other draw is what it was before them."""
+    weak = rng.spawn(1)[0]
     return Params(
         score_2d=float(rng.uniform(0.2, 0.8)), score_3d=float(rng.uniform(0.0, 8.0)),
         merge_iou=float(rng.uniform(0.1, 0.6)), a_c=float(rng.uniform(0.0, 0.3)), a_l=float(rng.uniform(2.0, 15.0)),
@@ -16,8 +19,8 @@ def random_params(rng: np.random.Generator, output: str = "detections") -> Param
         gain_gamma=float(rng.uniform(0.01, 0.3)), kf_q=float(np.exp(rng.uniform(np.log(0.01), np.log(100)))),
         kf_r=float(np.exp(rng.uniform(np.log(0.1), np.log(100)))), kf_p0=float(np.exp(rng.uniform(0, np.log(1000)))),
         keep_lost=int(rng.integers(0, 6)) if output == "filtered" else 0, min_hits=int(rng.integers(1, 4)),
-        weak_2d=float(rng.uniform(0.0, 0.4)) if rng.integers(2) else 0.0,
-        weak_3d=float(rng.uniform(0.0, 4.0)) if rng.integers(2) else 0.0, a_weak=float(rng.uniform(-0.1, 0.8)),
+        weak_2d=float(weak.uniform(0.0, 0.2)) if weak.integers(2) else 0.0,
+        weak_3d=float(weak.uniform(0.0, 2.0)) if weak.integers(2) else 0.0, a_weak=float(weak.uniform(-0.1, 0.8)),
     )
 
 
