@@ -15,7 +15,7 @@ from dfrmot_jax.cli import track_parser
 from dfrmot_jax.config import PRESETS, Options, Params
 from dfrmot_jax.testing.cli import error_line, run_cli
 
-COMMANDS = ("track", "demo", "eval", "sweep", "tune", "report", "lidar")
+COMMANDS = ("track", "demo", "eval", "compare", "sweep", "tune", "report", "lidar")
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ HELP = {
     "track": "track a KITTI split and write one result file per sequence",
     "demo": "a small parameter sweep on a synthetic scene, with its HTML report (no data needed)",
     "eval": "evaluate KITTI tracking result folders (TrackEval's KITTI 2D box HOTA/CLEAR/Identity)",
+    "compare": "compare two result folders: per-sequence differences, paired bootstrap intervals over sequences",
     "sweep": "run a sweep file (tracking + metrics for every config), resumable",
     "tune": "tune a sweep file's parameters with batched Optuna search (+ gradient refinement)",
     "report": "best configs, baseline, sensitivity and cross-validation of a sweep directory",

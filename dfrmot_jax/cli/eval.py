@@ -74,15 +74,15 @@ from .commands import HELP
 from .errors import guarded
 from .track_parser import parse_seqs
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "check_folder", "check_class_rows", "classes_arg", "ground_truth", "tracker_name"]
 
 
-def _tracker_name(d: Path) -> str:
+def tracker_name(d: Path) -> str:
     d = Path(d)
     return d.parent.name if d.name == "data" and d.parent.name else d.name
 
 
-def _classes_arg(text: str) -> tuple:
+def classes_arg(text: str) -> tuple:
     try:
         return parse_classes(text)
     except ValueError as e:
@@ -120,7 +120,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("results", nargs="+", metavar="RESULTS_DIR", help="folder(s) with SSSS.txt result files")
     p.add_argument("--data", default=None, metavar="ROOT",
                    help=f"KITTI tracking training root (default: $DFRMOT_DATA or {default_data_root()})")
-    p.add_argument("--class", dest="cls", default=("car",), type=_classes_arg, metavar="CLASSES",
+    p.add_argument("--class", dest="cls", default=("car",), type=classes_arg, metavar="CLASSES",
                    help="class or comma-separated classes: car, pedestrian or car,pedestrian (default car); "
                         "several classes add a class average row per tracker")
     p.add_argument("--seqs", default=None,
@@ -166,7 +166,7 @@ def _warn(message: str) -> None:
     print(f"dfrmot eval: warning: {message}", file=sys.stderr)
 
 
-def _check_folder(d: Path, found, n_seqs: int, label_dir: Path, allow_missing: bool) -> None:
+def check_folder(d: Path, found, n_seqs: int, label_dir: Path, allow_missing: bool) -> None:
     """Raise ValueError naming everything wrong with result folder ``d`` (a
     ``metrics.kitti2d.tracker_files.ResultFolder`` for ``n_seqs`` sequences); with ``allow_missing`` warn about missing files instead."""
     problems = [f"{path} {why}, not a result file" for path, why in found.unreadable]
@@ -199,6 +199,18 @@ def _class_hint(d: Path, sequences, cls: str) -> str:
     return text + (f" (evaluate with --class {other[0]}?)" if other else "")
 
 
+def check_class_rows(d: Path, cls: str, sequences, n_gt: int, n_rows: int, allow_missing: bool,
+                     command: str = "eval") -> None:
+    """Refuse (ValueError) a folder ``d`` with no row of class ``cls`` while the ground truth has
+    ``n_gt`` objects of it (wrong --class?); with ``allow_missing`` warn instead (an empty output)."""
+    if n_rows or not n_gt:
+        return
+    what = f"{d}: no {cls} row in any result file, but the ground truth has {n_gt} {cls} objects to evaluate"
+    if not allow_missing:
+        raise ValueError(f"{what}; {_class_hint(d, sequences, cls)} (--allow-missing scores it as an empty output)")
+    print(f"dfrmot {command}: warning: {what}: scored as an empty output", file=sys.stderr)
+
+
 def _mark_empty_gt(shown):
     """``--per-seq`` table: sequences without ground truth of their class (GT_Dets 0) marked ``*``;
     returns (table, footnote or '')."""
@@ -229,7 +241,7 @@ def _print_ab3dmot(df, seq_lists: dict, iou: str, note_avg: str) -> None:
     print(rows[cols].to_string(index=False, formatters=fmt))
 
 
-def _ground_truth(root: Path, cls, seqs, kitti2d: bool) -> tuple[dict, dict]:
+def ground_truth(root: Path, cls, seqs, kitti2d: bool) -> tuple[dict, dict]:
     """(class -> prepared ground truth, for the kitti2d family only; class -> its sequences: ``seqs``,
     else those whose ground truth has the class); anything wrong with the ground truth is a
     ValueError that says so."""
@@ -260,7 +272,7 @@ def run(args) -> int:
         if seqs is not None:
             raise ValueError("--seqs and --seqmap both name the sequences: give one")
         seqs = list(read_seqmap(args.seqmap, root))
-    gts, seq_lists = _ground_truth(root, args.cls, seqs, "kitti2d" in families)
+    gts, seq_lists = ground_truth(root, args.cls, seqs, "kitti2d" in families)
     wanted = sorted({s for cs in seq_lists.values() for s in cs})
     known = None if seqs is not None else sorted(p.stem for p in label_dir.glob("*.txt"))
     folders = [Path(d) for d in args.results]
@@ -268,11 +280,11 @@ def run(args) -> int:
         if not d.is_dir():
             raise ValueError(f"not a directory: {d}")
     for d in folders:
-        _check_folder(d, inspect_results(d, wanted, known), len(wanted), label_dir, args.allow_missing)
+        check_folder(d, inspect_results(d, wanted, known), len(wanted), label_dir, args.allow_missing)
     tables = []
     names = []
     for d in folders:
-        name = _tracker_name(d)
+        name = tracker_name(d)
         if name in names:
             name = str(d)
         names.append(name)
@@ -284,13 +296,7 @@ def run(args) -> int:
                 n_gt, n_rows = int(gts[c].n_gt_dets.sum()), dets[c].frame.size
             else:
                 n_gt, n_rows = ab[c]["n_objects"], ab[c]["n_rows"]
-            if n_rows or not n_gt:
-                continue
-            what = f"{d}: no {c} row in any result file, but the ground truth has {n_gt} {c} objects to evaluate"
-            if not args.allow_missing:
-                raise ValueError(f"{what}; {_class_hint(d, seq_lists[c], c)} (--allow-missing scores it as an "
-                                 f"empty output)")
-            _warn(f"{what}: scored as an empty output")
+            check_class_rows(d, c, seq_lists[c], n_gt, n_rows, args.allow_missing)
         table = None
         if gts:
             res = {c: evaluate_dets(gt, dets[c], similarity) for c, gt in gts.items()}
