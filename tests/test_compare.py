@@ -148,3 +148,47 @@ def test_the_interval_covers_a_known_difference_about_95_percent_of_the_time(tmp
         covered += ci["ci_low"] <= truth <= ci["ci_high"]
     print(f"covered {covered} of 200 (truth {truth:+.3f} HOTA)")
     assert 170 <= covered <= 198, covered
+
+
+def test_resamples_as_counts_equal_the_exact_recombination(outputs):
+    """The reports' path (sums as matrix products with each resample's counts, all configs at once)
+    equals combining the drawn sequences one by one, for every field."""
+    from dfrmot_jax.metrics.kitti2d.bootstrap import counts_of, resampled_figure
+
+    root, folders = outputs
+    gt = prepare_gt(root, "car")
+    fa, fb = (seq_fields(gt, read_tracker_files(d, gt)) for d in folders)
+    boot_a, boot_b, idx = paired_bootstrap(fa, fb, 64, seed=2)
+    arrays = {f: np.stack([fa[f], fb[f]]) for f in fa}
+    counts = counts_of(idx, len(gt.sequences))
+    assert (counts.sum(axis=1) == len(gt.sequences)).all()
+    for f in BOOTSTRAP_FIELDS:
+        got = resampled_figure(arrays, counts, f, per_step=10)
+        np.testing.assert_allclose(got[0], boot_a[f], rtol=0, atol=1e-9, err_msg=f)
+        np.testing.assert_allclose(got[1], boot_b[f], rtol=0, atol=1e-9, err_msg=f)
+
+
+def test_report_intervals_of_a_sweep(tmp_path):
+    """In a sweep's report: a copy of the best config is not distinguishable from it, the best against
+    itself as baseline has the interval [0, 0], and the report prints and stores the figures."""
+    from dfrmot_jax.report.intervals import report_intervals
+    from dfrmot_jax.sweep import run_sweep, sweep_report
+
+    root = make_scene(tmp_path / "scene", n_sequences=5, n_frames=50, n_cars=4, seed=12)
+    df = run_sweep({"name": "iv", "chunk": 8, "data": {"root": str(root), "det2d": "synth2d", "det3d": "synth3d"},
+                    "params": {"a_l": [1.0, 4.0, 8.0], "score_2d": [0.2, 0.6]}}, tmp_path / "sweep", progress=False,
+                   workers=0, log=lambda m: None)
+    comb = df[df["sequence"] == "COMBINED"]
+    best = int(comb.loc[comb["HOTA"].idxmax(), "config"])
+    twin = df[df["config"] == best].copy()
+    twin["config"] = int(df["config"].max()) + 1
+    doubled = pd.concat([df, twin], ignore_index=True)
+    iv = report_intervals(doubled, "HOTA", baseline_config=best, resamples=300)
+    assert iv["best_config"] in (best, int(twin["config"].iloc[0]))
+    assert {best, int(twin["config"].iloc[0])} <= set(iv["not_distinguishable"])
+    assert iv["best_minus_baseline"] == [0.0, 0.0] and iv["p_best_better"] == 0.5
+    worst = int(comb.loc[comb["HOTA"].idxmin(), "config"])
+    assert worst not in iv["not_distinguishable"]          # 2 HOTA below the best on every resample
+    rep = sweep_report(tmp_path / "sweep")
+    assert "not distinguishable from the best" in rep.text
+    assert rep.summary["bootstrap"]["not_distinguishable_from_best"] == len(rep.intervals["not_distinguishable"])

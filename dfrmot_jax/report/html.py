@@ -110,7 +110,24 @@ def _top(rep, objective: str) -> str:
                if baseline is not None else "") + ". In-sample: ranked on every sequence (COMBINED); the "
             "cross-validated figure below is the honest estimate for unseen sequences. The baseline is the "
             "highlighted last row.</p>")
-    return text + _table(view, "top")
+    return text + _interval(rep, objective) + _table(view, "top")
+
+
+def _interval(rep, objective: str) -> str:
+    """The paired bootstrap's paragraph (``report.intervals``), or why there is none."""
+    iv = rep.intervals
+    if iv is None:
+        line = next((s for s in rep.text.splitlines() if s.startswith("no bootstrap interval")), "")
+        return f"<p>{escape(line)}.</p>" if line else ""
+    pct = int(round(100 * iv["level"]))
+    text = f"<p>Paired bootstrap over sequences ({iv['resamples']:,} resamples, in-sample like the ranking): "
+    if "best_minus_baseline" in iv:
+        lo, hi = iv["best_minus_baseline"]
+        text += (f"best &minus; baseline {escape(objective)} {pct} % interval <b>[{lo:+.3f}, {hi:+.3f}]</b>, the best "
+                 f"better in {100 * iv['p_best_better']:.1f} % of resamples. ")
+    tied = iv["not_distinguishable"]
+    return text + (f"<b>{len(tied)}</b> configs are not distinguishable from the best at {pct} % (configs "
+                   f"{escape(', '.join(str(c) for c in tied[:20]))}{', ...' if len(tied) > 20 else ''}).</p>")
 
 
 def _heatmap(rep, objective: str, baseline) -> str:
@@ -254,7 +271,9 @@ def _cross_validated(rep: SweepReport, objective: str) -> list[str]:
         out += ["<h2>Cross-validated</h2>",
                 f"<p>{rep.cv['folds']}-fold cross-validation over sequences{escape(note)}: per fold the best config "
                 f"is chosen on the other folds and scored on the held-out one. Cross-validated {objective} "
-                f"{rep.cv['cross_validated']:.3f} against the in-sample best {rep.top.iloc[0][objective]:.3f}.</p>",
+                f"{rep.cv['cross_validated']:.3f} against the in-sample best {rep.top.iloc[0][objective]:.3f}; "
+                f"the folds' held-out figures range {min(p['held_out'] for p in rep.cv['per_fold']):.3f} .. "
+                f"{max(p['held_out'] for p in rep.cv['per_fold']):.3f}.</p>",
                 _figure(figures.folds_figure(rep.cv, objective, float(rep.top.iloc[0][objective])),
                         "Per fold: the chosen config on its training folds and on the held-out fold, and the "
                         "baseline on the held-out fold.")]

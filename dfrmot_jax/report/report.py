@@ -28,6 +28,7 @@ from .analysis import (
     sensitivity,
     varied_axes,
 )
+from .intervals import interval_problem, report_intervals
 from .robustness import contrast_text, robustness_curves, robustness_text
 from .columns import AVERAGE, COMBINED, Contrast, contrast_doc, parse_contrast
 from .stored import load_results, read_manifest
@@ -56,6 +57,7 @@ class SweepReport:
     directory: Path | None = None               # the sweep or tune directory reported on
     baseline: pd.Series | None = None           # the baseline's COMBINED row of ``view`` (None: no baseline)
     folds_note: str = ""                        # how the folds were chosen, when the report chose them
+    intervals: dict | None = None               # the paired bootstrap's figures (report.intervals)
 
     def __str__(self) -> str:
         return self.text
@@ -157,6 +159,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         diff = [f"{a}={fmt_value(best[a])} (baseline {fmt_value(baseline[a])})" for a in axes if best[a] != baseline[a]]
         lines.append(paragraph(f"best vs baseline: {objective} {best[objective]:.3f} vs {baseline[objective]:.3f} "
                                f"({best[objective] - baseline[objective]:+.3f}); changed: {', '.join(diff) or 'nothing'}"))
+    lines += _interval_lines(rep, df, cls, objective)
     rep.sensitivity = sensitivity(df, objective) if axes else pd.DataFrame()
     lines += _sensitivity_lines(rep.sensitivity, objective)
     rob_summary = None
@@ -206,6 +209,29 @@ def _headline(full: pd.DataFrame, df: pd.DataFrame, comb: pd.DataFrame, classes:
                      f"({better} is better)" + (f"; class {cls}" if cls and cls != "car" else "")), seqs
 
 
+def _interval_lines(rep: SweepReport, df: pd.DataFrame, cls, objective: str) -> list[str]:
+    """The paired bootstrap's paragraph (``report.intervals``): best vs baseline and the configs not
+    distinguishable from the best; sets ``rep.intervals``."""
+    problem = interval_problem(df, objective) or ("the class average is not resampled (report one class: "
+                                                   "--class)" if cls == AVERAGE else None)
+    if problem:
+        return [paragraph(f"no bootstrap interval: {problem}")]
+    base = None if rep.baseline is None else int(rep.baseline["config"])
+    iv = rep.intervals = report_intervals(df, objective, base)
+    pct = int(round(100 * iv["level"]))
+    text = (f"paired bootstrap over sequences ({iv['resamples']:,} resamples, seed {iv['seed']}; in-sample, like "
+            f"the ranking): ")
+    if "best_minus_baseline" in iv:
+        lo, hi = iv["best_minus_baseline"]
+        text += (f"best - baseline {objective} {pct} % interval [{lo:+.3f}, {hi:+.3f}], best better in "
+                 f"{100 * iv['p_best_better']:.1f} % of resamples; ")
+    tied = iv["not_distinguishable"]
+    shown = ", ".join(str(c) for c in tied[:10]) + (f", ... ({len(tied) - 10} more)" if len(tied) > 10 else "")
+    text += (f"{len(tied)} of {rep.view['config'].nunique():,} configs not distinguishable from the best at "
+             f"{pct} % (the interval of best - config reaches 0): configs {shown}")
+    return [paragraph(text)]
+
+
 def _sensitivity_lines(sens: pd.DataFrame, objective: str) -> list[str]:
     if not len(sens):
         return []
@@ -235,8 +261,14 @@ def _cv_lines(rep: SweepReport, folds: int, comb: pd.DataFrame, axes: list, best
                           "baseline_held_out": p["baseline_held_out"], "changed": changed or "(baseline)"})
     lines.append(text_table(pd.DataFrame(fold_rows), keys=("fold",), text=("held_out_sequences", "changed"),
                             float_format=lambda v: f"{v:.3f}"))
+    held = np.array([p["held_out"] for p in cv["per_fold"]])
+    gain = np.array([p["held_out"] - p["baseline_held_out"] for p in cv["per_fold"]
+                     if p["baseline_held_out"] is not None])
+    spread = (f"; folds' held-out {held.min():.3f} .. {held.max():.3f}"
+              + (f", held-out gain over the baseline {gain.mean():+.3f} +- {gain.std(ddof=1):.3f} (sd over "
+                 f"{len(gain)} folds; {int((gain > 0).sum())} of {len(gain)} folds better)" if len(gain) > 1 else ""))
     lines.append(paragraph(f"{objective}: cross-validated {cv['cross_validated']:.3f} (each sequence scored with the "
-                           f"config chosen without it) | in-sample best {best[objective]:.3f}"
+                           f"config chosen without it{spread}) | in-sample best {best[objective]:.3f}"
                            + (f" | baseline {baseline[objective]:.3f}" if baseline is not None else "")))
     return lines
 
@@ -254,6 +286,12 @@ def _summary(rep: SweepReport, objective: str, comb: pd.DataFrame, seqs: int, cl
                                **{a: json_value(best[a]) for a in axes}}}
     if baseline is not None:
         summary["baseline_config_hash"] = baseline["config_hash"]
+    if rep.intervals is not None:
+        iv = rep.intervals
+        summary["bootstrap"] = {"resamples": iv["resamples"], "level": iv["level"],
+                                "not_distinguishable_from_best": len(iv["not_distinguishable"]),
+                                **({"best_minus_baseline": iv["best_minus_baseline"],
+                                    "p_best_better": iv["p_best_better"]} if "best_minus_baseline" in iv else {})}
     if cv is not None:
         summary["best_cross_validated"] = cv["cross_validated"]
         summary["folds"] = folds
