@@ -1,7 +1,7 @@
 """Issue 29, item 5: start-up a user does not wait for. ``import dfrmot_jax`` names its API lazily and
 imports nothing heavy; ``dfrmot --help`` imports none of the commands' dependencies, ``dfrmot track
---help`` only ``config``; ``dfrmot eval``, ``dfrmot compare`` and ``dfrmot report`` (whose package,
-``report/``, reaches no JAX: item 2) run in a process where JAX cannot be imported, with the same output as in-process.
+--help`` only ``config``; ``dfrmot eval`` and ``dfrmot report`` (whose package, ``report/``, reaches
+no JAX: item 2) run in a process where JAX cannot be imported, with the same output as in-process.
 Each check runs a fresh interpreter (``sys.modules`` of this one holds everything)."""
 
 from __future__ import annotations
@@ -84,15 +84,6 @@ def test_eval_runs_where_jax_cannot_be_imported(folders, capsys):
     out = _child(code, "eval", d / "out", "--data", root)
     assert out.returncode == 0, out.stderr
     assert out.stdout == want and "COMBINED" in want
-
-
-def test_compare_runs_where_jax_cannot_be_imported(folders, capsys):
-    root, d = folders
-    _, want, _ = run_cli(capsys, ["compare", d / "out", d / "out", "--data", root, "--resamples", "200"])
-    code = NO_JAX + "from dfrmot_jax.cli import main\nsys.exit(main(sys.argv[1:]))\n"
-    out = _child(code, "compare", d / "out", d / "out", "--data", root, "--resamples", "200")
-    assert out.returncode == 0, out.stderr
-    assert out.stdout == want and "P(B better)" in want
 
 
 def test_report_runs_where_jax_cannot_be_imported(folders, tmp_path, capsys):

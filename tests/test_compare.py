@@ -192,3 +192,79 @@ def test_report_intervals_of_a_sweep(tmp_path):
     rep = sweep_report(tmp_path / "sweep")
     assert "not distinguishable from the best" in rep.text
     assert rep.summary["bootstrap"]["not_distinguishable_from_best"] == len(rep.intervals["not_distinguishable"])
+
+
+@pytest.mark.slow
+def test_compare_page_opens_in_chromium_with_the_switches_the_metrics_count(outputs, tmp_path, capsys):
+    """``--html``: one self-contained page; in headless Chromium its whole-sequence timelines hold one
+    switch mark per identity switch the metrics count for that sequence, for A and B."""
+    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium is a dev dependency: pip install -e .[dev]")
+    from selenium.webdriver.chrome.service import Service
+
+    from test_report_html import _chromium
+
+    root, folders = outputs
+    page, csv = tmp_path / "cmp.html", tmp_path / "cmp.csv"
+    status, _, err = run_cli(capsys, ["compare", folders[0], folders[1], "--data", root, "--resamples", "200",
+                                      "--csv", csv, "--html", page])
+    assert status == 0, err
+    text = page.read_text()
+    assert "<script" not in text and "src=" not in text and "href=" not in text      # nothing beside the file
+    t = pd.read_csv(csv, dtype={"seq": str})
+    browser, driver_path = _chromium()
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = browser
+    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", f"--user-data-dir={tmp_path / 'profile'}"):
+        opts.add_argument(a)
+    drv = webdriver.Chrome(service=Service(executable_path=driver_path), options=opts)
+    try:
+        drv.get(page.resolve().as_uri())
+        seq = drv.execute_script("return document.querySelector('figure.whole').dataset.seq")
+        marks = drv.execute_script("""
+            const out = {};
+            for (const s of document.querySelectorAll('figure.whole svg.timeline')) {
+                const drawn = Array.from(s.querySelectorAll('line.switch')).filter(l => l.getBBox().height > 0);
+                out[s.dataset.output] = drawn.length; }
+            return out;""")
+        views = drv.execute_script("return document.querySelectorAll('svg.bev').length")
+    finally:
+        drv.quit()
+    idsw = t[(t["seq"] == seq) & (t["metric"] == "IDSW")].iloc[0]
+    assert marks == {"A": int(idsw["a"]), "B": int(idsw["b"])}
+    assert marks["A"] + marks["B"] > 0, "no switch in the sequence: the count proves nothing"
+    assert views >= 2
+
+
+def test_sweep_configs_are_compared_as_their_rows_say(tmp_path, capsys):
+    """``DIR:best`` and ``DIR:baseline`` (and ``DIR:config=N``) are tracked alone on the directory's data
+    and written: their figures are the table's COMBINED rows."""
+    from dfrmot_jax.sweep import run_sweep
+
+    root = make_scene(tmp_path / "scene", n_sequences=3, n_frames=50, n_cars=4, seed=4)
+    df = run_sweep({"name": "refs", "chunk": 8, "data": {"root": str(root), "det2d": "synth2d", "det3d": "synth3d"},
+                    "baseline": {"preset": "dfr2023"}, "params": {"a_l": [1.0, 8.0], "epsilon": [3, 30]},
+                    "options": {"output": ["detections", "filtered"]}},
+                   tmp_path / "sweep", progress=False, workers=0, log=lambda m: None)
+    comb = df[df["sequence"] == "COMBINED"].set_index("config")
+    best = int(comb["HOTA"].idxmax())
+    base = int(comb.index[comb["baseline"]][0])
+    other = int(comb["HOTA"].idxmin())
+    csv = tmp_path / "refs.csv"
+    d = tmp_path / "sweep"
+    status, out, err = run_cli(capsys, ["compare", f"{d}:baseline", f"{d}:best", "--data", root, "--resamples", "100",
+                                        "--csv", csv])
+    assert status == 0, err
+    assert f"config {best} " in out and f"config {base} " in out
+    t = pd.read_csv(csv, dtype={"seq": str})
+    row = t[(t["seq"] == "COMBINED") & (t["metric"] == "HOTA")].iloc[0]
+    assert row["a"] == pytest.approx(comb.at[base, "HOTA"], abs=1e-9)
+    assert row["b"] == pytest.approx(comb.at[best, "HOTA"], abs=1e-9)
+    status, _, err = run_cli(capsys, ["compare", f"{d}:config={other}", f"{d}:best", "--data", root, "--resamples",
+                                      "100", "--csv", csv])
+    assert status == 0, err
+    row = pd.read_csv(csv, dtype={"seq": str}).query("seq == 'COMBINED' and metric == 'MOTA'").iloc[0]
+    assert row["a"] == pytest.approx(comb.at[other, "MOTA"], abs=1e-9)
+    status, _, err = run_cli(capsys, ["compare", f"{d}:config=999", f"{d}:best", "--data", root])
+    assert status == 2 and "no config 999" in error_line(err, "compare")
+    status, _, err = run_cli(capsys, ["compare", f"{tmp_path}:best", f"{d}:best", "--data", root])
+    assert status == 2 and "no manifest.json" in error_line(err, "compare")

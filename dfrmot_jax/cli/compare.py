@@ -2,28 +2,53 @@
 intervals over sequences (:mod:`dfrmot_jax.report.compare`).
 
 Usage: ``dfrmot compare A B [--data ROOT] [--class car[,pedestrian]] [--seqs 0000,0002 | --seqmap FILE]
-[--resamples 10000] [--seed 0] [--csv OUT.csv] [--allow-missing]``. A and B are read and checked as
+[--resamples 10000] [--seed 0] [--csv OUT.csv] [--html OUT.html] [--allow-missing]``. A and B are read and checked as
 ``dfrmot eval`` reads them (the same refusals, exit 2). Prints, per class, the COMBINED figures of A and
 B, B - A with its 95 % interval and the share of resamples where B is better, and the sequences where
 HOTA moves most; ``--csv`` writes the tidy table (one row per class, sequence or ``COMBINED``, metric:
-``class seq metric a b diff ci_low ci_high p_b_better resamples``).
+``class seq metric a b diff ci_low ci_high p_b_better resamples``); ``--html`` one self-contained page
+with the ground-truth tracks treated most differently, their timelines and bird's-eye views
+(:mod:`dfrmot_jax.report.compare_html`).
 """
 
 from __future__ import annotations
 
 import argparse
+import tempfile
 from pathlib import Path
 
+from ..io.kitti import KittiFormatError
 from ..metrics.ab3dmot.prep import read_seqmap
+from ..report.stored import read_manifest
+from ..sweep.config_output import write_config_output
 from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
 from ..paths import default_data_root
 from ..report.compare import DEFAULT_RESAMPLES, compare_outputs, comparison_text
+from ..report.compare_html import write_compare_html
 from .commands import HELP
 from .errors import guarded
 from .eval import classes_arg, check_class_rows, check_folder, ground_truth
 from .track_parser import parse_seqs
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "parse_reference"]
+
+
+def parse_reference(text: str) -> tuple[Path, str | int] | None:
+    """``DIR:best`` | ``DIR:baseline`` | ``DIR:config=N`` -> (DIR, 'best' | 'baseline' | N); None when
+    ``text`` is no such reference (an existing folder is always a folder)."""
+    if Path(text).is_dir() or ":" not in text:
+        return None
+    head, _, which = text.rpartition(":")
+    if not (Path(head) / "manifest.json").is_file():
+        raise ValueError(f"{text}: not a folder, nor a sweep or tune directory's config ({head} has no manifest.json)")
+    if which in ("best", "baseline"):
+        return Path(head), which
+    if which.startswith("config="):
+        try:
+            return Path(head), int(which.removeprefix("config="))
+        except ValueError:
+            raise ValueError(f"{text}: expected DIR:config=N with N a config number") from None
+    raise ValueError(f"{text}: expected DIR:best, DIR:baseline or DIR:config=N")
 
 
 def _resamples(text: str) -> int:
@@ -45,8 +70,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
                                    "over sequences (each resample recombined exactly as TrackEval combines "
                                    "sequences): the 95 %% interval of B - A and the share of resamples where B "
                                    "is better. Folders are read and checked as dfrmot eval reads them.")
-    p.add_argument("a", metavar="A", help="the first result folder (SSSS.txt files)")
-    p.add_argument("b", metavar="B", help="the second result folder; differences are B - A")
+    p.add_argument("a", metavar="A", help="the first result folder (SSSS.txt files), or a sweep / tune directory's "
+                                          "config: DIR:best, DIR:baseline, DIR:config=N (tracked alone, on the "
+                                          "directory's data; its sequences unless --seqs)")
+    p.add_argument("b", metavar="B", help="the second, likewise; differences are B - A")
     p.add_argument("--data", default=None, metavar="ROOT",
                    help=f"KITTI tracking training root (default: $DFRMOT_DATA or {default_data_root()})")
     p.add_argument("--class", dest="cls", default=("car",), type=classes_arg, metavar="CLASSES",
@@ -61,6 +88,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="score a sequence without a result file as an empty output (with a warning)")
     p.add_argument("--csv", default=None, metavar="OUT", help="write the tidy table: class seq metric a b diff "
                                                                "ci_low ci_high p_b_better resamples")
+    p.add_argument("--html", default=None, metavar="OUT.html",
+                   help="write one self-contained page: the figures with their intervals, HOTA per sequence, the "
+                        "ground-truth tracks treated most differently, their timelines and bird's-eye views")
     p.set_defaults(func=guarded(run))
     return p
 
@@ -71,31 +101,60 @@ def run(args) -> int:
     label_dir = root / "label_02"
     if not label_dir.is_dir():
         raise ValueError(f"no ground truth at {label_dir} (use --data or set DFRMOT_DATA)")
+    refs = [parse_reference(str(x)) for x in (args.a, args.b)]
     seqs = parse_seqs(args.seqs)
+    if seqs is None and not args.seqmap:
+        seqs = next((read_manifest(r[0])["data"]["sequences"] for r in refs if r is not None), None)
     if args.seqmap:
         if seqs is not None:
             raise ValueError("--seqs and --seqmap both name the sequences: give one")
         seqs = list(read_seqmap(args.seqmap, root))
     gts, seq_lists = ground_truth(root, args.cls, seqs, True)
+    with tempfile.TemporaryDirectory(prefix="dfrmot-compare-") as tmp:
+        names = [str(args.a), str(args.b)]
+        folders = [Path(args.a), Path(args.b)]
+        for i, ref in enumerate(refs):
+            if ref is not None:                   # a sweep's config: tracked alone, written here
+                folders[i] = Path(tmp) / "AB"[i]
+                names[i] = write_config_output(ref[0], ref[1], folders[i])
+        return _compare(args, root, label_dir, seqs, gts, seq_lists, folders, names)
+
+
+def _compare(args, root: Path, label_dir: Path, seqs, gts: dict, seq_lists: dict, folders: list, names: list) -> int:
+    """The comparison of two result folders (``names``: how to call them)."""
     wanted = sorted({s for cs in seq_lists.values() for s in cs})
     known = None if seqs is not None else sorted(p.stem for p in label_dir.glob("*.txt"))
-    folders = [Path(args.a), Path(args.b)]
     for d in folders:
         if not d.is_dir():
             raise ValueError(f"not a directory: {d}")
         check_folder(d, inspect_results(d, wanted, known), len(wanted), label_dir, args.allow_missing)
     dets = []
     for d in folders:
-        per_class = {c: read_tracker_files(d, gt) for c, gt in gts.items()}
+        per_class = {c: _read(d, gt, bool(args.html)) for c, gt in gts.items()}
         for c, gt in gts.items():
             check_class_rows(d, c, seq_lists[c], int(gt.n_gt_dets.sum()), per_class[c].frame.size,
                              args.allow_missing, "compare")
         dets.append(per_class)
-    result = compare_outputs(gts, dets[0], dets[1], str(folders[0]), str(folders[1]), args.resamples, args.seed)
+    result = compare_outputs(gts, dets[0], dets[1], names[0], names[1], args.resamples, args.seed)
     print(comparison_text(result))
     if args.csv:
         out = Path(args.csv)
         out.parent.mkdir(parents=True, exist_ok=True)
         result.table.to_csv(out, index=False)
         print(f"wrote {out}")
+    if args.html:
+        write_compare_html(result, args.html)
+        print(f"wrote {args.html}")
     return 0
+
+
+def _read(d: Path, gt, with_3d: bool):
+    """A folder's rows of ``gt``'s class; with ``with_3d`` (the page's bird's-eye views) also their 3D
+    fields, when every row's are readable (else without: the views then draw the ground truth only, and
+    say so by having no rows)."""
+    if with_3d:
+        try:
+            return read_tracker_files(d, gt, need_3d=True)
+        except KittiFormatError:
+            pass
+    return read_tracker_files(d, gt)

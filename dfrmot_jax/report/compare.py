@@ -29,6 +29,7 @@ from ..metrics.kitti2d.bootstrap import BOOTSTRAP_FIELDS, LOWER_IS_BETTER, inter
 from ..metrics.kitti2d.evaluate import combine_sequences, result_dicts
 from ..metrics.kitti2d.table import summary_row
 from .columns import COMBINED
+from .compare_views import differing_tracks, output_events
 
 __all__ = ["COLUMNS", "Comparison", "compare_outputs", "comparison_text", "DEFAULT_RESAMPLES"]
 
@@ -39,7 +40,9 @@ DEFAULT_RESAMPLES = 10_000
 @dataclass
 class Comparison:
     """The tidy table (:data:`COLUMNS`) and what it was made from: the names of A and B, the
-    resamples, the seed and the interval level."""
+    resamples, the seed and the interval level; per class the ground truth, both outputs' CLEAR
+    matches (``events``: class -> (gt, A's, B's :class:`~.compare_views.OutputEvents`)) and the
+    ground-truth tracks they treat most differently (``differing``: class -> DataFrame)."""
 
     table: pd.DataFrame
     name_a: str
@@ -47,6 +50,8 @@ class Comparison:
     resamples: int
     seed: int
     level: float = 0.95
+    events: dict | None = None
+    differing: dict | None = None
 
 
 def _scored(gt, fields: Mapping) -> dict:
@@ -66,7 +71,12 @@ def compare_outputs(gts: Mapping[str, object], dets_a: Mapping[str, object], det
     if resamples < 1:
         raise ValueError(f"resamples must be at least 1, got {resamples}")
     rows: list[dict] = []
+    events: dict[str, tuple] = {}
+    differing: dict[str, pd.DataFrame] = {}
     for cls, gt in gts.items():
+        ev_a, ev_b = output_events(gt, dets_a[cls]), output_events(gt, dets_b[cls])
+        events[cls] = (gt, ev_a, ev_b)
+        differing[cls] = differing_tracks(gt, ev_a, ev_b)
         fa, fb = seq_fields(gt, dets_a[cls]), seq_fields(gt, dets_b[cls])
         da, db = _scored(gt, fa), _scored(gt, fb)
         boot_a, boot_b, _ = paired_bootstrap(fa, fb, resamples, seed)
@@ -79,7 +89,7 @@ def compare_outputs(gts: Mapping[str, object], dets_a: Mapping[str, object], det
                              **({**ci[m], "resamples": resamples} if s == COMBINED else {})})
     table = pd.DataFrame(rows, columns=list(COLUMNS))
     table["resamples"] = table["resamples"].astype("Int64")
-    return Comparison(table, name_a, name_b, resamples, seed, level)
+    return Comparison(table, name_a, name_b, resamples, seed, level, events, differing)
 
 
 def comparison_text(c: Comparison, top: int = 5, metrics: Sequence[str] = BOOTSTRAP_FIELDS) -> str:
@@ -105,7 +115,22 @@ def comparison_text(c: Comparison, top: int = 5, metrics: Sequence[str] = BOOTST
         if len(moved):
             lines.append("HOTA by sequence, largest moves: " + ", ".join(
                 f"{r.seq} {r.a:.2f} -> {r.b:.2f} ({r.diff:+.2f})" for r in moved.itertuples()))
+        lines += _differing_lines(c, cls, top)
     return "\n".join(lines)
+
+
+def _differing_lines(c: Comparison, cls: str, top: int) -> list[str]:
+    """The ground-truth tracks where A and B differ most (CLEAR's misses, switches, fragmentations)."""
+    d = None if c.differing is None else c.differing.get(cls)
+    if d is None or not len(d):
+        return ["no ground-truth track is treated differently (same misses, switches, fragmentations)"]
+    lines = ["ground-truth tracks where they differ most (CLEAR at IoU 0.5; missed frames, switches, "
+             "fragmentations of A -> B):"]
+    for r in d.head(top).itertuples():
+        lines.append(f"  sequence {r.seq} gt id {r.gt_id} frames {r.first}-{r.last} ({r.present} present): missed "
+                     f"{r.missed_a} -> {r.missed_b}, switches {r.switches_a} -> {r.switches_b}, frags {r.frags_a} "
+                     f"-> {r.frags_b}")
+    return lines
 
 
 def _fmt(metric: str):

@@ -191,6 +191,30 @@ def clear_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     return _early_sequences(b, res)
 
 
+def clear_matches(b: EvalBatch) -> dict[str, np.ndarray]:
+    """CLEAR's matches themselves, for looking at where two outputs differ: M matched pairs sorted by
+    (lane, GT id, frame), ``lane``, ``frame`` (global), ``gid`` (global GT id), ``tid`` (global tracker
+    id, ``b.det_gid``'s), ``switch`` (the pair's tracker id differs from the GT id's previous match: an
+    IDSW), ``restart`` (a match starting a new run after a gap of active frames: a Frag); the same
+    decisions as :func:`clear_sequences` (``_matched_pairs``, ``_switches_and_fragments``)."""
+    p_gid = b.gt.eval_gid[b.p_e]
+    p_tid = b.det_gid[b.p_k]
+    m = np.flatnonzero(_matched_pairs(b, p_gid, p_tid))
+    F = b.gt.n_frames
+    lf, gid, tid = b.p_lf[m], p_gid[m], p_tid[m]
+    lane = lf // F
+    order = np.lexsort((lf, gid, lane))
+    lane, lf, gid, tid = lane[order], lf[order], gid[order], tid[order]
+    same = np.zeros(len(order), bool)
+    same[1:] = (lane[1:] == lane[:-1]) & (gid[1:] == gid[:-1])
+    switch = np.zeros(len(order), bool)
+    switch[1:] = same[1:] & (tid[1:] != tid[:-1])
+    rank = np.cumsum((b.lf_eval_count * b.det_count) > 0) - 1          # rank among active lane-frames
+    restart = np.zeros(len(order), bool)
+    restart[1:] = same[1:] & (rank[lf[1:]] != rank[lf[:-1]] + 1)
+    return {"lane": lane, "frame": lf % F, "gid": gid, "tid": tid, "switch": switch, "restart": restart}
+
+
 def _matched_pairs(b: EvalBatch, p_gid: np.ndarray, p_tid: np.ndarray) -> np.ndarray:
     """[P] bool: TrackEval's per-frame matches (``sim >= 0.5 - eps``; the frames where a GT or
     tracker box has two candidates solved with the continuation bonus, :func:`_solve_sequential`)."""

@@ -124,7 +124,8 @@ class PreparedGT:
       ``row_eval_index`` [N] int64 (index among eval rows, -1 for distractors), ``row_start`` [F+1].
     * Eval rows, NE rows: ``eval_gid`` [NE] (global GT id; sequence s owns ids
       ``gid_start[s]:gid_start[s+1]``), ``eval_start`` [F+1], ``eval_count`` [F].
-    * ``gid_count`` [NG] float64 detections per GT id; ``gid_seq`` [NG]; ``n_gt_ids`` [S];
+    * ``gid_count`` [NG] float64 detections per GT id; ``gid_label`` [NG] int64 its track id in the
+      label file; ``gid_seq`` [NG]; ``n_gt_ids`` [S];
       ``n_gt_dets`` [S].
     * DontCare regions: ``dc_box`` [D, 4], ``dc_start`` [F+1].
     * 3D boxes of the class rows: ``row_box3d`` [N, 7] ``h w l x y z rot_y`` (label_02's columns),
@@ -144,6 +145,7 @@ class PreparedGT:
     eval_start: np.ndarray
     eval_count: np.ndarray
     gid_count: np.ndarray
+    gid_label: np.ndarray
     gid_seq: np.ndarray
     gid_start: np.ndarray
     n_gt_ids: np.ndarray
@@ -220,6 +222,7 @@ class _SequenceGT(NamedTuple):
     n_ids: int               # eval GT ids
     n_dets: int              # eval rows
     gid_count: np.ndarray    # [n_ids] float64 detections per GT id
+    gid_label: np.ndarray    # [n_ids] int64 the label file's track id of each GT id
     dc_box: np.ndarray       # [d, 4] DontCare regions, by frame
     dc_frame: np.ndarray     # [d] their global frames
 
@@ -252,7 +255,7 @@ def _sequence_gt(lab, path: Path, kio, cls_id: int, classes: tuple, offset: int,
     dsel = np.flatnonzero(is_dc)
     dsel = dsel[np.argsort(lab.frame[dsel], kind="stable")]
     return _SequenceGT(length, lab.box[order], box3d, is_eval[order], lab.frame[order] + offset, gid, len(uniq),
-                       len(ev), cnt.astype(np.float64), lab.box[dsel], lab.frame[dsel] + offset)
+                       len(ev), cnt.astype(np.float64), uniq.astype(np.int64), lab.box[dsel], lab.frame[dsel] + offset)
 
 
 def _joined_gt(cls: str, cls_id: int, names: list, parts: list[_SequenceGT], root) -> PreparedGT:
@@ -274,6 +277,7 @@ def _joined_gt(cls: str, cls_id: int, names: list, parts: list[_SequenceGT], roo
     eval_count = np.bincount(eval_frame, minlength=F).astype(np.int64)
     dc_frame = np.concatenate(dcf) if dcf else np.zeros(0, np.int64)
     gid_count = np.concatenate(gid_counts) if gid_counts else np.zeros(0)
+    gid_label = np.concatenate([p.gid_label for p in parts]) if parts else np.zeros(0, np.int64)
     row_box3d = np.concatenate(boxes3d).reshape(-1, 7).astype(np.float64) if boxes3d else np.zeros((0, 7))
     row_has3d = box_rows(row_box3d)              # ground truth whose 3D fields are no box: no 3D box
     n_gt_ids = np.asarray([p.n_ids for p in parts], dtype=np.int64)
@@ -282,7 +286,8 @@ def _joined_gt(cls: str, cls_id: int, names: list, parts: list[_SequenceGT], roo
         seq_of_frame=np.repeat(np.arange(len(names)), lengths_a),
         row_box=np.ascontiguousarray(row_box), row_eval=row_eval, row_eval_index=eval_idx, row_start=row_start,
         eval_gid=row_gid[row_eval], eval_start=segment_starts(eval_count), eval_count=eval_count,
-        gid_count=gid_count, gid_seq=np.repeat(np.arange(len(names)), n_gt_ids), gid_start=segment_starts(n_gt_ids),
+        gid_count=gid_count, gid_label=gid_label, gid_seq=np.repeat(np.arange(len(names)), n_gt_ids),
+        gid_start=segment_starts(n_gt_ids),
         n_gt_ids=n_gt_ids, n_gt_dets=np.asarray([p.n_dets for p in parts], dtype=np.int64),
         dc_box=np.concatenate(dcb).reshape(-1, 4).astype(np.float64) if dcb else np.zeros((0, 4)),
         dc_start=segment_starts(np.bincount(dc_frame, minlength=F)),
