@@ -268,3 +268,33 @@ def test_sweep_configs_are_compared_as_their_rows_say(tmp_path, capsys):
     assert status == 2 and "no config 999" in error_line(err, "compare")
     status, _, err = run_cli(capsys, ["compare", f"{tmp_path}:best", f"{d}:best", "--data", root])
     assert status == 2 and "no manifest.json" in error_line(err, "compare")
+
+
+def test_an_ab3dmot_resample_is_the_resampled_files_scored(outputs, tmp_path, capsys):
+    """AB3DMOT's figures of a resample (a sequence drawn twice is two sequences) equal scoring a folder
+    of the resampled files renamed, and ``--metrics ab3dmot`` adds its rows with their intervals."""
+    from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
+    from dfrmot_jax.metrics.ab3dmot.table import ab3dmot_columns
+    from dfrmot_jax.report.compare_ab3dmot import split_figures
+
+    root, folders = outputs
+    names = ["0002", "0002", "0000", "0005", "0005", "0005"]
+    got = split_figures(root, "car", names, folders, "3d:0.25")
+    there = tmp_path / "r"
+    (there / "data" / "label_02").mkdir(parents=True)
+    for k, name in enumerate(names):
+        shutil.copy(root / "label_02" / f"{name}.txt", there / "data" / "label_02" / f"{k:04d}.txt")
+        for b, d in enumerate(folders):
+            (there / f"out{b}").mkdir(exist_ok=True)
+            shutil.copy(d / f"{name}.txt", there / f"out{b}" / f"{k:04d}.txt")
+    for b in range(2):
+        direct = ab3dmot_columns(evaluate_ab3dmot_files(there / f"out{b}", there / "data", "car", iou="3d:0.25"))
+        assert got[b] == pytest.approx(direct, abs=1e-9)
+    csv = tmp_path / "c.csv"
+    status, out, err = run_cli(capsys, ["compare", folders[0], folders[1], "--data", root, "--resamples", "100",
+                                        "--metrics", "kitti2d,ab3dmot", "--ab3dmot-resamples", "12", "--csv", csv])
+    assert status == 0, err
+    t = pd.read_csv(csv, dtype={"seq": str})
+    ab = t[t["metric"].str.startswith("sAMOTA@")]
+    assert len(ab) == 1 and ab["resamples"].iloc[0] == 12 and ab["ci_low"].iloc[0] <= ab["ci_high"].iloc[0]
+    assert "12 paired resamples, each rescored" in out

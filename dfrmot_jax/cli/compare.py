@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import argparse
 import tempfile
+
+import pandas as pd
 from pathlib import Path
 
 from ..io.kitti import KittiFormatError
@@ -24,10 +26,11 @@ from ..sweep.config_output import write_config_output
 from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
 from ..paths import default_data_root
 from ..report.compare import DEFAULT_RESAMPLES, compare_outputs, comparison_text
+from ..report.compare_ab3dmot import AB3DMOT_RESAMPLES, ab3dmot_rows
 from ..report.compare_html import write_compare_html
 from .commands import HELP
 from .errors import guarded
-from .eval import classes_arg, check_class_rows, check_folder, ground_truth
+from .eval import families_arg, iou_arg, classes_arg, check_class_rows, check_folder, ground_truth
 from .track_parser import parse_seqs
 
 __all__ = ["add_parser", "run", "parse_reference"]
@@ -84,6 +87,14 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--resamples", default=DEFAULT_RESAMPLES, type=_resamples,
                    help=f"bootstrap resamples (default {DEFAULT_RESAMPLES:,})")
     p.add_argument("--seed", default=0, type=int, help="seed of the resamples (default 0)")
+    p.add_argument("--metrics", default=("kitti2d",), type=families_arg, metavar="FAMILIES",
+                   help="kitti2d (TrackEval's, default) and/or ab3dmot: AB3DMOT's sAMOTA / AMOTA / MOTA / IDS / FP / FN "
+                        "(--ab3dmot-iou), each resample rescored")
+    p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default="3d:0.25", type=iou_arg, metavar="2d:T|3d:T",
+                   help="AB3DMOT's matching (default 3d:0.25)")
+    p.add_argument("--ab3dmot-resamples", dest="ab3dmot_resamples", default=AB3DMOT_RESAMPLES, type=_resamples,
+                   help=f"resamples of AB3DMOT's figures, each a full evaluation of both outputs (default "
+                        f"{AB3DMOT_RESAMPLES}; about 0.2 s each for 11 sequences)")
     p.add_argument("--allow-missing", action="store_true",
                    help="score a sequence without a result file as an empty output (with a warning)")
     p.add_argument("--csv", default=None, metavar="OUT", help="write the tidy table: class seq metric a b diff "
@@ -137,6 +148,8 @@ def _compare(args, root: Path, label_dir: Path, seqs, gts: dict, seq_lists: dict
         dets.append(per_class)
     result = compare_outputs(gts, dets[0], dets[1], names[0], names[1], args.resamples, args.seed)
     print(comparison_text(result))
+    if "ab3dmot" in args.metrics:
+        _ab3dmot(args, root, seq_lists, folders, result)
     if args.csv:
         out = Path(args.csv)
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -146,6 +159,26 @@ def _compare(args, root: Path, label_dir: Path, seqs, gts: dict, seq_lists: dict
         write_compare_html(result, args.html)
         print(f"wrote {args.html}")
     return 0
+
+
+def _ab3dmot(args, root: Path, seq_lists: dict, folders: list, result) -> None:
+    """AB3DMOT's figures with their intervals: printed, and added to ``result.table``'s COMBINED rows."""
+    rows = []
+    for cls, seqs in seq_lists.items():
+        got, per = ab3dmot_rows(root, cls, list(seqs), folders[0], folders[1], args.ab3dmot_resamples, args.seed,
+                                args.ab3dmot_iou)
+        rows += got
+        print(f"\n{cls}, AB3DMOT (IoU {args.ab3dmot_iou}): {args.ab3dmot_resamples:,} paired resamples, each rescored "
+              f"({per:.2f} s per resample)")
+        for r in got:
+            count = r["metric"].split("@")[0] in ("ab3dmot_IDS", "ab3dmot_FP", "ab3dmot_FN")
+            f = (lambda v: f"{int(round(v)):+d}") if count else (lambda v: f"{v:+.2f}")
+            g = (lambda v: f"{int(round(v))}") if count else (lambda v: f"{v:.2f}")
+            print(f"{r['metric']:<22} {g(r['a']):>8} {g(r['b']):>8} {f(r['diff']):>8}   [{f(r['ci_low']):>8}, "
+                  f"{f(r['ci_high']):>8}]   {r['p_b_better']:.3f}")
+    result.table = pd.concat([result.table, pd.DataFrame(rows, columns=list(result.table.columns))],
+                             ignore_index=True)
+    result.table["resamples"] = result.table["resamples"].astype("Int64")
 
 
 def _read(d: Path, gt, with_3d: bool):

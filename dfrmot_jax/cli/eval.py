@@ -74,7 +74,8 @@ from .commands import HELP
 from .errors import guarded
 from .track_parser import parse_seqs
 
-__all__ = ["add_parser", "run", "check_folder", "check_class_rows", "classes_arg", "ground_truth", "tracker_name"]
+__all__ = ["add_parser", "run", "check_folder", "check_class_rows", "classes_arg", "families_arg", "ground_truth",
+           "iou_arg", "tracker_name"]
 
 
 def tracker_name(d: Path) -> str:
@@ -89,14 +90,14 @@ def classes_arg(text: str) -> tuple:
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
-def _families_arg(text: str) -> tuple:
+def families_arg(text: str) -> tuple:
     try:
         return parse_metric_families(text)
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
-def _iou_arg(text: str) -> str:
+def iou_arg(text: str) -> str:
     try:
         kind, thr = parse_iou(text)
     except ValueError as e:
@@ -129,10 +130,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--seqmap", default=None, metavar="FILE",
                    help="evaluate the sequences of a KITTI seqmap (NAME empty FIRST LAST a line, e.g. AB3DMOT's "
                         "evaluate_tracking.seqmap.val), like --seqs")
-    p.add_argument("--metrics", default=("kitti2d",), type=_families_arg, metavar="FAMILIES",
+    p.add_argument("--metrics", default=("kitti2d",), type=families_arg, metavar="FAMILIES",
                    help="metric families, comma-separated: kitti2d (TrackEval's HOTA/CLEAR/Identity, default), "
                         "ab3dmot (AB3DMOT's KITTI sAMOTA/AMOTA/AMOTP and best-threshold MOTA/MOTP/IDS/FRAG/FP/FN)")
-    p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default="3d:0.25", type=_iou_arg, metavar="2d:T|3d:T",
+    p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default="3d:0.25", type=iou_arg, metavar="2d:T|3d:T",
                    help="AB3DMOT matching: image-box IoU (2d) or 3D IoU of the rotated boxes (3d) at threshold T "
                         "(default 3d:0.25; AB3DMOT uses 2d:0.5 and 3d:0.25/0.5/0.7)")
     p.add_argument("--similarity", default="2d", choices=("2d", "3d", "bev"),
