@@ -235,6 +235,7 @@ def test_compare_page_opens_in_chromium_with_the_switches_the_metrics_count(outp
     assert views >= 2
 
 
+@pytest.mark.slow
 def test_sweep_configs_are_compared_as_their_rows_say(tmp_path, capsys):
     """``DIR:best`` and ``DIR:baseline`` (and ``DIR:config=N``) are tracked alone on the directory's data
     and written: their figures are the table's COMBINED rows."""
@@ -270,6 +271,7 @@ def test_sweep_configs_are_compared_as_their_rows_say(tmp_path, capsys):
     assert status == 2 and "no manifest.json" in error_line(err, "compare")
 
 
+@pytest.mark.slow
 def test_an_ab3dmot_resample_is_the_resampled_files_scored(outputs, tmp_path, capsys):
     """AB3DMOT's figures of a resample (a sequence drawn twice is two sequences) equal scoring a folder
     of the resampled files renamed, and ``--metrics ab3dmot`` adds its rows with their intervals."""

@@ -16,6 +16,19 @@ def test_expected_notebooks_present():
     assert set(EXPECTED) <= {p.name for p in NOTEBOOKS}
 
 
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_notebooks_are_committed_with_their_outputs(path):
+    """A reader opening a notebook sees what it computes: every code cell that ran has its outputs, and no
+    output is an error (re-execute a notebook whenever its numbers change)."""
+    import json
+
+    nb = json.loads(path.read_text())
+    code = [c for c in nb["cells"] if c["cell_type"] == "code"]
+    assert code and all(c.get("execution_count") for c in code), f"{path.name}: a code cell was not executed"
+    assert sum(len(c.get("outputs", [])) for c in code) >= len(code) // 2, f"{path.name}: committed without outputs"
+    assert not [o for c in code for o in c.get("outputs", []) if o.get("output_type") == "error"]
+
+
 @pytest.mark.notebook
 @pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])

@@ -45,7 +45,8 @@ def test_random_settings_match_reference(scene):
         _assert_parity(split, seqs, params, options)
 
 
-@pytest.mark.parametrize("options", [Options(), Options(output="filtered", assign="hungarian"), Options(modality="3d")])
+@pytest.mark.parametrize("options", [Options()] + [pytest.param(o, marks=pytest.mark.slow) for o in (
+    Options(output="filtered", assign="hungarian"), Options(modality="3d"))])
 def test_weak_detections_track_like_the_oracle(scene, options):
     """Weak detections (``weak_2d``, ``weak_3d``, ``a_weak``) continue tracks and never start one, as the
     oracle's independent rule; the setting is one where they change the output."""
