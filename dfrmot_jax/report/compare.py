@@ -25,8 +25,10 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ..metrics.kitti2d.bootstrap import BOOTSTRAP_FIELDS, LOWER_IS_BETTER, intervals, paired_bootstrap, seq_fields
+from ..metrics.kitti2d.bootstrap import (BOOTSTRAP_FIELDS, LOWER_IS_BETTER, batch_seq_fields, intervals,
+                                         paired_bootstrap)
 from ..metrics.kitti2d.evaluate import combine_sequences, result_dicts
+from ..metrics.kitti2d.kitti import preprocess
 from ..metrics.kitti2d.table import summary_row
 from .columns import COMBINED
 from .compare_views import differing_tracks, output_events
@@ -74,10 +76,11 @@ def compare_outputs(gts: Mapping[str, object], dets_a: Mapping[str, object], det
     events: dict[str, tuple] = {}
     differing: dict[str, pd.DataFrame] = {}
     for cls, gt in gts.items():
-        ev_a, ev_b = output_events(gt, dets_a[cls]), output_events(gt, dets_b[cls])
+        ba, bb = preprocess(gt, dets_a[cls]), preprocess(gt, dets_b[cls])          # once per output
+        ev_a, ev_b = output_events(gt, dets_a[cls], ba), output_events(gt, dets_b[cls], bb)
         events[cls] = (gt, ev_a, ev_b)
         differing[cls] = differing_tracks(gt, ev_a, ev_b)
-        fa, fb = seq_fields(gt, dets_a[cls]), seq_fields(gt, dets_b[cls])
+        fa, fb = batch_seq_fields(ba), batch_seq_fields(bb)
         da, db = _scored(gt, fa), _scored(gt, fb)
         boot_a, boot_b, _ = paired_bootstrap(fa, fb, resamples, seed)
         ci = intervals(boot_a, boot_b, level)

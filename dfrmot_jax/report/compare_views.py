@@ -42,9 +42,10 @@ class OutputEvents(NamedTuple):
     dets: object
 
 
-def output_events(gt, dets) -> OutputEvents:
-    """CLEAR's matches of one output (read by ``read_tracker_files``) against ``gt``."""
-    return OutputEvents(clear_matches(preprocess(gt, dets)), dets)
+def output_events(gt, dets, batch=None) -> OutputEvents:
+    """CLEAR's matches of one output (read by ``read_tracker_files``) against ``gt``; ``batch``: its
+    ``preprocess``-ed ``EvalBatch`` when already made."""
+    return OutputEvents(clear_matches(preprocess(gt, dets) if batch is None else batch), dets)
 
 
 def _eval_rows(gt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -22,9 +22,10 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from . import hota
-from .evaluate import RAW_FIELDS, combine_sequences, evaluate_batch, summary_columns
+from .evaluate import RAW_FIELDS, batch_fields, combine_sequences, summary_columns
+from .kitti import preprocess
 
-__all__ = ["BOOTSTRAP_FIELDS", "LOWER_IS_BETTER", "TP_WEIGHTED_FIELDS", "seq_fields", "resample_indices", "counts_of",
+__all__ = ["BOOTSTRAP_FIELDS", "LOWER_IS_BETTER", "TP_WEIGHTED_FIELDS", "seq_fields", "batch_seq_fields", "resample_indices", "counts_of",
            "paired_bootstrap", "intervals", "resample_combined", "resampled_figure"]
 
 #: the summary fields a comparison reports (``dfrmot eval``'s names: HOTA family in percent, CLEAR's counts)
@@ -39,7 +40,12 @@ RESAMPLES_PER_STEP = 512
 def seq_fields(gt, dets, similarity: str = "2d") -> dict[str, np.ndarray]:
     """The per-sequence TrackEval fields of one output: ``{field: [S(, 19)]}`` (the sums TrackEval
     combines, :func:`~dfrmot_jax.metrics.kitti2d.evaluate.evaluate_batch`'s ``seq`` of lane 0)."""
-    out = evaluate_batch(gt, dets, similarity)["seq"]
+    return batch_seq_fields(preprocess(gt, dets, similarity))
+
+
+def batch_seq_fields(b) -> dict[str, np.ndarray]:
+    """:func:`seq_fields` of an output already preprocessed (an ``EvalBatch`` of one lane)."""
+    out = batch_fields(b)["seq"]
     return {f: np.asarray(v)[0] for f, v in out.items()}
 
 

@@ -57,6 +57,7 @@ from dfrmot_jax.metrics.common.sequences import cached_class_sequences, seq_name
 from dfrmot_jax.metrics.common.sequences import clear_cache as clear_sequence_cache
 from dfrmot_jax.metrics.kitti2d import clear, hota, identity, table
 from dfrmot_jax.metrics.kitti2d.kitti import (
+    EvalBatch,
     PreparedGT,
     TrackerDets,
     prepare_gt,
@@ -139,7 +140,12 @@ def class_average(per_class: Mapping[str, Mapping[str, object]]) -> dict[str, ob
 def evaluate_batch(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> dict[str, dict[str, np.ndarray]]:
     """All metrics for the lanes of ``dets``: ``{'seq': {field: [L, S(, 19)]}, 'comb': {field: [L(, 19)]}}``.
     similarity: ``'2d'``, ``'3d'`` or ``'bev'`` (module docstring)."""
-    b = preprocess(gt, dets, similarity)
+    return batch_fields(preprocess(gt, dets, similarity))
+
+
+def batch_fields(b: EvalBatch) -> dict[str, dict[str, np.ndarray]]:
+    """:func:`evaluate_batch` of an already preprocessed batch (:func:`~dfrmot_jax.metrics.kitti2d.kitti.preprocess`)."""
+    gt = b.gt
     L, S = b.n_lanes, len(gt.sequences)
     seq = {}
     seq.update(hota.hota_sequences(b))
