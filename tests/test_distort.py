@@ -221,7 +221,7 @@ def test_drop_fraction_within_3se_synthetic(synthetic, p):
     _within_3se(f3, p)
 
 
-@pytest.mark.parametrize("p", [0.1, 0.5])
+@pytest.mark.parametrize("p", [pytest.param(0.1, marks=pytest.mark.slow), 0.5])
 def test_drop_fraction_within_3se_kitti(kitti, p):
     _, frames, gid2, gid3, spec = kitti
     f2, f3 = _drop_fractions(frames, gid2, gid3, spec, "drop", p, range(100, 120))
