@@ -393,3 +393,25 @@ def test_pairwise_sampler_refuses_a_continuous_dim_naming_its_key(scene, tmp_pat
     assert main(["tune", str(path), "--out", str(tmp_path / "p")]) == 2
     err = capsys.readouterr().err
     assert "params.a_l" in err and "pairwise" in err and "Traceback" not in err
+
+
+@pytest.mark.slow
+def test_a_baseline_outside_the_space_is_said_not_printed_as_nan(scene, tmp_path, capsys):
+    """A tune whose space leaves the baseline out (its ``[[variants]]`` fix gains that dfr2023 does not
+    have, so the baseline is no trial) says so, rather than printing its value as NaN; its report gives
+    the trials it ran (a tune's identity holds no budget)."""
+    from dfrmot_jax.testing.cli import run_cli
+
+    f = tmp_path / "t.toml"
+    variants = ('\n[[variants]]\nname = "low"\nparams.gain_beta = 0.4\n[[variants]]\nname = "mid"\n'
+                'params.gain_beta = 0.6\n')
+    text = _tune_text(scene, budget=4, batch=4)
+    f.write_text(text.replace("[tune]", variants + "[tune]"))
+    status, out, err = run_cli(capsys, ["tune", f, "--out", tmp_path / "t", "--no-progress"])
+    assert status == 0, err
+    line = next(s for s in out.splitlines() if s.startswith("best HOTA"))
+    assert "nan" not in line and "the baseline lies outside the search space" in line
+    status, out, err = run_cli(capsys, ["report", tmp_path / "t"])
+    assert status == 0, err
+    tune_line = next(s for s in out.splitlines() if s.startswith("tune: sampler"))
+    assert "None" not in tune_line and " trials in batches of 4" in tune_line

@@ -67,7 +67,9 @@ def run(args) -> int:
     obj = res.settings.objectives[0]
     print(f"tune {spec.name}: {s['evaluated_configs']:,} configs ({res.settings.sampler}, batches of "
           f"{res.settings.batch}) -> {out}")
-    print(f"best {obj}: {s['in_sample']:.3f} in-sample (baseline {s.get('baseline', float('nan')):.3f})")
+    base = s.get("baseline")
+    print(f"best {obj}: {s['in_sample']:.3f} in-sample " + (f"(baseline {base:.3f})" if base is not None else
+                                                           "(the baseline lies outside the search space: not a trial)"))
     print("best config: " + ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
                                       for k, v in res.best.items()))
     if res.nested is not None:

@@ -305,7 +305,10 @@ def _tune_section(d: Path, manifest: dict, objective: str) -> tuple[list[str], d
     honest figure; a flat ``--folds`` over a tune's trials would choose among configs the tuner
     proposed after seeing every sequence) and, with two objectives, the Pareto front."""
     t = manifest.get("tune", {})
-    lines = ["", paragraph(f"tune: sampler {t.get('sampler')}, budget {t.get('budget')} configs in batches of "
+    trials = d / "trials.parquet"            # the budget extends a tune, so its identity does not hold it
+    size = (f"budget {t['budget']} configs" if t.get("budget") is not None else
+            f"{len(pd.read_parquet(trials)):,} trials" if trials.is_file() else "budget unknown")
+    lines = ["", paragraph(f"tune: sampler {t.get('sampler')}, {size} in batches of "
                        f"{t.get('batch')}, objectives {', '.join(t.get('objectives', []))}, seed {t.get('seed')}"
                        + ("; gradient refinement" if t.get("refine") else ""))]
     out: dict = {"sampler": t.get("sampler"), "budget": t.get("budget")}
