@@ -20,18 +20,17 @@ import pandas as pd
 from pathlib import Path
 
 from ..io.kitti import KittiFormatError
-from ..metrics.ab3dmot.prep import read_seqmap
 from ..report.stored import read_manifest
 from ..sweep.config_output import write_config_output
-from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
+from ..metrics.kitti2d.tracker_files import read_tracker_files
 from ..paths import default_data_root
 from ..report.compare import DEFAULT_RESAMPLES, compare_outputs, comparison_text
 from ..report.compare_ab3dmot import AB3DMOT_RESAMPLES, ab3dmot_rows
 from ..report.compare_html import write_compare_html
 from .commands import HELP
 from .errors import guarded
-from .eval import families_arg, iou_arg, classes_arg, check_class_rows, check_folder, ground_truth
-from .track_parser import parse_seqs
+from .eval import (check_class_rows, check_folders, chosen_sequences, classes_arg, families_arg, ground_truth,
+                   iou_arg, label_root)
 
 __all__ = ["add_parser", "run", "parse_reference"]
 
@@ -108,18 +107,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     """Run ``compare`` for parsed ``args``: 0, or raises ValueError (bad ground truth, folders, arguments)."""
-    root = Path(args.data) if args.data else default_data_root()
-    label_dir = root / "label_02"
-    if not label_dir.is_dir():
-        raise ValueError(f"no ground truth at {label_dir} (use --data or set DFRMOT_DATA)")
+    root, label_dir = label_root(args.data)
     refs = [parse_reference(str(x)) for x in (args.a, args.b)]
-    seqs = parse_seqs(args.seqs)
-    if seqs is None and not args.seqmap:
-        seqs = next((read_manifest(r[0])["data"]["sequences"] for r in refs if r is not None), None)
-    if args.seqmap:
-        if seqs is not None:
-            raise ValueError("--seqs and --seqmap both name the sequences: give one")
-        seqs = list(read_seqmap(args.seqmap, root))
+    sweep_seqs = next((read_manifest(r[0])["data"]["sequences"] for r in refs if r is not None), None)
+    seqs = chosen_sequences(args.seqs, args.seqmap, root, sweep_seqs)
     gts, seq_lists = ground_truth(root, args.cls, seqs, True)
     with tempfile.TemporaryDirectory(prefix="dfrmot-compare-") as tmp:
         names = [str(args.a), str(args.b)]
@@ -133,12 +124,7 @@ def run(args) -> int:
 
 def _compare(args, root: Path, label_dir: Path, seqs, gts: dict, seq_lists: dict, folders: list, names: list) -> int:
     """The comparison of two result folders (``names``: how to call them)."""
-    wanted = sorted({s for cs in seq_lists.values() for s in cs})
-    known = None if seqs is not None else sorted(p.stem for p in label_dir.glob("*.txt"))
-    for d in folders:
-        if not d.is_dir():
-            raise ValueError(f"not a directory: {d}")
-        check_folder(d, inspect_results(d, wanted, known), len(wanted), label_dir, args.allow_missing)
+    check_folders(folders, label_dir, seq_lists, seqs, args.allow_missing)
     dets = []
     for d in folders:
         per_class = {c: _read(d, gt, bool(args.html)) for c, gt in gts.items()}

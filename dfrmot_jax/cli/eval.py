@@ -74,8 +74,8 @@ from .commands import HELP
 from .errors import guarded
 from .track_parser import parse_seqs
 
-__all__ = ["add_parser", "run", "check_folder", "check_class_rows", "classes_arg", "families_arg", "ground_truth",
-           "iou_arg", "tracker_name"]
+__all__ = ["add_parser", "run", "check_folder", "check_folders", "check_class_rows", "chosen_sequences", "classes_arg",
+           "families_arg", "ground_truth", "iou_arg", "label_root", "tracker_name"]
 
 
 def tracker_name(d: Path) -> str:
@@ -200,6 +200,39 @@ def _class_hint(d: Path, sequences, cls: str) -> str:
     return text + (f" (evaluate with --class {other[0]}?)" if other else "")
 
 
+def label_root(data) -> tuple[Path, Path]:
+    """(KITTI root, its label_02 folder) from ``--data`` (default: $DFRMOT_DATA or the shared data);
+    ValueError when there is no ground truth."""
+    root = Path(data) if data else default_data_root()
+    label_dir = root / "label_02"
+    if not label_dir.is_dir():
+        raise ValueError(f"no ground truth at {label_dir} (use --data or set DFRMOT_DATA)")
+    return root, label_dir
+
+
+def chosen_sequences(seqs_text, seqmap, root: Path, default=None):
+    """The sequences ``--seqs`` or ``--seqmap`` name (not both), else ``default`` (None: per class those
+    whose ground truth has it)."""
+    seqs = parse_seqs(seqs_text)
+    if seqmap:
+        if seqs is not None:
+            raise ValueError("--seqs and --seqmap both name the sequences: give one")
+        return list(read_seqmap(seqmap, root))
+    return default if seqs is None else seqs
+
+
+def check_folders(folders, label_dir: Path, seq_lists: dict, seqs, allow_missing: bool) -> None:
+    """Every result folder a directory, then each checked (:func:`check_folder`) for the sequences of
+    ``seq_lists``; without explicit ``seqs`` a file of no ground-truth sequence is refused too."""
+    wanted = sorted({s for cs in seq_lists.values() for s in cs})
+    known = None if seqs is not None else sorted(p.stem for p in label_dir.glob("*.txt"))
+    for d in folders:
+        if not d.is_dir():
+            raise ValueError(f"not a directory: {d}")
+    for d in folders:
+        check_folder(d, inspect_results(d, wanted, known), len(wanted), label_dir, allow_missing)
+
+
 def check_class_rows(d: Path, cls: str, sequences, n_gt: int, n_rows: int, allow_missing: bool,
                      command: str = "eval") -> None:
     """Refuse (ValueError) a folder ``d`` with no row of class ``cls`` while the ground truth has
@@ -262,26 +295,12 @@ def ground_truth(root: Path, cls, seqs, kitti2d: bool) -> tuple[dict, dict]:
 
 def run(args) -> int:
     """Run ``eval`` for parsed ``args``: 0, or raises (bad ground truth, results or arguments)."""
-    root = Path(args.data) if args.data else default_data_root()
-    label_dir = root / "label_02"
-    if not label_dir.is_dir():
-        raise ValueError(f"no ground truth at {label_dir} (use --data or set DFRMOT_DATA)")
-
-    seqs = parse_seqs(args.seqs)
+    root, label_dir = label_root(args.data)
+    seqs = chosen_sequences(args.seqs, getattr(args, "seqmap", None), root)
     families = getattr(args, "metrics", ("kitti2d",))
-    if getattr(args, "seqmap", None):
-        if seqs is not None:
-            raise ValueError("--seqs and --seqmap both name the sequences: give one")
-        seqs = list(read_seqmap(args.seqmap, root))
     gts, seq_lists = ground_truth(root, args.cls, seqs, "kitti2d" in families)
-    wanted = sorted({s for cs in seq_lists.values() for s in cs})
-    known = None if seqs is not None else sorted(p.stem for p in label_dir.glob("*.txt"))
     folders = [Path(d) for d in args.results]
-    for d in folders:
-        if not d.is_dir():
-            raise ValueError(f"not a directory: {d}")
-    for d in folders:
-        check_folder(d, inspect_results(d, wanted, known), len(wanted), label_dir, args.allow_missing)
+    check_folders(folders, label_dir, seq_lists, seqs, args.allow_missing)
     tables = []
     names = []
     for d in folders:
