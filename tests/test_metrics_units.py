@@ -92,9 +92,9 @@ def _scipy_pairs(m: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_solve_blocks_equals_scipy_on_each_full_matrix(seed, monkeypatch):
-    """Blocks decided by the optimality certificate and blocks sent to scipy (ties, near ties,
-    crossings) both give scipy's positive pairs on the full matrix, pair for pair."""
+def test_solve_blocks_equals_scipy_on_each_full_matrix(seed):
+    """Ties, near ties, crossings, CLEAR's continuation bonus: the compiled solve of every block gives
+    scipy's positive pairs on the full matrix, pair for pair."""
     rng = np.random.default_rng(seed)
     mats = []
     for i in range(3000):
@@ -120,24 +120,10 @@ def test_solve_blocks_equals_scipy_on_each_full_matrix(seed, monkeypatch):
             d = np.arange(min(g, k))
             m[d, d] = 0.5 + 0.5 * rng.random(len(d))
         mats.append(m)
-    calls = []
-    real = pairs.linear_sum_assignment
-
-    def spy(cost):
-        calls.append((-cost).tobytes())
-        return real(cost)
-
-    monkeypatch.setattr(pairs, "linear_sum_assignment", spy)
     nr = np.array([m.shape[0] for m in mats])
     nc = np.array([m.shape[1] for m in mats])
     got = solve_blocks(nr, nc, np.concatenate([m.reshape(-1) for m in mats]))
     assert np.array_equal(got, np.concatenate([_scipy_pairs(m) for m in mats]))
-    assert 0.1 * len(mats) < len(calls) < 0.7 * len(mats)      # both ways taken
-    solved = set(calls)
-    near = [m for i, m in enumerate(mats) if i % 6 == 3 and min(m.shape) > 1]
-    assert len(near) > 300 and all(m.tobytes() in solved for m in near)   # within the margin: scipy decides
-    clear_winners = [m for i, m in enumerate(mats) if i % 6 == 5]
-    assert sum(m.tobytes() not in solved for m in clear_winners) > 0.9 * len(clear_winners)
 
 
 def test_match_entries_equals_scipy_on_the_full_matrices():

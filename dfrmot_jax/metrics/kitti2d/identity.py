@@ -5,17 +5,17 @@ TrackEval counts, per sequence, the frames in which GT id ``g`` and tracker id `
 ``n_gt_dets + n_tr_dets - 2 * IDTP`` with ``IDTP`` the maximum total co-occurrence of a one-to-one
 id matching. All costs are integers, so the optimum (and IDTP, IDFN, IDFP) is unique and any exact
 solver gives TrackEval's numbers: here the id graph is split into connected components; a
-component with one edge is its own optimum, larger ones are solved with
-``scipy.optimize.linear_sum_assignment`` (maximising). Arrays: ``L`` configs, ``S`` sequences.
+component with one edge is its own optimum, larger ones are solved in one compiled call
+(:func:`dfrmot_jax.metrics.common.assignment.solve_many`, maximising). Arrays: ``L`` configs, ``S`` sequences.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from dfrmot_jax.metrics.common.assignment import solve_many
 from dfrmot_jax.metrics.common.pairs import segment_starts
 from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
 
@@ -72,12 +72,19 @@ def max_matching_value(g: np.ndarray, t: np.ndarray, w: np.ndarray) -> np.ndarra
     c_max = np.maximum.reduceat(lc, bounds[:-1])
     lr_local = lr - np.repeat(r0, np.diff(bounds))
     lc_local = lc - np.repeat(c_min, np.diff(bounds))
-    wr = w[rest]
-    for k, (a, b) in enumerate(zip(bounds[:-1].tolist(), bounds[1:].tolist())):
-        mat = np.zeros((int(r_max[k] - r0[k]) + 1, int(c_max[k] - c_min[k]) + 1))
-        mat[lr_local[a:b], lc_local[a:b]] = wr[a:b]
-        r, c = linear_sum_assignment(mat, maximize=True)
-        out[rest[a]] = mat[r, c].sum()
+    # every component's dense matrix, row-major one after the other, solved in one compiled call
+    nr = (r_max - r0 + 1).astype(np.int64)
+    nc = (c_max - c_min + 1).astype(np.int64)
+    m_start = segment_starts(nr * nc)
+    comp_of = np.repeat(np.arange(len(nr)), np.diff(bounds))
+    vals = np.zeros(int(m_start[-1]))
+    vals[m_start[comp_of] + lr_local * nc[comp_of] + lc_local] = w[rest]
+    r, c, ps = solve_many(vals, nr, nc, maximize=True)
+    per = np.diff(ps)
+    # (integer weights: the components' sums are exact in any order)
+    value = np.bincount(np.repeat(np.arange(len(nr)), per), weights=vals[m_start[:-1].repeat(per) + r * nc.repeat(per) + c],
+                        minlength=len(nr))
+    out[rest[bounds[:-1]]] = value
     return out
 
 

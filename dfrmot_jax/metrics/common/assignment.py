@@ -1,0 +1,201 @@
+"""The rectangular linear sum assignment, compiled, with scipy's answer on tied optima.
+
+``scipy.optimize.linear_sum_assignment`` (what TrackEval calls every frame) is the shortest
+augmenting path algorithm of Crouse (2016, "On implementing 2D rectangular assignment algorithms",
+IEEE TAES 52(4), pp. 1679-1696, pages 1685-1686), as its documentation cites. Which optimum it
+returns among tied ones is decided by the algorithm's order of work, so reproducing the choice means
+reproducing that order, written here from the paper and scipy's documented behaviour:
+
+* a matrix with more rows than columns is solved transposed (rows <= columns), and the pairs are
+  returned sorted by row;
+* ``maximize`` solves the negated costs;
+* rows are added one at a time, ``0 .. n_rows - 1``; for each, Dijkstra over reduced costs
+  ``min_val + c[i, j] - u[i] - v[j]`` grows a shortest path tree from the row until it reaches an
+  unassigned column; the columns not yet in the tree are scanned in the order of a list that starts
+  reversed (``n_cols - 1 .. 0``, so that a constant matrix gives the identity) and loses a column by
+  moving its last entry into the column's place; among columns of equal lowest cost, the first
+  scanned wins unless a later one is unassigned (a sink), which then wins;
+* the duals are updated from the tree (``u[cur] += min_val``; ``u[i] += min_val - d[col4row[i]]``
+  for the tree's other rows, ``v[j] -= min_val - d[j]`` for its columns) and the path is augmented.
+
+Every operation is the same float64 operation in the same order as in that description, so the
+choices are the same bit for bit; ``tests/test_assignment.py`` checks it against scipy on many random,
+tie-heavy (small integers, repeated rows and columns, constant) and rectangular matrices.
+:func:`solve_many` solves a whole list of blocks in one compiled call: no Python per block.
+``+inf`` entries are forbidden pairs, as in scipy; NaN or ``-inf`` or an infeasible block raise.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["linear_sum_assignment", "solve_many"]
+
+_INVALID, _INFEASIBLE = -1, -2
+
+
+@numba.njit(cache=True, nogil=True)
+def _augmenting_path(nc, cost, u, v, path, row4col, short, i, SR, SC, remaining):
+    """Grow the shortest path tree from row ``i`` to an unassigned column (the sink): returns
+    (sink or -1 where no finite path exists, min_val). Work arrays are reused across calls."""
+    min_val = 0.0
+    num_remaining = nc
+    for it in range(nc):
+        remaining[it] = nc - it - 1
+    SR[:] = False
+    SC[:] = False
+    short[:] = np.inf
+    sink = -1
+    while sink == -1:
+        index = -1
+        lowest = np.inf
+        SR[i] = True
+        base = i * nc
+        for it in range(num_remaining):
+            j = remaining[it]
+            r = min_val + cost[base + j] - u[i] - v[j]
+            if r < short[j]:
+                path[j] = i
+                short[j] = r
+            if short[j] < lowest or (short[j] == lowest and row4col[j] == -1):
+                lowest = short[j]
+                index = it
+        min_val = lowest
+        if min_val == np.inf:
+            return -1, min_val
+        j = remaining[index]
+        if row4col[j] == -1:
+            sink = j
+        else:
+            i = row4col[j]
+        SC[j] = True
+        num_remaining -= 1
+        remaining[index] = remaining[num_remaining]
+    return sink, min_val
+
+
+@numba.njit(cache=True, nogil=True)
+def _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining):
+    """Assign each of ``nr`` rows (nr <= nc) of the row-major ``cost`` [nr * nc]: fills col4row [nr];
+    returns 0, or _INVALID / _INFEASIBLE."""
+    for k in range(nr * nc):
+        c = cost[k]
+        if c != c or c == -np.inf:
+            return _INVALID
+    u[:nr] = 0.0
+    v[:nc] = 0.0
+    path[:nc] = -1
+    col4row[:nr] = -1
+    row4col[:nc] = -1
+    for cur in range(nr):
+        sink, min_val = _augmenting_path(nc, cost, u, v, path[:nc], row4col[:nc], short[:nc], cur, SR[:nr], SC[:nc],
+                                         remaining[:nc])
+        if sink < 0:
+            return _INFEASIBLE
+        u[cur] += min_val
+        for i in range(nr):
+            if SR[i] and i != cur:
+                u[i] += min_val - short[col4row[i]]
+        for j in range(nc):
+            if SC[j]:
+                v[j] -= min_val - short[j]
+        j = sink
+        while True:
+            i = path[j]
+            row4col[j] = i
+            j_old = col4row[i]
+            col4row[i] = j
+            j = j_old
+            if i == cur:
+                break
+    return 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _solve_blocks(values, starts, n_rows, n_cols, maximize, out_rows, out_cols, out_start):
+    """Every block b: ``values[starts[b]:...]`` row-major [n_rows[b], n_cols[b]]; its min(nr, nc)
+    pairs written at ``out_start[b]`` (sorted by row). Returns -1 or the first block that failed,
+    its status in the second value."""
+    size = 1
+    for b in range(len(n_rows)):
+        size = max(size, n_rows[b] * n_cols[b])
+    side = 1
+    for b in range(len(n_rows)):
+        side = max(side, n_rows[b], n_cols[b])
+    cost = np.empty(size)
+    col4row = np.empty(side, np.int64)
+    row4col = np.empty(side, np.int64)
+    u = np.empty(side)
+    v = np.empty(side)
+    short = np.empty(side)
+    path = np.empty(side, np.int64)
+    SR = np.empty(side, np.bool_)
+    SC = np.empty(side, np.bool_)
+    remaining = np.empty(side, np.int64)
+    order = np.empty(side, np.int64)
+    for b in range(len(n_rows)):
+        nr0, nc0 = n_rows[b], n_cols[b]
+        if nr0 == 0 or nc0 == 0:
+            continue
+        a = starts[b]
+        transpose = nc0 < nr0
+        nr, nc = (nc0, nr0) if transpose else (nr0, nc0)
+        for i in range(nr):
+            for j in range(nc):
+                x = values[a + j * nc0 + i] if transpose else values[a + i * nc0 + j]
+                cost[i * nc + j] = -x if maximize else x
+        status = _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining)
+        if status != 0:
+            return b, status
+        o = out_start[b]
+        if transpose:        # pairs sorted by the original row: the columns' rows, in order
+            order[:nr] = np.argsort(col4row[:nr], kind="mergesort")
+            for k in range(nr):
+                out_rows[o + k] = col4row[order[k]]
+                out_cols[o + k] = order[k]
+        else:
+            for k in range(nr):
+                out_rows[o + k] = k
+                out_cols[o + k] = col4row[k]
+    return -1, 0
+
+
+def _starts(counts: np.ndarray) -> np.ndarray:
+    """[n] counts -> [n + 1] exclusive prefix sums (int64)."""
+    out = np.zeros(len(counts) + 1, dtype=np.int64)
+    np.cumsum(counts, out=out[1:])
+    return out
+
+
+def solve_many(values: np.ndarray, n_rows: np.ndarray, n_cols: np.ndarray, maximize: bool = False,
+               starts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``linear_sum_assignment`` of every block, in one compiled call.
+
+    values: [sum(n_rows * n_cols)] float64, the blocks row-major one after the other (or at
+    ``starts`` [G]); n_rows, n_cols: [G] int. Returns ``(rows, cols, pair_start)``: rows, cols [P] int64
+    of each block's min(nr, nc) pairs in scipy's order (sorted by row), pair_start [G + 1]."""
+    n_rows = np.ascontiguousarray(n_rows, dtype=np.int64)
+    n_cols = np.ascontiguousarray(n_cols, dtype=np.int64)
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    if starts is None:
+        starts = _starts(n_rows * n_cols)[:-1]
+    starts = np.ascontiguousarray(starts, dtype=np.int64)
+    pair_start = _starts(np.minimum(n_rows, n_cols))
+    rows = np.empty(int(pair_start[-1]), np.int64)
+    cols = np.empty(int(pair_start[-1]), np.int64)
+    if len(n_rows):
+        bad, status = _solve_blocks(values, starts, n_rows, n_cols, bool(maximize), rows, cols, pair_start[:-1])
+        if bad >= 0:
+            what = "contains invalid numeric entries" if status == _INVALID else "is infeasible"
+            raise ValueError(f"block {bad}: cost matrix {what}")
+    return rows, cols, pair_start
+
+
+def linear_sum_assignment(cost, maximize: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """One matrix [nr, nc]: ``(rows, cols)`` as ``scipy.optimize.linear_sum_assignment`` returns them."""
+    cost = np.asarray(cost, dtype=np.float64)
+    if cost.ndim != 2:
+        raise ValueError(f"expected a matrix (2-D array), got a {cost.ndim}-D array")
+    rows, cols, _ = solve_many(cost.reshape(-1), np.array([cost.shape[0]]), np.array([cost.shape[1]]), maximize)
+    return rows, cols

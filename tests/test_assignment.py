@@ -1,0 +1,87 @@
+"""The compiled assignment (metrics/common/assignment.py) returns scipy's answer, ties included."""
+
+import numpy as np
+import pytest
+from scipy.optimize import linear_sum_assignment as scipy_lsa
+
+from dfrmot_jax.metrics.common.assignment import linear_sum_assignment, solve_many
+from dfrmot_jax.metrics.common.pairs import solve_blocks
+
+
+def _matrices(rng, n, max_side):
+    """Random and tie-heavy matrices: uniform floats, small integers (many tied optima), repeated
+    rows, repeated columns, constant, sparse positives with TrackEval's +1000 continuation bonus,
+    rounded floats; every shape from 1 x 1 to max_side x max_side, tall and wide."""
+    for k in range(n):
+        nr, nc = (int(x) for x in rng.integers(1, max_side + 1, 2))
+        kind = k % 7
+        if kind == 0:
+            m = rng.random((nr, nc))
+        elif kind == 1:
+            m = rng.integers(0, 3, (nr, nc)).astype(float)
+        elif kind == 2:
+            m = np.repeat(rng.integers(0, 4, (1, nc)), nr, 0).astype(float)
+        elif kind == 3:
+            m = np.repeat(rng.integers(0, 4, (nr, 1)), nc, 1).astype(float)
+        elif kind == 4:
+            m = np.full((nr, nc), float(rng.integers(-2, 3)) / 4)
+        elif kind == 5:
+            m = (rng.random((nr, nc)) < 0.4) * (rng.integers(0, 2, (nr, nc)) * 1000 + np.round(rng.random((nr, nc)), 1))
+        else:
+            m = np.round(rng.random((nr, nc)), 1)
+        yield m
+
+
+@pytest.mark.parametrize("maximize", [False, True])
+def test_same_pairs_as_scipy_on_random_and_tied_matrices(maximize):
+    rng = np.random.default_rng(7 + maximize)
+    mats = list(_matrices(rng, 6000, 8)) + list(_matrices(rng, 300, 30))
+    differ = [i for i, m in enumerate(mats)
+              if not all(np.array_equal(a, b) for a, b in zip(scipy_lsa(m, maximize=maximize),
+                                                                linear_sum_assignment(m, maximize=maximize)))]
+    assert differ == []
+    # the same blocks in one call
+    rows, cols, ps = solve_many(np.concatenate([m.ravel() for m in mats]), [m.shape[0] for m in mats],
+                                [m.shape[1] for m in mats], maximize)
+    for i in (0, 1, 2, 3, 4, 5, 6, 6299):
+        r, c = scipy_lsa(mats[i], maximize=maximize)
+        assert np.array_equal(rows[ps[i]:ps[i + 1]], r) and np.array_equal(cols[ps[i]:ps[i + 1]], c)
+
+
+def test_forbidden_pairs_empty_and_invalid_as_scipy():
+    rng = np.random.default_rng(3)
+    n_raised = 0
+    for _ in range(400):
+        m = rng.integers(0, 4, tuple(rng.integers(1, 7, 2))).astype(float)
+        m[rng.random(m.shape) < 0.35] = np.inf
+        try:
+            want = scipy_lsa(m)
+        except ValueError:
+            n_raised += 1
+            with pytest.raises(ValueError, match="infeasible"):
+                linear_sum_assignment(m)
+            continue
+        got = linear_sum_assignment(m)
+        assert np.array_equal(want[0], got[0]) and np.array_equal(want[1], got[1])
+    assert 0 < n_raised < 400
+    for m in (np.zeros((0, 3)), np.zeros((4, 0))):
+        assert all(len(x) == 0 for x in linear_sum_assignment(m))
+    for m in (np.array([[np.nan, 1.0]]), np.array([[-np.inf, 1.0]])):
+        with pytest.raises(ValueError, match="invalid"):
+            scipy_lsa(m)
+        with pytest.raises(ValueError, match="invalid"):
+            linear_sum_assignment(m)
+
+
+def test_solve_blocks_takes_scipys_positive_pairs():
+    rng = np.random.default_rng(11)
+    mats = [np.abs(m) for m in _matrices(rng, 2000, 6)]
+    got = solve_blocks(np.array([m.shape[0] for m in mats]), np.array([m.shape[1] for m in mats]),
+                       np.concatenate([m.ravel() for m in mats]))
+    want = []
+    for m in mats:
+        take = np.zeros(m.shape, bool)
+        r, c = scipy_lsa(-m)
+        take[r, c] = m[r, c] > 0
+        want.append(take.ravel())
+    assert np.array_equal(got, np.concatenate(want))
