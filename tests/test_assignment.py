@@ -85,3 +85,33 @@ def test_solve_blocks_takes_scipys_positive_pairs():
         take[r, c] = m[r, c] > 0
         want.append(take.ravel())
     assert np.array_equal(got, np.concatenate(want))
+
+
+def test_certified_blocks_keep_scipys_positive_pairs():
+    """positive_only: blocks whose optimum the certificate proves unique skip the solver; the
+    positive pairs are scipy's all the same, and near ties (inside the margin) still go to it."""
+    rng = np.random.default_rng(5)
+    mats = []
+    for i in range(3000):
+        g, k = (int(x) for x in rng.integers(1, 8, 2))
+        m = 0.1 * rng.random((g, k)) * (rng.random((g, k)) < 0.5)
+        d = np.arange(min(g, k))
+        m[d, d] = 0.5 + 0.5 * rng.random(len(d))
+        if i % 3 == 1 and min(g, k) > 1:           # a near tie: the certificate must not decide it
+            m[0, 1] = m[0, 0] - 1e-13
+        if i % 3 == 2:                             # an empty row and column: a certified answer leaves them -1
+            m = np.pad(m, ((0, 1), (0, 1)))
+        mats.append(m)
+    rows, cols, ps = solve_many(np.concatenate([m.ravel() for m in mats]), [m.shape[0] for m in mats],
+                                [m.shape[1] for m in mats], maximize=True, positive_only=True)
+    n_certified = 0
+    for i, m in enumerate(mats):
+        r, c = rows[ps[i]:ps[i + 1]], cols[ps[i]:ps[i + 1]]
+        n_certified += bool((r < 0).any())
+        keep = r >= 0
+        got = {(a, b) for a, b in zip(r[keep], c[keep]) if m[a, b] > 0}
+        wr, wc = scipy_lsa(-m)
+        assert got == {(a, b) for a, b in zip(wr, wc) if m[a, b] > 0}
+    assert n_certified > 300                           # the certificate was taken
+    with pytest.raises(ValueError, match="maximize"):
+        solve_many(np.ones(1), [1], [1], positive_only=True)

@@ -112,11 +112,47 @@ def _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining)
     return 0
 
 
+#: a certified optimum beats every other assignment by more than this x max(1, |entry|)
+TIE_MARGIN = 1e-9
+
+
 @numba.njit(cache=True, nogil=True)
-def _solve_blocks(values, starts, n_rows, n_cols, maximize, out_rows, out_cols, out_start):
+def _rows_certified(nr, nc, cost, col4row, taken):
+    """A block of ``maximize`` (``cost`` = -S, S >= 0) whose optimum is each row's largest entry,
+    proven unique: in every row with a positive entry the largest exceeds the row's others, and 0,
+    by more than TIE_MARGIN x max(1, largest), and no two rows take one column. The row maxima (0
+    for the columns) are then a feasible dual with the matching's value and every other matching
+    loses more than the margin, so the optimum is unique and the algorithm, exact up to rounding
+    far below the margin, returns it too whatever its tie-breaking. Then fills col4row [nr] with
+    each row's column, -1 for a row with no positive entry (scipy's answer there pairs an S = 0,
+    which a caller keeping the pairs with S > 0 drops), and returns True."""
+    taken[:nc] = False
+    for i in range(nr):
+        best, second, arg, n_best = 0.0, 0.0, -1, 0
+        for j in range(nc):
+            x = -cost[i * nc + j]
+            if x > best:
+                second = best
+                best, arg, n_best = x, j, 1
+            elif x == best and x > 0:
+                n_best += 1
+            elif x > second:
+                second = x
+        if arg < 0:
+            col4row[i] = -1
+            continue
+        if n_best != 1 or not (best - second > TIE_MARGIN * max(1.0, best)) or taken[arg]:
+            return False
+        taken[arg] = True
+        col4row[i] = arg
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _solve_blocks(values, starts, n_rows, n_cols, maximize, positive_only, out_rows, out_cols, out_start):
     """Every block b: ``values[starts[b]:...]`` row-major [n_rows[b], n_cols[b]]; its min(nr, nc)
-    pairs written at ``out_start[b]`` (sorted by row). Returns -1 or the first block that failed,
-    its status in the second value."""
+    pairs written at ``out_start[b]`` (sorted by row; with ``positive_only`` a pair may be -1, -1:
+    see :func:`solve_many`). Returns -1 or the first block that failed, its status in the second value."""
     size = 1
     for b in range(len(n_rows)):
         size = max(size, n_rows[b] * n_cols[b])
@@ -145,19 +181,24 @@ def _solve_blocks(values, starts, n_rows, n_cols, maximize, out_rows, out_cols, 
             for j in range(nc):
                 x = values[a + j * nc0 + i] if transpose else values[a + i * nc0 + j]
                 cost[i * nc + j] = -x if maximize else x
-        status = _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining)
+        if positive_only and _rows_certified(nr, nc, cost, col4row, SC):
+            status = 0
+        else:
+            status = _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining)
         if status != 0:
             return b, status
         o = out_start[b]
         if transpose:        # pairs sorted by the original row: the columns' rows, in order
             order[:nr] = np.argsort(col4row[:nr], kind="mergesort")
             for k in range(nr):
-                out_rows[o + k] = col4row[order[k]]
-                out_cols[o + k] = order[k]
+                r = col4row[order[k]]
+                out_rows[o + k] = r
+                out_cols[o + k] = order[k] if r >= 0 else -1
         else:
             for k in range(nr):
-                out_rows[o + k] = k
-                out_cols[o + k] = col4row[k]
+                c = col4row[k]
+                out_rows[o + k] = k if c >= 0 else -1
+                out_cols[o + k] = c
     return -1, 0
 
 
@@ -169,12 +210,17 @@ def _starts(counts: np.ndarray) -> np.ndarray:
 
 
 def solve_many(values: np.ndarray, n_rows: np.ndarray, n_cols: np.ndarray, maximize: bool = False,
-               starts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               starts: np.ndarray | None = None, positive_only: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``linear_sum_assignment`` of every block, in one compiled call.
 
     values: [sum(n_rows * n_cols)] float64, the blocks row-major one after the other (or at
     ``starts`` [G]); n_rows, n_cols: [G] int. Returns ``(rows, cols, pair_start)``: rows, cols [P] int64
-    of each block's min(nr, nc) pairs in scipy's order (sorted by row), pair_start [G + 1]."""
+    of each block's min(nr, nc) pairs in scipy's order (sorted by row), pair_start [G + 1].
+    positive_only (with ``maximize`` and values >= 0): only the pairs with a value > 0 are wanted;
+    a block whose optimum an optimality certificate proves unique (:func:`_rows_certified`) is then
+    answered without the solver, its pairs of no positive entry given as -1, -1."""
+    if positive_only and not maximize:
+        raise ValueError("positive_only needs maximize=True (values >= 0)")
     n_rows = np.ascontiguousarray(n_rows, dtype=np.int64)
     n_cols = np.ascontiguousarray(n_cols, dtype=np.int64)
     values = np.ascontiguousarray(values, dtype=np.float64)
@@ -185,7 +231,8 @@ def solve_many(values: np.ndarray, n_rows: np.ndarray, n_cols: np.ndarray, maxim
     rows = np.empty(int(pair_start[-1]), np.int64)
     cols = np.empty(int(pair_start[-1]), np.int64)
     if len(n_rows):
-        bad, status = _solve_blocks(values, starts, n_rows, n_cols, bool(maximize), rows, cols, pair_start[:-1])
+        bad, status = _solve_blocks(values, starts, n_rows, n_cols, bool(maximize), bool(positive_only), rows, cols,
+                                   pair_start[:-1])
         if bad >= 0:
             what = "contains invalid numeric entries" if status == _INVALID else "is infeasible"
             raise ValueError(f"block {bad}: cost matrix {what}")

@@ -205,10 +205,11 @@ def solve_blocks(n_rows: np.ndarray, n_cols: np.ndarray, values: np.ndarray) -> 
     score matrices ``S`` row-major one after the other (exactly as TrackEval builds them). Returns
     [len(values)] bool: True where scipy's assignment of the block takes the pair and ``S > 0``.
 
-    Every block is solved, in one compiled call (:func:`dfrmot_jax.metrics.common.assignment.solve_many`:
-    scipy's algorithm, the same choice on tied optima). It replaced a vectorised optimality
-    certificate that sent only ties and crossings to scipy, one Python call each: on the B = 256
-    stress batch's 1.1 million blocks, 2.3 s -> 0.3 s of the scoring.
+    Every block is decided in one compiled call (:func:`dfrmot_jax.metrics.common.assignment.solve_many`):
+    by an optimality certificate where each row's best entry wins by a margin (the optimum is then
+    unique), else by scipy's algorithm with its choice on tied optima. It replaced the same
+    certificate vectorised in NumPy with one scipy call per other block: on the B = 256 stress
+    batch's 1.1 million blocks, 2.3 s -> about 0.3 s.
     """
     n_rows = np.asarray(n_rows, dtype=np.int64)
     n_cols = np.asarray(n_cols, dtype=np.int64)
@@ -216,9 +217,11 @@ def solve_blocks(n_rows: np.ndarray, n_cols: np.ndarray, values: np.ndarray) -> 
     if len(n_rows) == 0:
         return out
     start = segment_starts(n_rows * n_cols)[:-1]
-    rows, cols, pair_start = solve_many(values, n_rows, n_cols, maximize=True, starts=start)   # cost -S
+    rows, cols, pair_start = solve_many(values, n_rows, n_cols, maximize=True, starts=start,   # cost -S
+                                        positive_only=True)
     n_per = np.diff(pair_start)
     flat = rows * np.repeat(n_cols, n_per) + cols + np.repeat(start, n_per)
+    flat = flat[rows >= 0]
     out[flat[values[flat] > 0]] = True
     return out
 
