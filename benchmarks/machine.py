@@ -19,16 +19,21 @@ def cpu_model() -> str:
 
 
 def machine_info() -> dict:
-    """CPU, core count, JAX and package versions, XLA devices (asks for one device per core first:
-    querying JAX initialises its backend, after which the count is fixed)."""
+    """CPU, core count, JAX and package versions, the tracker's platform (``$DFRMOT_DEVICE``), its
+    devices and their kind (asks for one CPU device per core first: querying JAX initialises its
+    backend, after which the count is fixed)."""
     import jax
 
     import dfrmot_jax
 
-    dfrmot_jax.setup_host_devices()
+    from dfrmot_jax.core.devices import batch_devices, chosen_platform
 
+    dfrmot_jax.setup_host_devices()
+    where = chosen_platform()
+    devices = batch_devices(where)
     return {"machine": platform.processor() or platform.machine(), "cpu_model": cpu_model(), "cpus": os.cpu_count(),
-            "jax": jax.__version__, "dfrmot_jax": dfrmot_jax.__version__, "devices": jax.local_device_count()}
+            "jax": jax.__version__, "dfrmot_jax": dfrmot_jax.__version__, "devices": len(devices),
+            "platform": where, "device_kind": devices[0].device_kind}
 
 
 def cpu_time() -> float:

@@ -14,7 +14,7 @@ from collections import namedtuple
 import numpy as np
 
 from . import distort
-from .core.devices import setup_host_devices
+from .core.devices import default_lanes_per_call, setup_host_devices
 from .data import Frames, Split, compact_slots, object_slots, prepare_frames
 from .config import (MAX_CAPACITY, MIN_CAPACITY, OBJECT_PARAMS, Options, Params, as_arrays, batch_size, keep_thresholds,
                      validate_params)
@@ -94,14 +94,15 @@ def prepare_distortion(split: Split, frames: Frames, options: Options, dps: dist
     return distort.pad_for_clutter(frames, spec), (spec, gid2, gid3)
 
 
-def track(split: Split | Frames, params: Params, options: Options = Options(), *, lanes_per_call: int = 64,
+def track(split: Split | Frames, params: Params, options: Options = Options(), *, lanes_per_call: int | None = None,
           grow: bool = True, progress=None, distortion: distort.DistortParams | None = None,
           spec: distort.DistortSpec | None = None, clutter_slots: int = 0, detail: bool = False,
           small_frames_min: int | None = SMALL_FRAMES_MIN_T, compact: bool = True,
           chunk: int | None = None) -> TrackResult:
     """Track every lane of ``params`` (leaves scalar or [B]) over the split.
 
-    lanes_per_call: lanes per compiled call (memory: lanes_per_call x T x K int32 ids); progress: a
+    lanes_per_call: lanes per compiled call (memory: lanes_per_call x T x K int32 ids; default
+    ``core.devices.default_lanes_per_call()``: 64 on the CPU, 1024 on a GPU); progress: a
     callable(n) told how many lanes finished, e.g. a tqdm bar's ``update``.
     distortion: ``DistortParams`` with leaves [B] (or scalars): lane b's detections are distorted by
     its own levels and seed inside the scan (``dfrmot_jax.distort``); needs a ``Split`` (ground truth).
@@ -121,6 +122,8 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
                       "its unit of configs)", DeprecationWarning, stacklevel=2)
         lanes_per_call = chunk
     setup_host_devices()          # before this call's first JAX operation
+    if lanes_per_call is None:
+        lanes_per_call = default_lanes_per_call()
     options = options.validate()
     validate_params(params)
     params = as_arrays(params)

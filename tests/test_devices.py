@@ -55,3 +55,47 @@ def test_first_tracking_call_uses_one_device_per_core():
 
 def test_late_setup_warns_and_reports_the_devices_in_use():
     assert _run(SCRIPT_LATE) == "1 True"
+
+
+def test_the_platform_choice(monkeypatch):
+    """$DFRMOT_DEVICE: auto follows JAX's default backend (the CPU here), cpu is the CPU devices, gpu
+    where JAX sees none is a clear error naming the install command; lanes per call by platform."""
+    from dfrmot_jax.core import devices
+
+    monkeypatch.delenv("DFRMOT_DEVICE", raising=False)
+    assert devices.chosen_platform() == "cpu" == devices.chosen_platform("auto") == devices.chosen_platform("CPU")
+    assert [d.platform for d in devices.batch_devices()] == ["cpu"] * len(devices.batch_devices())
+    assert devices.default_lanes_per_call() == 64 and devices.default_lanes_per_call("gpu") == 1024
+    assert devices.platform_of("cuda") == devices.platform_of("rocm") == "gpu"
+    with pytest.raises(ValueError, match=r'pip install -e "\.\[cuda\]"'):
+        devices.chosen_platform("gpu")
+    monkeypatch.setenv("DFRMOT_DEVICE", "tpu")
+    with pytest.raises(ValueError, match="DFRMOT_DEVICE='tpu'"):
+        devices.chosen_platform()
+    monkeypatch.setenv("DFRMOT_DEVICE", "cuda")
+    with pytest.raises(ValueError, match="sees no GPU"):
+        devices.chosen_platform()
+
+
+def test_track_on_the_chosen_platform(monkeypatch, tmp_path):
+    """The tracker runs on the platform chosen: cpu gives auto's output here; gpu without one is
+    refused before any tracking, and `dfrmot track` says so in one line, exit 2."""
+    import numpy as np
+
+    import dfrmot_jax as dm
+    from dfrmot_jax.cli import main
+    from dfrmot_jax.synthetic import make_scene
+
+    root = make_scene(str(tmp_path / "scene"), n_sequences=1, n_frames=20, seed=1)
+    split = dm.load_split(root, "synth2d", "synth3d", "car")
+    params = dm.stack_params([dm.Params(), dm.Params(a_l=3.0)])
+    monkeypatch.delenv("DFRMOT_DEVICE", raising=False)
+    auto = dm.track(split, params)
+    monkeypatch.setenv("DFRMOT_DEVICE", "cpu")
+    cpu = dm.track(split, params)
+    assert np.array_equal(auto.ids, cpu.ids) and (auto.ids >= 0).any()
+    monkeypatch.setenv("DFRMOT_DEVICE", "gpu")
+    with pytest.raises(ValueError, match="sees no GPU"):
+        dm.track(split, params)
+    assert main(["track", "--data", str(root), "--det2d", "synth2d", "--det3d", "synth3d", "--class", "car",
+                 "--out", str(tmp_path / "out")]) == 2

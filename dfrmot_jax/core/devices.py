@@ -1,4 +1,11 @@
-"""One XLA CPU device per core, so that a batch of settings is split over the cores.
+"""Where the tracker runs: one XLA CPU device per core, so that a batch of settings is split over
+the cores, or a GPU.
+
+The platform: ``$DFRMOT_DEVICE`` = ``auto`` (default: JAX's default backend, a GPU where JAX sees
+one, i.e. after ``pip install -e ".[cuda]"`` on a machine with an NVIDIA GPU), ``cpu`` or ``gpu``
+(:func:`chosen_platform`). A batch is split over that platform's devices (:func:`batch_devices`) and
+runs ``lanes_per_call`` lanes per compiled call, by default :data:`LANES_PER_CALL` of the platform
+(a GPU wants wide batches; a CPU core a few dozen lanes).
 
 Nothing happens at import: ``setup_host_devices`` runs at the first tracking call (or call it
 yourself right after ``import dfrmot_jax``). It can only take effect before JAX initialises its
@@ -14,6 +21,10 @@ import warnings
 import jax
 
 ENV_VAR = "DFRMOT_HOST_DEVICES"
+DEVICE_VAR = "DFRMOT_DEVICE"
+DEVICE_CHOICES = ("auto", "cpu", "gpu")
+#: default lanes per compiled tracker call, by platform
+LANES_PER_CALL = {"cpu": 64, "gpu": 1024}
 _FORCE_FLAG = "xla_force_host_platform_device_count"
 _warned = False
 
@@ -44,3 +55,45 @@ def setup_host_devices(n: int | None = None) -> int:
                       f"before any JAX operation, or set XLA_FLAGS=--{_FORCE_FLAG}={want}.",
                       RuntimeWarning, stacklevel=3)
     return have
+
+
+def platform_of(backend: str) -> str:
+    """JAX's backend name as a platform of :data:`DEVICE_CHOICES`: ``cuda`` / ``rocm`` / ``gpu`` -> ``gpu``."""
+    return "gpu" if backend in ("gpu", "cuda", "rocm") else backend
+
+
+def chosen_platform(device: str | None = None) -> str:
+    """The platform the tracker runs on: ``device`` or else ``$DFRMOT_DEVICE`` (``auto``, ``cpu``,
+    ``gpu``; default ``auto``: JAX's default backend). Asking for ``gpu`` where JAX sees none (or for
+    anything else) raises a ValueError (bad input: ``dfrmot`` exits 2) that says how to install the
+    GPU build."""
+    want = (device or os.environ.get(DEVICE_VAR, "") or "auto").strip().lower()
+    if want == "cuda":
+        want = "gpu"
+    if want not in DEVICE_CHOICES:
+        raise ValueError(f"{DEVICE_VAR}={want!r}: expected one of {', '.join(DEVICE_CHOICES)}")
+    setup_host_devices()          # (asking JAX for its backend starts it: the CPU device count first)
+    if want == "auto":
+        return platform_of(jax.default_backend())
+    if want == "gpu":
+        try:
+            found = jax.devices("gpu")
+        except RuntimeError:
+            found = []
+        if not found:
+            raise ValueError(f"{DEVICE_VAR}=gpu, but JAX sees no GPU (backend {jax.default_backend()!r}): install "
+                               f"the GPU build with pip install -e \".[cuda]\" on a machine with an NVIDIA GPU and "
+                               f"its driver, or leave {DEVICE_VAR} unset to run on the CPU")
+    return want
+
+
+def batch_devices(platform: str | None = None) -> list:
+    """The devices a batch is split over: the CPU devices (:func:`setup_host_devices`) or the GPUs."""
+    platform = chosen_platform() if platform is None else platform
+    setup_host_devices()
+    return jax.devices(platform)
+
+
+def default_lanes_per_call(platform: str | None = None) -> int:
+    """Lanes per compiled tracker call on ``platform`` (default: the chosen one): :data:`LANES_PER_CALL`."""
+    return LANES_PER_CALL[chosen_platform() if platform is None else platform]

@@ -12,6 +12,7 @@ detection, and every order (greedy ties, births) follows the slot order, which i
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any, NamedTuple
 
 import jax
@@ -21,7 +22,7 @@ from jax.sharding import Mesh
 from jax.sharding import PartitionSpec as P
 
 from ..config import Options, Params
-from .devices import setup_host_devices
+from .devices import batch_devices, chosen_platform, platform_of
 from .step import Frames, Objects, init, objects, step
 
 
@@ -186,16 +187,16 @@ _PROGRAMS: dict[tuple, Any] = {}
 
 
 def compiled(options: Options, capacity: int, n_devices: int, hook_fn=None, detail: bool = False, small=None,
-             shared_objects: bool = False):
+             shared_objects: bool = False, platform: str = "cpu"):
     """The jitted batch program of one static setting, built once and kept (``_PROGRAMS``): keyed on
     every argument (the program is built from nothing else; the devices are the process's first
-    ``n_devices``, fixed once JAX runs), while shapes and dtypes of the inputs select among its
+    ``n_devices`` of ``platform``, fixed once JAX runs), while shapes and dtypes of the inputs select among its
     traces in ``jax.jit``'s own cache.
 
     Called with (params [B], frames, hook lanes [B] or None, hook xs or None, small-frame flags [T]
     or None, the lanes' shared objects [T, O, ...] or None (``shared_objects``)).
     """
-    key = (options, capacity, n_devices, hook_fn, detail, small, shared_objects)
+    key = (options, capacity, n_devices, hook_fn, detail, small, shared_objects, platform)
     if key not in _PROGRAMS:
         _PROGRAMS[key] = _build(*key)
     return _PROGRAMS[key]
@@ -217,7 +218,8 @@ def compilations() -> int:
     return sum(max(1, fn._cache_size()) for fn in _PROGRAMS.values())
 
 
-def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: bool, small, shared_objects: bool):
+def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: bool, small, shared_objects: bool,
+           platform: str):
     def lane(params, frames, hook_lane, hook_xs, flags, objs):
         hook = None if hook_fn is None else FrameHook(hook_fn, hook_lane, hook_xs)
         mem, out = run(params, frames, options, capacity, hook, detail, small, flags, objs)
@@ -227,15 +229,16 @@ def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: boo
     if n_devices == 1:
         return jax.jit(batched)
 
-    mesh = Mesh(np.array(jax.devices()[:n_devices]), ("b",))
+    mesh = Mesh(np.array(batch_devices(platform)[:n_devices]), ("b",))
     sharded = jax.shard_map(batched, mesh=mesh, in_specs=(P("b"), P(), P("b"), P(), P(), P()), out_specs=P("b"),
                             check_vma=False)
     return jax.jit(sharded)
 
 
 def device_count() -> int:
-    """Devices a batch is split over (the first call asks JAX for one per core: ``core.devices``)."""
-    return setup_host_devices()
+    """Devices a batch is split over: the chosen platform's (``core.devices``; on the CPU the first
+    call asks JAX for one device per core)."""
+    return len(batch_devices())
 
 
 def _lanes(tree, b: int, pad: int, float_dtype):
@@ -276,12 +279,21 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
     objs: every lane's objects, made once outside the scan (``split_objects``; the lanes must share
     ``config.OBJECT_PARAMS``; not with a hook); None: each step makes them.
     Returns BatchOutput (numpy). Lanes are padded to a multiple of the device count and trimmed.
+    The platform is ``core.devices.chosen_platform()`` (``$DFRMOT_DEVICE``): its devices run the batch.
     """
     b = max(np.atleast_1d(np.asarray(v)).shape[0] for v in params)
-    n_dev = device_count() if n_devices is None else n_devices
+    platform = chosen_platform()
+    devices = batch_devices(platform)
+    # a platform other than JAX's default (the CPU where JAX defaults to a GPU): one of its devices,
+    # the inputs placed there (JAX_PLATFORMS=cpu gives the CPU all its cores)
+    elsewhere = platform != platform_of(jax.default_backend())
+    n_dev = 1 if elsewhere else len(devices) if n_devices is None else n_devices
     n_dev = max(1, min(n_dev, b))
     pad = (-b) % n_dev
-    with jax.enable_x64(True):
+    place = jax.default_device(devices[0]) if elsewhere else contextlib.nullcontext()
+    if objs is not None and elsewhere:
+        objs = jax.device_put(objs, devices[0])
+    with jax.enable_x64(True), place:
         p = _lanes(params, b, pad, jnp.float64)
         small = flags = None
         if hook is None:
@@ -293,7 +305,7 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
             fn, lanes, xs = hook.fn, _lanes(hook.lane, b, pad, jnp.float32), jax.tree.map(jnp.asarray, hook.xs)
         if objs is not None and hook is not None:
             raise ValueError("objects made outside the scan cannot follow a frame hook")
-        program = compiled(options, capacity, n_dev, fn, detail, small, objs is not None)
+        program = compiled(options, capacity, n_dev, fn, detail, small, objs is not None, platform)
         out, overflow, peak = program(p, Frames(*(jnp.asarray(x) for x in frames)), lanes, xs, flags, objs)
     out = jax.tree.map(lambda x: _to_host(x, b), out)
     return BatchOutput(out.ids, out.boxes, out.dropped, np.asarray(overflow)[:b], np.asarray(peak)[:b],

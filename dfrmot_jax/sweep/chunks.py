@@ -36,6 +36,7 @@ from tqdm import tqdm
 from .. import distort
 from ..api import TrackResult, default_capacity, track
 from ..config import Options, keep_thresholds
+from ..core.devices import chosen_platform, default_lanes_per_call
 from ..data import Split, cached_split, compact_split, prepare_frames
 from ..lidar import LIDAR_PREFIX, lidar_dir, simulate_cached
 from ..metrics.ab3dmot.prep import cached_ab3dmot_gt
@@ -52,7 +53,8 @@ from .spec import SweepSpec
 from .store import chunk_frame
 from .table import params_of
 
-#: lanes per compiled tracker call (``track(lanes_per_call=...)``; the batch is split over the host devices)
+#: lanes per compiled tracker call on the CPU (``track(lanes_per_call=...)``; the batch is split over the host
+#: devices); on a GPU ``core.devices.default_lanes_per_call()``
 LANES_PER_CALL = 32
 
 #: config-frames of a class's chunks from which the metrics run in worker processes by default
@@ -158,7 +160,8 @@ class ChunkRunner:
         scorer = LaneScorer(gt, split.offsets, as_written=True)     # rows as the files carry them
         # AB3DMOT needs the rows' 3D detail ([B, T, K, 6] boxes with output "filtered"): the whole
         # chunk in one call, whose output arrays are kept as they come, instead of copying two halves
-        per_call = LANES_PER_CALL if spec.ab3dmot is None else 2 * LANES_PER_CALL
+        per_call = LANES_PER_CALL if chosen_platform() == "cpu" else default_lanes_per_call()
+        per_call *= 1 if spec.ab3dmot is None else 2
         groups = option_groups(table) if spec.distortion is not None else {}
         runner = cls(spec, table, data, split, gt, tuple(todo), ChunkScorer(scorer, ab3dmot, timing),
                      max(1, min(spec.chunk, per_call)), groups, timing)
