@@ -10,7 +10,9 @@ Times, in one run:
   (16 distinct edited outputs, tiled, plus per-config random drops) packed into [B, T, K] arrays.
 
 Prints a small table; the LAST line is one JSON object with ``ours_s``, ``trackeval_s``,
-``speedup``, ``b1_s``, ``b16_s``, ``b256_s`` and machine info.
+``speedup``, ``b1_s``, ``b16_s``, ``b256_s``, the goals' ratios in this run
+(``b256_per_output_vs_trackeval``, ``cold_vs_trackeval``, ``cold_vs_motrics`` and their ``goal_*``)
+and machine info (CPU model, load).
 
     python benchmarks/bench_metrics.py [--data ROOT] [--workers 1] [--te-repeats 2]
 """
@@ -26,6 +28,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from machine import cpu_model
 
 
 def _best(fn, repeats):
@@ -145,9 +149,16 @@ def main() -> None:
         "b16_s": round(timings[16], 4),
         "b256_s": round(timings[256], 3),
         "b256_workers": args.workers,
+        # issue 32's goals, each a ratio in this run: per output at B = 256 >= 250x TrackEval from files;
+        # cold >= 30x TrackEval and >= 6x motrics
+        "b256_per_output_vs_trackeval": round(te_s / (timings[256] / 256), 1),
+        "goal_b256_per_output_vs_trackeval": 250,
+        "goal_cold_vs_trackeval": 30,
+        "goal_cold_vs_motrics": 6,
         "parity": bool(parity),
         "processor": platform.processor(),
         "machine": platform.machine(),
+        "cpu_model": cpu_model(),
         "cpu_count": os.cpu_count(),
         "load_avg_1min": round(os.getloadavg()[0], 2),
     }
