@@ -11,7 +11,8 @@ included), then the report with k-fold cross-validation.
 
 The last line of the output is one JSON object: configs, seconds, configs_per_s,
 config_frames_per_s, frames, sequences, baseline / best_in_sample / best_cross_validated (HOTA),
-the best configs, machine and versions. Without KITTI data it prints a JSON line with "skipped".
+the best configs, the tracker's own compacted B = 64 rate measured after the sweep in the same run and
+the sweep's ratio to it (``sweep_vs_tracker``, with its goal), peak RSS, machine and versions. Without KITTI data it prints a JSON line with "skipped".
 """
 
 from __future__ import annotations
@@ -29,6 +30,33 @@ from machine import cold_output_dir, cpu_time, machine_info, peak_rss_mb
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_SWEEP = HERE.parent / "sweeps" / "kitti_dfr_grid.toml"
+
+
+def tracker_reference(b: int = 64, lanes_per_call: int = 16) -> float:
+    """The tracker's own config-frames/s on the compacted KITTI car split at B = ``b`` (settings around
+    dfr2023, as ``bench_tracker.py``'s ``compact_b64``), after its compilation: the reference the
+    sweep's rate is a ratio to, measured in the same run."""
+    import numpy as np
+
+    from bench_tracker import settings
+    from dfrmot_jax.config import Params, keep_thresholds, preset
+    from dfrmot_jax.core import run as tracker
+    from dfrmot_jax.data import compact_split, load_sequences, pack, prepare_frames
+    from dfrmot_jax.api import default_capacity
+    from dfrmot_jax.paths import default_data_root
+
+    names = [f"{i:04d}" for i in range(21)]
+    split = pack(load_sequences(default_data_root(), "rrc", "pointrcnn", "car", names))
+    _, options = preset("dfr2023")
+    big = settings(b)
+    frames = prepare_frames(compact_split(split, *(float(np.min(x)) for x in keep_thresholds(big))), options)
+    cap = default_capacity(prepare_frames(split, options), big, options)
+    lanes = [Params(*(np.asarray(v)[i:i + lanes_per_call] for v in big)) for i in range(0, b, lanes_per_call)]
+    tracker.run_batch(lanes[0], frames, options, cap)                  # compiled
+    t0 = time.perf_counter()
+    for lane in lanes:
+        tracker.run_batch(lane, frames, options, cap)
+    return b * split.n_frames / (time.perf_counter() - t0)
 
 
 def main(argv=None) -> int:
@@ -96,6 +124,11 @@ def main(argv=None) -> int:
         "best_config": s["best_config"], "overflow_configs": int((comb["overflow"] > 0).sum()),
         "ab3dmot": args.ab3dmot, "peak_rss_mb": round(peak_rss_mb(), 1), **machine,
     }
+    # issue 32's goals, ratios in this run: the sweep's config-frames/s >= 0.8x the tracker's own
+    # compacted B = 64 rate (0.6x with AB3DMOT's figures); peak memory <= 2 GB (this process's)
+    ref = tracker_reference()
+    result.update(tracker_compact_b64_config_frames_per_s=round(ref), sweep_vs_tracker=round(result["config_frames_per_s"] / ref, 3),
+                  goal_sweep_vs_tracker=0.6 if args.ab3dmot else 0.8, goal_peak_rss_mb=2000)
     if args.ab3dmot:
         best = comb.loc[comb["sAMOTA"].idxmax()]
         result.update(best_samota=float(best["sAMOTA"]), best_samota_config=int(best["config"]))
