@@ -52,6 +52,7 @@ def test_distortion_needs_a_split_and_matching_lanes(split):
               distortion=distort.level_params("drop", 0.1))
 
 
+@pytest.mark.slow     # (the not-slow tier's 3-minute budget; the full suite runs it)
 def test_the_old_keywords_chunk_still_work_with_a_deprecation_warning(split):
     """``track(chunk=)`` and ``evaluate_arrays(chunk=)`` were renamed (a sweep's chunk is its unit of
     configs): the old keyword still works for one release, the same as the new one, and warns."""

@@ -154,6 +154,7 @@ def test_a_failed_run_leaves_no_new_folder(tmp_path):
             pass
 
 
+@pytest.mark.slow     # (the not-slow tier's 3-minute budget; the full suite runs it)
 def test_one_claim_for_sweeps_and_tunes(scene, tmp_path):
     """Bug 7: a tune folder refuses a sweep and a sweep folder a tune, with the same words; --force
     deletes the other run's files (the tune's journal and batches too), and nothing else."""

@@ -101,10 +101,10 @@ def test_every_static_argument_selects_its_own_program():
 
     sig = inspect.signature(run.compiled)
     base = dict(options=Options(), capacity=16, n_devices=1, hook_fn=None, detail=False, small=None,
-                shared_objects=False)
+                shared_objects=False, platform="cpu")
     assert list(sig.parameters) == list(base)
     changed = dict(options=Options(truncate=False), capacity=32, n_devices=2, hook_fn=len, detail=True,
-                   small=(4, 4), shared_objects=True)
+                   small=(4, 4), shared_objects=True, platform="gpu")       # (built lazily: no GPU needed)
     first = run.compiled(**base)
     assert run.compiled(**base) is first
     for name, value in changed.items():
