@@ -342,3 +342,21 @@ def test_evaluate_arrays_in_worker_processes(kitti_root):
             for f in a[seq]:
                 assert np.array_equal(np.asarray(a[seq][f]), np.asarray(b[seq][f])), (seq, f)
     assert one[0]["COMBINED"]["CLR_TP"] > one[1]["COMBINED"]["CLR_TP"]
+
+
+def test_crowded_segments_from_the_rows_layout_equal_nontrivial_segments():
+    """The compiled count over the rows' layout finds the same frames as the keyed count: those where
+    a row or a column holds two or more positive pairs (empty frames and empty rows among them)."""
+    rng = np.random.default_rng(21)
+    for _ in range(20):
+        G = 300
+        nr = rng.integers(0, 6, G)
+        nc = rng.integers(0, 6, G)
+        rs, cs = pairs.segment_starts(nr)[:-1], pairs.segment_starts(nc)[:-1]
+        seg, row, col, pstart = enumerate_pairs(nr, rs, nc, cs)
+        positive = rng.random(len(seg)) < rng.uniform(0.05, 0.5)
+        row_seg, row_first = pairs.segment_rows(nr, nc, pstart)
+        col_seg = np.repeat(np.arange(G), nc)
+        got = pairs.crowded_segments(positive, row_seg, row_first, col, col_seg)
+        want = nontrivial_segments(seg, row, col, positive)
+        assert np.array_equal(got, want) and len(want) > 0

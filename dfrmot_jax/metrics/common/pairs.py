@@ -18,7 +18,9 @@ exactly TrackEval's matrix. Helpers:
 
 from __future__ import annotations
 
+import numba
 import numpy as np
+
 from dfrmot_jax.metrics.common.assignment import solve_many
 
 
@@ -119,15 +121,36 @@ def crowded_segments(positive: np.ndarray, row_seg: np.ndarray, row_first: np.nd
 
     positive: [P] bool; row_seg, row_first: [R] from :func:`segment_rows`; pair_col: [P] global
     column of each pair; col_seg: [C] segment of each column. Returns sorted unique segment ids.
+    (Counted in one compiled pass over the pairs.)
     """
     if len(row_first) == 0:
         return np.zeros(0, dtype=np.int64)
-    per_row = np.add.reduceat(positive, row_first)
-    per_col = np.bincount(pair_col[positive], minlength=len(col_seg))
-    crowded = np.zeros(int(max(row_seg[-1], col_seg.max(initial=0))) + 1, dtype=bool)
-    crowded[row_seg[per_row > 1]] = True
-    crowded[col_seg[per_col > 1]] = True
-    return np.flatnonzero(crowded)
+    n_seg = int(max(row_seg[-1], col_seg.max(initial=0))) + 1
+    return np.flatnonzero(_crowded(np.ascontiguousarray(positive, dtype=np.bool_), row_seg.astype(np.int64),
+                                   row_first.astype(np.int64), pair_col.astype(np.int64),
+                                   col_seg.astype(np.int64), n_seg))
+
+
+@numba.njit(cache=True, nogil=True)
+def _crowded(positive, row_seg, row_first, pair_col, col_seg, n_seg):
+    """[n_seg] bool: a row (pairs row_first[r] .. the next row's first) or a column holds 2+ positives."""
+    crowded = np.zeros(n_seg, np.bool_)
+    n_rows, n_pairs = len(row_first), len(positive)
+    for r in range(n_rows):
+        end = row_first[r + 1] if r + 1 < n_rows else n_pairs
+        n = 0
+        for q in range(row_first[r], end):
+            n += positive[q]
+        if n > 1:
+            crowded[row_seg[r]] = True
+    per_col = np.zeros(len(col_seg), np.int64)
+    for q in range(n_pairs):
+        if positive[q]:
+            per_col[pair_col[q]] += 1
+    for c in range(len(col_seg)):
+        if per_col[c] > 1:
+            crowded[col_seg[c]] = True
+    return crowded
 
 
 def nontrivial_segments(pair_seg: np.ndarray, pair_rowkey: np.ndarray, pair_colkey: np.ndarray,
