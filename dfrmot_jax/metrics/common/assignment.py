@@ -30,7 +30,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["linear_sum_assignment", "solve_many"]
+__all__ = ["linear_sum_assignment", "solve_many", "solve_block", "workspace"]
 
 _INVALID, _INFEASIBLE = -1, -2
 
@@ -149,56 +149,64 @@ def _rows_certified(nr, nc, cost, col4row, taken):
 
 
 @numba.njit(cache=True, nogil=True)
+def workspace(side, size):
+    """Work arrays for :func:`solve_block` on blocks of at most ``side`` rows or columns and ``size``
+    entries (one tuple, reused across blocks)."""
+    side, size = max(side, 1), max(size, 1)
+    return (np.empty(size), np.empty(side, np.int64), np.empty(side, np.int64), np.empty(side), np.empty(side),
+            np.empty(side), np.empty(side, np.int64), np.empty(side, np.bool_), np.empty(side, np.bool_),
+            np.empty(side, np.int64), np.empty(side, np.int64))
+
+
+@numba.njit(cache=True, nogil=True)
+def solve_block(values, a, nr0, nc0, maximize, positive_only, out_rows, out_cols, o, ws):
+    """One block, in compiled code: ``values[a:a + nr0 * nc0]`` row-major [nr0, nc0]; its min(nr0, nc0)
+    pairs written at ``out_rows[o:]``, ``out_cols[o:]`` in scipy's order (sorted by row; with
+    ``positive_only`` a pair may be -1, -1: see :func:`solve_many`). ws: :func:`workspace`. Returns 0,
+    or _INVALID / _INFEASIBLE. For compiled callers that solve blocks one after the other."""
+    cost, col4row, row4col, u, v, short, path, SR, SC, remaining, order = ws
+    if nr0 == 0 or nc0 == 0:
+        return 0
+    transpose = nc0 < nr0
+    nr, nc = (nc0, nr0) if transpose else (nr0, nc0)
+    for i in range(nr):
+        for j in range(nc):
+            x = values[a + j * nc0 + i] if transpose else values[a + i * nc0 + j]
+            cost[i * nc + j] = -x if maximize else x
+    if positive_only and _rows_certified(nr, nc, cost, col4row, SC):
+        status = 0
+    else:
+        status = _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining)
+    if status != 0:
+        return status
+    if transpose:        # pairs sorted by the original row: the columns' rows, in order
+        order[:nr] = np.argsort(col4row[:nr], kind="mergesort")
+        for k in range(nr):
+            r = col4row[order[k]]
+            out_rows[o + k] = r
+            out_cols[o + k] = order[k] if r >= 0 else -1
+    else:
+        for k in range(nr):
+            c = col4row[k]
+            out_rows[o + k] = k if c >= 0 else -1
+            out_cols[o + k] = c
+    return 0
+
+
+@numba.njit(cache=True, nogil=True)
 def _solve_blocks(values, starts, n_rows, n_cols, maximize, positive_only, out_rows, out_cols, out_start):
-    """Every block b: ``values[starts[b]:...]`` row-major [n_rows[b], n_cols[b]]; its min(nr, nc)
-    pairs written at ``out_start[b]`` (sorted by row; with ``positive_only`` a pair may be -1, -1:
-    see :func:`solve_many`). Returns -1 or the first block that failed, its status in the second value."""
-    size = 1
+    """Every block b (:func:`solve_block`): ``values[starts[b]:...]`` row-major [n_rows[b], n_cols[b]],
+    its pairs at ``out_start[b]``. Returns -1 or the first block that failed, its status in the second value."""
+    size, side = 1, 1
     for b in range(len(n_rows)):
         size = max(size, n_rows[b] * n_cols[b])
-    side = 1
-    for b in range(len(n_rows)):
         side = max(side, n_rows[b], n_cols[b])
-    cost = np.empty(size)
-    col4row = np.empty(side, np.int64)
-    row4col = np.empty(side, np.int64)
-    u = np.empty(side)
-    v = np.empty(side)
-    short = np.empty(side)
-    path = np.empty(side, np.int64)
-    SR = np.empty(side, np.bool_)
-    SC = np.empty(side, np.bool_)
-    remaining = np.empty(side, np.int64)
-    order = np.empty(side, np.int64)
+    ws = workspace(side, size)
     for b in range(len(n_rows)):
-        nr0, nc0 = n_rows[b], n_cols[b]
-        if nr0 == 0 or nc0 == 0:
-            continue
-        a = starts[b]
-        transpose = nc0 < nr0
-        nr, nc = (nc0, nr0) if transpose else (nr0, nc0)
-        for i in range(nr):
-            for j in range(nc):
-                x = values[a + j * nc0 + i] if transpose else values[a + i * nc0 + j]
-                cost[i * nc + j] = -x if maximize else x
-        if positive_only and _rows_certified(nr, nc, cost, col4row, SC):
-            status = 0
-        else:
-            status = _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining)
+        status = solve_block(values, starts[b], n_rows[b], n_cols[b], maximize, positive_only, out_rows, out_cols,
+                             out_start[b], ws)
         if status != 0:
             return b, status
-        o = out_start[b]
-        if transpose:        # pairs sorted by the original row: the columns' rows, in order
-            order[:nr] = np.argsort(col4row[:nr], kind="mergesort")
-            for k in range(nr):
-                r = col4row[order[k]]
-                out_rows[o + k] = r
-                out_cols[o + k] = order[k] if r >= 0 else -1
-        else:
-            for k in range(nr):
-                c = col4row[k]
-                out_rows[o + k] = k if c >= 0 else -1
-                out_cols[o + k] = c
     return -1, 0
 
 

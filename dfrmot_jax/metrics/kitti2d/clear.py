@@ -9,15 +9,17 @@ re-starts of tracking between consecutive such frames, MT/PT/ML use the tracked 
 
 Only frames where a GT or tracker box has two candidates (IoU >= 0.5) need the solver (the
 ``continues`` bonus can only matter there); they are solved after all other frames' matches are
-known, in rounds of frames whose previous frame is final (vectorised), then the rest in time order. Arrays: ``L`` configs, ``S`` sequences.
+known, in time order, in one compiled pass with scipy's assignment
+(:mod:`dfrmot_jax.metrics.common.assignment`). Arrays: ``L`` configs, ``S`` sequences.
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
-from dfrmot_jax.metrics.common.pairs import crowded_segments, segment_pairs, segment_rows, segment_starts, solve_blocks
+from dfrmot_jax.metrics.common.assignment import solve_block, workspace
+from dfrmot_jax.metrics.common.pairs import crowded_segments, segment_pairs, segment_rows
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
 from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
 
@@ -28,8 +30,6 @@ MAIN_FLOAT_FIELDS = ("MOTA", "MOTP", "MODA", "CLR_Re", "CLR_Pr", "MTR", "PTR", "
 FLOAT_FIELDS = MAIN_FLOAT_FIELDS + ("CLR_F1", "FP_per_frame", "MOTAL", "MOTP_sum")
 FIELDS = FLOAT_FIELDS + INTEGER_FIELDS
 SUMMED_FIELDS = INTEGER_FIELDS + ("MOTP_sum",)
-#: frames solved together per round while a round has at least this many (then one by one)
-ROUND_MIN = 16
 
 
 def _final_fields(res: dict) -> dict:
@@ -64,122 +64,65 @@ def _prev_active(b: EvalBatch) -> np.ndarray:
     return prev_of
 
 
-def _solve_round(ready: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.ndarray, p_tid: np.ndarray,
-                 matched: np.ndarray, prev_of: np.ndarray) -> None:
-    """Solve lane-frames whose previous active frame's matches are final in ``matched``, all at once.
-
-    Each frame's matrix is TrackEval's ``1000 * continues + sim`` (zero where ``sim < 0.5 - eps``),
-    solved by :func:`~dfrmot_jax.metrics.common.pairs.solve_blocks` (scipy on each full matrix).
-    """
-    NG = max(len(b.gt.gid_count), 1)
-    ps = b.pair_start
-    idx = segment_pairs(ready, ps)
-    frame = np.repeat(ready, ps[ready + 1] - ps[ready])
-    s = sim[idx]
-    vals = np.where(s >= THRESHOLD - EPS, s, 0.0)  # TrackEval: score[sim < thr - eps] = 0
-    prevs = prev_of[ready]
-    prevs = prevs[prevs >= 0]
-    q = np.flatnonzero((vals > 0) & (prev_of[frame] >= 0))
-    if prevs.size and q.size:
-        pp = segment_pairs(prevs, ps)
-        mp = pp[matched[pp]]
-        if mp.size:
-            mkey = b.p_lf[mp] * NG + p_gid[mp]
-            order = np.argsort(mkey)
-            mkey, mtid = mkey[order], p_tid[mp][order]
-            qkey = prev_of[frame[q]] * NG + p_gid[idx[q]]
-            pos = np.minimum(np.searchsorted(mkey, qkey), len(mkey) - 1)
-            cont = (mkey[pos] == qkey) & (mtid[pos] == p_tid[idx[q]])
-            vals[q[cont]] += 1000  # TrackEval: 1000 * continues + sim (where sim >= thr - eps)
-    take = solve_blocks(b.lf_eval_count[ready], b.det_count[ready], vals) & (vals > 0 + EPS)
-    matched[idx[take]] = True
-
-
 def _solve_sequential(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.ndarray, p_tid: np.ndarray,
                       matched: np.ndarray) -> None:
-    """Solve the listed lane-frames with TrackEval's continuation bonus (in place).
+    """Solve the listed lane-frames with TrackEval's continuation bonus (in place), in one compiled
+    pass in time order (:func:`_solve_in_order`).
 
     ``matched`` holds the final matches of every other lane-frame on entry. The bonus of a frame
     needs the matches of the previous frame with both GT and tracker boxes (same lane and
-    sequence). Frames whose previous frame is final are solved together, in rounds
-    (:func:`_solve_round`), while a round has at least ``ROUND_MIN`` frames; the rest (the tails of
-    long runs of such frames) one by one in time order (:func:`_solve_in_order`).
+    sequence): final on entry, or solved earlier in the pass.
     """
-    prev_of = _prev_active(b)
-    pending = np.zeros(len(b.det_count), dtype=bool)
-    pending[hard] = True
-    matched[segment_pairs(hard, b.pair_start)] = False
-    while hard.size:
-        prev = prev_of[hard]
-        ready = hard[(prev < 0) | ~pending[np.maximum(prev, 0)]]
-        if len(ready) < ROUND_MIN:
-            break
-        _solve_round(ready, b, sim, p_gid, p_tid, matched, prev_of)
-        pending[ready] = False
-        hard = hard[pending[hard]]
-    if hard.size:
-        _solve_in_order(hard, b, sim, p_gid, p_tid, matched, prev_of)
-
-
-def _solve_in_order(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.ndarray, p_tid: np.ndarray,
-                    matched: np.ndarray, prev_of: np.ndarray) -> None:
-    """The listed lane-frames (pairs cleared in ``matched``) one by one in time order: the bonus
-    looked up vectorised when the previous frame is final, else taken from the loop."""
-    gt = b.gt
-    NG = max(len(gt.gid_count), 1)
-    ng_e = b.lf_eval_count
-    nk = b.det_count
+    hard = np.sort(np.asarray(hard, dtype=np.int64))
     ps = b.pair_start
-    is_hard = np.zeros(len(nk), dtype=bool)
-    is_hard[hard] = True
+    matched[segment_pairs(hard, ps)] = False
+    nr, nc = b.lf_eval_count[hard], b.det_count[hard]
+    status = _solve_in_order(hard, ps.astype(np.int64), nr.astype(np.int64), nc.astype(np.int64),
+                             np.ascontiguousarray(sim, dtype=np.float64), p_gid.astype(np.int64), p_tid.astype(np.int64),
+                             matched, _prev_active(b), int(nr.max(initial=1)), int(nc.max(initial=1)),
+                             int((nr * nc).max(initial=1)), THRESHOLD - EPS, EPS)
+    if status != 0:
+        raise RuntimeError(f"CLEAR's assignment failed (status {status})")
 
-    # rows of the hard frames, their GT ids and (for non-hard previous frames) the previous match
-    nr = ng_e[hard]
-    nc = nk[hard]
-    row_lf = np.repeat(hard, nr)
-    row_first = ps[row_lf] + (np.arange(nr.sum()) - np.repeat(segment_starts(nr)[:-1], nr)) * nk[row_lf]
-    row_gid = p_gid[row_first]
-    row_prev = prev_of[row_lf]
-    prev_tid_row = np.full(len(row_lf), -1, dtype=np.int64)
-    q = np.flatnonzero((row_prev >= 0) & ~is_hard[np.maximum(row_prev, 0)])
-    if q.size:
-        mp = np.flatnonzero(matched)
-        mkey = b.p_lf[mp] * NG + p_gid[mp]
-        order = np.argsort(mkey, kind="stable")
-        mkey, mtid = mkey[order], p_tid[mp][order]
-        qkey = row_prev[q] * NG + row_gid[q]
-        pos = np.searchsorted(mkey, qkey)
-        pos_c = np.minimum(pos, max(len(mkey) - 1, 0))
-        found = (pos < len(mkey)) & (mkey[pos_c] == qkey) if len(mkey) else np.zeros(len(q), dtype=bool)
-        prev_tid_row[q[found]] = mtid[pos_c[found]]
 
-    score0 = np.where(sim >= THRESHOLD - EPS, sim, 0.0)  # TrackEval: score[sim < thr - eps] = 0
-    row_start = segment_starts(nr)
-    solved: dict[int, dict[int, int]] = {}
-    hp = prev_of[hard]
-    needed = set(hp[(hp >= 0) & is_hard[np.maximum(hp, 0)]].tolist())
-    out = []
-    for lf, a, e, r, c, prev, ro in zip(hard.tolist(), ps[hard].tolist(), ps[hard + 1].tolist(), nr.tolist(),
-                                        nc.tolist(), prev_of[hard].tolist(), row_start[:-1].tolist()):
-        m = score0[a:e].reshape(r, c)
+@numba.njit(cache=True, nogil=True)
+def _solve_in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev_of, max_rows, max_cols,
+                    max_size, thr, eps):
+    """The hard lane-frames (sorted: time order within each lane) one after the other: each frame's
+    matrix is TrackEval's ``1000 * continues + sim``, zero where ``sim < thr`` (= 0.5 - eps), where
+    ``continues`` says the GT's match in the previous active frame (``prev_of``; final in ``matched``
+    by then) is this tracker id; solved as scipy does (:func:`~dfrmot_jax.metrics.common.assignment.
+    solve_block`, ``-score`` minimised), the pairs above ``0 + eps`` set in ``matched``."""
+    side = max(max_rows, max_cols)
+    ws = workspace(side, max_size)
+    vals = np.empty(max_size)
+    rows = np.empty(side, np.int64)
+    cols = np.empty(side, np.int64)
+    for h in range(len(hard)):
+        lf = hard[h]
+        a, r, c = pair_start[lf], n_rows[h], n_cols[h]
+        for k in range(r * c):
+            s = sim[a + k]
+            vals[k] = s if s >= thr else 0.0
+        prev = prev_of[lf]
         if prev >= 0:
-            if is_hard[prev]:
-                lut = solved[prev]
-                ptr = np.array([lut.get(g, -1) for g in row_gid[ro:ro + r].tolist()], dtype=np.int64)
-            else:
-                ptr = prev_tid_row[ro:ro + r]
-            bonus = (p_tid[a:a + c][None, :] == ptr[:, None]) & (m > 0)
-            if bonus.any():
-                m = m.copy()
-                m[bonus] += 1000  # TrackEval: 1000 * continues + sim (where sim >= thr - eps)
-        rows, cols = linear_sum_assignment(-m)
-        ok = m[rows, cols] > 0 + EPS
-        flat = a + rows[ok] * c + cols[ok]
-        out.append(flat)
-        if lf in needed:
-            solved[lf] = dict(zip(p_gid[flat].tolist(), p_tid[flat].tolist()))
-    if out:
-        matched[np.concatenate(out)] = True
+            pa, pe = pair_start[prev], pair_start[prev + 1]
+            for k in range(r * c):
+                if vals[k] > 0:
+                    g = p_gid[a + k]
+                    for q in range(pa, pe):
+                        if matched[q] and p_gid[q] == g:
+                            if p_tid[q] == p_tid[a + k]:
+                                vals[k] += 1000    # TrackEval: 1000 * continues + sim
+                            break
+        status = solve_block(vals, 0, r, c, True, False, rows, cols, 0, ws)
+        if status != 0:
+            return status
+        for k in range(min(r, c)):
+            i, j = rows[k], cols[k]
+            if vals[i * c + j] > 0 + eps:
+                matched[a + i * c + j] = True
+    return 0
 
 
 def clear_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
