@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import numba
 import numpy as np
 import pandas as pd
 
@@ -81,14 +82,12 @@ def _alignment(b: EvalBatch, row_lf: np.ndarray, row_first: np.ndarray) -> _Comb
     ng_e = b.lf_eval_count
     nk = b.det_count
 
-    # sim_iou = sim / (colsum + rowsum - sim), sums exactly as numpy
+    # sim_iou = sim / (colsum + rowsum - sim), sums exactly as numpy, the rest in one compiled pass
     row_len = nk[row_lf]
-    rowsum = np.repeat(numpy_row_sums(sim, row_first, row_len), row_len)
-    colsum = numpy_col_sums(sim, b.p_k, len(b.det_lf), b.det_lf, ng_e, nk, b.pair_start)[b.p_k]
-    denom = (colsum + rowsum) - sim
-    sim_iou = np.zeros(P)
-    ok = denom > 0 + EPS
-    sim_iou[ok] = sim[ok] / denom[ok]
+    rowsum = numpy_row_sums(sim, row_first, row_len)
+    colsum = numpy_col_sums(sim, b.p_k, len(b.det_lf), b.det_lf, ng_e, nk, b.pair_start)
+    sim_iou = _sim_iou(np.ascontiguousarray(sim, dtype=np.float64), row_first.astype(np.int64),
+                       row_len.astype(np.int64), rowsum, colsum, b.p_k.astype(np.int64), EPS)
 
     # potential matches per (tracker id, gt id) combo, accumulated in time order like TrackEval
     pos = np.flatnonzero(sim > 0)
@@ -137,14 +136,7 @@ def _alpha_fields(b: EvalBatch, co: _Combos, matched: np.ndarray) -> dict[str, n
     C = co.n
     mc = _rev_cum(np.bincount(ch * (NA + 1) + na, minlength=C * (NA + 1)).reshape(C, NA + 1)).astype(np.float64)
     ls_c = b.tid_lane[co.c_tid] * S + b.tid_seq[co.c_tid]
-    gc2, tc2 = co.gc[:, None], co.tc[:, None]
-    ass_a = mc / np.maximum(1, gc2 + tc2 - mc)
-    ass_re = mc / np.maximum(1, gc2)
-    ass_pr = mc / np.maximum(1, tc2)
-    idx = (ls_c[:, None] * NA + np.arange(NA)).reshape(-1)
-
-    def per_ls(v):
-        return np.bincount(idx, weights=(mc * v).reshape(-1), minlength=L * S * NA).reshape(L, S, NA)
+    ass = _association_sums(mc, co.gc.astype(np.int64), co.tc.astype(np.int64), ls_c.astype(np.int64), L * S)
 
     n_gt = np.broadcast_to(gt.n_gt_dets[None, :, None], (L, S, 1)).astype(np.float64)
     n_tr = b.n_tr_dets[:, :, None].astype(np.float64)
@@ -154,11 +146,44 @@ def _alpha_fields(b: EvalBatch, co: _Combos, matched: np.ndarray) -> dict[str, n
         "HOTA_FP": n_tr - tp,
     }
     den = np.maximum(1, tp)
-    res["AssA"] = per_ls(ass_a) / den
-    res["AssRe"] = per_ls(ass_re) / den
-    res["AssPr"] = per_ls(ass_pr) / den
+    res["AssA"] = ass[0].reshape(L, S, NA) / den
+    res["AssRe"] = ass[1].reshape(L, S, NA) / den
+    res["AssPr"] = ass[2].reshape(L, S, NA) / den
     res["LocA"] = np.maximum(1e-10, loc_sum) / np.maximum(1e-10, tp)
     return _final_fields(res)
+
+
+@numba.njit(cache=True, nogil=True)
+def _sim_iou(sim, row_first, row_len, rowsum, colsum, p_k, eps):
+    """[P] ``sim / (colsum + rowsum - sim)`` of each pair (0 where the denominator is not above
+    ``0 + eps``): rows of pairs ``row_first[r] .. + row_len[r]``, ``rowsum`` [R] per row, ``colsum``
+    per tracker column (``p_k`` [P] each pair's); TrackEval's operations in its order."""
+    out = np.zeros(len(sim))
+    for r in range(len(row_first)):
+        rs = rowsum[r]
+        for q in range(row_first[r], row_first[r] + row_len[r]):
+            denom = (colsum[p_k[q]] + rs) - sim[q]
+            if denom > 0 + eps:
+                out[q] = sim[q] / denom
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _association_sums(mc, gc, tc, ls_c, n_ls):
+    """[3, n_ls * NA]: per (lane, sequence) and alpha, the sums over combos (in combo order) of
+    ``mc * AssA``, ``mc * AssRe``, ``mc * AssPr`` with TrackEval's per-combo ratios
+    ``mc / max(1, gc + tc - mc)``, ``mc / max(1, gc)``, ``mc / max(1, tc)``; mc [C, NA] match counts,
+    gc / tc [C] detections of the combo's GT / tracker id, ls_c [C] its (lane, sequence)."""
+    C, na = mc.shape
+    out = np.zeros((3, n_ls * na))
+    for c in range(C):
+        base = ls_c[c] * na
+        for a in range(na):
+            m = mc[c, a]
+            out[0, base + a] += m * (m / max(1.0, (gc[c] + tc[c]) - m))
+            out[1, base + a] += m * (m / max(1.0, float(gc[c])))
+            out[2, base + a] += m * (m / max(1.0, float(tc[c])))
+    return out
 
 
 def _early_sequences(b: EvalBatch, res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
