@@ -82,8 +82,8 @@ def chosen_platform(device: str | None = None) -> str:
             found = []
         if not found:
             raise ValueError(f"{DEVICE_VAR}=gpu, but JAX sees no GPU (backend {jax.default_backend()!r}): install "
-                               f"the GPU build with pip install -e \".[cuda]\" on a machine with an NVIDIA GPU and "
-                               f"its driver, or leave {DEVICE_VAR} unset to run on the CPU")
+                             f"the GPU build with pip install -e \".[cuda]\" on a machine with an NVIDIA GPU and "
+                             f"its driver, or leave {DEVICE_VAR} unset to run on the CPU")
     return want
 
 
