@@ -155,7 +155,7 @@ def workspace(side, size):
     side, size = max(side, 1), max(size, 1)
     return (np.empty(size), np.empty(side, np.int64), np.empty(side, np.int64), np.empty(side), np.empty(side),
             np.empty(side), np.empty(side, np.int64), np.empty(side, np.bool_), np.empty(side, np.bool_),
-            np.empty(side, np.int64), np.empty(side, np.int64))
+            np.empty(side, np.int64))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -164,7 +164,7 @@ def solve_block(values, a, nr0, nc0, maximize, positive_only, out_rows, out_cols
     pairs written at ``out_rows[o:]``, ``out_cols[o:]`` in scipy's order (sorted by row; with
     ``positive_only`` a pair may be -1, -1: see :func:`solve_many`). ws: :func:`workspace`. Returns 0,
     or _INVALID / _INFEASIBLE. For compiled callers that solve blocks one after the other."""
-    cost, col4row, row4col, u, v, short, path, SR, SC, remaining, order = ws
+    cost, col4row, row4col, u, v, short, path, SR, SC, remaining = ws
     if nr0 == 0 or nc0 == 0:
         return 0
     transpose = nc0 < nr0
@@ -175,16 +175,25 @@ def solve_block(values, a, nr0, nc0, maximize, positive_only, out_rows, out_cols
             cost[i * nc + j] = -x if maximize else x
     if positive_only and _rows_certified(nr, nc, cost, col4row, SC):
         status = 0
+        if transpose:
+            row4col[:nc] = -1
+            for i in range(nr):
+                if col4row[i] >= 0:
+                    row4col[col4row[i]] = i
     else:
         status = _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining)
     if status != 0:
         return status
-    if transpose:        # pairs sorted by the original row: the columns' rows, in order
-        order[:nr] = np.argsort(col4row[:nr], kind="mergesort")
-        for k in range(nr):
-            r = col4row[order[k]]
-            out_rows[o + k] = r
-            out_cols[o + k] = order[k] if r >= 0 else -1
+    if transpose:        # pairs sorted by the original row (the transposed columns, in order)
+        k = 0
+        for r in range(nc):
+            if row4col[r] >= 0:
+                out_rows[o + k] = r
+                out_cols[o + k] = row4col[r]
+                k += 1
+        for k in range(k, nr):       # (positive_only: rows left without a pair)
+            out_rows[o + k] = -1
+            out_cols[o + k] = -1
     else:
         for k in range(nr):
             c = col4row[k]
@@ -235,6 +244,11 @@ def solve_many(values: np.ndarray, n_rows: np.ndarray, n_cols: np.ndarray, maxim
     if starts is None:
         starts = _starts(n_rows * n_cols)[:-1]
     starts = np.ascontiguousarray(starts, dtype=np.int64)
+    if not (len(starts) == len(n_rows) == len(n_cols)):
+        raise ValueError(f"{len(n_rows)} block shapes, {len(n_cols)} column counts, {len(starts)} starts")
+    if len(n_rows) and ((n_rows < 0).any() or (n_cols < 0).any() or (starts < 0).any()
+                        or (starts + n_rows * n_cols > len(values)).any()):
+        raise ValueError(f"blocks reach beyond the {len(values)} values (compiled code checks no index)")
     pair_start = _starts(np.minimum(n_rows, n_cols))
     rows = np.empty(int(pair_start[-1]), np.int64)
     cols = np.empty(int(pair_start[-1]), np.int64)
