@@ -66,6 +66,8 @@ def test_forbidden_pairs_empty_and_invalid_as_scipy():
     assert 0 < n_raised < 400
     for m in (np.zeros((0, 3)), np.zeros((4, 0))):
         assert all(len(x) == 0 for x in linear_sum_assignment(m))
+    with pytest.raises(ValueError, match="invalid"):          # refused before any certificate answers
+        solve_many(np.array([np.nan, 1.0]), [1], [2], maximize=True, positive_only=True)
     with pytest.raises(ValueError, match="beyond"):           # checked before the compiled code runs
         solve_many(np.ones(5), [2, 2], [2, 1])
     for m in (np.array([[np.nan, 1.0]]), np.array([[-np.inf, 1.0]])):

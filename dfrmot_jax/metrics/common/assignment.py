@@ -30,7 +30,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["linear_sum_assignment", "solve_many", "solve_block", "workspace"]
+__all__ = ["linear_sum_assignment", "solve_many", "solve_block", "workspace", "workspace_for", "TIE_MARGIN"]
 
 _INVALID, _INFEASIBLE = -1, -2
 
@@ -77,12 +77,8 @@ def _augmenting_path(nc, cost, u, v, path, row4col, short, i, SR, SC, remaining)
 
 @numba.njit(cache=True, nogil=True)
 def _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining):
-    """Assign each of ``nr`` rows (nr <= nc) of the row-major ``cost`` [nr * nc]: fills col4row [nr];
-    returns 0, or _INVALID / _INFEASIBLE."""
-    for k in range(nr * nc):
-        c = cost[k]
-        if c != c or c == -np.inf:
-            return _INVALID
+    """Assign each of ``nr`` rows (nr <= nc) of the row-major ``cost`` [nr * nc] (no NaN, no -inf):
+    fills col4row [nr]; returns 0, or _INFEASIBLE."""
     u[:nr] = 0.0
     v[:nc] = 0.0
     path[:nc] = -1
@@ -159,6 +155,16 @@ def workspace(side, size):
 
 
 @numba.njit(cache=True, nogil=True)
+def workspace_for(n_rows, n_cols):
+    """:func:`workspace` for every block of shapes ``n_rows`` x ``n_cols`` [G]."""
+    size, side = 1, 1
+    for b in range(len(n_rows)):
+        size = max(size, n_rows[b] * n_cols[b])
+        side = max(side, n_rows[b], n_cols[b])
+    return workspace(side, size)
+
+
+@numba.njit(cache=True, nogil=True)
 def solve_block(values, a, nr0, nc0, maximize, positive_only, out_rows, out_cols, o, ws):
     """One block, in compiled code: ``values[a:a + nr0 * nc0]`` row-major [nr0, nc0]; its min(nr0, nc0)
     pairs written at ``out_rows[o:]``, ``out_cols[o:]`` in scipy's order (sorted by row; with
@@ -173,6 +179,10 @@ def solve_block(values, a, nr0, nc0, maximize, positive_only, out_rows, out_cols
         for j in range(nc):
             x = values[a + j * nc0 + i] if transpose else values[a + i * nc0 + j]
             cost[i * nc + j] = -x if maximize else x
+    for k in range(nr * nc):         # scipy refuses these (before any certificate may answer)
+        c = cost[k]
+        if c != c or c == -np.inf:
+            return _INVALID
     if positive_only and _rows_certified(nr, nc, cost, col4row, SC):
         status = 0
         if transpose:
@@ -206,11 +216,7 @@ def solve_block(values, a, nr0, nc0, maximize, positive_only, out_rows, out_cols
 def _solve_blocks(values, starts, n_rows, n_cols, maximize, positive_only, out_rows, out_cols, out_start):
     """Every block b (:func:`solve_block`): ``values[starts[b]:...]`` row-major [n_rows[b], n_cols[b]],
     its pairs at ``out_start[b]``. Returns -1 or the first block that failed, its status in the second value."""
-    size, side = 1, 1
-    for b in range(len(n_rows)):
-        size = max(size, n_rows[b] * n_cols[b])
-        side = max(side, n_rows[b], n_cols[b])
-    ws = workspace(side, size)
+    ws = workspace_for(n_rows, n_cols)
     for b in range(len(n_rows)):
         status = solve_block(values, starts[b], n_rows[b], n_cols[b], maximize, positive_only, out_rows, out_cols,
                              out_start[b], ws)

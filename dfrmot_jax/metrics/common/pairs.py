@@ -21,7 +21,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from dfrmot_jax.metrics.common.assignment import solve_many
+from dfrmot_jax.metrics.common.assignment import TIE_MARGIN, solve_many
 
 
 def segment_starts(counts: np.ndarray) -> np.ndarray:
@@ -179,17 +179,14 @@ def segment_pairs(segs: np.ndarray, seg_pair_start: np.ndarray) -> np.ndarray:
     return np.arange(int(lens.sum()), dtype=np.int64) - np.repeat(segment_starts(lens)[:-1] - starts, lens)
 
 
-#: a certified answer beats every other (different positive pairs) by more than this x max(1, score)
-TIE_MARGIN = 1e-9
-
-
 def _greedy_sparse(seg: np.ndarray, line: np.ndarray, other: np.ndarray, value: np.ndarray,
                    n_seg: int) -> tuple[np.ndarray, np.ndarray]:
     """An optimality certificate on sparse positive entries: the largest entry of each line wins
     where it beats the line's others, and 0, by more than TIE_MARGIN x max(1, largest) and no two
-    lines take one crossing line (the optimum is then unique, so scipy returns it too). The lines
-    (rows or columns) ``line`` [E] >= 0, the crossing keys ``other`` [E] >= 0, values [E] > 0 (absent entries are 0). Returns (ok
-    [n_seg], take [E] bool: the largest entry of each line of the decided segments)."""
+    lines take one crossing line (the optimum is then unique, so scipy returns it too; the margin is the
+    compiled certificate's, ``assignment.TIE_MARGIN``). The lines (rows or columns) ``line`` [E] >= 0,
+    the crossing keys ``other`` [E] >= 0, values [E] > 0 (absent entries are 0). Returns (ok [n_seg],
+    take [E] bool: the largest entry of each line of the decided segments)."""
     n = int(line.max(initial=-1)) + 1
     top = np.zeros(n)
     np.maximum.at(top, line, value)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from dfrmot_jax.metrics.common.assignment import solve_block, workspace
+from dfrmot_jax.metrics.common.assignment import solve_block, workspace_for
 from dfrmot_jax.metrics.common.pairs import crowded_segments, segment_pairs, segment_rows
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
 from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
@@ -79,25 +79,22 @@ def _solve_sequential(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np
     nr, nc = b.lf_eval_count[hard], b.det_count[hard]
     status = _solve_in_order(hard, ps.astype(np.int64), nr.astype(np.int64), nc.astype(np.int64),
                              np.ascontiguousarray(sim, dtype=np.float64), p_gid.astype(np.int64), p_tid.astype(np.int64),
-                             matched, _prev_active(b), int(nr.max(initial=1)), int(nc.max(initial=1)),
-                             int((nr * nc).max(initial=1)), THRESHOLD - EPS, EPS)
+                             matched, _prev_active(b), THRESHOLD - EPS, EPS)
     if status != 0:
         raise RuntimeError(f"CLEAR's assignment failed (status {status})")
 
 
 @numba.njit(cache=True, nogil=True)
-def _solve_in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev_of, max_rows, max_cols,
-                    max_size, thr, eps):
+def _solve_in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev_of, thr, eps):
     """The hard lane-frames (sorted: time order within each lane) one after the other: each frame's
     matrix is TrackEval's ``1000 * continues + sim``, zero where ``sim < thr`` (= 0.5 - eps), where
     ``continues`` says the GT's match in the previous active frame (``prev_of``; final in ``matched``
     by then) is this tracker id; solved as scipy does (:func:`~dfrmot_jax.metrics.common.assignment.
     solve_block`, ``-score`` minimised), the pairs above ``0 + eps`` set in ``matched``."""
-    side = max(max_rows, max_cols)
-    ws = workspace(side, max_size)
-    vals = np.empty(max_size)
-    rows = np.empty(side, np.int64)
-    cols = np.empty(side, np.int64)
+    ws = workspace_for(n_rows, n_cols)
+    vals = np.empty(len(ws[0]))                  # (the workspace's cost array: the largest block)
+    rows = np.empty(len(ws[1]), np.int64)
+    cols = np.empty(len(ws[1]), np.int64)
     for h in range(len(hard)):
         lf = hard[h]
         a, r, c = pair_start[lf], n_rows[h], n_cols[h]

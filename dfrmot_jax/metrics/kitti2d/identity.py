@@ -82,8 +82,8 @@ def max_matching_value(g: np.ndarray, t: np.ndarray, w: np.ndarray) -> np.ndarra
     r, c, ps = solve_many(vals, nr, nc, maximize=True)
     per = np.diff(ps)
     # (integer weights: the components' sums are exact in any order)
-    value = np.bincount(np.repeat(np.arange(len(nr)), per), weights=vals[m_start[:-1].repeat(per) + r * nc.repeat(per) + c],
-                        minlength=len(nr))
+    taken = vals[m_start[:-1].repeat(per) + r * nc.repeat(per) + c]
+    value = np.bincount(np.repeat(np.arange(len(nr)), per), weights=taken, minlength=len(nr))
     out[rest[bounds[:-1]]] = value
     return out
 
