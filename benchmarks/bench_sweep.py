@@ -38,9 +38,8 @@ def tracker_reference(b: int = 64, lanes_per_call: int = 16) -> float:
     sweep's rate is a ratio to, measured in the same run."""
     import numpy as np
 
-    from bench_tracker import settings
-    from dfrmot_jax.config import Params, keep_thresholds, preset
-    from dfrmot_jax.core import run as tracker
+    from bench_tracker import lane_calls, run_calls, settings
+    from dfrmot_jax.config import keep_thresholds, preset
     from dfrmot_jax.data import compact_split, load_sequences, pack, prepare_frames
     from dfrmot_jax.api import default_capacity
     from dfrmot_jax.paths import default_data_root
@@ -51,12 +50,8 @@ def tracker_reference(b: int = 64, lanes_per_call: int = 16) -> float:
     big = settings(b)
     frames = prepare_frames(compact_split(split, *(float(np.min(x)) for x in keep_thresholds(big))), options)
     cap = default_capacity(prepare_frames(split, options), big, options)
-    lanes = [Params(*(np.asarray(v)[i:i + lanes_per_call] for v in big)) for i in range(0, b, lanes_per_call)]
-    tracker.run_batch(lanes[0], frames, options, cap)                  # compiled
-    t0 = time.perf_counter()
-    for lane in lanes:
-        tracker.run_batch(lane, frames, options, cap)
-    return b * split.n_frames / (time.perf_counter() - t0)
+    _, seconds, _ = run_calls(lane_calls(big, b, lanes_per_call), frames, options, cap)
+    return b * split.n_frames / seconds
 
 
 def main(argv=None) -> int:

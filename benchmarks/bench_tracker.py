@@ -50,6 +50,24 @@ def settings(b: int, seed: int = 0, name: str = "dfr2023") -> Params:
                          for _ in range(b)])
 
 
+def lane_calls(big: Params, b: int, width: int) -> list:
+    """The first ``b`` settings of ``big`` as the ``Params`` of calls of at most ``width`` lanes."""
+    p = Params(*(np.asarray(v)[:b] for v in big))
+    width = min(b, width)
+    return [Params(*(np.asarray(v)[i:i + width] for v in p)) for i in range(0, b, width)]
+
+
+def run_calls(lanes: list, frames, options, cap: int) -> tuple:
+    """``core.run.run_batch`` of each call: (seconds of a first call of the first lanes, which
+    compiles; seconds of all the calls after it; their outputs)."""
+    t0 = time.perf_counter()
+    tracker.run_batch(lanes[0], frames, options, cap)
+    first_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    res = [tracker.run_batch(lane, frames, options, cap) for lane in lanes]
+    return first_s, time.perf_counter() - t0, res
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", default="1,8,64,256,1024")
@@ -102,23 +120,16 @@ def main() -> int:
         runs.append(("compact_", prepare_frames(packed, options)))
     for prefix, fr in runs:
         for b in sizes:
-            p = Params(*(np.asarray(v)[:b] for v in big))
-            width = min(b, args.lanes_per_call)
-            lanes = [Params(*(np.asarray(v)[i:i + width] for v in p)) for i in range(0, b, width)]
-            t0 = time.perf_counter()
-            first = tracker.run_batch(lanes[0], fr, options, cap)
+            first_s, dt, res = run_calls(lane_calls(big, b, args.lanes_per_call), fr, options, cap)
             if not prefix:
-                compile_s[b] = time.perf_counter() - t0
-            t0 = time.perf_counter()
-            res = [tracker.run_batch(lane, fr, options, cap) for lane in lanes]
-            dt = time.perf_counter() - t0
+                compile_s[b] = first_s
             overflow = int(sum(int(r.overflow.sum()) for r in res))
             rate = b * T / dt
             print(f"{prefix or 'full '}B={b:5d}: {rate:12,.0f} config-frames/s  ({dt:7.2f} s; overflow {overflow}; "
                   f"peak RSS {peak_rss_mb():,.0f} MB)", flush=True)
             key = f"{prefix}b1_frames_per_s" if b == 1 else f"{prefix}b{b}_config_frames_per_s"
             out[key] = round(rate, 1)
-            del first, res
+            del res
     # through the public call on the whole split, as a user runs it (track compacts the split to the
     # batch's loosest thresholds, groups lanes by merge settings and moves the output back)
     for b in sizes:
