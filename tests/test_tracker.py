@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from dfrmot_jax.core import run as tracker
+from dfrmot_jax.core.devices import batch_devices
 from dfrmot_jax.api import default_capacity, track
 from dfrmot_jax.data import load_sequences, pack, prepare_frames
 from dfrmot_jax.config import OBJECT_PARAMS, Options, Params, stack_params
@@ -106,7 +107,7 @@ def test_second_call_with_new_values_does_not_recompile(scene):
     cap = default_capacity(frames, Params(), Options())
     tracker.run_batch(stack_params([Params(), Params(a_l=5.0)]), frames, Options(), cap)
     small = tracker.small_frames(frames, Options())
-    fn = tracker.compiled(Options(), cap, min(2, tracker.device_count()), None, False,
+    fn = tracker.compiled(Options(), cap, min(2, len(batch_devices())), None, False,
                           None if small is None else small[0])
     with no_recompile():
         out = tracker.run_batch(stack_params([Params(a_l=3.0, epsilon=5), Params(score_2d=0.7)]), frames, Options(),

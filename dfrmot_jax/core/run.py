@@ -235,12 +235,6 @@ def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: boo
     return jax.jit(sharded)
 
 
-def device_count() -> int:
-    """Devices a batch is split over: the chosen platform's (``core.devices``; on the CPU the first
-    call asks JAX for one device per core)."""
-    return len(batch_devices())
-
-
 def _lanes(tree, b: int, pad: int, float_dtype):
     """Leaves broadcast to [b] and padded with copies of the last lane to b + pad: integers as int32,
     floats as ``float_dtype`` (float64 ``Params`` need the caller's ``jax.enable_x64`` scope)."""
