@@ -84,7 +84,10 @@ def _solve_sequential(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np
         raise RuntimeError(f"CLEAR's assignment failed (status {status})")
 
 
-@numba.njit(cache=True, nogil=True)
+# not cached on disk: numba's cache of a function is keyed on its own file only, and this one calls
+# metrics.common.assignment's kernels, whose changes would not reach a cached copy (compiled once per
+# process instead)
+@numba.njit(cache=False, nogil=True)
 def _solve_in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev_of, thr, eps):
     """The hard lane-frames (sorted: time order within each lane) one after the other: each frame's
     matrix is TrackEval's ``1000 * continues + sim``, zero where ``sim < thr`` (= 0.5 - eps), where
