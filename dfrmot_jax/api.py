@@ -19,6 +19,7 @@ from .data import Frames, Split, compact_slots, object_slots, prepare_frames
 from .config import (MAX_CAPACITY, MIN_CAPACITY, OBJECT_PARAMS, Options, Params, as_arrays, batch_size, keep_thresholds,
                      validate_params)
 from .results import output_boxes
+from .rows import Rows, row_starts
 from .core.associate import MAX_ROWS
 from .core.run import SMALL_FRAMES_MIN_T, BatchOutput, FrameHook, run_batch, split_objects
 
@@ -43,12 +44,16 @@ class TrackResult(namedtuple("TrackResult", TRACK_RESULT_FIELDS)):
     [B, T, K] int32, own3 [B, T, K] bool and, output "filtered", box3 [B, T, K, 6] float32: the 3D
     detection each row carries and the tracks' filtered 3D corners (``core.step.StepOutput``).
     capacity [B] the capacity each lane ran with; frames: the ``Frames`` tracked; options: the
-    validated ``Options``.
+    validated ``Options``. With ``track(rows_only=True)`` a lane's own boxes and box3 are
+    :class:`dfrmot_jax.rows.Rows` (their values at ids >= 0 only).
     """
 
     __slots__ = ()
 
     def lane_boxes(self, b: int) -> np.ndarray:
+        """Lane b's boxes [T, K, 4] (NaN off its rows where they are kept as rows only)."""
+        if isinstance(self.boxes, Rows):
+            return self.boxes.lane_dense(b, self.ids[b])
         return self.boxes if self.boxes.ndim == 3 else self.boxes[b]
 
 
@@ -98,7 +103,7 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
           grow: bool = True, progress=None, distortion: distort.DistortParams | None = None,
           spec: distort.DistortSpec | None = None, clutter_slots: int = 0, detail: bool = False,
           small_frames_min: int | None = SMALL_FRAMES_MIN_T, compact: bool = True,
-          chunk: int | None = None) -> TrackResult:
+          chunk: int | None = None, rows_only: bool = False) -> TrackResult:
     """Track every lane of ``params`` (leaves scalar or [B]) over the split.
 
     lanes_per_call: lanes per compiled call (memory: lanes_per_call x T x K int32 ids; default
@@ -116,6 +121,10 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     the front) and give the output back in the split's own slot layout: the same result, fewer dead
     slots per step (not with a distortion or the Hungarian assignment).
     chunk: deprecated name of ``lanes_per_call`` (kept for one release, with a ``DeprecationWarning``).
+    rows_only: a lane's own boxes (output "filtered", or a distortion) and ``box3`` come back as
+    :class:`dfrmot_jax.rows.Rows`, their values at the rows (ids >= 0) only, read from each call's
+    output without a dense copy: what every reader of the rows gets, in a fraction of the memory
+    (sweeps; a filtered slot is a track and most hold no row).
     """
     if chunk is not None:
         warnings.warn("track(chunk=...) is deprecated: use track(lanes_per_call=...) (a sweep's chunk is "
@@ -136,7 +145,7 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     cap0 = options.capacity or default_capacity(frames, params, options)
     per_slot = ["ids"] + (["boxes"] if per_lane_boxes else []) + (["src3", "own3"] if detail else []) \
         + (["box3"] if detail and options.output == "filtered" else [])
-    outputs = _Outputs(b, cap0, per_slot)
+    outputs = _Outputs(b, cap0, per_slot, {"boxes", "box3"} & set(per_slot) if rows_only else set())
     todo = np.arange(b)
     cap = cap0
     keys = None if extra is not None else merge_keys(params)
@@ -148,7 +157,8 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
             if key is not None and key not in objs:
                 objs[key] = split_objects(_take(params, lanes[:1]), frames, options)
             out = run_batch(_take(params, lanes), frames, options, cap, hook=hook, detail=detail,
-                            small_frames_min=small_frames_min, objs=None if key is None else objs[key])
+                            small_frames_min=small_frames_min, objs=None if key is None else objs[key],
+                            rows_only=bool(outputs.packed))
             outputs.put(lanes, out, cap)
             if progress is not None and cap == cap0:
                 progress(len(lanes))
@@ -199,13 +209,15 @@ def _inputs(split: Split | Frames, params: Params, options: Options, compact: bo
 class _Outputs:
     """A batch's outputs gathered over its compiled calls: per-slot arrays (``names`` of
     ``core.run.BatchOutput``) and per-lane counts; a lane re-run with more track slots overwrites
-    its first run."""
+    its first run. ``packed``: the names kept as rows only (``run_batch(rows_only=True)``' values,
+    held per lane until :meth:`result` joins them into a :class:`~dfrmot_jax.rows.Rows`)."""
 
     FILL = {"ids": -1, "src3": -1}
 
-    def __init__(self, b: int, cap0: int, names: list[str]):
-        self.b, self.names = b, names
+    def __init__(self, b: int, cap0: int, names: list[str], packed=frozenset()):
+        self.b, self.names, self.packed = b, names, frozenset(packed)
         self.got: dict[str, np.ndarray] = {}
+        self.lane_rows: dict[str, list] = {name: [None] * b for name in self.packed}
         self.dropped: np.ndarray | None = None
         self.overflow = np.zeros(b, np.int64)
         self.peak = np.zeros(b, np.int64)
@@ -218,7 +230,14 @@ class _Outputs:
             self.dropped = np.empty((b,) + out.dropped.shape[1:], np.int32)
         # contiguous lanes (every first pass) are written through a slice: no fancy-index copy
         at = slice(lanes[0], lanes[-1] + 1) if lanes[-1] - lanes[0] + 1 == lanes.size else lanes
+        if self.packed:         # each lane's rows: a re-run lane's replace its first run's
+            per_lane = np.cumsum((out.ids >= 0).sum(axis=(1, 2), dtype=np.int64))[:-1]
+            for name in self.packed:
+                for lane, part in zip(lanes, np.split(getattr(out, name), per_lane)):
+                    self.lane_rows[name][lane] = part
         for name in self.names:
+            if name in self.packed:
+                continue
             v = getattr(out, name)
             fill = self.FILL.get(name, 0)
             if name not in got and lanes.size == b:
@@ -247,6 +266,12 @@ class _Outputs:
         if inputs.packed is not None:
             got = _full_layout(got, inputs.packed[1], inputs.packed[2], inputs.full_frames, options)
             frames = inputs.full_frames
+        if self.packed:
+            if inputs.packed is not None and options.output == "detections":
+                raise RuntimeError("rows kept alone cannot follow the compaction's slot moves")
+            got = dict(got)
+            for name in self.packed:
+                got[name] = Rows(np.concatenate(self.lane_rows[name]), row_starts(got["ids"]), got["ids"].shape[1])
         boxes = got["boxes"] if per_lane_boxes else output_boxes(frames, options)
         return TrackResult(ids=got["ids"], boxes=boxes, dropped=self.dropped, overflow=overflow, peak=self.peak,
                            src3=got.get("src3"), own3=got.get("own3"), box3=got.get("box3"), capacity=capacity,

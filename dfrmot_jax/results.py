@@ -22,6 +22,7 @@ from .io.atomic import write_text_atomic
 from .io.columns import (COLUMN_SETS, PLACEHOLDER_DIMS, PLACEHOLDER_LOC, PLACEHOLDER_ROT_Y, PLACEHOLDER_SCORE,
                          as_written, invert_box3d_extent)
 from .io.result_writer import tracking_lines
+from .rows import Rows
 
 
 class LaneRows(NamedTuple):
@@ -169,8 +170,10 @@ def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRo
     t, k = np.divmod(tk, K)
     at = flat if lanes is None else chosen[b] * (T * K) + tk     # the rows in res' own lanes, flat
 
-    def rows_of(a: np.ndarray) -> np.ndarray:
-        """The rows' values of a [B, T, K, ...] array."""
+    def rows_of(a) -> np.ndarray:
+        """The rows' values of a [B, T, K, ...] array (or of a :class:`~dfrmot_jax.rows.Rows`)."""
+        if isinstance(a, Rows):
+            return a.values if lanes is None else a.lanes(chosen)
         a = np.asarray(a)
         return a.reshape((-1,) + a.shape[3:])[at]
 

@@ -172,7 +172,8 @@ class BatchOutput(NamedTuple):
     """ids [B, T, K] int32; boxes [B, T, K, 4] float32 (a lane's own boxes) or [B, T, K, 0];
     dropped [B, T] int32; overflow [B] int32 (births dropped in total); peak [B] int32 (most live
     tracks); with ``detail``: src3 [B, T, K] int32, own3 [B, T, K] bool, box3 [B, T, K, 6] float32
-    (output "filtered"), else their K axis is empty."""
+    (output "filtered"), else their K axis is empty. ``run_batch(rows_only=True)``: boxes (a lane's
+    own) and box3 are their rows' values, [R, 4] and [R, 6] (ids >= 0, in (lane, frame, slot) order)."""
     ids: np.ndarray
     boxes: np.ndarray
     dropped: np.ndarray
@@ -261,9 +262,27 @@ def _to_host(x: jax.Array, b: int) -> np.ndarray:
     return out
 
 
+def _rows_to_host(x: jax.Array, ids: np.ndarray) -> np.ndarray:
+    """[R, ...] the values of a program output [B', T, K, ...] at the rows ``ids [B, T, K] >= 0`` of
+    its first B lanes, in (lane, frame, slot) order, read from each device's shard without a dense
+    host copy."""
+    b = ids.shape[0]
+    parts = []
+    for shard in sorted(x.addressable_shards, key=lambda s: (s.index[0].start or 0) if s.index else 0):
+        rows = shard.index[0] if shard.index else slice(None)
+        start = rows.start or 0
+        if start >= b:
+            continue
+        data = np.asarray(shard.data)
+        n = min(b - start, data.shape[0])
+        parts.append(data[:n][ids[start:start + n] >= 0])
+    return np.concatenate(parts) if parts else np.zeros((0,) + x.shape[3:], x.dtype)
+
+
 def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n_devices: int | None = None,
               hook: FrameHook | None = None, detail: bool = False,
-              small_frames_min: int | None = SMALL_FRAMES_MIN_T, objs: Objects | None = None) -> BatchOutput:
+              small_frames_min: int | None = SMALL_FRAMES_MIN_T, objs: Objects | None = None,
+              rows_only: bool = False) -> BatchOutput:
     """All lanes of a ``Params`` batch [B] over the split; the batch is split over ``n_devices``.
 
     hook: a ``FrameHook`` whose ``lane`` leaves are [B] (float leaves as float32) and ``xs`` leaves
@@ -272,6 +291,8 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
     least this many frames (``small_frames``; None: one size; the results are the same).
     objs: every lane's objects, made once outside the scan (``split_objects``; the lanes must share
     ``config.OBJECT_PARAMS``; not with a hook); None: each step makes them.
+    rows_only: a lane's own boxes and ``box3`` come back as their rows' values only, [R, 4] and
+    [R, 6] at ``ids >= 0`` in (lane, frame, slot) order (read from the device without a dense copy).
     Returns BatchOutput (numpy). Lanes are padded to a multiple of the device count and trimmed.
     The platform is ``core.devices.chosen_platform()`` (``$DFRMOT_DEVICE``): its devices run the batch.
     """
@@ -301,6 +322,9 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
             raise ValueError("objects made outside the scan cannot follow a frame hook")
         program = compiled(options, capacity, n_dev, fn, detail, small, objs is not None, platform)
         out, overflow, peak = program(p, Frames(*(jnp.asarray(x) for x in frames)), lanes, xs, flags, objs)
-    out = jax.tree.map(lambda x: _to_host(x, b), out)
+    ids = _to_host(out.ids, b)
+    packed = {"boxes", "box3"} if rows_only else set()
+    out = out._replace(**{f: (_rows_to_host(v, ids) if f in packed and v.shape[2] else ids if f == "ids" else _to_host(v, b))
+                          for f, v in zip(out._fields, out)})
     return BatchOutput(out.ids, out.boxes, out.dropped, np.asarray(overflow)[:b], np.asarray(peak)[:b],
                        out.src3, out.own3, out.box3)

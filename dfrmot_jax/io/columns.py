@@ -109,6 +109,10 @@ def fmt_g(v: np.ndarray) -> list[str]:
     return _int_or(np.asarray(v, np.float64), lambda x: f"{x:g}")
 
 
+#: values per block of :func:`as_written` (its dozen temporaries of this size stay in the CPU's caches)
+AS_WRITTEN_BLOCK = 1 << 16
+
+
 def as_written(v: np.ndarray, digits: int) -> np.ndarray:
     """``float(f"{x:.{digits}g}")`` of every non-integral finite x, integers as they are, vectorised:
     what a number printed with ``digits`` significant digits reads back as (:func:`fmt_g` prints the
@@ -118,7 +122,14 @@ def as_written(v: np.ndarray, digits: int) -> np.ndarray:
     ten (exact up to 10**22) is then the double nearest to the printed decimal, as ``float`` of the
     text is. The scaled value carries a relative error of at most 2**-53, so where it lies within
     1e-9 of a rounding tie, or its digit count is off (log10 at a power of ten), the value is
-    formatted by Python instead: the result equals the text's for every input."""
+    formatted by Python instead: the result equals the text's for every input. (Elementwise: a large
+    array is done in blocks of ``AS_WRITTEN_BLOCK`` values, so that its temporaries stay small.)"""
+    if v.size > AS_WRITTEN_BLOCK:
+        flat = np.ascontiguousarray(v).reshape(-1)
+        out = np.empty_like(flat)
+        for a in range(0, flat.size, AS_WRITTEN_BLOCK):
+            out[a:a + AS_WRITTEN_BLOCK] = as_written(flat[a:a + AS_WRITTEN_BLOCK], digits)
+        return out.reshape(v.shape)
     out = v.copy()
     odd = np.isfinite(v) & (v != 0) & ((v != np.round(v)) | (np.abs(v) >= 1e15))
     x = v[odd]

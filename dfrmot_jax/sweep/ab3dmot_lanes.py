@@ -27,7 +27,13 @@ from ..metrics.ab3dmot.prep import Ab3dGT
 from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, ab3dmot_columns
 from ..metrics.kitti2d.lane_scorer import LaneScorer
 from ..results import kitti_rows
+from ..rows import Rows
 from ..report.columns import COMBINED
+
+
+#: lanes whose rows are built and scored together (each lane's figures are its own; fewer at a time
+#: hold less memory: a chunk's 64 filtered lanes at once took ~0.9 GB more)
+LANES_PER_PASS = 16
 
 
 class Ab3dmotLanes:
@@ -51,10 +57,11 @@ class Ab3dmotLanes:
         when not given), extended here instead of hashing them again."""
         ids = np.asarray(res.ids)
         if base is None:
-            base = LaneScorer.digests(ids, np.asarray(res.boxes))
+            base = LaneScorer.digests(ids, res.boxes if isinstance(res.boxes, Rows) else np.asarray(res.boxes))
         rows = ids >= 0
         filtered = res.options.output == "filtered"
         src, own = np.asarray(res.src3), np.asarray(res.own3)
+        box3 = res.box3 if filtered and isinstance(res.box3, Rows) else np.asarray(res.box3) if filtered else None
         out = []
         for b in range(ids.shape[0]):
             r = rows[b]
@@ -63,7 +70,7 @@ class Ab3dmotLanes:
             h.update(src[b][r].astype(np.int32).tobytes())
             h.update(np.packbits(own[b][r]).tobytes())
             if filtered:
-                h.update(np.ascontiguousarray(np.asarray(res.box3)[b][r]).tobytes())
+                h.update(np.ascontiguousarray(box3.lane(b) if isinstance(box3, Rows) else box3[b][r]).tobytes())
             out.append(h.digest())
         return out
 
@@ -72,11 +79,12 @@ class Ab3dmotLanes:
         ``base`` as in :meth:`digests`."""
         digests = self.digests(res, base)
         new = [b for b, d in enumerate(digests) if d not in self.memo and d not in digests[:b]]
-        if new:
-            rows = kitti_rows(self.split, res, self.columns, lanes=new)
+        for at in range(0, len(new), LANES_PER_PASS):     # (a few lanes' rows at a time: memory)
+            part = new[at:at + LANES_PER_PASS]
+            rows = kitti_rows(self.split, res, self.columns, lanes=part)
             out = evaluate_ab3dmot_rows(self.gt, **rows._asdict(), seq_offsets=self.split.offsets, iou=self.iou,
                                         check_ids=False)
-            for b, r in zip(new, out):
+            for b, r in zip(part, out):
                 self.memo[digests[b]] = ab3dmot_columns(r)
         return [self.memo[d] for d in digests]
 

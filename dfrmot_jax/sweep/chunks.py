@@ -160,10 +160,7 @@ class ChunkRunner:
             ab3dmot = Ab3dmotLanes(gt3, split, spec.ab3dmot, spec.ab3dmot_columns)
         timing = Timing()
         scorer = LaneScorer(gt, split.offsets, as_written=True)     # rows as the files carry them
-        # AB3DMOT needs the rows' 3D detail ([B, T, K, 6] boxes with output "filtered"): the whole
-        # chunk in one call, whose output arrays are kept as they come, instead of copying two halves
         per_call = LANES_PER_CALL if chosen_platform() == "cpu" else default_lanes_per_call()
-        per_call *= 1 if spec.ab3dmot is None else 2
         groups = option_groups(table) if spec.distortion is not None else {}
         runner = cls(spec, table, data, split, gt, tuple(todo), ChunkScorer(scorer, ab3dmot, timing),
                      max(1, min(spec.chunk, per_call)), groups, timing)
@@ -213,10 +210,10 @@ class ChunkRunner:
             warnings.simplefilter("ignore", RuntimeWarning)   # overflow is a column of the table
             if dps is None:
                 res = track(frames, params, opts, lanes_per_call=self.lanes_per_call, grow=True,
-                            detail=self.scoring.ab3dmot is not None)
+                            detail=self.scoring.ab3dmot is not None, rows_only=True)
             else:       # distortion lanes vmapped with the parameter lanes; per-lane output boxes
                 res = track(self.split, params, opts, lanes_per_call=self.lanes_per_call, grow=True,
-                            distortion=dps, spec=self.dspecs[c.options])
+                            distortion=dps, spec=self.dspecs[c.options], rows_only=True)
         if c.options.capacity == 0:         # start the group's later chunks where track grew to
             self.caps[c.options] = max(self.caps[c.options], int(res.capacity.max(initial=0)))
         self.timing.track += time.perf_counter() - tt

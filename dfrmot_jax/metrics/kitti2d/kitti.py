@@ -55,6 +55,7 @@ from dfrmot_jax.metrics.common.fields3d import FIELDS_3D, box3d_problem, box_row
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, match_entries, segment_starts
 from dfrmot_jax.metrics.common.sequences import CLASS_NAME_TO_ID, DISTRACTORS, distinct_types, seq_name
 from dfrmot_jax.metrics.kitti2d.box_table import BoxTable, box_table, candidate_pairs, pair_iou
+from dfrmot_jax.rows import Rows
 from dfrmot_jax.metrics.kitti2d.boxes import EPS, columns
 from dfrmot_jax.metrics.kitti2d.similarity import pair_similarity_3d, parse_similarity
 
@@ -326,12 +327,17 @@ class TrackerDets(NamedTuple):
 
 def check_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets) -> np.ndarray:
     """ValueError unless ``ids`` is [B, T, K], ``boxes`` [B, T, K, 4] and ``seq_offsets`` [S] puts every
-    sequence of ``gt`` inside T; returns ``seq_offsets`` as int64."""
-    ids, boxes = np.asarray(ids), np.asarray(boxes)
+    sequence of ``gt`` inside T (``boxes`` may be a :class:`~dfrmot_jax.rows.Rows` of ``ids``: the
+    rows' [R, 4]); returns ``seq_offsets`` as int64."""
+    ids = np.asarray(ids)
     if ids.ndim != 3:
         raise ValueError(f"ids must be [B, T, K], got shape {ids.shape}")
     B, T, K = ids.shape
-    if boxes.shape != (B, T, K, 4):
+    if isinstance(boxes, Rows):
+        if boxes.values.shape[1:] != (4,) or boxes.start.shape != (B * T + 1,) or boxes.start[-1] != boxes.values.shape[0]:
+            raise ValueError(f"boxes kept as rows must be the [R, 4] rows of ids {ids.shape}, got "
+                             f"{boxes.values.shape} with {boxes.start.shape[0] - 1} (lane, frame) starts")
+    elif np.shape(boxes) != (B, T, K, 4):
         raise ValueError(f"boxes must be [B, T, K, 4] = {(B, T, K, 4)}, got {boxes.shape}")
     seq_offsets = np.asarray(seq_offsets, dtype=np.int64).reshape(-1)
     S = len(gt.sequences)
@@ -349,12 +355,16 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     ids: [B, T, K] int (negative = empty slot); boxes: [B, T, K, 4] float ``x1, y1, x2, y2``;
     seq_offsets: [S] first frame (along T) of each of ``gt.sequences``; sequence s uses frames
     ``seq_offsets[s] : seq_offsets[s] + gt.lengths[s]``; other frames of T are ignored.
+    boxes may be a :class:`~dfrmot_jax.rows.Rows` of ``ids`` (their values at the rows only).
     box3d: [B, T, K, 7] ``h w l x y z rot_y`` per slot, or None (3D fields not needed). A slot
     without a 3D box holds the placeholder or all NaN; any other value that is no box
     (:mod:`dfrmot_jax.metrics.common.fields3d`) raises ValueError naming config, frame, slot and field.
     """
     seq_offsets = check_arrays(gt, ids, boxes, seq_offsets)
-    ids, boxes = np.asarray(ids), np.asarray(boxes)
+    ids = np.asarray(ids)
+    if isinstance(boxes, Rows) and not (np.array_equal(seq_offsets, gt.offsets[:-1]) and ids.shape[1] == gt.n_frames):
+        boxes = boxes.dense(ids)        # (frames taken apart from the rows: gathered from the padded form)
+    boxes = boxes if isinstance(boxes, Rows) else np.asarray(boxes)
     B, T, K = ids.shape
     S = len(gt.sequences)
     if np.array_equal(seq_offsets, gt.offsets[:-1]) and T == gt.n_frames:
@@ -371,7 +381,9 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
         g = gmap[t]
         order = np.lexsort((k, g, b))
         b, t, k, g = b[order], t[order], k[order], g[order]
-    if g is t and boxes.flags.c_contiguous:
+    if isinstance(boxes, Rows):             # (g is t: every row, in the order of flat)
+        box = boxes.values
+    elif g is t and boxes.flags.c_contiguous:
         box = np.take(boxes.reshape(-1, 4), flat, axis=0)
     elif g is t and boxes.strides[0] == 0 and boxes[0].flags.c_contiguous:    # one box array for all lanes
         box = np.take(boxes[0].reshape(-1, 4), tk, axis=0)

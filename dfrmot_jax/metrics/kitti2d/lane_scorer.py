@@ -17,6 +17,7 @@ from dfrmot_jax.metrics.kitti2d.evaluate import (PoolParts, combine_sequences, e
                                                  run_in_worker, worker_pool)
 from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets, check_arrays, tracker_dets_from_arrays
 from dfrmot_jax.metrics.kitti2d.similarity import parse_similarity
+from dfrmot_jax.rows import Rows
 
 __all__ = ["LaneScorer", "evaluate_arrays", "REPEATS_WORTH"]
 
@@ -26,15 +27,28 @@ REPEATS_WORTH = 0.9
 
 
 def _output_digest(ids: np.ndarray, own: Sequence[np.ndarray], shared: bytes = b"") -> bytes:
-    """The digest of one output: ``ids`` [T, K] (contiguous), of each of its own box arrays
-    [T, K, ...] the boxes of its rows (ids >= 0), and ``shared``: the digest of the box arrays it
-    shares with other lanes on the same frames (:func:`_shared_digest`)."""
+    """The digest of one output: ``ids`` [T, K] (contiguous), of each of its own box arrays the
+    boxes of its rows (ids >= 0; ``own``: each array's rows, :func:`_own_rows`), and ``shared``:
+    the digest of the box arrays it shares with other lanes on the same frames (:func:`_shared_digest`)."""
     h = hashlib.sha1(ids.tobytes())
-    live = ids >= 0
-    for bx in own:
-        h.update(np.ascontiguousarray(bx[live]).tobytes())
+    for rows in own:
+        h.update(np.ascontiguousarray(rows).tobytes())
     h.update(shared)
     return h.digest()
+
+
+def _own_rows(bx, ids: np.ndarray, b: int, a: int = 0, e: int | None = None) -> np.ndarray:
+    """Lane ``b``'s rows on frames ``a : e`` of a per-lane box array: [B, T, K, ...] dense (at
+    ``ids [B, T, K] >= 0``) or :class:`~dfrmot_jax.rows.Rows` (the same values, kept alone)."""
+    if isinstance(bx, Rows):
+        return bx.lane(b, a, e)
+    live = ids[b, a:e] >= 0
+    return bx[b, a:e][live]
+
+
+def _per_lane(bx) -> bool:
+    """A lane's own box array ([B, T, K, ...] or rows only), not one shared by the lanes ([T, K, ...])."""
+    return isinstance(bx, Rows) or bx.ndim == 4
 
 
 def _shared_digest(shared: Sequence[np.ndarray]) -> bytes:
@@ -86,9 +100,9 @@ class LaneScorer:
         """One digest per lane of ``ids`` [B, T, K] and its boxes: the lane's own ([B, T, K, 4] / 3D
         boxes [B, T, K, 7]) on its rows, and the boxes shared by the lanes ([T, K, ...]) whole."""
         arrays = [bx for bx in (boxes, box3d) if bx is not None]
-        own = [bx for bx in arrays if bx.ndim == 4]
-        shared = _shared_digest([bx for bx in arrays if bx.ndim != 4])
-        return [_output_digest(np.ascontiguousarray(ids[b]), [bx[b] for bx in own], shared)
+        own = [bx for bx in arrays if _per_lane(bx)]
+        shared = _shared_digest([bx for bx in arrays if not _per_lane(bx)])
+        return [_output_digest(np.ascontiguousarray(ids[b]), [_own_rows(bx, ids, b) for bx in own], shared)
                 for b in range(ids.shape[0])]
 
     def seq_digests(self, ids: np.ndarray, boxes: np.ndarray | None, box3d: np.ndarray | None = None) -> list[tuple]:
@@ -98,14 +112,15 @@ class LaneScorer:
         are scored (``similarity``, ``as_written``). ``boxes=None`` digests the ids alone (a cheap
         pre-check: equal outputs have equal ids). Returns B tuples of S digests."""
         arrays = [bx for bx in (boxes, box3d if self.similarity != "2d" else None) if bx is not None]
-        own = [bx for bx in arrays if bx.ndim == 4]
+        own = [bx for bx in arrays if _per_lane(bx)]
         spans = [(int(a), int(a + n)) for a, n in zip(self.offsets, self.gt.lengths)]
         how = repr((self.similarity, self.as_written, boxes is None)).encode()
-        shared = [how + _shared_digest([bx[a:e] for bx in arrays if bx.ndim != 4]) for a, e in spans]
+        shared = [how + _shared_digest([bx[a:e] for bx in arrays if not _per_lane(bx)]) for a, e in spans]
+        ids = np.asarray(ids)
         out = []
         for b in range(ids.shape[0]):
             lane = np.ascontiguousarray(ids[b])
-            out.append(tuple(_output_digest(lane[a:e], [bx[b, a:e] for bx in own], sh)
+            out.append(tuple(_output_digest(lane[a:e], [_own_rows(bx, ids, b, a, e) for bx in own], sh)
                              for (a, e), sh in zip(spans, shared)))
         return out
 
@@ -147,6 +162,8 @@ class LaneScorer:
         ids = np.asarray(ids)
 
         def per_lane(a):
+            if isinstance(a, Rows):
+                return a
             a = np.asarray(a)
             return a if a.ndim == 4 else np.broadcast_to(a, (ids.shape[0],) + a.shape)
 
