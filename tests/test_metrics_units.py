@@ -360,3 +360,55 @@ def test_crowded_segments_from_the_rows_layout_equal_nontrivial_segments():
         got = pairs.crowded_segments(positive, row_seg, row_first, col, col_seg)
         want = nontrivial_segments(seg, row, col, positive)
         assert np.array_equal(got, want) and len(want) > 0
+
+
+def _random_table_inputs(rng, F=40, integer=False):
+    """Ground-truth class rows, DontCare regions and tracker rows per frame, with repeats, degenerate
+    boxes, boxes mostly inside a DontCare region and IoU at the 0.5 threshold."""
+    def boxes(n):
+        xy = rng.uniform(0, 200, (n, 2))
+        wh = rng.uniform(0, 60, (n, 2))
+        wh[rng.random(n) < 0.05] = 0.0                       # degenerate (area 0)
+        b = np.concatenate([xy, xy + wh], axis=1)
+        return np.round(b) if integer else b
+    n_rows = rng.integers(0, 6, F)
+    n_dc = rng.integers(0, 3, F)
+    n_dc[0] = max(n_dc[0], 1)
+    row_start = np.concatenate([[0], np.cumsum(n_rows)]).astype(np.int64)
+    dc_start = np.concatenate([[0], np.cumsum(n_dc)]).astype(np.int64)
+    rows, dc = boxes(int(n_rows.sum())), boxes(int(n_dc.sum()))
+    dc[0] = [10, 10, 30, 20]
+    frame, box = [], []
+    for f in range(F):
+        own = list(boxes(int(rng.integers(0, 8))))
+        if f == 0:                                          # half inside a DontCare region, exactly
+            own.append(np.array([0.0, 10, 20, 20]))
+        gt = rows[row_start[f]:row_start[f + 1]]
+        if len(gt):                                         # a box of IoU exactly 0.5 with a row
+            g = gt[0]
+            own.append(np.array([g[0], g[1], g[0] + (g[2] - g[0]) / 2, g[3]]))
+            own.append(g.copy())
+        if n_dc[f]:                                         # mostly inside a DontCare region
+            d = dc[dc_start[f]]
+            own.append(np.array([d[0], d[1], d[0] + (d[2] - d[0]) * 0.6, d[3]]))
+        own += own[: int(rng.integers(0, 3))]               # repeated boxes
+        frame += [f] * len(own)
+        box += own
+    order = rng.permutation(len(frame))
+    return (row_start, tuple(np.ascontiguousarray(rows[:, i]) for i in range(4)), dc_start, dc.reshape(-1, 4),
+            np.asarray(frame, np.int64)[order], np.asarray(box, np.float64).reshape(-1, 4)[order])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_box_table_equals_numpy(seed):
+    from dfrmot_jax.metrics.kitti2d.box_table import box_table, box_table_numpy
+    rng = np.random.default_rng(seed)
+    args = _random_table_inputs(rng, integer=seed % 2 == 1)
+    got, want = box_table(*args), box_table_numpy(*args)
+    assert want.cand_row.size and want.in_dontcare.any()          # the cases are there
+    for f in want._fields:
+        a, b = getattr(got, f), getattr(want, f)
+        assert a.dtype == b.dtype, f
+        np.testing.assert_array_equal(a, b, err_msg=f)
+        if a.dtype.kind == "f":
+            assert np.array_equal(a.view(np.uint64), b.view(np.uint64)), f    # bit for bit

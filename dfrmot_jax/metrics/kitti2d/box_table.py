@@ -17,13 +17,14 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from dfrmot_jax.metrics.common.distinct import distinct_rows
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.kitti2d.boxes import EPS, columns, gather_iou, pair_ioa
 
-__all__ = ["BoxTable", "MATCH_IOU", "box_table", "pair_iou", "candidate_pairs"]
+__all__ = ["BoxTable", "MATCH_IOU", "box_table", "box_table_numpy", "pair_iou", "candidate_pairs"]
 
 MATCH_IOU = 0.5  # the preprocessing's distractor matching: IoU >= 0.5 - eps
 
@@ -64,6 +65,29 @@ def box_table(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_b
     n_values = np.bincount(ufr, minlength=F).astype(np.int64)
     vstart = segment_starts(n_values)
     local = value - vstart[frame]
+    ubox = np.ascontiguousarray(box[first[order]], dtype=np.float64).reshape(-1, 4)
+    iou_start = segment_starts(np.diff(row_start) * n_values)
+    iou, cand_start, cand_row, cand_iou, in_dc = _table(
+        np.asarray(row_start, np.int64), *(np.asarray(c, np.float64) for c in row_cols), vstart, ubox, iou_start,
+        np.asarray(dc_start, np.int64), np.ascontiguousarray(dc_box, dtype=np.float64).reshape(-1, 4))
+    return BoxTable(value=value, local=local, n_values=n_values, iou_start=iou_start, iou=iou,
+                    cand_start=cand_start, cand_row=cand_row, cand_iou=cand_iou, in_dontcare=in_dc)
+
+
+def box_table_numpy(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_box: np.ndarray,
+                    frame: np.ndarray, box: np.ndarray) -> BoxTable:
+    """:func:`box_table` in NumPy (every pair's IoU vectorised, :func:`~dfrmot_jax.metrics.kitti2d.boxes.
+    gather_iou`): the reference the compiled table is tested against."""
+    F = len(row_start) - 1
+    first, ids = distinct_rows(frame, box)
+    ufr = frame[first]
+    order = np.argsort(ufr, kind="stable")
+    value = np.empty(len(order), dtype=np.int64)
+    value[order] = np.arange(len(order))
+    value = value[ids]
+    n_values = np.bincount(ufr, minlength=F).astype(np.int64)
+    vstart = segment_starts(n_values)
+    local = value - vstart[frame]
     n_rows = np.diff(row_start)
     _, row, col, iou_start = enumerate_pairs(n_rows, row_start[:-1], n_values, vstart[:-1])
     iou = gather_iou(row_cols, row, columns(box[first[order]]), col)
@@ -79,6 +103,70 @@ def box_table(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_b
     return BoxTable(value=value, local=local, n_values=n_values, iou_start=iou_start, iou=iou,
                     cand_start=segment_starts(np.bincount(col[cand], minlength=len(order))),
                     cand_row=row[cand], cand_iou=iou[cand], in_dontcare=in_dc)
+
+
+@numba.njit(cache=True, nogil=True)
+def _table(row_start, rx1, ry1, rx2, ry2, vstart, ubox, iou_start, dc_start, dc_box):
+    """The table's IoU, candidates and DontCare flags in one pass per frame: each pair's IoU by the
+    operations of :func:`~dfrmot_jax.metrics.kitti2d.boxes.gather_iou` in the same order (so bit for
+    bit TrackEval's), each value's intersection over its own area with the frame's DontCare regions
+    as :func:`~dfrmot_jax.metrics.kitti2d.boxes.pair_ioa`."""
+    F = row_start.shape[0] - 1
+    U = ubox.shape[0]
+    iou = np.empty(iou_start[F], np.float64)
+    n_cand = np.zeros(U, np.int64)
+    in_dc = np.zeros(U, np.bool_)
+    for f in range(F):
+        r0, r1, v0, v1 = row_start[f], row_start[f + 1], vstart[f], vstart[f + 1]
+        nv = v1 - v0
+        for r in range(r0, r1):
+            ax1, ay1, ax2, ay2 = rx1[r], ry1[r], rx2[r], ry2[r]
+            area1 = (ax2 - ax1) * (ay2 - ay1)
+            base = iou_start[f] + (r - r0) * nv
+            for v in range(v0, v1):
+                bx1, by1, bx2, by2 = ubox[v, 0], ubox[v, 1], ubox[v, 2], ubox[v, 3]
+                w = min(ax2, bx2) - max(ax1, bx1)
+                h = min(ay2, by2) - max(ay1, by1)
+                inter = max(w, 0.0) * max(h, 0.0)
+                area2 = (bx2 - bx1) * (by2 - by1)
+                union = area1 + area2 - inter
+                small = union <= 0 + EPS
+                if area1 <= 0 + EPS or area2 <= 0 + EPS or small:
+                    inter = 0.0
+                if small:
+                    union = 1.0
+                x = inter / union
+                iou[base + v - v0] = x
+                if x >= MATCH_IOU - EPS:
+                    n_cand[v] += 1
+        for v in range(v0, v1):
+            bx1, by1, bx2, by2 = ubox[v, 0], ubox[v, 1], ubox[v, 2], ubox[v, 3]
+            area = (bx2 - bx1) * (by2 - by1)
+            if not area > 0 + EPS:
+                continue
+            for d in range(dc_start[f], dc_start[f + 1]):
+                w = min(bx2, dc_box[d, 2]) - max(bx1, dc_box[d, 0])
+                h = min(by2, dc_box[d, 3]) - max(by1, dc_box[d, 1])
+                if max(w, 0.0) * max(h, 0.0) / area > 0.5 + EPS:
+                    in_dc[v] = True
+                    break
+    cand_start = np.zeros(U + 1, np.int64)
+    for v in range(U):
+        cand_start[v + 1] = cand_start[v] + n_cand[v]
+    cand_row = np.empty(cand_start[U], np.int64)
+    cand_iou = np.empty(cand_start[U], np.float64)
+    for f in range(F):
+        r0, r1, v0, v1 = row_start[f], row_start[f + 1], vstart[f], vstart[f + 1]
+        nv = v1 - v0
+        for v in range(v0, v1):
+            k = cand_start[v]
+            for r in range(r0, r1):
+                x = iou[iou_start[f] + (r - r0) * nv + v - v0]
+                if x >= MATCH_IOU - EPS:
+                    cand_row[k] = r
+                    cand_iou[k] = x
+                    k += 1
+    return iou, cand_start, cand_row, cand_iou, in_dc
 
 
 def pair_iou(t: BoxTable, row_start: np.ndarray, rows: np.ndarray, p_row: np.ndarray, dets: np.ndarray,
