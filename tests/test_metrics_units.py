@@ -412,3 +412,24 @@ def test_compiled_box_table_equals_numpy(seed):
         np.testing.assert_array_equal(a, b, err_msg=f)
         if a.dtype.kind == "f":
             assert np.array_equal(a.view(np.uint64), b.view(np.uint64)), f    # bit for bit
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 5000])
+def test_distinct_rows_by_first_appearance_bit_for_bit(n):
+    """The compiled factorisation of (frame, row) equals pandas' (first appearance order) of the exact
+    bits: -0.0 and 0.0 apart, NaN equal to itself, the frame part of the key."""
+    import pandas as pd
+
+    from dfrmot_jax.metrics.common.distinct import distinct_rows, row_ids
+    rng = np.random.default_rng(n)
+    frame = rng.integers(0, 6, n)
+    vals = np.round(rng.random((n, 4)) * 2)
+    vals[rng.random((n, 4)) < 0.1] = -0.0
+    vals[rng.random((n, 4)) < 0.05] = np.nan
+    first, ids = distinct_rows(frame, vals)
+    keys = [(int(f),) + tuple(r) for f, r in zip(frame, vals.view(np.uint64).tolist())]
+    want = pd.factorize(pd.Series(keys, dtype=object))[0] if n else np.zeros(0, np.int64)
+    np.testing.assert_array_equal(ids, want)
+    np.testing.assert_array_equal(ids, row_ids(np.concatenate([frame[:, None].astype(np.float64), vals], axis=1)))
+    np.testing.assert_array_equal(ids[first], np.arange(len(first)))
+    assert (np.diff(first) > 0).all()

@@ -6,6 +6,7 @@ boxes, and both metric families compute what depends on a box once per distinct 
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pandas as pd
 
@@ -45,12 +46,62 @@ def row_ids(vals: np.ndarray) -> np.ndarray:
 
 def distinct_rows(frame: np.ndarray, vals: np.ndarray, key: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Distinct (frame, value row) of [R] frames and [R, C] rows -> (first row of each [U], id of each
-    row [R]); with ``key`` [R] (non-negative; equal keys within a frame mean equal values) the
-    distinct (frame, key) instead, without reading the values."""
+    row [R]; ids numbered in order of first appearance, as ``pd.factorize``); with ``key`` [R]
+    (non-negative; equal keys within a frame mean equal values) the distinct (frame, key) instead,
+    without reading the values. Values are told apart bit for bit (:func:`_factorize_rows`)."""
     if key is not None and len(key):
         ids = pd.factorize(frame.astype(np.int64) * (int(key.max()) + 1) + key)[0].astype(np.int64)
-    else:
-        ids = row_ids(np.concatenate([frame[:, None].astype(np.float64), vals], axis=1))
-    first = np.full(int(ids.max(initial=-1)) + 1, -1, dtype=np.int64)
-    first[ids[::-1]] = np.arange(len(ids))[::-1]
+        first = np.full(int(ids.max(initial=-1)) + 1, -1, dtype=np.int64)
+        first[ids[::-1]] = np.arange(len(ids))[::-1]
+        return first, ids
+    vals = np.ascontiguousarray(vals, dtype=np.float64)
+    bits = (vals if vals.ndim == 2 else vals.reshape(len(frame), -1)).view(np.uint64)
+    ids, first = _factorize_rows(np.ascontiguousarray(frame, dtype=np.int64), bits)
     return first, ids
+
+
+@numba.njit(cache=True, nogil=True)
+def _factorize_rows(frame, bits):
+    """(ids [R], first [U]): rows (``frame`` [R] int64, ``bits`` [R, C] uint64) numbered in order of
+    first appearance, equal ids exactly for equal rows: an open-addressing hash table of each
+    distinct row's first index, keyed by SplitMix64 mixes of the row's words, every probe compared
+    word for word (so a shared hash never merges two rows). Why by hand: ``pd.factorize`` takes one
+    key per row, and a row's several words would have to be hashed (and the hash checked) first."""
+    n, c = bits.shape
+    size = 1
+    while size < 2 * n:
+        size *= 2
+    mask = np.uint64(size - 1)
+    table = np.full(size, -1, np.int64)
+    ids = np.empty(n, np.int64)
+    first = np.empty(n, np.int64)
+    u = 0
+    for i in range(n):
+        h = np.uint64(frame[i])
+        for j in range(c + 1):
+            if j > 0:
+                h ^= bits[i, j - 1]
+            h ^= h >> np.uint64(30)
+            h *= np.uint64(0xBF58476D1CE4E5B9)
+            h ^= h >> np.uint64(27)
+            h *= np.uint64(0x94D049BB133111EB)
+            h ^= h >> np.uint64(31)
+        slot = h & mask
+        while True:
+            r = table[slot]
+            if r < 0:
+                table[slot] = i
+                ids[i] = u
+                first[u] = i
+                u += 1
+                break
+            same = frame[r] == frame[i]
+            j = 0
+            while same and j < c:
+                same = bits[r, j] == bits[i, j]
+                j += 1
+            if same:
+                ids[i] = ids[r]
+                break
+            slot = (slot + np.uint64(1)) & mask
+    return ids, first[:u]

@@ -46,6 +46,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import NamedTuple, Sequence
 
+import numba
 import numpy as np
 import pandas as pd
 
@@ -367,10 +368,10 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     boxes = boxes if isinstance(boxes, Rows) else np.asarray(boxes)
     B, T, K = ids.shape
     S = len(gt.sequences)
+    tid = None
     if np.array_equal(seq_offsets, gt.offsets[:-1]) and T == gt.n_frames:
-        flat = np.flatnonzero(ids.reshape(-1) >= 0)   # (b, t, k) in order, cheaper than a 3-D nonzero
-        b, tk = np.divmod(flat, T * K)
-        t, k = np.divmod(tk, K)
+        flat, b, t, k, tid = _flat_rows(np.ascontiguousarray(ids))     # (b, t, k) in order
+        tk = flat - b * (T * K)
         g = t
     else:
         # map array frames to global GT frames; frames outside every sequence are ignored
@@ -405,9 +406,40 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
             i, j, msg = bad
             raise ValueError(f"3D box of config {b[i]}, frame {t[i]}, slot {k[i]}, field {FIELDS_3D[j]}: "
                              + msg.format(repr(float(b3[i, j])), repr(float(b3[i, 2]))))
-    tid = ids.reshape(-1)[flat] if g is t else ids[b, t, k]
+    tid = ids[b, t, k] if tid is None else tid
     return TrackerDets(B, b.astype(np.int64, copy=False), g.astype(np.int64, copy=False),
                        tid.astype(np.int64, copy=False), box, k.astype(np.int64, copy=False), (), b3, h3)
+
+
+@numba.njit(cache=True, nogil=True)
+def _flat_rows(ids):
+    """The rows (ids >= 0) of ``ids`` [B, T, K] in (b, t, k) order, one pass: (flat index, b, t, k,
+    id), each [M] int64."""
+    B, T, K = ids.shape
+    n = 0
+    for b in range(B):
+        for t in range(T):
+            for k in range(K):
+                if ids[b, t, k] >= 0:
+                    n += 1
+    flat = np.empty(n, np.int64)
+    lane = np.empty(n, np.int64)
+    frame = np.empty(n, np.int64)
+    slot = np.empty(n, np.int64)
+    tid = np.empty(n, np.int64)
+    i = 0
+    for b in range(B):
+        for t in range(T):
+            for k in range(K):
+                v = ids[b, t, k]
+                if v >= 0:
+                    flat[i] = (b * T + t) * K + k
+                    lane[i] = b
+                    frame[i] = t
+                    slot[i] = k
+                    tid[i] = v
+                    i += 1
+    return flat, lane, frame, slot, tid
 
 
 @dataclass(eq=False)
