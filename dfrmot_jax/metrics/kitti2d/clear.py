@@ -218,20 +218,58 @@ def _counts(b: EvalBatch, matched: np.ndarray, p_gid: np.ndarray, p_tid: np.ndar
 def _switches_and_fragments(b: EvalBatch, key: np.ndarray, m_lf: np.ndarray, m_tid: np.ndarray,
                             m_ls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """IDSW [L, S] and fragmentations per (lane, GT id) [L, NG] of the matches (``key`` = lane x GT id,
-    lane-frame, tracker id, lane x sequence of each)."""
+    lane-frame, tracker id, lane x sequence of each; the matches in lane-frame order, as the pairs)."""
     gt = b.gt
     L, S = b.n_lanes, len(gt.sequences)
     NG = len(gt.gid_count)
-    # IDSW: matched tracker id of a GT id changes between consecutive matches (per lane)
+    active_lf = (b.lf_eval_count * b.det_count) > 0
+    a_idx = np.cumsum(active_lf) - 1  # rank of each active lane-frame
+    idsw, runs = _switch_runs(key.astype(np.int64), m_lf.astype(np.int64), m_tid.astype(np.int64),
+                              m_ls.astype(np.int64), a_idx.astype(np.int64), L * max(NG, 1), L * S)
+    frag_per_gid = np.maximum(runs - 1, 0).reshape(L, max(NG, 1))[:, :NG]
+    return idsw.reshape(L, S), frag_per_gid
+
+
+@numba.njit(cache=True, nogil=True)
+def _switch_runs(key, m_lf, m_tid, m_ls, rank, n_keys, n_ls):
+    """One pass over the matches in time order: IDSW per (lane, sequence) [n_ls] (a GT id's matched
+    tracker id differs from its previous match's) and runs per (lane, GT id) [n_keys] float64 (a run
+    starts at a GT id's first match and wherever the previous match was not on the previous active
+    lane-frame, ``rank`` [L*F] their ranks)."""
+    last_tid = np.zeros(n_keys, np.int64)
+    last_rank = np.zeros(n_keys, np.int64)
+    seen = np.zeros(n_keys, np.bool_)
+    idsw = np.zeros(n_ls, np.int64)
+    runs = np.zeros(n_keys, np.float64)
+    for i in range(key.shape[0]):
+        k = key[i]
+        r = rank[m_lf[i]]
+        if seen[k]:
+            if m_tid[i] != last_tid[k]:
+                idsw[m_ls[i]] += 1
+            if r != last_rank[k] + 1:
+                runs[k] += 1.0
+        else:
+            seen[k] = True
+            runs[k] += 1.0
+        last_tid[k] = m_tid[i]
+        last_rank[k] = r
+    return idsw, runs
+
+
+def _switches_and_fragments_numpy(b: EvalBatch, key: np.ndarray, m_lf: np.ndarray, m_tid: np.ndarray,
+                                  m_ls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_switches_and_fragments` by sorting (the reference the compiled pass is tested against)."""
+    gt = b.gt
+    L, S = b.n_lanes, len(gt.sequences)
+    NG = len(gt.gid_count)
     order = np.lexsort((m_lf, key))
     k_s, t_s, ls_s = key[order], m_tid[order], m_ls[order]
     same_gt = k_s[1:] == k_s[:-1]
     idsw_ev = same_gt & (t_s[1:] != t_s[:-1])
     idsw = np.bincount(ls_s[1:][idsw_ev], minlength=L * S).reshape(L, S)
-
-    # Frag: runs of matches over consecutive "active" frames (both GT and tracker boxes present)
     active_lf = (b.lf_eval_count * b.det_count) > 0
-    a_idx = np.cumsum(active_lf) - 1  # rank of each active lane-frame
+    a_idx = np.cumsum(active_lf) - 1
     r_s = a_idx[m_lf[order]]
     cont = same_gt & (r_s[1:] == r_s[:-1] + 1)
     new_run = np.ones(len(order), dtype=bool)
