@@ -10,7 +10,7 @@ import dfrmot_jax as dm
 from dfrmot_jax.config import Params
 from dfrmot_jax.metrics import evaluate_arrays, evaluate_batch, prepare_gt
 from dfrmot_jax.metrics.kitti2d.evaluate import result_dicts
-from dfrmot_jax.metrics.kitti2d.kitti import tracker_dets_from_arrays
+from dfrmot_jax.metrics.kitti2d.padded import tracker_dets_from_arrays
 from dfrmot_jax.metrics.kitti2d.lane_scorer import LaneScorer
 from dfrmot_jax.synthetic import make_scene
 

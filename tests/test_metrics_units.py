@@ -440,7 +440,8 @@ def test_compiled_switches_and_fragments_equal_sorting(tmp_path, seed):
     """CLEAR's IDSW and Frag from one pass in time order equal the sorted NumPy reference on dense
     random scenes (id switches, duplicates, gaps), several lanes at once."""
     from dfrmot_jax.metrics.kitti2d import clear
-    from dfrmot_jax.metrics.kitti2d.kitti import preprocess, tracker_dets_from_arrays
+    from dfrmot_jax.metrics.kitti2d.kitti import preprocess
+    from dfrmot_jax.metrics.kitti2d.padded import tracker_dets_from_arrays
 
     rng = np.random.default_rng(seed)
     root = tmp_path / "root"

@@ -15,7 +15,8 @@ from dfrmot_jax.io.columns import as_written
 from dfrmot_jax.metrics.common.pairs import segment_starts
 from dfrmot_jax.metrics.kitti2d.evaluate import (PoolParts, combine_sequences, evaluate_lanes, lane_slice, result_dicts,
                                                  run_in_worker, worker_pool)
-from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets, check_arrays, tracker_dets_from_arrays
+from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets
+from dfrmot_jax.metrics.kitti2d.padded import check_arrays, tracker_dets_from_arrays
 from dfrmot_jax.metrics.kitti2d.similarity import parse_similarity
 from dfrmot_jax.rows import Rows
 
