@@ -144,6 +144,7 @@ MIX = dict(drop_3d=0.2, burst_rate=0.05, burst_len=4, jitter_2d=2.0, jitter_box3
            score_noise_2d=0.1, score_noise_3d=1.0, clutter_2d=1.0, clutter_3d=1.0)
 
 
+@pytest.mark.slow      # (the not-slow tier's 3-minute budget)
 def test_same_key_same_distortion_and_seeds_differ(synthetic):
     frames, gid2, gid3, spec = synthetic
     out = batch(frames, gid2, gid3, [D.level_params("drop_2d", 0.3, seed=s, **MIX) for s in (5, 5, 6)], spec)
@@ -221,7 +222,8 @@ def test_drop_fraction_within_3se_synthetic(synthetic, p):
     _within_3se(f3, p)
 
 
-@pytest.mark.parametrize("p", [pytest.param(0.1, marks=pytest.mark.slow), 0.5])
+@pytest.mark.slow      # (the not-slow tier's 3-minute budget)
+@pytest.mark.parametrize("p", [0.1, 0.5])
 def test_drop_fraction_within_3se_kitti(kitti, p):
     _, frames, gid2, gid3, spec = kitti
     f2, f3 = _drop_fractions(frames, gid2, gid3, spec, "drop", p, range(100, 120))
@@ -332,6 +334,7 @@ def test_occluded_fraction_matches_rate_and_length():
 # ---- jitter and score noise ---------------------------------------------------------------------
 
 
+@pytest.mark.slow      # (the not-slow tier's 3-minute budget)
 def test_jitter_std_untruncated(synthetic_float):
     frames, gid2, gid3, spec = synthetic_float
     sig2, sigb3, sig3 = 3.0, 2.0, 0.4

@@ -399,7 +399,7 @@ def _random_table_inputs(rng, F=40, integer=False):
             np.asarray(frame, np.int64)[order], np.asarray(box, np.float64).reshape(-1, 4)[order])
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", [0, 1] + [pytest.param(s, marks=pytest.mark.slow) for s in range(2, 6)])
 def test_compiled_box_table_equals_numpy(seed):
     from dfrmot_jax.metrics.kitti2d.box_table import box_table, box_table_numpy
     rng = np.random.default_rng(seed)
@@ -435,7 +435,7 @@ def test_distinct_rows_by_first_appearance_bit_for_bit(n):
     assert (np.diff(first) > 0).all()
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0] + [pytest.param(s, marks=pytest.mark.slow) for s in (1, 2)])
 def test_compiled_switches_and_fragments_equal_sorting(tmp_path, seed):
     """CLEAR's IDSW and Frag from one pass in time order equal the sorted NumPy reference on dense
     random scenes (id switches, duplicates, gaps), several lanes at once."""

@@ -107,6 +107,7 @@ def test_load_results_leaves_out_damaged_chunks(clean, tmp_path):
 
 # ---- item 15: one sweep per directory ------------------------------------------------------------
 
+@pytest.mark.slow      # (the not-slow tier's 3-minute budget)
 def test_another_sweep_is_refused_unless_forced(root, tmp_path, capsys):
     a = _toml(tmp_path / "a.toml", root, name="a")
     b = _toml(tmp_path / "b.toml", root, name="b", params="a_l = [5.0, 7.0]")

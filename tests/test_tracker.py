@@ -46,6 +46,7 @@ def test_random_settings_match_reference(scene):
         _assert_parity(split, seqs, params, options)
 
 
+@pytest.mark.slow      # (the not-slow tier's 3-minute budget)
 @pytest.mark.parametrize("options", [Options()] + [pytest.param(o, marks=pytest.mark.slow) for o in (
     Options(output="filtered", assign="hungarian"), Options(modality="3d"))])
 def test_weak_detections_track_like_the_oracle(scene, options):
@@ -257,6 +258,7 @@ def test_too_many_objects_per_frame_is_refused_up_front():
         track(fr, stack_params([Params()]), Options())
 
 
+@pytest.mark.slow      # (the not-slow tier's 3-minute budget; the full suite runs every variant)
 @pytest.mark.parametrize("options", [Options()] + [pytest.param(o, marks=pytest.mark.slow) for o in (
     Options(output="filtered", filter="kalman"), Options(modality="3d"), Options(merge="calib_projection", modality="2d"))])
 def test_lanes_sharing_merge_settings_share_objects_made_outside_the_scan(scene, options, monkeypatch):

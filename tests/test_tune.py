@@ -250,6 +250,7 @@ def test_transfer_scores_the_chosen_config_unchanged_beside_the_other_baseline(s
     assert "transfer: the chosen config unchanged on synth2d + synth3d" in sweep_report(tmp_path / "t").text
 
 
+@pytest.mark.slow      # (the not-slow tier's 3-minute budget)
 def test_unstable_fixed_gains_fail_without_a_run_and_do_not_count(scene, tmp_path):
     from dfrmot_jax.core.filters import fixed_gain_radius
 
