@@ -247,18 +247,22 @@ def _lanes(tree, b: int, pad: int, float_dtype):
     return type(tree)(*out)
 
 
+def _shards(x: jax.Array, b: int):
+    """(first lane, its lanes' data as NumPy, a view where the platform allows) of each device's shard
+    of a program output, in lane order, cut to the first b lanes."""
+    for shard in sorted(x.addressable_shards, key=lambda s: (s.index[0].start or 0) if s.index else 0):
+        start = (shard.index[0].start or 0) if shard.index else 0
+        if start < b:
+            data = np.asarray(shard.data)
+            yield start, data[:min(b - start, data.shape[0])]
+
+
 def _to_host(x: jax.Array, b: int) -> np.ndarray:
     """The first b lanes of a program output as a NumPy array of its own (writeable): each device's
     shard copied once into place (``np.asarray`` of a sharded array assembles a read-only copy)."""
     out = np.empty((b,) + x.shape[1:], x.dtype)
-    for shard in x.addressable_shards:
-        rows = shard.index[0] if shard.index else slice(None)
-        start = rows.start or 0
-        if start >= b:
-            continue
-        data = np.asarray(shard.data)
-        n = min(b - start, data.shape[0])
-        out[start:start + n] = data[:n]
+    for start, data in _shards(x, b):
+        out[start:start + len(data)] = data
     return out
 
 
@@ -266,16 +270,7 @@ def _rows_to_host(x: jax.Array, ids: np.ndarray) -> np.ndarray:
     """[R, ...] the values of a program output [B', T, K, ...] at the rows ``ids [B, T, K] >= 0`` of
     its first B lanes, in (lane, frame, slot) order, read from each device's shard without a dense
     host copy."""
-    b = ids.shape[0]
-    parts = []
-    for shard in sorted(x.addressable_shards, key=lambda s: (s.index[0].start or 0) if s.index else 0):
-        rows = shard.index[0] if shard.index else slice(None)
-        start = rows.start or 0
-        if start >= b:
-            continue
-        data = np.asarray(shard.data)
-        n = min(b - start, data.shape[0])
-        parts.append(data[:n][ids[start:start + n] >= 0])
+    parts = [data[ids[start:start + len(data)] >= 0] for start, data in _shards(x, ids.shape[0])]
     return np.concatenate(parts) if parts else np.zeros((0,) + x.shape[3:], x.dtype)
 
 

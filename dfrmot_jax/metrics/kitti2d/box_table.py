@@ -55,16 +55,7 @@ def box_table(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_b
 
     row_start: [F+1] class rows of each frame; row_cols: the class rows' boxes as four columns
     (:func:`~dfrmot_jax.metrics.kitti2d.boxes.columns`); dc_start [F+1], dc_box [D, 4]: DontCare regions."""
-    F = len(row_start) - 1
-    first, ids = distinct_rows(frame, box)
-    ufr = frame[first]
-    order = np.argsort(ufr, kind="stable")               # distinct values by frame
-    value = np.empty(len(order), dtype=np.int64)
-    value[order] = np.arange(len(order))
-    value = value[ids]
-    n_values = np.bincount(ufr, minlength=F).astype(np.int64)
-    vstart = segment_starts(n_values)
-    local = value - vstart[frame]
+    first, order, value, n_values, vstart, local = _values(len(row_start) - 1, frame, box)
     ubox = np.ascontiguousarray(box[first[order]], dtype=np.float64).reshape(-1, 4)
     iou_start = segment_starts(np.diff(row_start) * n_values)
     iou, cand_start, cand_row, cand_iou, in_dc = _table(
@@ -74,20 +65,27 @@ def box_table(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_b
                     cand_start=cand_start, cand_row=cand_row, cand_iou=cand_iou, in_dontcare=in_dc)
 
 
-def box_table_numpy(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_box: np.ndarray,
-                    frame: np.ndarray, box: np.ndarray) -> BoxTable:
-    """:func:`box_table` in NumPy (every pair's IoU vectorised, :func:`~dfrmot_jax.metrics.kitti2d.boxes.
-    gather_iou`): the reference the compiled table is tested against."""
-    F = len(row_start) - 1
+def _values(F: int, frame: np.ndarray, box: np.ndarray) -> tuple:
+    """The distinct (frame, box) values of the rows, numbered by frame: (first row of each [U], the
+    values in frame order [U], each row's value [M], values per frame [F], their starts [F+1], each
+    row's rank among its frame's values [M])."""
     first, ids = distinct_rows(frame, box)
     ufr = frame[first]
-    order = np.argsort(ufr, kind="stable")
+    order = np.argsort(ufr, kind="stable")               # distinct values by frame
     value = np.empty(len(order), dtype=np.int64)
     value[order] = np.arange(len(order))
     value = value[ids]
     n_values = np.bincount(ufr, minlength=F).astype(np.int64)
     vstart = segment_starts(n_values)
-    local = value - vstart[frame]
+    return first, order, value, n_values, vstart, value - vstart[frame]
+
+
+def box_table_numpy(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_box: np.ndarray,
+                    frame: np.ndarray, box: np.ndarray) -> BoxTable:
+    """:func:`box_table` in NumPy (every pair's IoU vectorised, :func:`~dfrmot_jax.metrics.kitti2d.boxes.
+    gather_iou`): the reference the compiled table is tested against."""
+    F = len(row_start) - 1
+    first, order, value, n_values, vstart, local = _values(F, frame, box)
     n_rows = np.diff(row_start)
     _, row, col, iou_start = enumerate_pairs(n_rows, row_start[:-1], n_values, vstart[:-1])
     iou = gather_iou(row_cols, row, columns(box[first[order]]), col)
