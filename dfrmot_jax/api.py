@@ -270,8 +270,9 @@ class _Outputs:
             if inputs.packed is not None and options.output == "detections":
                 raise RuntimeError("rows kept alone cannot follow the compaction's slot moves")
             got = dict(got)
+            start = row_starts(got["ids"])       # (one for the boxes and the 3D detail: the same rows)
             for name in self.packed:
-                got[name] = Rows(np.concatenate(self.lane_rows[name]), row_starts(got["ids"]), got["ids"].shape[1])
+                got[name] = Rows(np.concatenate(self.lane_rows[name]), start, got["ids"].shape[1])
         boxes = got["boxes"] if per_lane_boxes else output_boxes(frames, options)
         return TrackResult(ids=got["ids"], boxes=boxes, dropped=self.dropped, overflow=overflow, peak=self.peak,
                            src3=got.get("src3"), own3=got.get("own3"), box3=got.get("box3"), capacity=capacity,
