@@ -16,7 +16,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-__all__ = ["Rows", "row_starts", "rows_of"]
+__all__ = ["Rows", "row_starts", "lane_values"]
 
 
 def row_starts(ids: np.ndarray) -> np.ndarray:
@@ -79,7 +79,10 @@ class Rows(NamedTuple):
         return out
 
 
-def rows_of(a, ids: np.ndarray) -> np.ndarray:
-    """The rows' values of ``a``: a :class:`Rows` (its values) or a dense [B, T, K, ...] array at
-    ``ids`` [B, T, K] >= 0."""
-    return a.values if isinstance(a, Rows) else np.asarray(a)[np.asarray(ids) >= 0]
+def lane_values(a, ids: np.ndarray, b: int, t0: int = 0, t1: int | None = None) -> np.ndarray:
+    """Lane ``b``'s rows on frames ``t0 : t1`` (default all) of a per-lane array, in (frame, slot)
+    order: a :class:`Rows` (a view of its values) or a dense [B, T, K, ...] array at ``ids`` [B, T, K]
+    >= 0: the same values either way."""
+    if isinstance(a, Rows):
+        return a.lane(b, t0, t1)
+    return np.asarray(a)[b, t0:t1][np.asarray(ids)[b, t0:t1] >= 0]

@@ -14,7 +14,7 @@ from dfrmot_jax.metrics.kitti2d.evaluate import result_dicts
 from dfrmot_jax.metrics.kitti2d.padded import tracker_dets_from_arrays
 from dfrmot_jax.metrics.kitti2d.lane_scorer import LaneScorer
 from dfrmot_jax.results import kitti_rows
-from dfrmot_jax.rows import Rows, row_starts, rows_of
+from dfrmot_jax.rows import Rows, lane_values, row_starts
 from dfrmot_jax.synthetic import make_scene
 
 
@@ -29,6 +29,8 @@ def test_rows_of_a_small_batch_by_hand():
     np.testing.assert_array_equal(r.lane(0), dense[0][ids[0] >= 0])
     np.testing.assert_array_equal(r.lane(0, 1, 3), dense[0, 2, :2])
     np.testing.assert_array_equal(r.lane(1, 2), dense[1, 2, 2:])
+    np.testing.assert_array_equal(lane_values(r, ids, 0, 1, 3), lane_values(dense, ids, 0, 1, 3))
+    np.testing.assert_array_equal(lane_values(dense, ids, 1), dense[1][ids[1] >= 0])
     np.testing.assert_array_equal(r.lanes([1, 0]), np.concatenate([dense[1][ids[1] >= 0], dense[0][ids[0] >= 0]]))
     np.testing.assert_array_equal(r.lanes([1]), dense[1][ids[1] >= 0])
     back = r.dense(ids, fill=-7)
@@ -61,7 +63,8 @@ def test_rows_equal_the_dense_arrays_at_their_rows(both):
     np.testing.assert_array_equal(rows.boxes.values, dense.boxes[live])
     np.testing.assert_array_equal(rows.box3.values, dense.box3[live])
     np.testing.assert_array_equal(rows.boxes.start, row_starts(dense.ids))
-    np.testing.assert_array_equal(rows_of(rows.boxes, rows.ids), rows_of(dense.boxes, dense.ids))
+    for b in (0, 3):
+        np.testing.assert_array_equal(lane_values(rows.box3, rows.ids, b, 5, 70), lane_values(dense.box3, dense.ids, b, 5, 70))
     for b in range(dense.ids.shape[0]):
         np.testing.assert_array_equal(rows.boxes.lane(b, 10, 60), dense.boxes[b, 10:60][live[b, 10:60]])
         np.testing.assert_array_equal(rows.lane_boxes(b)[live[b]], dense.lane_boxes(b)[live[b]])

@@ -27,7 +27,7 @@ from ..metrics.ab3dmot.prep import Ab3dGT
 from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, ab3dmot_columns
 from ..metrics.kitti2d.lane_scorer import LaneScorer
 from ..results import kitti_rows
-from ..rows import Rows
+from ..rows import Rows, lane_values
 from ..report.columns import COMBINED
 
 
@@ -61,7 +61,6 @@ class Ab3dmotLanes:
         rows = ids >= 0
         filtered = res.options.output == "filtered"
         src, own = np.asarray(res.src3), np.asarray(res.own3)
-        box3 = res.box3 if filtered and isinstance(res.box3, Rows) else np.asarray(res.box3) if filtered else None
         out = []
         for b in range(ids.shape[0]):
             r = rows[b]
@@ -70,7 +69,7 @@ class Ab3dmotLanes:
             h.update(src[b][r].astype(np.int32).tobytes())
             h.update(np.packbits(own[b][r]).tobytes())
             if filtered:
-                h.update(np.ascontiguousarray(box3.lane(b) if isinstance(box3, Rows) else box3[b][r]).tobytes())
+                h.update(np.ascontiguousarray(lane_values(res.box3, ids, b)).tobytes())
             out.append(h.digest())
         return out
 

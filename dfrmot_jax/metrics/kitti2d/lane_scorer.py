@@ -18,7 +18,7 @@ from dfrmot_jax.metrics.kitti2d.evaluate import (PoolParts, combine_sequences, e
 from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets
 from dfrmot_jax.metrics.kitti2d.padded import check_arrays, tracker_dets_from_arrays
 from dfrmot_jax.metrics.kitti2d.similarity import parse_similarity
-from dfrmot_jax.rows import Rows
+from dfrmot_jax.rows import Rows, lane_values
 
 __all__ = ["LaneScorer", "evaluate_arrays", "REPEATS_WORTH"]
 
@@ -29,22 +29,13 @@ REPEATS_WORTH = 0.9
 
 def _output_digest(ids: np.ndarray, own: Sequence[np.ndarray], shared: bytes = b"") -> bytes:
     """The digest of one output: ``ids`` [T, K] (contiguous), of each of its own box arrays the
-    boxes of its rows (ids >= 0; ``own``: each array's rows, :func:`_own_rows`), and ``shared``:
+    boxes of its rows (ids >= 0; ``own``: each array's rows, :func:`dfrmot_jax.rows.lane_values`), and ``shared``:
     the digest of the box arrays it shares with other lanes on the same frames (:func:`_shared_digest`)."""
     h = hashlib.sha1(ids.tobytes())
     for rows in own:
         h.update(np.ascontiguousarray(rows).tobytes())
     h.update(shared)
     return h.digest()
-
-
-def _own_rows(bx, ids: np.ndarray, b: int, a: int = 0, e: int | None = None) -> np.ndarray:
-    """Lane ``b``'s rows on frames ``a : e`` of a per-lane box array: [B, T, K, ...] dense (at
-    ``ids [B, T, K] >= 0``) or :class:`~dfrmot_jax.rows.Rows` (the same values, kept alone)."""
-    if isinstance(bx, Rows):
-        return bx.lane(b, a, e)
-    live = ids[b, a:e] >= 0
-    return bx[b, a:e][live]
 
 
 def _per_lane(bx) -> bool:
@@ -103,7 +94,7 @@ class LaneScorer:
         arrays = [bx for bx in (boxes, box3d) if bx is not None]
         own = [bx for bx in arrays if _per_lane(bx)]
         shared = _shared_digest([bx for bx in arrays if not _per_lane(bx)])
-        return [_output_digest(np.ascontiguousarray(ids[b]), [_own_rows(bx, ids, b) for bx in own], shared)
+        return [_output_digest(np.ascontiguousarray(ids[b]), [lane_values(bx, ids, b) for bx in own], shared)
                 for b in range(ids.shape[0])]
 
     def seq_digests(self, ids: np.ndarray, boxes: np.ndarray | None, box3d: np.ndarray | None = None) -> list[tuple]:
@@ -121,7 +112,7 @@ class LaneScorer:
         out = []
         for b in range(ids.shape[0]):
             lane = np.ascontiguousarray(ids[b])
-            out.append(tuple(_output_digest(lane[a:e], [_own_rows(bx, ids, b, a, e) for bx in own], sh)
+            out.append(tuple(_output_digest(lane[a:e], [lane_values(bx, ids, b, a, e) for bx in own], sh)
                              for (a, e), sh in zip(spans, shared)))
         return out
 

@@ -52,13 +52,14 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     """
     seq_offsets = check_arrays(gt, ids, boxes, seq_offsets)
     ids = np.asarray(ids)
-    if isinstance(boxes, Rows) and not (np.array_equal(seq_offsets, gt.offsets[:-1]) and ids.shape[1] == gt.n_frames):
-        boxes = boxes.dense(ids)        # (frames taken apart from the rows: gathered from the padded form)
-    boxes = boxes if isinstance(boxes, Rows) else np.asarray(boxes)
     B, T, K = ids.shape
     S = len(gt.sequences)
+    aligned = np.array_equal(seq_offsets, gt.offsets[:-1]) and T == gt.n_frames     # T is the sequences' frames
+    if isinstance(boxes, Rows) and not aligned:
+        boxes = boxes.dense(ids)        # (frames taken apart from the rows: gathered from the padded form)
+    boxes = boxes if isinstance(boxes, Rows) else np.asarray(boxes)
     tid = None
-    if np.array_equal(seq_offsets, gt.offsets[:-1]) and T == gt.n_frames:
+    if aligned:
         flat, b, t, k, tid = _flat_rows(np.ascontiguousarray(ids))     # (b, t, k) in order
         tk = flat - b * (T * K)
         g = t
