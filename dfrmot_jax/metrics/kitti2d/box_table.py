@@ -60,7 +60,7 @@ def box_table(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray, dc_b
     iou_start = segment_starts(np.diff(row_start) * n_values)
     iou, cand_start, cand_row, cand_iou, in_dc = _table(
         np.asarray(row_start, np.int64), *(np.asarray(c, np.float64) for c in row_cols), vstart, ubox, iou_start,
-        np.asarray(dc_start, np.int64), np.ascontiguousarray(dc_box, dtype=np.float64).reshape(-1, 4))
+        np.asarray(dc_start, np.int64), np.ascontiguousarray(dc_box, dtype=np.float64).reshape(-1, 4), EPS, MATCH_IOU)
     return BoxTable(value=value, local=local, n_values=n_values, iou_start=iou_start, iou=iou,
                     cand_start=cand_start, cand_row=cand_row, cand_iou=cand_iou, in_dontcare=in_dc)
 
@@ -104,11 +104,13 @@ def box_table_numpy(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray
 
 
 @numba.njit(cache=True, nogil=True)
-def _table(row_start, rx1, ry1, rx2, ry2, vstart, ubox, iou_start, dc_start, dc_box):
+def _table(row_start, rx1, ry1, rx2, ry2, vstart, ubox, iou_start, dc_start, dc_box, eps, match_iou):
     """The table's IoU, candidates and DontCare flags in one pass per frame: each pair's IoU by the
     operations of :func:`~dfrmot_jax.metrics.kitti2d.boxes.gather_iou` in the same order (so bit for
     bit TrackEval's), each value's intersection over its own area with the frame's DontCare regions
-    as :func:`~dfrmot_jax.metrics.kitti2d.boxes.pair_ioa`."""
+    as :func:`~dfrmot_jax.metrics.kitti2d.boxes.pair_ioa`. ``eps`` and ``match_iou`` come in as arguments
+    (the tolerance is another module's): numba keys a cached function on its own file only, and would
+    keep an imported global's old value."""
     F = row_start.shape[0] - 1
     U = ubox.shape[0]
     iou = np.empty(iou_start[F], np.float64)
@@ -128,24 +130,24 @@ def _table(row_start, rx1, ry1, rx2, ry2, vstart, ubox, iou_start, dc_start, dc_
                 inter = max(w, 0.0) * max(h, 0.0)
                 area2 = (bx2 - bx1) * (by2 - by1)
                 union = area1 + area2 - inter
-                small = union <= 0 + EPS
-                if area1 <= 0 + EPS or area2 <= 0 + EPS or small:
+                small = union <= 0 + eps
+                if area1 <= 0 + eps or area2 <= 0 + eps or small:
                     inter = 0.0
                 if small:
                     union = 1.0
                 x = inter / union
                 iou[base + v - v0] = x
-                if x >= MATCH_IOU - EPS:
+                if x >= match_iou - eps:
                     n_cand[v] += 1
         for v in range(v0, v1):
             bx1, by1, bx2, by2 = ubox[v, 0], ubox[v, 1], ubox[v, 2], ubox[v, 3]
             area = (bx2 - bx1) * (by2 - by1)
-            if not area > 0 + EPS:
+            if not area > 0 + eps:
                 continue
             for d in range(dc_start[f], dc_start[f + 1]):
                 w = min(bx2, dc_box[d, 2]) - max(bx1, dc_box[d, 0])
                 h = min(by2, dc_box[d, 3]) - max(by1, dc_box[d, 1])
-                if max(w, 0.0) * max(h, 0.0) / area > 0.5 + EPS:
+                if max(w, 0.0) * max(h, 0.0) / area > 0.5 + eps:
                     in_dc[v] = True
                     break
     cand_start = np.zeros(U + 1, np.int64)
@@ -160,7 +162,7 @@ def _table(row_start, rx1, ry1, rx2, ry2, vstart, ubox, iou_start, dc_start, dc_
             k = cand_start[v]
             for r in range(r0, r1):
                 x = iou[iou_start[f] + (r - r0) * nv + v - v0]
-                if x >= MATCH_IOU - EPS:
+                if x >= match_iou - eps:
                     cand_row[k] = r
                     cand_iou[k] = x
                     k += 1
