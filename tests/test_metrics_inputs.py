@@ -106,6 +106,51 @@ def test_ground_truth_unknown_class_or_repeated_id(tmp_path, rows, field, line):
     assert e.value.field == field and e.value.line == line and "Bus" in str(e.value), str(e.value)
 
 
+def _gt_fields(gt) -> dict:
+    return {f: getattr(gt, f) for f in gt.__dataclass_fields__ if f != "_cache"}
+
+
+def test_ground_truth_of_all_sequences_at_once_equals_one_by_one(kitti_root, monkeypatch):
+    """prepare_gt prepares the sequences read in one parse all at once; with that read switched off it
+    takes them one by one (each file read alone): every array equal, bit for bit, dtypes too."""
+    import dfrmot_jax.io.kitti as kio
+    for cls, seqs in (("car", None), ("pedestrian", None), ("car", ["0017", "0001", "0005"])):
+        joined = _gt_fields(prepare_gt(kitti_root, cls, seqs))
+        with monkeypatch.context() as m:
+            m.setattr(kio, "joined_tracking_labels", lambda paths: None)
+            alone = _gt_fields(prepare_gt(kitti_root, cls, seqs))
+        for f, v in joined.items():
+            w = alone[f]
+            same = (v.dtype == w.dtype and v.shape == w.shape and np.array_equal(v, w)) if isinstance(v, np.ndarray) \
+                else v == w
+            assert same, (cls, seqs, f)
+
+
+@pytest.mark.parametrize("problems", [("dup", "type"), ("type", "dup"), ("ok", "dup"), ("ok", "type")])
+def test_ground_truth_problem_of_the_first_sequence_that_has_one_is_raised(tmp_path, monkeypatch, problems):
+    """Sequences prepared at once raise what they raise one by one: the first sequence's problem, by its file."""
+    import dfrmot_jax.io.kitti as kio
+    label = "{f} {i} {t} 0 0 -10 {x} 100 {x2} 180 1.5 1.6 4 1 1.8 20 0\n"
+    rows = {"ok": [(0, 1, "Car"), (1, 2, "Van")], "dup": [(0, 1, "Car"), (1, 2, "Car"), (1, 2, "car")],
+            "type": [(0, 1, "Car"), (1, 2, "Zebra")]}
+    (tmp_path / "label_02").mkdir()
+    for s, kind in enumerate(("ok",) + problems):
+        (tmp_path / "label_02" / f"{s:04d}.txt").write_text("".join(
+            label.format(f=f, i=i, t=t, x=100 + 10 * k, x2=200 + 10 * k) for k, (f, i, t) in enumerate(rows[kind])))
+    assert kio.joined_tracking_labels(sorted((tmp_path / "label_02").glob("*.txt"))) is not None
+
+    def outcome():
+        try:
+            prepare_gt(tmp_path, "car")
+        except ValueError as e:
+            return type(e), str(e)
+    with monkeypatch.context() as m:
+        m.setattr(kio, "joined_tracking_labels", lambda paths: None)
+        alone = outcome()
+    bad = 1 + next(i for i, k in enumerate(problems) if k != "ok")       # (sequence 0000 is fine)
+    assert outcome() == alone and alone is not None and f"{bad:04d}.txt" in alone[1], (outcome(), alone)
+
+
 def test_duplicate_id_in_frame(tmp_path, gt0):
     text = _row(0) + _row(5, i=3) + _row(5, i=3, box=(400, 120, 500, 200))
     _raises(_write(tmp_path, text), gt0, "track_id", 3)

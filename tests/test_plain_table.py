@@ -16,7 +16,9 @@ import pytest
 from dfrmot_jax.io import kitti as kio
 from dfrmot_jax.io import result_rows
 from dfrmot_jax.io.kitti import KittiFormatError
-from dfrmot_jax.io.plain_table import plain_columns, plain_text, read_ahead
+from dfrmot_jax.io.plain_table import joined_columns, plain_columns, plain_text, read_ahead
+
+REF_DIR = "reference/dfr_fastmot_rrc_pointrcnn"
 
 READERS = {
     "labels": kio.read_tracking_labels,
@@ -225,3 +227,82 @@ def test_read_ahead_keeps_the_callers_order_and_error(tmp_path):
     with pytest.raises(KittiFormatError, match=r"2\.txt"):
         next(it)
     assert [len(x.frame) for x in read_ahead(kio.read_tracking_labels, [paths[3], paths[0]])] == [3, 1]
+
+
+# ---- several files in one parse (io.kitti.iter_tracking_labels, io.result_rows.iter_result_rows) ------------
+
+
+def _outcomes(it, n):
+    """The first ``n`` items of ``it``, or up to its located error (a Refused) and nothing after it."""
+    out = []
+    try:
+        for _ in range(n):
+            out.append(next(it))
+    except KittiFormatError as e:
+        out.append(Refused(e))
+    return out
+
+
+def test_files_read_in_one_parse_equal_each_file_read_alone(kitti_root, monkeypatch):
+    """All 21 label files and the reference results, each joined read equal to the file read alone, bit
+    for bit; the joined path is the one taken (frames restart at each file: no 'frames not sorted')."""
+    labels = sorted((kitti_root / "label_02").glob("*.txt"))
+    results = sorted((kitti_root / REF_DIR).glob("*.txt"))
+    assert kio.joined_tracking_labels(labels) is not None
+    assert result_rows._joined_rows(results) is not None
+    for read_many, read_one, paths in ((kio.iter_tracking_labels, kio.read_tracking_labels, labels),
+                                       (result_rows.iter_result_rows, result_rows.read_result_rows, results),
+                                       (lambda p: result_rows.iter_result_rows(p, ahead=True),
+                                        result_rows.read_result_rows, results)):
+        many = list(read_many(paths))
+        assert len(many) == len(paths)
+        for path, got in zip(paths, many):
+            assert _same(got, read_one(path)), path
+
+
+def _group_variants():
+    """(reader name, [file bytes]): a good file, then a variant of :func:`_variants`, then good files
+    of the same and of another column count."""
+    good = ("\n".join([ROW17, DC, ROW17B]) + "\n").encode()
+    good18 = ("\n".join(r + " 0.75" for r in (ROW17, DC, ROW17B)) + "\n").encode()
+    for names, content in _variants():
+        content = content if isinstance(content, bytes) else content.encode()
+        for name in ("labels", "results"):
+            if name in names:
+                yield name, [good, content, good]
+                yield name, [content, good18]
+    yield "labels", [good, good.replace(b"\n", b"\r\n"), b"\xef\xbb\xbf" + good]
+    yield "results", [good, good.replace(b" ", b",")]                 # commas and spaces
+
+
+MANY = {"labels": kio.iter_tracking_labels, "results": result_rows.iter_result_rows}
+
+
+@pytest.mark.parametrize("k", range(len(list(_group_variants()))))
+def test_a_group_of_files_reads_as_each_file_alone_with_its_error_at_its_turn(tmp_path, k):
+    """Whatever a group holds (odd, malformed or plain files of other layouts), the joined readers give
+    each file's own outcome in order: its arrays, or its located error after the files before it."""
+    name, contents = list(_group_variants())[k]
+    paths = []
+    for i, content in enumerate(contents):
+        paths.append(tmp_path / f"{i:04d}.txt")
+        paths[-1].write_bytes(content)
+    alone = []
+    for p in paths:
+        alone.append(_outcome(READERS[name], p))
+        if isinstance(alone[-1], Refused):
+            break
+    for many in (MANY[name], lambda p: result_rows.iter_result_rows(p, ahead=True)) if name == "results" else (
+            MANY[name],):
+        got = _outcomes(many(paths), len(paths))
+        assert len(got) == len(alone)
+        for a, b in zip(got, alone):
+            assert (a == b) if isinstance(b, Refused) else _same(a, b), (a, b)
+
+
+def test_joined_columns_numbers_each_texts_lines():
+    cols, starts = joined_columns([b"1 a\n2 b", b"3 c\n", b"4 a\n5 a\n6 b\n"], None, 2, (1,))
+    assert starts.tolist() == [0, 2, 3, 6]
+    assert cols[0].tolist() == [1, 2, 3, 4, 5, 6] and cols[1].tolist() == list("abcaab")
+    assert cols[1][0] is cols[1][3]                 # one str per distinct name
+    assert joined_columns([b"1 a\n", b"2\n"], None, 2, (1,)) is None

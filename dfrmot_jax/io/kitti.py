@@ -10,24 +10,15 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import NamedTuple, Sequence
+from typing import Iterator, NamedTuple, Sequence
 
 import numpy as np
 
-from .plain_table import first_line, plain_columns, plain_text
+from .plain_table import first_line, joined_columns, plain_columns, plain_text, read_ahead
 
-__all__ = [
-    "KittiFormatError",
-    "Detections2D",
-    "Detections3D",
-    "TrackingLabels",
-    "Calib",
-    "read_detections_2d",
-    "read_detections_3d",
-    "read_tracking_labels",
-    "read_calib",
-    "sequence_lengths",
-]
+__all__ = ["KittiFormatError", "Detections2D", "Detections3D", "TrackingLabels", "Calib", "read_detections_2d",
+           "read_detections_3d", "read_tracking_labels", "iter_tracking_labels", "joined_tracking_labels",
+           "read_calib", "sequence_lengths"]
 
 
 class KittiFormatError(ValueError):
@@ -127,6 +118,7 @@ _FIELDS_TRACK = (
 )
 _FIELDS_TRACK_SCORE = _FIELDS_TRACK + ("score",)
 
+_TRACK_LAYOUTS = {(None, 17): _FIELDS_TRACK, (None, 18): _FIELDS_TRACK_SCORE}
 _STRING_FIELDS = frozenset({"type"})
 _INT_FIELDS = ("frame", "track_id")
 #: frames index int32 arrays; ids only need to stay exact integers through float64 parsing
@@ -203,9 +195,9 @@ def _parse_table(path, layouts: dict, check_dims: bool) -> tuple[tuple[str, ...]
     sep, ncols, fields = (None, 0, None) if data is None else _layout(first_line(data), layouts)
     cols = fields and plain_columns(data, sep, ncols, [i for i, n in enumerate(fields) if n in _STRING_FIELDS])
     if cols is not None:           # any problem: the line reader below names the first (its messages need tokens)
-        values = np.column_stack([c for c, n in zip(cols, fields) if n not in _STRING_FIELDS])
+        numeric = {n: c for c, n in zip(cols, fields) if n not in _STRING_FIELDS}
         strings = {n: c for c, n in zip(cols, fields) if n in _STRING_FIELDS}
-        columns, problems = _checked_columns(fields, values, None, strings, lambda r, name: "", check_dims)
+        columns, problems = _checked_columns(fields, numeric, None, strings, lambda r, name: "", check_dims)
         if not problems:
             return fields, columns
 
@@ -242,6 +234,25 @@ def _parse_table(path, layouts: dict, check_dims: bool) -> tuple[tuple[str, ...]
             text.path, text.line_numbers[bad], "columns", _columns_message({(sep, ncols): fields}, sep, counts[bad])
         )
     return fields, columns
+
+
+def _parse_tables(paths: Sequence, layouts: dict, check_dims: bool) -> tuple | None:
+    """:func:`_parse_table` of several plain files of one layout at once (:func:`~dfrmot_jax.io.plain_table.joined_columns`):
+    (field names, the columns of all their rows, [n + 1] each file's first row), or None where a file
+    is not plain, the layouts differ or any check fails (each file is then read on its own)."""
+    texts = [plain_text(p) for p in paths]
+    if not texts or any(t is None for t in texts):
+        return None
+    found = {_layout(first_line(t), layouts) for t in texts}
+    sep, ncols, fields = found.pop() if len(found) == 1 else (None, 0, None)
+    joined = fields and joined_columns(texts, sep, ncols, [i for i, n in enumerate(fields) if n in _STRING_FIELDS])
+    if not joined:
+        return None
+    cols, starts = joined
+    numeric = {n: c for c, n in zip(cols, fields) if n not in _STRING_FIELDS}
+    strings = {n: c for c, n in zip(cols, fields) if n in _STRING_FIELDS}
+    columns, problems = _checked_columns(fields, numeric, None, strings, lambda r, name: "", check_dims, starts)
+    return None if problems else (fields, columns, starts)
 
 
 def _layout(first: str, layouts: dict) -> tuple[str | None, int, tuple | None]:
@@ -295,7 +306,10 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
         if name in _STRING_FIELDS:
             strings[name] = np.empty(nrows, dtype=object)
             strings[name][:] = [s.strip() for s in tokens[i::ncols]]
-    out, problems = _checked_columns(fields, values, unparsable, strings,
+    names = [fields[i] for i in numeric]
+    out, problems = _checked_columns(fields, {n: values[:, j] for j, n in enumerate(names)},
+                                     None if unparsable is None else {n: unparsable[:, j] for j, n in enumerate(names)},
+                                     strings,
                                      lambda r, name: tokens[r * ncols + fields.index(name)], check_dims)
     if problems:
         r, _, name, message = min(problems, key=lambda p: (p[0], p[1]))
@@ -303,27 +317,27 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
     return out
 
 
-def _checked_columns(fields: Sequence[str], values: np.ndarray, unparsable: np.ndarray | None, strings: dict,
-                     token, check_dims: bool) -> tuple[dict[str, np.ndarray], list]:
-    """(columns, problems ``(row, priority, field, message)``) of a table. values: [R, K] float64 the numeric
-    fields (NaN where ``unparsable`` [R, K] or None); strings: field -> [R] object str; token(r, name): its text."""
-    numeric = [i for i, name in enumerate(fields) if name not in _STRING_FIELDS]
+def _checked_columns(fields: Sequence[str], col: dict, unparsable: dict | None, strings: dict,
+                     token, check_dims: bool, starts: np.ndarray | None = None) -> tuple[dict[str, np.ndarray], list]:
+    """(columns, problems ``(row, priority, field, message)``) of a table. col: numeric field -> [R] float64
+    (NaN where ``unparsable[field]`` [R] bool, when given); strings: field -> [R] object str; token(r, name):
+    its text. starts: the tables' first rows where the columns hold several one after the other (their
+    frames are each sorted on their own); default one table. Of cells in one row, the leftmost is named."""
+    numeric = [name for name in fields if name not in _STRING_FIELDS]
     problems: list[tuple[int, int, str, str]] = []
-    nonfinite = ~np.isfinite(values)
-    if nonfinite.any():
-        r, j = divmod(int(np.argmax(nonfinite)), values.shape[1])
-        name = fields[numeric[j]]
-        what = "not a number" if unparsable is not None and unparsable[r, j] else "not finite"
+    at = _first_cell([(name, ~np.isfinite(col[name])) for name in numeric])
+    if at is not None:
+        r, name = at
+        what = "not a number" if unparsable is not None and unparsable[name][r] else "not finite"
         problems.append((r, 0, name, f"{what}: {quoted(token(r, name))}"))
-
-    col = {name: values[:, j] for j, name in ((j, fields[i]) for j, i in enumerate(numeric))}
 
     # Values are float32 (boxes, scores, 3D values) or int32 (frames, ids) downstream: a value they
     # cannot hold is refused here, located, not later at write time.
-    too_big = np.isfinite(values) & (np.abs(values) > np.finfo(np.float32).max)
-    if too_big.any():
-        r, j = divmod(int(np.argmax(too_big)), values.shape[1])
-        name = fields[numeric[j]]
+    big = float(np.finfo(np.float32).max)
+    with np.errstate(invalid="ignore"):
+        at = _first_cell([(name, (np.abs(col[name]) > big) & np.isfinite(col[name])) for name in numeric])
+    if at is not None:
+        r, name = at
         problems.append((r, 0, name, f"outside the float32 range: {quoted(token(r, name))}"))
     for name, most in _INT_MAX.items():
         if name in col and np.any(np.abs(col[name]) > most):
@@ -344,7 +358,10 @@ def _checked_columns(fields: Sequence[str], values: np.ndarray, unparsable: np.n
     r = first(frame < 0)
     if r is not None:
         problems.append((r, 2, "frame", f"negative frame {quoted(token(r, 'frame'))}"))
-    r = first(frame[1:] < frame[:-1])
+    unsorted = frame[1:] < frame[:-1]
+    if starts is not None:
+        unsorted[starts[1:-1][(starts[1:-1] > 0) & (starts[1:-1] < len(frame))] - 1] = False
+    r = first(unsorted)
     if r is not None:
         r += 1
         problems.append(
@@ -381,6 +398,18 @@ def _checked_columns(fields: Sequence[str], values: np.ndarray, unparsable: np.n
         else:
             out[name] = col[name]
     return out, problems
+
+
+def _first_cell(masks: list) -> tuple[int, str] | None:
+    """(row, field) of the first True cell of a table, rows first then fields in order: ``masks`` is
+    [(field, [R] bool)] in column order. None when there is none."""
+    best = None
+    for name, m in masks:
+        if m.any():
+            r = int(np.argmax(m))
+            if best is None or r < best[0]:
+                best = (r, name)
+    return best
 
 
 def _stack(c: dict[str, np.ndarray], names: Sequence[str]) -> np.ndarray:
@@ -426,8 +455,31 @@ def read_tracking_labels(path) -> TrackingLabels:
     whitespace-separated. Negative 3D sizes are allowed (``DontCare`` rows have ``-1``).
     Returns [R] / [R, 4] / [R, 3] arrays as described in :class:`TrackingLabels`.
     """
-    layouts = {(None, 17): _FIELDS_TRACK, (None, 18): _FIELDS_TRACK_SCORE}
-    fields, c = _parse_table(path, layouts, check_dims=False)
+    return _labels(*_parse_table(path, _TRACK_LAYOUTS, check_dims=False))
+
+
+def iter_tracking_labels(paths: Sequence) -> Iterator[TrackingLabels]:
+    """:func:`read_tracking_labels` of each of ``paths``, in order: from one parse where
+    :func:`joined_tracking_labels` can, else one file after the other, read ahead in two threads
+    (:func:`~dfrmot_jax.io.plain_table.read_ahead`), a file's error raised when its turn comes."""
+    paths = list(paths)
+    joined = joined_tracking_labels(paths)
+    if joined is None:
+        return read_ahead(read_tracking_labels, paths)
+    lab, starts = joined
+    return (TrackingLabels(*(f[a:b] for f in lab)) for a, b in zip(starts[:-1], starts[1:]))
+
+
+def joined_tracking_labels(paths: Sequence) -> tuple[TrackingLabels, np.ndarray] | None:
+    """The rows of every file of ``paths`` read in one parse (:func:`~dfrmot_jax.io.plain_table.joined_columns`:
+    all KITTI ``label_02`` in ~20 ms instead of ~45 ms in two threads), one file after the other, and
+    [n + 1] each file's first row; None unless there are two or more files, all plain, of one layout
+    and passing every check of :func:`read_tracking_labels` (which then names the problem)."""
+    tables = _parse_tables(paths, _TRACK_LAYOUTS, check_dims=False) if len(paths) > 1 else None
+    return None if tables is None else (_labels(tables[0], tables[1]), tables[2])
+
+
+def _labels(fields: Sequence[str], c: dict) -> TrackingLabels:
     score = c["score"] if "score" in fields else np.full(len(c["frame"]), np.nan)
     return TrackingLabels(
         frame=c["frame"],

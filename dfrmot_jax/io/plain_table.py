@@ -26,10 +26,9 @@ from typing import Callable, Iterator, Sequence
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
-__all__ = ["plain_text", "first_line", "plain_columns", "read_ahead"]
+__all__ = ["plain_text", "first_line", "plain_columns", "joined_columns", "read_ahead"]
 
 _PRINTABLE = bytes(range(0x20, 0x7F)) + b"\n"
 _BOM = b"\xef\xbb\xbf"
@@ -59,7 +58,8 @@ def first_line(data: bytes) -> str:
     return (data if end < 0 else data[:end]).decode("ascii")
 
 
-def plain_columns(data: bytes, sep: str | None, ncols: int, string_columns: Sequence[int] = ()) -> list | None:
+def plain_columns(data: bytes, sep: str | None, ncols: int, string_columns: Sequence[int] = (),
+                  threads: bool = False) -> list | None:
     """The ``ncols`` fields of every line of ``data`` (:func:`plain_text`'s bytes), one array a field:
     [R] object str for the indices in ``string_columns``, [R] float64 for the others (R lines).
 
@@ -68,17 +68,19 @@ def plain_columns(data: bytes, sep: str | None, ncols: int, string_columns: Sequ
     like go to the line readers, whose rules for them differ); with commas, None when the text
     has a space (fields the line readers would strip). With one space between fields and none
     empty, there is no blank line, no space at the start or end of a line nor two in a row: each
-    line's whitespace-split fields are these.
+    line's whitespace-split fields are these. threads: let pyarrow parse blocks of the text in its
+    own threads (for a large text: :func:`joined_columns`). A string column is read
+    dictionary-encoded (its few distinct names made into str once, shared by the rows).
     """
     if sep == "," and b" " in data:
         return None
     names = [str(i) for i in range(ncols)]
     strings = set(string_columns)
-    types = {n: pa.string() if i in strings else pa.float64() for i, n in enumerate(names)}
+    types = {n: pa.dictionary(pa.int32(), pa.string()) if i in strings else pa.float64() for i, n in enumerate(names)}
     try:
         table = pacsv.read_csv(
             pa.py_buffer(data),
-            read_options=pacsv.ReadOptions(column_names=names, use_threads=False),
+            read_options=pacsv.ReadOptions(column_names=names, use_threads=threads),
             parse_options=pacsv.ParseOptions(delimiter=sep or " ", quote_char=False, ignore_empty_lines=False),
             convert_options=pacsv.ConvertOptions(column_types=types, null_values=[], strings_can_be_null=False,
                                                  quoted_strings_can_be_null=False),
@@ -88,13 +90,50 @@ def plain_columns(data: bytes, sep: str | None, ncols: int, string_columns: Sequ
     out = []
     for i in range(ncols):
         col = table.column(i)
-        if col.null_count or (i in strings and len(col) and pc.min(pc.utf8_length(col)).as_py() == 0):
+        if col.null_count:
             return None
-        arr = np.asarray(col.to_numpy(zero_copy_only=False), dtype=object if i in strings else np.float64)
-        if i not in strings and not np.isfinite(arr).all():
-            return None
+        if i in strings:
+            arr = _decoded(col)
+            if arr is None:
+                return None
+        else:
+            arr = np.asarray(col.to_numpy(), dtype=np.float64)
+            if not np.isfinite(arr).all():
+                return None
         out.append(arr)
     return out
+
+
+def _decoded(col) -> np.ndarray | None:
+    """A dictionary-encoded string column (each block with its own dictionary) -> [R] object str, the
+    rows of one name sharing one str; None when a row's name is empty."""
+    names: dict[str, int] = {}
+    codes = []
+    for chunk in col.chunks:
+        words = chunk.dictionary.to_pylist()
+        if "" in words:
+            return None
+        local = np.asarray([names.setdefault(w, len(names)) for w in words] or [0], dtype=np.int64)
+        codes.append(local[np.asarray(chunk.indices.to_numpy(), dtype=np.int64)])
+    table = np.empty(len(names), dtype=object)
+    table[:] = list(names)
+    return table[np.concatenate(codes)] if codes else np.empty(0, dtype=object)
+
+
+def joined_columns(texts: Sequence[bytes], sep: str | None, ncols: int,
+                   string_columns: Sequence[int] = ()) -> tuple[list, np.ndarray] | None:
+    """:func:`plain_columns` of several texts (each :func:`plain_text`'s bytes) in one parse, pyarrow's
+    threads taking its blocks: (the columns of all their lines, one text after the other; [n + 1]
+    int64 the first line of each text and the total). None where :func:`plain_columns` of the joined
+    text is None. A text's lines are its own: it ends with a newline, or one is added after it.
+
+    Why one parse: the 21 KITTI ``label_02`` files (9.2 MB) take ~39 ms as 21 parses and ~17 ms
+    as one on this repo's 2-core machine."""
+    texts = [t if t.endswith(b"\n") else t + b"\n" for t in texts]
+    starts = np.zeros(len(texts) + 1, dtype=np.int64)
+    np.cumsum([np.count_nonzero(np.frombuffer(t, np.uint8) == 10) for t in texts], out=starts[1:])   # (3x bytes.count)
+    cols = plain_columns(b"".join(texts), sep, ncols, string_columns, threads=True)
+    return None if cols is None else (cols, starts)
 
 
 def read_ahead(reader: Callable, paths: Sequence, threads: int = 2) -> Iterator:

@@ -54,8 +54,8 @@ def class_sequences(root, cls: str = "car", sequences: Sequence | None = None) -
     else:
         cand = [seq_name(s) for s in sequences]
     out = []
-    for name in cand:
-        uniq = distinct_types(kio.read_tracking_labels(label_dir / f"{name}.txt").type)[1]
+    for name, lab in zip(cand, kio.iter_tracking_labels([label_dir / f"{name}.txt" for name in cand])):
+        uniq = distinct_types(lab.type)[1]
         if np.isin(np.char.lower(uniq), list(names_of_cls)).any():
             out.append(name)
     return tuple(out)

@@ -52,6 +52,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from dfrmot_jax.io.memo import FileMemo, file_stamps
+from dfrmot_jax.io.result_rows import iter_result_rows
 from dfrmot_jax.metrics.common.names import name_list
 from dfrmot_jax.metrics.common.sequences import cached_class_sequences, seq_name
 from dfrmot_jax.metrics.common.sequences import clear_cache as clear_sequence_cache
@@ -65,7 +66,7 @@ from dfrmot_jax.metrics.kitti2d.kitti import (
 )
 from dfrmot_jax.metrics.kitti2d.similarity import parse_similarity
 from dfrmot_jax.metrics.kitti2d.table import classes_table
-from dfrmot_jax.metrics.kitti2d.tracker_files import read_tracker_files
+from dfrmot_jax.metrics.kitti2d.tracker_files import read_tracker_files, result_paths
 from dfrmot_jax.paths import default_data_root
 
 COUNT_FIELDS = ("Dets", "GT_Dets", "IDs", "GT_IDs")
@@ -90,13 +91,20 @@ def cached_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Prep
     if isinstance(root, PreparedGT):
         return root
     label_dir = Path(root) / "label_02"
-    if sequences is None:
-        names = tuple(sorted(p.stem for p in label_dir.glob("*.txt")))
-    else:
-        names = tuple(seq_name(s) for s in sequences)
+    names = gt_sequences(root, sequences)
     stamp = file_stamps(label_dir / f"{n}.txt" for n in names)
     key = (str(Path(root).resolve()), cls.lower(), names)
     return _GT_CACHE.get(key, stamp, lambda: prepare_gt(root, cls, names))
+
+
+def gt_sequences(root, sequences: Sequence | None = None) -> tuple:
+    """The sequence names :func:`cached_gt` prepares: ``sequences`` (names or ints), by default every
+    ``root/label_02/*.txt`` sorted; a :class:`PreparedGT`'s own."""
+    if isinstance(root, PreparedGT):
+        return root.sequences
+    if sequences is None:
+        return tuple(sorted(p.stem for p in (Path(root) / "label_02").glob("*.txt")))
+    return tuple(seq_name(s) for s in sequences)
 
 
 def clear_caches() -> None:
@@ -223,9 +231,11 @@ def evaluate_files(results_dir, root=None, cls: str = "car", sequences: Sequence
     similarity = parse_similarity(similarity)
     if root is None:
         root = default_data_root()
-    gt = cached_gt(root, cls, sequences)
-    return evaluate_dets(gt, read_tracker_files(results_dir, gt, missing=missing, need_3d=similarity != "2d"),
-                         similarity)
+    names = gt_sequences(root, sequences)
+    rows = iter_result_rows(result_paths(results_dir, names), ahead=True)   # parsed while the GT is prepared
+    gt = cached_gt(root, cls, names)
+    return evaluate_dets(gt, read_tracker_files(results_dir, gt, missing=missing, need_3d=similarity != "2d",
+                                                rows=rows), similarity)
 
 
 def evaluate_dets(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> dict[str, dict[str, object]]:

@@ -50,7 +50,6 @@ import numpy as np
 import pandas as pd
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
-from dfrmot_jax.io.plain_table import read_ahead
 from dfrmot_jax.metrics.common.fields3d import box_rows
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, match_entries, segment_starts
 from dfrmot_jax.metrics.common.sequences import CLASS_NAME_TO_ID, DISTRACTORS, distinct_types, seq_name
@@ -197,99 +196,128 @@ def prepare_gt(root, cls: str = "car", sequences: Sequence | None = None) -> Pre
     else:
         names = [seq_name(s) for s in sequences]
 
-    parts = []
-    offset = 0
-    gid_off = 0
-    labels = read_ahead(kio.read_tracking_labels, [label_dir / f"{name}.txt" for name in names])
-    for name in names:
-        part = _sequence_gt(next(labels), label_dir / f"{name}.txt", kio, cls_id, classes, offset, gid_off)
-        parts.append(part)
-        gid_off += part.n_ids
-        offset += part.length
-    return _joined_gt(cls, cls_id, names, parts, root)
+    paths = [label_dir / f"{name}.txt" for name in names]
+    joined = kio.joined_tracking_labels(paths)
+    if joined is not None:
+        rows = _sequences_gt(joined[0], joined[1], paths, kio, cls_id, classes)
+    else:                   # one file after the other: a file's problem is raised at its turn
+        labels = kio.iter_tracking_labels(paths)
+        rows = _joined_rows([_sequences_gt(lab, np.array([0, len(lab.frame)]), [p], kio, cls_id, classes)
+                             for p, lab in zip(paths, labels)])
+    return _prepared(cls, cls_id, names, rows, root)
 
 
-class _SequenceGT(NamedTuple):
-    """One sequence's ground truth of a class, its frames and ids already global (:func:`prepare_gt`)."""
-    length: int              # frames: max label frame + 1
+class _GTRows(NamedTuple):
+    """The ground truth of a class in some sequences, frames and GT ids global (:func:`prepare_gt`)."""
+    lengths: np.ndarray      # [S] frames of each sequence: its max label frame + 1
     box: np.ndarray          # [n, 4] class rows (evaluated class + distractors), by frame
     box3d: np.ndarray        # [n, 7] ``h w l x y z rot_y``
     eval: np.ndarray         # [n] bool: kept for evaluation
     frame: np.ndarray        # [n] global frame
     gid: np.ndarray          # [n] global GT id of an eval row (-1 for distractors)
-    n_ids: int               # eval GT ids
-    n_dets: int              # eval rows
-    gid_count: np.ndarray    # [n_ids] float64 detections per GT id
-    gid_label: np.ndarray    # [n_ids] int64 the label file's track id of each GT id
+    n_ids: np.ndarray        # [S] eval GT ids of each sequence
+    n_dets: np.ndarray       # [S] eval rows of each sequence
+    gid_count: np.ndarray    # [NG] float64 detections per GT id
+    gid_label: np.ndarray    # [NG] int64 the label file's track id of each GT id
     dc_box: np.ndarray       # [d, 4] DontCare regions, by frame
     dc_frame: np.ndarray     # [d] their global frames
 
 
-def _sequence_gt(lab, path: Path, kio, cls_id: int, classes: tuple, offset: int, gid_off: int) -> _SequenceGT:
-    """The class rows, eval ids and DontCare regions of one sequence's labels (TrackEval's rules,
-    module docstring); its frames start at global frame ``offset``, its GT ids at ``gid_off``."""
-    length = int(lab.frame.max()) + 1 if lab.frame.size else 0
+def _sequences_gt(lab, starts: np.ndarray, paths: Sequence, kio, cls_id: int, classes: tuple) -> _GTRows:
+    """The class rows, eval ids and DontCare regions of one or more sequences' labels (TrackEval's
+    rules, module docstring), all at once: ``lab`` holds the rows of sequence s (read from
+    ``paths[s]``) at ``starts[s]:starts[s + 1]``. Each sequence's frames follow the
+    last one's, its GT ids too (per sequence, sorted by track id). A problem (a type TrackEval does
+    not know, a GT id twice in one frame) is raised for the first sequence that has it, named by
+    its file, as when the sequences are taken one by one."""
+    S = len(starts) - 1
+    n = np.diff(starts)
+    seq = np.repeat(np.arange(S), n)
+    lengths = np.zeros(S, dtype=np.int64)
+    if len(lab.frame):
+        lengths[n > 0] = np.maximum.reduceat(lab.frame, starts[:-1][n > 0]) + 1
+    frame = lab.frame + np.repeat(segment_starts(lengths)[:-1], n)
     code, uniq = distinct_types(lab.type)
     is_dc = (np.char.lower(uniq) == "dontcare")[code]
     cid = np.zeros(len(code), dtype=np.int64)
     nd = ~is_dc & (lab.track_id >= 0)  # TrackEval skips negative ids before mapping class names
-    cid[nd] = coded_class_ids(code[nd], uniq, path, kio, np.flatnonzero(nd))
+    known = np.array([u.lower() in CLASS_NAME_TO_ID for u in uniq], dtype=bool)
+    if S > 1 and not known[code[nd]].all():
+        return _one_by_one(lab, starts, paths, kio, cls_id, classes)
+    cid[nd] = coded_class_ids(code[nd], uniq, paths[0], kio, np.flatnonzero(nd))
     use = nd & np.logical_or.reduce([cid == c for c in classes])
     occ = lab.occluded.astype(np.int64)
     trunc = lab.truncated.astype(np.int64)
     is_eval = (occ <= MAX_OCCLUSION) & (trunc <= MAX_TRUNCATION) & (cid == cls_id)
     sel = np.flatnonzero(use)
-    order = sel[np.argsort(lab.frame[sel], kind="stable")]
+    order = sel[np.argsort(frame[sel], kind="stable")]
     box3d = np.concatenate([lab.dims[order], lab.loc[order], lab.rot_y[order, None]], axis=1)
-    # relabel eval ids contiguously per sequence (sorted unique, as TrackEval)
+    # relabel eval ids contiguously per sequence (sorted unique, as TrackEval), sequence after sequence
     ev = order[is_eval[order]]
-    uniq, inv, cnt = np.unique(lab.track_id[ev], return_inverse=True, return_counts=True)
+    s_ev, t_ev = seq[ev], lab.track_id[ev]
+    by_id = np.lexsort((t_ev, s_ev))
+    first = np.ones(len(ev), dtype=bool)
+    first[1:] = (s_ev[by_id][1:] != s_ev[by_id][:-1]) | (t_ev[by_id][1:] != t_ev[by_id][:-1])
+    inv = np.empty(len(ev), dtype=np.int64)
+    inv[by_id] = np.cumsum(first) - 1
     gid = np.full(len(order), -1, dtype=np.int64)
-    gid[is_eval[order]] = inv.reshape(-1) + gid_off
+    gid[is_eval[order]] = inv
     # duplicate GT ids within a frame (TrackEval raises)
-    key = lab.frame[ev] * (len(uniq) + 1) + inv.reshape(-1)
-    if len(key) and (np.bincount(key).max() > 1 if key.max() < 64 * len(key) else len(np.unique(key)) < len(key)):
-        raise ValueError(f"{path}: ground truth has the same id twice in one frame")
+    f_ev = frame[ev]
+    by_frame = np.lexsort((inv, f_ev))
+    if np.any((f_ev[by_frame][1:] == f_ev[by_frame][:-1]) & (inv[by_frame][1:] == inv[by_frame][:-1])):
+        if S > 1:
+            return _one_by_one(lab, starts, paths, kio, cls_id, classes)
+        raise ValueError(f"{paths[0]}: ground truth has the same id twice in one frame")
     dsel = np.flatnonzero(is_dc)
-    dsel = dsel[np.argsort(lab.frame[dsel], kind="stable")]
-    return _SequenceGT(length, lab.box[order], box3d, is_eval[order], lab.frame[order] + offset, gid, len(uniq),
-                       len(ev), cnt.astype(np.float64), uniq.astype(np.int64), lab.box[dsel], lab.frame[dsel] + offset)
+    dsel = dsel[np.argsort(frame[dsel], kind="stable")]
+    return _GTRows(lengths, lab.box[order], box3d, is_eval[order], frame[order], gid,
+                   np.bincount(s_ev[by_id][first], minlength=S), np.bincount(s_ev, minlength=S),
+                   np.bincount(inv).astype(np.float64), t_ev[by_id][first].astype(np.int64), lab.box[dsel], frame[dsel])
 
 
-def _joined_gt(cls: str, cls_id: int, names: list, parts: list[_SequenceGT], root) -> PreparedGT:
-    """The sequences' ground truth joined into one :class:`PreparedGT`."""
-    lengths_a = np.asarray([p.length for p in parts], dtype=np.int64)
-    boxes, boxes3d, evals = [p.box for p in parts], [p.box3d for p in parts], [p.eval for p in parts]
-    frames, ids, gid_counts = [p.frame for p in parts], [p.gid for p in parts], [p.gid_count for p in parts]
-    dcb, dcf = [p.dc_box for p in parts], [p.dc_frame for p in parts]
-    offsets = segment_starts(lengths_a)
-    F = int(offsets[-1])
-    row_frame = np.concatenate(frames) if frames else np.zeros(0, np.int64)
-    row_box = np.concatenate(boxes).reshape(-1, 4).astype(np.float64) if boxes else np.zeros((0, 4))
-    row_eval = np.concatenate(evals) if evals else np.zeros(0, bool)
-    row_gid = np.concatenate(ids) if ids else np.zeros(0, np.int64)
-    row_start = segment_starts(np.bincount(row_frame, minlength=F))
-    eval_idx = np.full(len(row_eval), -1, dtype=np.int64)
-    eval_idx[row_eval] = np.arange(int(row_eval.sum()))
-    eval_frame = row_frame[row_eval]
-    eval_count = np.bincount(eval_frame, minlength=F).astype(np.int64)
-    dc_frame = np.concatenate(dcf) if dcf else np.zeros(0, np.int64)
-    gid_count = np.concatenate(gid_counts) if gid_counts else np.zeros(0)
-    gid_label = np.concatenate([p.gid_label for p in parts]) if parts else np.zeros(0, np.int64)
-    row_box3d = np.concatenate(boxes3d).reshape(-1, 7).astype(np.float64) if boxes3d else np.zeros((0, 7))
-    row_has3d = box_rows(row_box3d)              # ground truth whose 3D fields are no box: no 3D box
-    n_gt_ids = np.asarray([p.n_ids for p in parts], dtype=np.int64)
+def _one_by_one(lab, starts: np.ndarray, paths: Sequence, kio, cls_id: int, classes: tuple) -> _GTRows:
+    """:func:`_sequences_gt` of each sequence alone, in order, joined (the first problem is raised)."""
+    return _joined_rows([_sequences_gt(type(lab)(*(f[a:b] for f in lab)), np.array([0, b - a]), [p], kio, cls_id,
+                                       classes) for p, a, b in zip(paths, starts[:-1], starts[1:])])
+
+
+def _joined_rows(parts: list[_GTRows]) -> _GTRows:
+    """Sequences' :class:`_GTRows` one after the other: frames and GT ids moved past the earlier ones'."""
+    if not parts:
+        e = np.zeros(0, np.int64)
+        return _GTRows(e, np.zeros((0, 4)), np.zeros((0, 7)), np.zeros(0, bool), e, e, e, e, np.zeros(0), e,
+                       np.zeros((0, 4)), e)
+    frame_off = segment_starts(np.concatenate([p.lengths for p in parts]))
+    id_off = segment_starts(np.concatenate([p.n_ids for p in parts]))
+    cat = {f: np.concatenate([getattr(p, f) for p in parts]) for f in _GTRows._fields}
+    cat["frame"] = np.concatenate([p.frame + o for p, o in zip(parts, frame_off)])
+    cat["dc_frame"] = np.concatenate([p.dc_frame + o for p, o in zip(parts, frame_off)])
+    cat["gid"] = np.concatenate([np.where(p.gid >= 0, p.gid + o, -1) for p, o in zip(parts, id_off)])
+    return _GTRows(**cat)
+
+
+def _prepared(cls: str, cls_id: int, names: list, g: _GTRows, root) -> PreparedGT:
+    """The sequences' ground truth as one :class:`PreparedGT`."""
+    F = int(g.lengths.sum())
+    offsets = segment_starts(g.lengths)
+    row_start = segment_starts(np.bincount(g.frame, minlength=F))
+    eval_idx = np.full(len(g.eval), -1, dtype=np.int64)
+    eval_idx[g.eval] = np.arange(int(g.eval.sum()))
+    eval_count = np.bincount(g.frame[g.eval], minlength=F).astype(np.int64)
+    row_box3d = np.ascontiguousarray(g.box3d.reshape(-1, 7), dtype=np.float64)
+    n_gt_ids = g.n_ids.astype(np.int64)
     return PreparedGT(
-        cls=cls, cls_id=cls_id, sequences=tuple(names), lengths=lengths_a, offsets=offsets,
-        seq_of_frame=np.repeat(np.arange(len(names)), lengths_a),
-        row_box=np.ascontiguousarray(row_box), row_eval=row_eval, row_eval_index=eval_idx, row_start=row_start,
-        eval_gid=row_gid[row_eval], eval_start=segment_starts(eval_count), eval_count=eval_count,
-        gid_count=gid_count, gid_label=gid_label, gid_seq=np.repeat(np.arange(len(names)), n_gt_ids),
-        gid_start=segment_starts(n_gt_ids),
-        n_gt_ids=n_gt_ids, n_gt_dets=np.asarray([p.n_dets for p in parts], dtype=np.int64),
-        dc_box=np.concatenate(dcb).reshape(-1, 4).astype(np.float64) if dcb else np.zeros((0, 4)),
-        dc_start=segment_starts(np.bincount(dc_frame, minlength=F)),
-        row_box3d=np.ascontiguousarray(row_box3d), row_has3d=row_has3d, root=str(root),
+        cls=cls, cls_id=cls_id, sequences=tuple(names), lengths=g.lengths.astype(np.int64), offsets=offsets,
+        seq_of_frame=np.repeat(np.arange(len(names)), g.lengths),
+        row_box=np.ascontiguousarray(g.box.reshape(-1, 4), dtype=np.float64), row_eval=g.eval,
+        row_eval_index=eval_idx, row_start=row_start,
+        eval_gid=g.gid[g.eval], eval_start=segment_starts(eval_count), eval_count=eval_count,
+        gid_count=g.gid_count, gid_label=g.gid_label, gid_seq=np.repeat(np.arange(len(names)), n_gt_ids),
+        gid_start=segment_starts(n_gt_ids), n_gt_ids=n_gt_ids, n_gt_dets=g.n_dets.astype(np.int64),
+        dc_box=np.ascontiguousarray(g.dc_box.reshape(-1, 4), dtype=np.float64),
+        dc_start=segment_starts(np.bincount(g.dc_frame, minlength=F)),
+        row_box3d=row_box3d, row_has3d=box_rows(row_box3d), root=str(root),   # (no box in the 3D fields: no 3D box)
     )
 
 

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import NamedTuple, Sequence
+from typing import Iterator, NamedTuple, Sequence
 
 import numpy as np
 
 from dfrmot_jax.io import kitti as kio
-from dfrmot_jax.io.plain_table import read_ahead
-from dfrmot_jax.io.result_rows import read_result_rows
+from dfrmot_jax.io.result_rows import ResultRows, iter_result_rows
 from dfrmot_jax.metrics.common.fields3d import read_box3d_columns
 from dfrmot_jax.metrics.common.sequences import seq_name
 from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets, class_ids
@@ -71,7 +70,8 @@ def result_paths(results_dir, sequences: Sequence) -> list[Path]:
     return [p for s in sequences if (p := Path(results_dir) / f"{seq_name(s)}.txt").is_file()]
 
 
-def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty", need_3d: bool = False) -> TrackerDets:
+def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty", need_3d: bool = False,
+                       rows: Iterator[ResultRows] | None = None) -> TrackerDets:
     """Read ``results_dir/SSSS.txt`` for every sequence of ``gt`` (KITTI tracking result format).
 
     Files are read as TrackEval reads them (:mod:`dfrmot_jax.io.result_rows`: rows in any order,
@@ -87,13 +87,14 @@ def read_tracker_files(results_dir, gt: PreparedGT, missing: str = "empty", need
     ``h w l x y z rot_y`` (columns 11-17) of the kept rows, by the rules of
     :mod:`dfrmot_jax.metrics.common.fields3d` (the placeholder: no 3D box; anything else that is no box, a
     missing column or a non-number: ``KittiFormatError`` with file, line and field). The files are
-    parsed ahead in two threads (:func:`~dfrmot_jax.io.plain_table.read_ahead`). Returns one lane.
+    parsed together (:func:`~dfrmot_jax.io.result_rows.iter_result_rows`); ``rows``: that parse of
+    ``result_paths(results_dir, gt.sequences)``, started earlier. Returns one lane.
     """
     results_dir = Path(results_dir)
     if not results_dir.is_dir():
         raise FileNotFoundError(f"results folder not found: {results_dir}")
     fr, ids, bx, src, paths, b3, h3 = [], [], [], [], [], [], []
-    files = read_ahead(read_result_rows, result_paths(results_dir, gt.sequences))
+    files = rows if rows is not None else iter_result_rows(result_paths(results_dir, gt.sequences))
     for s, name in enumerate(gt.sequences):
         path = results_dir / f"{name}.txt"
         why = result_file_problem(path)
