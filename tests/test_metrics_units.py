@@ -466,3 +466,88 @@ def test_compiled_switches_and_fragments_equal_sorting(tmp_path, seed):
     for a, w in zip(got, want):
         assert a.dtype == w.dtype
         np.testing.assert_array_equal(a, w)
+
+
+def test_compiled_pairwise_sum_equals_numpys_row_sums():
+    """pairs.pairwise_sum (for compiled callers) is numpy's sum of a contiguous row bit for bit, at every
+    length through the 8-way and the split regimes, with values of mixed magnitudes and zeros."""
+    rng = np.random.default_rng(3)
+    for n in list(range(0, 70)) + [127, 128, 129, 136, 255, 256, 257, 300, 1000]:
+        for _ in range(3):
+            m = rng.random((5, n)) * 10.0 ** rng.integers(-6, 6, (5, n)) * (rng.random((5, n)) < 0.7)
+            flat = m.reshape(-1)
+            got = np.array([pairs.pairwise_sum(flat, r * n, n) for r in range(5)])
+            assert got.tobytes() == m.sum(1).tobytes(), n
+
+
+def _dense_scene_batch(tmp_path, seed, lanes=5):
+    """A preprocessed batch of random dense scenes (id switches, exact duplicates under other ids:
+    frames whose positive scores share a row or column, and tied scores)."""
+    from dfrmot_jax.metrics.kitti2d.kitti import preprocess
+    from dfrmot_jax.metrics.kitti2d.padded import tracker_dets_from_arrays
+
+    rng = np.random.default_rng(seed)
+    root = tmp_path / "root"
+    (root / "label_02").mkdir(parents=True)
+    seqs = ["0000", "0001", "0002"]
+    for s in seqs:
+        (root / "label_02" / f"{s}.txt").write_text(_synthetic_gt(rng, n_frames=int(rng.integers(30, 60)), n_obj=12))
+    gt = prepare_gt(root, "car", seqs)
+    out = [{s: _synthetic_tracker(rng, (root / "label_02" / f"{s}.txt").read_text(), "Car") for s in seqs}
+           for _ in range(lanes)]
+    e = out[-1]["0001"]
+    out[-1]["0001"] = SeqResults(e.frame[:0], e.track_id[:0], e.type[:0], e.box[:0])   # a lane with an empty sequence
+    for s in seqs:                   # a crowd: ten jittered copies of some boxes (rows of 8+ overlaps each)
+        r = out[0][s]
+        pick = rng.choice(len(r), size=min(len(r), 12), replace=False)
+        add_f = np.repeat(r.frame[pick], 10)
+        add_b = f32(np.repeat(r.box[pick], 10, axis=0) + rng.normal(0, 1.5, (10 * len(pick), 4)))
+        add_b = np.concatenate([np.minimum(add_b[:, :2], add_b[:, 2:]), np.maximum(add_b[:, :2], add_b[:, 2:])], 1)
+        order = np.argsort(np.concatenate([r.frame, add_f]), kind="stable")
+        out[0][s] = SeqResults(np.concatenate([r.frame, add_f])[order],
+                               np.concatenate([r.track_id, 7000 + np.arange(len(add_f))])[order],
+                               np.concatenate([r.type, np.repeat(r.type[:1], len(add_f))])[order],
+                               np.concatenate([r.box, add_b])[order])
+    ids, boxes, offsets = pack_arrays(out, seqs, gt.lengths, cls="car")
+    return preprocess(gt, tracker_dets_from_arrays(gt, ids, boxes, offsets))
+
+
+@pytest.mark.parametrize("seed", [0] + [pytest.param(s, marks=pytest.mark.slow) for s in (1, 2, 3)])
+def test_compiled_hota_equals_numpy(tmp_path, seed, monkeypatch):
+    """HOTA's compiled pass per (config, sequence) equals the NumPy reference on every field, bit for
+    bit, on dense random scenes where frames need the assignment solver; so does the NumPy fallback
+    the compiled pass hands a too large id table to."""
+    from dfrmot_jax.metrics.kitti2d import hota
+
+    b = _dense_scene_batch(tmp_path, seed)
+    positive = b.sim > 0
+    row_lf, row_first = pairs.segment_rows(b.lf_eval_count, b.det_count, b.pair_start)
+    assert len(pairs.crowded_segments(positive, row_lf, row_first, b.p_k, b.det_lf)) > 0   # the solver is needed
+    want = hota.hota_sequences_numpy(b)
+    got = hota.hota_sequences(b)
+    with monkeypatch.context() as m:
+        m.setattr(hota, "MAX_TABLE", 0)
+        fallback = hota.hota_sequences(b)
+    assert (b.det_count >= 8).any()                        # rows summed by numpy's pairwise scheme
+    assert set(got) == set(want) == set(fallback)
+    for f in want:
+        w = np.asarray(want[f])
+        for a in (got[f], fallback[f]):
+            a = np.asarray(a)
+            assert a.dtype == w.dtype and a.shape == w.shape and a.tobytes() == w.tobytes(), f
+
+
+def test_compiled_hota_counts_an_alpha_passed_at_exactly_alpha_minus_eps():
+    """A match passes alpha where ``sim >= alpha - eps`` (TrackEval's test), also at equality: the compiled
+    pass buckets each similarity as ``np.searchsorted(alphas - eps, sim, 'right')``."""
+    from dfrmot_jax.metrics.kitti2d import hota
+    from dfrmot_jax.metrics.kitti2d.boxes import EPS
+
+    th = hota.ALPHAS - EPS
+    sims = np.concatenate([th, np.nextafter(th, 0), [1.0, 0.02]])
+    n = len(sims)                                # one lane-frame per similarity, one GT id and tracker id each
+    hist, loc, _ = hota._hota_kernel(np.array([0, n]), np.array([0]), np.arange(n + 1), np.ones(n, np.int64),
+                                     np.ones(n, np.int64), sims, np.arange(n), np.arange(n), np.ones(n), np.ones(n),
+                                     np.array([0, n]), np.array([0, n]), th, EPS)
+    want = np.bincount(np.searchsorted(th, sims, side="right"), minlength=hota.NA + 1)
+    assert hist[0].tolist() == want.tolist()

@@ -346,7 +346,6 @@ def _checked_columns(fields: Sequence[str], col: dict, unparsable: dict | None, 
 
     def first(mask: np.ndarray) -> int | None:
         return int(np.argmax(mask)) if mask.any() else None
-
     for name in _INT_FIELDS:
         if name in col:
             v = col[name]

@@ -81,6 +81,42 @@ def numpy_row_sums(values: np.ndarray, row_first: np.ndarray, row_len: np.ndarra
     return out
 
 
+@numba.njit(cache=True, nogil=True)
+def pairwise_sum(values, start, n):
+    """``values[start:start + n].sum()`` as numpy sums a contiguous float64 row, bit for bit (its
+    pairwise summation: up to 7 terms one after the other from 0, up to 128 in eight interleaved
+    partial sums, more split in two at a multiple of 8), for compiled callers; numpy's own is
+    what :func:`numpy_row_sums` calls. ``tests/test_metrics_units.py`` checks it against numpy."""
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += values[start + i]
+        return res
+    if n <= 128:
+        r0, r1, r2, r3 = values[start], values[start + 1], values[start + 2], values[start + 3]
+        r4, r5, r6, r7 = values[start + 4], values[start + 5], values[start + 6], values[start + 7]
+        i = 8
+        while i < n - n % 8:
+            k = start + i
+            r0 += values[k]
+            r1 += values[k + 1]
+            r2 += values[k + 2]
+            r3 += values[k + 3]
+            r4 += values[k + 4]
+            r5 += values[k + 5]
+            r6 += values[k + 6]
+            r7 += values[k + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += values[start + i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return pairwise_sum(values, start, n2) + pairwise_sum(values, start + n2, n - n2)
+
+
 def numpy_col_sums(values: np.ndarray, pair_col: np.ndarray, n_cols_total: int, seg_of_col: np.ndarray,
                    seg_n_rows: np.ndarray, seg_n_cols: np.ndarray, seg_pair_start: np.ndarray) -> np.ndarray:
     """``M.sum(0)`` of every segment's matrix, as numpy computes it, bit for bit.

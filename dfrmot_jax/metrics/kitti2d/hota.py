@@ -19,8 +19,9 @@ import numba
 import numpy as np
 import pandas as pd
 
+from dfrmot_jax.metrics.common.assignment import solve_block, workspace
 from dfrmot_jax.metrics.common.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
-                                             segment_rows)
+                                             pairwise_sum, segment_rows, segment_starts)
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
 from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
 
@@ -30,6 +31,9 @@ FLOAT_ARRAY_FIELDS = ("HOTA", "DetA", "AssA", "DetRe", "DetPr", "AssRe", "AssPr"
 INTEGER_ARRAY_FIELDS = ("HOTA_TP", "HOTA_FN", "HOTA_FP")
 FLOAT_FIELDS = ("HOTA(0)", "LocA(0)", "HOTALocA(0)")
 FIELDS = FLOAT_ARRAY_FIELDS + INTEGER_ARRAY_FIELDS + FLOAT_FIELDS
+#: the most entries of one (config, sequence)'s (tracker id x GT id) table in the compiled pass (int64,
+#: 128 MB); a larger one is scored by the NumPy path
+MAX_TABLE = 1 << 24
 
 
 def _final_fields(res: dict) -> dict:
@@ -53,7 +57,32 @@ def _rev_cum(hist: np.ndarray) -> np.ndarray:
 
 
 def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
-    """HOTA fields per (config, sequence): arrays [L, S, NA] and [L, S] (``FIELDS``)."""
+    """HOTA fields per (config, sequence): arrays [L, S, NA] and [L, S] (``FIELDS``).
+
+    Steps (1)-(3) run in one compiled pass per (config, sequence) (:func:`_hota_kernel`), exactly
+    the operations of :func:`hota_sequences_numpy` in their order: the same bits. Where one sequence's
+    (tracker id, GT id) table would pass :data:`MAX_TABLE` entries, the NumPy path answers."""
+    gt = b.gt
+    L, S = b.n_lanes, len(gt.sequences)
+    tid_start = segment_starts(np.bincount(b.tid_lane * S + b.tid_seq, minlength=L * S))
+    n_gid = np.diff(gt.gid_start)
+    if not len(b.sim) or int((np.diff(tid_start).reshape(L, S) * n_gid[None, :]).max(initial=0)) > MAX_TABLE:
+        return hota_sequences_numpy(b)
+    F = gt.n_frames
+    lf_start = np.append((np.arange(L, dtype=np.int64)[:, None] * F + gt.offsets[None, :-1]).reshape(-1), L * F)
+    hist, loc_hist, ass = _hota_kernel(
+        lf_start, np.tile(np.arange(S, dtype=np.int64), L), np.ascontiguousarray(b.pair_start, np.int64),
+        np.ascontiguousarray(b.lf_eval_count, np.int64), np.ascontiguousarray(b.det_count, np.int64),
+        np.ascontiguousarray(b.sim, np.float64), gt.eval_gid[b.p_e].astype(np.int64), b.det_gid[b.p_k].astype(np.int64),
+        np.ascontiguousarray(gt.gid_count, np.float64), np.ascontiguousarray(b.tid_count, np.float64), tid_start,
+        np.ascontiguousarray(gt.gid_start, np.int64), ALPHAS - EPS, EPS)
+    res = _fields(b, hist.reshape(L, S, NA + 1), loc_hist.reshape(L, S, NA + 1), ass)
+    return _early_sequences(b, res)
+
+
+def hota_sequences_numpy(b: EvalBatch) -> dict[str, np.ndarray]:
+    """:func:`hota_sequences` vectorised in NumPy over the flat pair list: the reference the compiled
+    pass is tested against."""
     row_lf, row_first = segment_rows(b.lf_eval_count, b.det_count, b.pair_start)
     combos = _alignment(b, row_lf, row_first)
     matched = _assign(b, combos.score, row_lf, row_first)
@@ -126,9 +155,7 @@ def _alpha_fields(b: EvalBatch, co: _Combos, matched: np.ndarray) -> dict[str, n
     lf_h = b.p_lf[h]
     ls_h = (lf_h // F) * S + gt.seq_of_frame[lf_h % F]
     hist = np.bincount(ls_h * (NA + 1) + na, minlength=L * S * (NA + 1)).reshape(L, S, NA + 1)
-    tp = _rev_cum(hist).astype(np.float64)
     loc_hist = np.bincount(ls_h * (NA + 1) + na, weights=sim_h, minlength=L * S * (NA + 1)).reshape(L, S, NA + 1)
-    loc_sum = _rev_cum(loc_hist)
 
     combo_of_pair = np.full(P, -1, dtype=np.int64)
     combo_of_pair[co.pos] = co.inv
@@ -137,7 +164,16 @@ def _alpha_fields(b: EvalBatch, co: _Combos, matched: np.ndarray) -> dict[str, n
     mc = _rev_cum(np.bincount(ch * (NA + 1) + na, minlength=C * (NA + 1)).reshape(C, NA + 1)).astype(np.float64)
     ls_c = b.tid_lane[co.c_tid] * S + b.tid_seq[co.c_tid]
     ass = _association_sums(mc, co.gc.astype(np.int64), co.tc.astype(np.int64), ls_c.astype(np.int64), L * S)
+    return _fields(b, hist, loc_hist, ass)
 
+
+def _fields(b: EvalBatch, hist: np.ndarray, loc_hist: np.ndarray, ass: np.ndarray) -> dict[str, np.ndarray]:
+    """Every field from the matches' histograms by alphas passed, ``hist`` [L, S, NA + 1] and the summed
+    similarity ``loc_hist`` [L, S, NA + 1], and the association sums ``ass`` [3, L * S * NA]."""
+    gt = b.gt
+    L, S = b.n_lanes, len(gt.sequences)
+    tp = _rev_cum(hist).astype(np.float64)
+    loc_sum = _rev_cum(loc_hist)
     n_gt = np.broadcast_to(gt.n_gt_dets[None, :, None], (L, S, 1)).astype(np.float64)
     n_tr = b.n_tr_dets[:, :, None].astype(np.float64)
     res = {
@@ -151,6 +187,156 @@ def _alpha_fields(b: EvalBatch, co: _Combos, matched: np.ndarray) -> dict[str, n
     res["AssPr"] = ass[2].reshape(L, S, NA) / den
     res["LocA"] = np.maximum(1e-10, loc_sum) / np.maximum(1e-10, tp)
     return _final_fields(res)
+
+
+@numba.njit(cache=True, nogil=True)
+def _hota_kernel(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count, tid_start,
+                 gid_start, thresholds, eps):
+    """Steps (1)-(3) of every (config, sequence) ``ls`` (lane-frames ``lf_start[ls]:lf_start[ls + 1]``,
+    sequence ``seq_of_ls[ls]``): (1) the alignment score of each (tracker id, GT id) combo
+    (:func:`_align`); (2) each frame's matching; (3) each match's alphas passed
+    (``thresholds`` [NA] = alphas - eps, ``sim >= threshold``) counted and its similarity summed per
+    bucket in pair order, per (config, sequence) and per combo, and the association sums over the
+    combos in (tracker id, GT id) order (:func:`_match`). Pairs: ``sim``, ``p_gid``, ``p_tid`` [P] (their GT id and
+    tracker id), row-major per lane-frame at ``pair_start``, ``ng`` x ``nk`` per lane-frame;
+    ``gid_count`` [NG], ``tid_count`` [NT] detections per id; ``tid_start`` [L*S + 1], ``gid_start``
+    [S + 1] each (config, sequence)'s ids. Returns (hist [L*S, NA + 1] matches by alphas passed,
+    loc_hist the same summed similarity, ass [3, L*S*NA] the AssA / AssRe / AssPr sums)."""
+    n_ls = len(lf_start) - 1
+    NA = len(thresholds)
+    hist = np.zeros((n_ls, NA + 1), np.int64)
+    loc_hist = np.zeros((n_ls, NA + 1))
+    ass = np.zeros((3, n_ls * NA))
+    n_table, n_pairs, side, block = 1, 1, 1, 1
+    for ls in range(n_ls):
+        sq = seq_of_ls[ls]
+        n_table = max(n_table, (tid_start[ls + 1] - tid_start[ls]) * (gid_start[sq + 1] - gid_start[sq]))
+        n_pairs = max(n_pairs, pair_start[lf_start[ls + 1]] - pair_start[lf_start[ls]])
+    for lf in range(lf_start[n_ls]):
+        side = max(side, ng[lf], nk[lf])
+        block = max(block, ng[lf] * nk[lf])
+    table = np.full(n_table, -1, np.int64)                  # (tracker id, GT id) -> combo, per sequence
+    c_key, c_hist = np.empty(n_pairs, np.int64), np.empty((n_pairs, NA + 1), np.int64)
+    c_pm, c_gc, c_tc = np.empty(n_pairs), np.empty(n_pairs), np.empty(n_pairs)
+    out_rows, out_cols = np.empty(side, np.int64), np.empty(side, np.int64)
+    score = np.empty(block)
+    ws = workspace(side, block)
+    for ls in range(n_ls):
+        sq = seq_of_ls[ls]
+        t0, g0, n_g = tid_start[ls], gid_start[sq], gid_start[sq + 1] - gid_start[sq]
+        lf0, lf1 = lf_start[ls], lf_start[ls + 1]
+        C = _align(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count, t0, g0, n_g, eps, table,
+                   c_key, c_pm, c_gc, c_tc, c_hist, side)
+        _match(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, t0, g0, n_g, table, c_pm, c_hist, thresholds,
+               hist[ls], loc_hist[ls], score, out_rows, out_cols, ws)
+        for c in np.argsort(c_key[:C]):                               # the association sums
+            m = 0.0
+            gc, tc = c_gc[c], c_tc[c]
+            for k in range(NA, 0, -1):
+                m += c_hist[c, k]
+                o = ls * NA + k - 1
+                ass[0, o] += m * (m / max(1.0, (gc + tc) - m))
+                ass[1, o] += m * (m / max(1.0, gc))
+                ass[2, o] += m * (m / max(1.0, tc))
+        for c in range(C):
+            table[c_key[c]] = -1
+    return hist, loc_hist, ass
+
+
+@numba.njit(cache=True, nogil=True)
+def _align(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count, t0, g0, n_g, eps, table, c_key,
+           c_pm, c_gc, c_tc, c_hist, side):
+    """Step (1) of one (config, sequence), lane-frames ``lf0:lf1``: each frame's ``sim / (rowsum + colsum
+    - sim)`` (0 where the denominator is not above ``0 + eps``), its sums as numpy's
+    (:func:`~dfrmot_jax.metrics.common.pairs.pairwise_sum` along a row, in row order down a column of
+    two or more), accumulated per (tracker id, GT id) combo in pair order; then each combo's alignment
+    score ``pm / (gc + tc - pm)`` in ``c_pm``. Combos are numbered as first seen (``table`` [local
+    tracker id * n_g + local GT id]; ``c_key`` each one's entry); returns their number."""
+    rowsum, colsum = np.empty(side), np.empty(side)
+    C = 0
+    for lf in range(lf0, lf1):
+        a, nr, nc = pair_start[lf], ng[lf], nk[lf]
+        if nr == 0 or nc == 0:
+            continue
+        for i in range(nr):
+            rowsum[i] = pairwise_sum(sim, a + i * nc, nc)
+        if nc == 1:
+            colsum[0] = pairwise_sum(sim, a, nr)
+        else:
+            colsum[:nc] = 0.0
+            for i in range(nr):
+                for j in range(nc):
+                    colsum[j] += sim[a + i * nc + j]
+        for i in range(nr):
+            for j in range(nc):
+                q = a + i * nc + j
+                x = sim[q]
+                if x > 0:
+                    denom = (colsum[j] + rowsum[i]) - x
+                    key = (p_tid[q] - t0) * n_g + (p_gid[q] - g0)
+                    c = table[key]
+                    if c < 0:
+                        c, C = C, C + 1
+                        table[key], c_key[c], c_pm[c] = c, key, 0.0
+                        c_gc[c], c_tc[c] = gid_count[p_gid[q]], tid_count[p_tid[q]]
+                        c_hist[c, :] = 0
+                    c_pm[c] += x / denom if denom > 0 + eps else 0.0
+    for c in range(C):
+        c_pm[c] = c_pm[c] / ((c_gc[c] + c_tc[c]) - c_pm[c])
+    return C
+
+
+@numba.njit(cache=True, nogil=True)
+def _match(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, t0, g0, n_g, table, gas, c_hist, thresholds, hist,
+           loc_hist, score, out_rows, out_cols, ws):
+    """Steps (2) and (3) of one (config, sequence), lane-frames ``lf0:lf1``: each frame's scores ``gas *
+    sim``; its matches: its positive scores where no row or column holds two, else scipy's assignment
+    of the frame's score matrix (:func:`~dfrmot_jax.metrics.common.assignment.solve_block`), pairs of
+    score > 0, in row order; each match's alphas passed counted in ``hist`` [NA + 1] and its combo's
+    ``c_hist``, its similarity summed in ``loc_hist`` (pair order)."""
+    NA = len(thresholds)
+    for lf in range(lf0, lf1):
+        a, nr, nc = pair_start[lf], ng[lf], nk[lf]
+        if nr == 0 or nc == 0:
+            continue
+        crowded = False
+        for i in range(nr):
+            n_row = 0
+            for j in range(nc):
+                q = a + i * nc + j
+                x = sim[q]
+                v = gas[table[(p_tid[q] - t0) * n_g + (p_gid[q] - g0)]] * x if x > 0 else 0.0
+                score[i * nc + j] = v
+                n_row += v > 0
+            crowded = crowded or n_row > 1
+        for j in range(nc):               # (a column with two positive scores)
+            n_col = 0
+            for i in range(nr):
+                n_col += score[i * nc + j] > 0
+            crowded = crowded or n_col > 1
+        n_match = 0
+        if crowded:
+            solve_block(score, 0, nr, nc, True, True, out_rows, out_cols, 0, ws)
+            for k in range(min(nr, nc)):
+                i, j = out_rows[k], out_cols[k]
+                if i >= 0 and score[i * nc + j] > 0:
+                    out_rows[n_match], out_cols[n_match] = i, j
+                    n_match += 1
+        else:
+            for i in range(nr):
+                for j in range(nc):
+                    if score[i * nc + j] > 0:
+                        out_rows[n_match], out_cols[n_match] = i, j
+                        n_match += 1
+        for k in range(n_match):
+            q = a + out_rows[k] * nc + out_cols[k]
+            x = sim[q]
+            na = 0
+            while na < NA and thresholds[na] <= x:
+                na += 1
+            hist[na] += 1
+            loc_hist[na] += x
+            c_hist[table[(p_tid[q] - t0) * n_g + (p_gid[q] - g0)], na] += 1
 
 
 @numba.njit(cache=True, nogil=True)
