@@ -551,3 +551,51 @@ def test_compiled_hota_counts_an_alpha_passed_at_exactly_alpha_minus_eps():
                                      np.array([0, n]), np.array([0, n]), th, EPS)
     want = np.bincount(np.searchsorted(th, sims, side="right"), minlength=hota.NA + 1)
     assert hist[0].tolist() == want.tolist()
+
+
+KERNEL_DEP = "import numba\n\n\n@numba.njit(cache=False)\ndef helper(x):\n    return x + {k}.0\n"
+KERNEL_MOD = '''import numba
+import kdep
+from dfrmot_jax.metrics.common.kernel_cache import source_digest
+
+
+@numba.njit(cache=False)
+def _body(x):
+    return kdep.helper(x) * 2.0
+
+
+def _entry(digest):
+    @numba.njit(cache=True)
+    def kernel(*args):
+        digest
+        return _body(*args)
+    return kernel
+
+
+kernel = _entry(source_digest("kdep"))
+print(kernel(1.0), kernel.stats.cache_hits.total(), kernel.stats.cache_misses.total())
+'''
+
+
+@pytest.mark.slow
+def test_a_cached_entry_point_is_compiled_anew_when_a_callees_module_changes(tmp_path):
+    """kernel_cache's pattern (hota's and clear's entry points): a second process loads the entry from
+    numba's disk cache; after the module of a kernel it calls changes, it is compiled anew with the new
+    callee (numba's own key names the entry's file only)."""
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "kmod.py").write_text(KERNEL_MOD)
+    env = dict(os.environ, PYTHONPATH=str(tmp_path), NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+
+    def run(k):
+        (tmp_path / "kdep.py").write_text(KERNEL_DEP.format(k=k))
+        out = subprocess.run([sys.executable, "-c", "import kmod"], env=env, capture_output=True, text=True,
+                             cwd=tmp_path, check=True).stdout.split()
+        return float(out[0]), int(out[1]), int(out[2])
+
+    assert run(1) == (4.0, 0, 1)          # compiled, and saved
+    assert run(1) == (4.0, 1, 0)          # loaded from disk
+    assert run(2) == (6.0, 0, 1)          # the callee's module changed: compiled anew, the new callee's result
+    assert run(2) == (6.0, 1, 0)

@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from dfrmot_jax.metrics.common.assignment import solve_block, workspace_for
+from dfrmot_jax.metrics.common.kernel_cache import source_digest
 from dfrmot_jax.metrics.common.pairs import crowded_segments, segment_pairs, segment_rows
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
 from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
@@ -67,7 +68,7 @@ def _prev_active(b: EvalBatch) -> np.ndarray:
 def _solve_sequential(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.ndarray, p_tid: np.ndarray,
                       matched: np.ndarray) -> None:
     """Solve the listed lane-frames with TrackEval's continuation bonus (in place), in one compiled
-    pass in time order (:func:`_solve_in_order`).
+    pass in time order (:func:`_in_order`).
 
     ``matched`` holds the final matches of every other lane-frame on entry. The bonus of a frame
     needs the matches of the previous frame with both GT and tracker boxes (same lane and
@@ -84,11 +85,8 @@ def _solve_sequential(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np
         raise RuntimeError(f"CLEAR's assignment failed (status {status})")
 
 
-# not cached on disk: numba's cache of a function is keyed on its own file only, and this one calls
-# metrics.common.assignment's kernels, whose changes would not reach a cached copy (compiled once per
-# process instead)
-@numba.njit(cache=False, nogil=True)
-def _solve_in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev_of, thr, eps):
+@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _solve_in_order)
+def _in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev_of, thr, eps):
     """The hard lane-frames (sorted: time order within each lane) one after the other: each frame's
     matrix is TrackEval's ``1000 * continues + sim``, zero where ``sim < thr`` (= 0.5 - eps), where
     ``continues`` says the GT's match in the previous active frame (``prev_of``; final in ``matched``
@@ -123,6 +121,19 @@ def _solve_in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched
             if vals[i * c + j] > 0 + eps:
                 matched[a + i * c + j] = True
     return 0
+
+
+def _entry(digest: str):
+    """The cached entry point of :func:`_in_order`, keyed on the source of the module whose kernels it
+    calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`; compiled once per process before)."""
+    @numba.njit(cache=True, nogil=True)
+    def solve_in_order(*args):
+        digest                                   # (a closure: in numba's cache key)
+        return _in_order(*args)
+    return solve_in_order
+
+
+_solve_in_order = _entry(source_digest("dfrmot_jax.metrics.common.assignment"))
 
 
 def clear_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
