@@ -8,9 +8,10 @@ re-starts of tracking between consecutive such frames, MT/PT/ML use the tracked 
 (> 0.8 / >= 0.2).
 
 Only frames where a GT or tracker box has two candidates (IoU >= 0.5) need the solver (the
-``continues`` bonus can only matter there); they are solved after all other frames' matches are
-known, in time order, in one compiled pass with scipy's assignment
-(:mod:`dfrmot_jax.metrics.common.assignment`). Arrays: ``L`` configs, ``S`` sequences.
+``continues`` bonus can only matter there), scipy's assignment (:mod:`dfrmot_jax.metrics.common.assignment`).
+Every (config, sequence) is one compiled pass over its frames in time order (:func:`clear_sequences`);
+the vectorised NumPy path (the other frames' matches at once, then the solver's frames in time
+order) is kept as the reference it is tested against. Arrays: ``L`` configs, ``S`` sequences.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from dfrmot_jax.metrics.common.assignment import solve_block, workspace_for
+from dfrmot_jax.metrics.common.assignment import solve_block, workspace, workspace_for
 from dfrmot_jax.metrics.common.kernel_cache import source_digest
 from dfrmot_jax.metrics.common.pairs import crowded_segments, segment_pairs, segment_rows
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
@@ -137,12 +138,149 @@ _solve_in_order = _entry(source_digest("dfrmot_jax.metrics.common.assignment"))
 
 
 def clear_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
-    """CLEAR fields per (config, sequence): arrays [L, S] (``FIELDS``; counts as int64)."""
+    """CLEAR fields per (config, sequence): arrays [L, S] (``FIELDS``; counts as int64), from one
+    compiled pass per (config, sequence) in time order (:func:`_clear_kernel`): bit for bit
+    :func:`clear_sequences_numpy`."""
+    gt = b.gt
+    L, S = b.n_lanes, len(gt.sequences)
+    if not len(b.sim):
+        return clear_sequences_numpy(b)
+    tp, motp, idsw, mt, pt, frag = _clear_kernel(
+        b.ls_lf_start, b.ls_seq, np.ascontiguousarray(b.pair_start, np.int64),
+        np.ascontiguousarray(b.lf_eval_count, np.int64), np.ascontiguousarray(b.det_count, np.int64),
+        np.ascontiguousarray(b.sim, np.float64), b.p_gid, b.p_tid, np.ascontiguousarray(gt.gid_start, np.int64),
+        np.ascontiguousarray(gt.gid_count, np.float64), THRESHOLD - EPS, EPS)
+    mt, pt = mt.reshape(L, S), pt.reshape(L, S) - mt.reshape(L, S)
+    tp = tp.reshape(L, S)
+    res = {
+        "CLR_TP": tp,
+        "CLR_FN": np.broadcast_to(gt.n_gt_dets[None, :], (L, S)).astype(np.int64) - tp,
+        "CLR_FP": (b.n_tr_dets - tp).astype(np.int64),
+        "IDSW": idsw.reshape(L, S),
+        "MT": mt, "PT": pt, "ML": (gt.n_gt_ids[None, :] - mt - pt).astype(np.int64), "Frag": frag.reshape(L, S),
+        "CLR_Frames": np.broadcast_to(gt.lengths[None, :], (L, S)).astype(np.int64),
+        "MOTP_sum": motp.reshape(L, S),
+    }
+    return _early_sequences(b, _final_fields(res))
+
+
+def clear_sequences_numpy(b: EvalBatch) -> dict[str, np.ndarray]:
+    """:func:`clear_sequences` vectorised in NumPy (the frames needing the solver in one compiled pass):
+    the reference the compiled pass is tested against."""
     p_gid = b.gt.eval_gid[b.p_e]
     p_tid = b.det_gid[b.p_k]
     matched = _matched_pairs(b, p_gid, p_tid)
     res = _counts(b, matched, p_gid, p_tid)
     return _early_sequences(b, res)
+
+
+@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _clear_kernel)
+def _clear_pass(ls_lf_start, ls_seq, pair_start, ng, nk, sim, p_gid, p_tid, gid_start, gid_count, thr, eps):
+    """TrackEval's CLEAR over the frames of every (config, sequence) ``ls`` in time order: each frame
+    with GT and tracker boxes (active) matched: its pairs of ``sim >= thr`` (= 0.5 - eps) where no row
+    or column holds two, else scipy's assignment (:func:`~dfrmot_jax.metrics.common.assignment.
+    solve_block`) of ``1000 * continues + sim`` (zero below ``thr``; ``continues``: the GT id was
+    matched to this tracker id in the previous active frame), pairs above ``0 + eps``; each match
+    counted (TP; its similarity summed, pair order), an IDSW where its GT id's last match had another
+    tracker id, a new run where that last match was not in the previous active frame; per GT id,
+    its matches over its detections (MT: > 0.8, PT and MT: >= 0.2) and its runs beyond the first
+    (Frag). Returns [L*S] arrays: TP, MOTP_sum, IDSW, MT, MT + PT, Frag."""
+    n_ls = len(ls_lf_start) - 1
+    tp, idsw = np.zeros(n_ls, np.int64), np.zeros(n_ls, np.int64)
+    mt, pt, frag = np.zeros(n_ls, np.int64), np.zeros(n_ls, np.int64), np.zeros(n_ls, np.int64)
+    motp = np.zeros(n_ls)
+    n_g, side, block = 1, 1, 1
+    for s in range(len(gid_start) - 1):
+        n_g = max(n_g, gid_start[s + 1] - gid_start[s])
+    for lf in range(ls_lf_start[n_ls]):
+        side = max(side, ng[lf], nk[lf])
+        block = max(block, ng[lf] * nk[lf])
+    last_tid, last_rank = np.full(n_g, -1, np.int64), np.full(n_g, -2, np.int64)
+    matches, runs = np.zeros(n_g, np.int64), np.zeros(n_g, np.int64)
+    vals = np.empty(block)
+    rows, cols = np.empty(side, np.int64), np.empty(side, np.int64)
+    ws = workspace(side, block)
+    for ls in range(n_ls):
+        g0 = gid_start[ls_seq[ls]]
+        rank = 0
+        for lf in range(ls_lf_start[ls], ls_lf_start[ls + 1]):
+            a, nr, nc = pair_start[lf], ng[lf], nk[lf]
+            if nr == 0 or nc == 0:
+                continue
+            rank += 1
+            n = _frame_matches(a, nr, nc, sim, p_gid, p_tid, g0, last_tid, last_rank, rank, thr, eps, vals, rows,
+                               cols, ws)
+            for k in range(n):
+                q = a + rows[k] * nc + cols[k]
+                g, t = p_gid[q] - g0, p_tid[q]
+                tp[ls] += 1
+                motp[ls] += sim[q]
+                if last_tid[g] >= 0 and last_tid[g] != t:
+                    idsw[ls] += 1
+                if last_rank[g] != rank - 1:
+                    runs[g] += 1
+                matches[g] += 1
+                last_tid[g], last_rank[g] = t, rank
+        for g in range(gid_start[ls_seq[ls] + 1] - g0):
+            ratio = matches[g] / gid_count[g0 + g]
+            mt[ls] += ratio > 0.8
+            pt[ls] += ratio >= 0.2
+            frag[ls] += max(runs[g] - 1, 0)
+            last_tid[g], last_rank[g], matches[g], runs[g] = -1, -2, 0, 0
+    return tp, motp, idsw, mt, pt, frag
+
+
+@numba.njit(cache=False, nogil=True)     # (compiled into _clear_kernel)
+def _frame_matches(a, nr, nc, sim, p_gid, p_tid, g0, last_tid, last_rank, rank, thr, eps, vals, rows, cols, ws):
+    """CLEAR's matches of one active frame (pairs ``a .. a + nr * nc``, its rank ``rank`` among its
+    sequence's active frames; ``last_tid`` / ``last_rank`` each local GT id's last match): (row, column)
+    in ``rows``, ``cols`` in row order; returns their number (:func:`_clear_pass`)."""
+    crowded = False
+    for i in range(nr):
+        n_row = 0
+        for j in range(nc):
+            n_row += sim[a + i * nc + j] >= thr
+        crowded = crowded or n_row > 1
+    for j in range(nc):
+        n_col = 0
+        for i in range(nr):
+            n_col += sim[a + i * nc + j] >= thr
+        crowded = crowded or n_col > 1
+    n = 0
+    if not crowded:
+        for i in range(nr):
+            for j in range(nc):
+                if sim[a + i * nc + j] >= thr:
+                    rows[n], cols[n] = i, j
+                    n += 1
+        return n
+    for k in range(nr * nc):
+        x = sim[a + k]
+        vals[k] = x if x >= thr else 0.0
+        if vals[k] > 0:
+            g = p_gid[a + k] - g0
+            if last_rank[g] == rank - 1 and last_tid[g] == p_tid[a + k]:
+                vals[k] += 1000                   # TrackEval: 1000 * continues + sim
+    solve_block(vals, 0, nr, nc, True, False, rows, cols, 0, ws)
+    for k in range(min(nr, nc)):
+        i, j = rows[k], cols[k]
+        if vals[i * nc + j] > 0 + eps:
+            rows[n], cols[n] = i, j
+            n += 1
+    return n
+
+
+def _entry_kernel(digest: str):
+    """The cached entry point of :func:`_clear_pass`, keyed on the source of the module whose kernels
+    it calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
+    @numba.njit(cache=True, nogil=True)
+    def clear_kernel(*args):
+        digest                                   # (a closure: in numba's cache key)
+        return _clear_pass(*args)
+    return clear_kernel
+
+
+_clear_kernel = _entry_kernel(source_digest("dfrmot_jax.metrics.common.assignment"))
 
 
 def clear_matches(b: EvalBatch) -> dict[str, np.ndarray]:

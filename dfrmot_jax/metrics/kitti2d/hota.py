@@ -69,12 +69,10 @@ def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     n_gid = np.diff(gt.gid_start)
     if not len(b.sim) or int((np.diff(tid_start).reshape(L, S) * n_gid[None, :]).max(initial=0)) > MAX_TABLE:
         return hota_sequences_numpy(b)
-    F = gt.n_frames
-    lf_start = np.append((np.arange(L, dtype=np.int64)[:, None] * F + gt.offsets[None, :-1]).reshape(-1), L * F)
     hist, loc_hist, ass = _hota_kernel(
-        lf_start, np.tile(np.arange(S, dtype=np.int64), L), np.ascontiguousarray(b.pair_start, np.int64),
+        b.ls_lf_start, b.ls_seq, np.ascontiguousarray(b.pair_start, np.int64),
         np.ascontiguousarray(b.lf_eval_count, np.int64), np.ascontiguousarray(b.det_count, np.int64),
-        np.ascontiguousarray(b.sim, np.float64), gt.eval_gid[b.p_e].astype(np.int64), b.det_gid[b.p_k].astype(np.int64),
+        np.ascontiguousarray(b.sim, np.float64), b.p_gid, b.p_tid,
         np.ascontiguousarray(gt.gid_count, np.float64), np.ascontiguousarray(b.tid_count, np.float64), tid_start,
         np.ascontiguousarray(gt.gid_start, np.int64), ALPHAS - EPS, EPS)
     res = _fields(b, hist.reshape(L, S, NA + 1), loc_hist.reshape(L, S, NA + 1), ass)

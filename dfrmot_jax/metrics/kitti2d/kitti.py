@@ -384,6 +384,27 @@ class EvalBatch:
         return np.tile(self.gt.eval_count, self.n_lanes)
 
     @cached_property
+    def p_gid(self) -> np.ndarray:
+        """[P] int64 each pair's global GT id."""
+        return np.ascontiguousarray(self.gt.eval_gid[self.p_e], dtype=np.int64)
+
+    @cached_property
+    def p_tid(self) -> np.ndarray:
+        """[P] int64 each pair's global tracker id index (``det_gid``)."""
+        return np.ascontiguousarray(self.det_gid[self.p_k], dtype=np.int64)
+
+    @cached_property
+    def ls_lf_start(self) -> np.ndarray:
+        """[L*S + 1] the first lane-frame of each (lane, sequence) ``ls = lane * S + s``, and ``L * F``."""
+        L, F = self.n_lanes, self.gt.n_frames
+        return np.append((np.arange(L, dtype=np.int64)[:, None] * F + self.gt.offsets[None, :-1]).reshape(-1), L * F)
+
+    @cached_property
+    def ls_seq(self) -> np.ndarray:
+        """[L*S] the sequence of each (lane, sequence)."""
+        return np.tile(np.arange(len(self.gt.sequences), dtype=np.int64), self.n_lanes)
+
+    @cached_property
     def early_sequences(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(no_tr, no_gt, early) [L, S] bool: the (lane, sequence)s TrackEval returns early for, each
         metric with its own fields: no tracker detections, or some but no ground-truth detections."""
