@@ -94,8 +94,8 @@ def identity_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     L, S = b.n_lanes, len(gt.sequences)
     NG = max(len(gt.gid_count), 1)
     hit = np.flatnonzero(np.greater_equal(b.sim, THRESHOLD))
-    gid = gt.eval_gid[b.p_e[hit]]
-    tid = b.det_gid[b.p_k[hit]]
+    gid = b.p_gid[hit]
+    tid = b.p_tid[hit]
     uniq, cnt = np.unique(tid * NG + gid, return_counts=True)
     c_gid, c_tid = uniq % NG, uniq // NG
     lane = b.tid_lane[c_tid]

@@ -51,10 +51,11 @@ import pandas as pd
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.metrics.common.fields3d import box_rows
-from dfrmot_jax.metrics.common.pairs import enumerate_pairs, match_entries, segment_starts
+from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.common.sequences import CLASS_NAME_TO_ID, DISTRACTORS, distinct_types, seq_name
-from dfrmot_jax.metrics.kitti2d.box_table import BoxTable, box_table, candidate_pairs, pair_iou
-from dfrmot_jax.metrics.kitti2d.boxes import EPS, columns
+from dfrmot_jax.metrics.kitti2d.box_table import box_table, pair_iou
+from dfrmot_jax.metrics.kitti2d.boxes import columns
+from dfrmot_jax.metrics.kitti2d.kept import kept_boxes
 from dfrmot_jax.metrics.kitti2d.similarity import pair_similarity_3d, parse_similarity
 
 __all__ = [
@@ -69,7 +70,6 @@ __all__ = [
 
 MAX_OCCLUSION = 2
 MAX_TRUNCATION = 0
-MIN_HEIGHT = 25
 
 
 class DuplicateIdError(ValueError):
@@ -449,7 +449,7 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     # IoU of each distinct (frame, box) with the frame's class rows and its DontCare overlap, once
     box = np.asarray(dets.box, dtype=np.float64)
     tab = box_table(gt.row_start, gt.row_cols, gt.dc_start, gt.dc_box, dets.frame, box)
-    kidx = np.flatnonzero(_kept(gt, dets, tab, box, lf, g_of_lf))
+    kidx = np.flatnonzero(kept_boxes(gt, dets, tab, box, lf, g_of_lf))
     k_lf, grp, det_gid, tid_grp, tid_count = _tracker_ids(gt, dets, kidx, lf)
     nk = np.bincount(k_lf, minlength=L * F).astype(np.int64)
 
@@ -468,40 +468,6 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
                      tid_lane=tid_grp // S, tid_seq=tid_grp % S, tid_count=tid_count,
                      p_lf=p_lf, p_e=p_e, p_k=p_k, sim=sim, pair_start=pair_start,
                      n_tr_dets=n_tr_dets, n_tr_ids=n_tr_ids)
-
-
-def _kept(gt: PreparedGT, dets: TrackerDets, tab: BoxTable, box: np.ndarray, lf: np.ndarray,
-          g_of_lf: np.ndarray) -> np.ndarray:
-    """[M] bool: the tracker boxes TrackEval's preprocessing keeps (module docstring: a box matched to
-    a distractor is removed, and so is an unmatched box too low or mostly inside a DontCare region).
-    ``tab``: the boxes' :func:`~dfrmot_jax.metrics.kitti2d.box_table.box_table`; ``box`` [M, 4]
-    float64; ``lf`` [M] lane-frames; ``g_of_lf`` [L*F] the frame of each lane-frame."""
-    L = int(dets.n_lanes)
-    F = gt.n_frames
-    M = len(dets.lane)
-    nd = np.bincount(lf, minlength=L * F).astype(np.int64)
-    d_start = segment_starts(nd)
-    # removed if left unmatched (step 3): too small, or mostly inside a DontCare region
-    fragile = (box[:, 3] - box[:, 1] <= MIN_HEIGHT + EPS) | tab.in_dontcare[tab.value]
-
-    # --- step 2: match to class + distractor GT, drop boxes matched to distractors. Only pairs with
-    # IoU >= 0.5 - eps score (TrackEval's matrix is [class rows, boxes], zeros elsewhere); the answer
-    # matters only where a distractor or a fragile box is among a frame's candidates (else every box
-    # stays either way)
-    c_det, c_row, c_iou = candidate_pairs(tab)
-    c_lf = lf[c_det]
-    needed = np.zeros(len(nd), dtype=bool)
-    needed[c_lf[~gt.row_eval[c_row] | fragile[c_det]]] = True
-    matched = match_entries(c_lf, dets.lane[c_det] * max(len(gt.row_eval), 1) + c_row, c_det, c_iou, needed,
-                            np.diff(gt.row_start)[g_of_lf], nd, c_row - gt.row_start[dets.frame[c_det]],
-                            c_det - d_start[c_lf], 0 + EPS)
-    det_matched = np.zeros(M, dtype=bool)
-    det_matched[c_det[matched]] = True
-    to_remove = np.zeros(M, dtype=bool)
-    to_remove[c_det[matched & ~gt.row_eval[c_row]]] = True
-    # --- step 3: unmatched fragile boxes
-    to_remove |= ~det_matched & fragile
-    return ~to_remove
 
 
 def _tracker_ids(gt: PreparedGT, dets: TrackerDets, kidx: np.ndarray, lf: np.ndarray) -> tuple:
