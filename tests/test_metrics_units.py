@@ -649,3 +649,35 @@ def test_compiled_kept_boxes_equal_numpy(tmp_path, seed):
     fragile = _fragile(tab, box)
     assert (~want & ~fragile).any() and (~want & fragile).any() and (want & fragile).any()   # every rule at work
     np.testing.assert_array_equal(got, want)
+
+
+def test_compiled_metric_pairs_equal_enumerated_pairs_and_their_iou(tmp_path):
+    """box_table.metric_pairs (every lane-frame's eval rows x kept boxes, and their IoU, in one pass) is
+    enumerate_pairs and pair_iou, bit for bit, on a dense random batch."""
+    from dfrmot_jax.metrics.kitti2d.box_table import box_table, metric_pairs, pair_iou
+    from dfrmot_jax.metrics.kitti2d.padded import tracker_dets_from_arrays
+
+    rng = np.random.default_rng(11)
+    root = tmp_path / "root"
+    (root / "label_02").mkdir(parents=True)
+    seqs = ["0000", "0001"]
+    for s in seqs:
+        (root / "label_02" / f"{s}.txt").write_text(_synthetic_gt(rng, n_frames=40, n_obj=12))
+    gt = prepare_gt(root, "car", seqs)
+    lanes = [{s: _synthetic_tracker(rng, (root / "label_02" / f"{s}.txt").read_text(), "Car") for s in seqs}
+             for _ in range(3)]
+    dets = tracker_dets_from_arrays(gt, *pack_arrays(lanes, seqs, gt.lengths, cls="car"))
+    F, L = gt.n_frames, dets.n_lanes
+    lf = dets.lane * F + dets.frame
+    g_of_lf = np.tile(np.arange(F, dtype=np.int64), L)
+    tab = box_table(gt.row_start, gt.row_cols, gt.dc_start, gt.dc_box, dets.frame, np.asarray(dets.box, np.float64))
+    kidx = np.flatnonzero(rng.random(len(lf)) < 0.8)                  # some boxes kept
+    nk = np.bincount(lf[kidx], minlength=L * F).astype(np.int64)
+    ev_rows = np.flatnonzero(gt.row_eval)
+    got = metric_pairs(tab, gt.row_start, gt.eval_start, gt.eval_count, ev_rows, g_of_lf, nk, kidx)
+    p_lf, p_e, p_k, pair_start = enumerate_pairs(gt.eval_count[g_of_lf], gt.eval_start[g_of_lf], nk,
+                                                 segment_starts(nk)[:-1])
+    want = (p_lf, p_e, p_k, pair_iou(tab, gt.row_start, ev_rows, p_e, kidx, p_k), pair_start)
+    assert len(want[0]) > 1000
+    for a, w in zip(got, want):
+        assert a.dtype == w.dtype and a.tobytes() == w.tobytes()

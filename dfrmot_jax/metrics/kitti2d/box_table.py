@@ -24,7 +24,7 @@ from dfrmot_jax.metrics.common.distinct import distinct_rows
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.kitti2d.boxes import EPS, columns, gather_iou, pair_ioa
 
-__all__ = ["BoxTable", "MATCH_IOU", "box_table", "box_table_numpy", "pair_iou", "candidate_pairs"]
+__all__ = ["BoxTable", "MATCH_IOU", "box_table", "box_table_numpy", "pair_iou", "candidate_pairs", "metric_pairs"]
 
 MATCH_IOU = 0.5  # the preprocessing's distractor matching: IoU >= 0.5 - eps
 
@@ -187,3 +187,39 @@ def candidate_pairs(t: BoxTable) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     det = np.repeat(np.arange(len(t.value), dtype=np.int64), n)
     idx = np.repeat(a, n) + (np.arange(int(n.sum()), dtype=np.int64) - np.repeat(segment_starts(n)[:-1], n))
     return det, t.cand_row[idx], t.cand_iou[idx]
+
+
+def metric_pairs(t: BoxTable, row_start: np.ndarray, eval_start: np.ndarray, eval_count: np.ndarray,
+                 ev_rows: np.ndarray, g_of_lf: np.ndarray, nk: np.ndarray, kidx: np.ndarray) -> tuple:
+    """Every lane-frame's metric pairs (its eval GT rows x its kept boxes, row-major) and their IoU, in one
+    compiled pass: ``(p_lf, p_e, p_k, sim, pair_start)``, what
+    :func:`~dfrmot_jax.metrics.common.pairs.enumerate_pairs` of the eval rows and kept boxes and
+    :func:`pair_iou` give, bit for bit. eval_start [F+1] / eval_count [F]: each frame's eval rows;
+    ev_rows [NE]: each eval row's class row; g_of_lf [L*F]; nk [L*F] kept boxes per lane-frame (in
+    order); kidx [KD] each kept box's row in the table's rows."""
+    pair_start = segment_starts(eval_count[g_of_lf] * nk)
+    return _metric_pairs(np.ascontiguousarray(g_of_lf, np.int64), np.ascontiguousarray(eval_start, np.int64),
+                         np.ascontiguousarray(eval_count, np.int64), np.ascontiguousarray(ev_rows, np.int64),
+                         np.ascontiguousarray(row_start, np.int64), segment_starts(nk), pair_start, t.iou_start,
+                         t.n_values, t.iou, np.ascontiguousarray(t.local[kidx], np.int64)) + (pair_start,)
+
+
+@numba.njit(cache=True, nogil=True)
+def _metric_pairs(g_of_lf, eval_start, eval_count, ev_rows, row_start, k_start, pair_start, iou_start, n_values, iou,
+                  k_local):
+    """The body of :func:`metric_pairs`: each pair's lane-frame, eval row, kept box and IoU."""
+    P = pair_start[len(g_of_lf)]
+    p_lf, p_e, p_k = np.empty(P, np.int64), np.empty(P, np.int64), np.empty(P, np.int64)
+    sim = np.empty(P)
+    for lf in range(len(g_of_lf)):
+        f = g_of_lf[lf]
+        k0, nc = k_start[lf], k_start[lf + 1] - k_start[lf]
+        q = pair_start[lf]
+        for i in range(eval_count[f] if nc else 0):
+            e = eval_start[f] + i
+            base = iou_start[f] + (ev_rows[e] - row_start[f]) * n_values[f]
+            for j in range(nc):
+                p_lf[q], p_e[q], p_k[q] = lf, e, k0 + j
+                sim[q] = iou[base + k_local[k0 + j]]
+                q += 1
+    return p_lf, p_e, p_k, sim

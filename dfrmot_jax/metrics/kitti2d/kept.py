@@ -18,7 +18,7 @@ import numpy as np
 from dfrmot_jax.metrics.common.assignment import solve_block, workspace
 from dfrmot_jax.metrics.common.kernel_cache import source_digest
 from dfrmot_jax.metrics.common.pairs import match_entries, segment_starts
-from dfrmot_jax.metrics.kitti2d.box_table import MATCH_IOU, BoxTable, candidate_pairs
+from dfrmot_jax.metrics.kitti2d.box_table import BoxTable, candidate_pairs
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
 
 __all__ = ["MIN_HEIGHT", "kept_boxes", "kept_boxes_numpy"]
@@ -40,16 +40,17 @@ def kept_boxes(gt, dets, tab: BoxTable, box: np.ndarray, lf: np.ndarray, g_of_lf
     lane-frames; ``g_of_lf`` [L*F] the frame of each lane-frame."""
     d_start = segment_starts(np.bincount(lf, minlength=len(g_of_lf)))
     return _kept_kernel(d_start, np.ascontiguousarray(g_of_lf, np.int64), np.ascontiguousarray(gt.row_start, np.int64),
-                        np.ascontiguousarray(gt.row_eval, np.bool_), tab.iou_start, tab.n_values, tab.iou,
-                        np.ascontiguousarray(tab.local, np.int64), _fragile(tab, box), MATCH_IOU - EPS, EPS)
+                        np.ascontiguousarray(gt.row_eval, np.bool_), np.ascontiguousarray(tab.value, np.int64),
+                        tab.cand_start, tab.cand_row, tab.cand_iou, _fragile(tab, box), EPS)
 
 
 @numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _kept_kernel)
-def _kept_pass(d_start, g_of_lf, row_start, row_eval, iou_start, n_values, iou, local, fragile, thr, eps):
+def _kept_pass(d_start, g_of_lf, row_start, row_eval, value, cand_start, cand_row, cand_iou, fragile, eps):
     """Every lane-frame (its boxes ``d_start[lf]:d_start[lf + 1]``, frame ``g_of_lf[lf]``'s class rows):
-    the candidates (``IoU >= thr``, the box table's value ``iou[iou_start[f] + row * n_values[f] +
-    local[box]]``); where a distractor row or a ``fragile`` box is among them, the frame's match (the
-    candidates where no row or column holds two, else scipy's assignment of the candidate matrix,
+    each box's candidates (the box table's: its value ``value[box]``'s class rows ``cand_row`` of
+    ``IoU >= 0.5 - eps``, ``cand_iou``, from ``cand_start``); where a distractor row or a ``fragile``
+    box is among them, the frame's match on its candidate matrix (zero elsewhere: the candidates where
+    no row or column holds two, else scipy's assignment,
     :func:`~dfrmot_jax.metrics.common.assignment.solve_block`, pairs above ``0 + eps``): a box matched
     to a distractor is removed, an unmatched fragile one too. Returns [M] bool kept."""
     M = len(fragile)
@@ -69,19 +70,22 @@ def _kept_pass(d_start, g_of_lf, row_start, row_eval, iou_start, n_values, iou, 
         d0, nc = d_start[lf], d_start[lf + 1] - d_start[lf]
         if nc == 0:
             continue
-        f = g_of_lf[lf]
-        r0, nr = row_start[f], row_start[f + 1] - row_start[f]
         needed = False
-        for i in range(nr):
-            base = iou_start[f] + i * n_values[f]
-            for j in range(nc):
-                x = iou[base + local[d0 + j]]
-                vals[i * nc + j] = x if x >= thr else 0.0
-                needed = needed or (x >= thr and (not row_eval[r0 + i] or fragile[d0 + j]))
+        for j in range(nc):
+            v = value[d0 + j]
+            for k in range(cand_start[v], cand_start[v + 1]):
+                needed = needed or fragile[d0 + j] or not row_eval[cand_row[k]]
         if not needed:                            # a fragile box has no candidate here: unmatched
             for j in range(nc):
                 keep[d0 + j] = not fragile[d0 + j]
             continue
+        r0 = row_start[g_of_lf[lf]]
+        nr = row_start[g_of_lf[lf] + 1] - r0
+        vals[:nr * nc] = 0.0
+        for j in range(nc):
+            v = value[d0 + j]
+            for k in range(cand_start[v], cand_start[v + 1]):
+                vals[(cand_row[k] - r0) * nc + j] = cand_iou[k]
         n = _match(vals, nr, nc, rows, cols, ws, eps)
         matched[:nc] = False
         for k in range(n):

@@ -53,7 +53,7 @@ from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, r
 from dfrmot_jax.metrics.common.fields3d import box_rows
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.common.sequences import CLASS_NAME_TO_ID, DISTRACTORS, distinct_types, seq_name
-from dfrmot_jax.metrics.kitti2d.box_table import box_table, pair_iou
+from dfrmot_jax.metrics.kitti2d.box_table import box_table, metric_pairs
 from dfrmot_jax.metrics.kitti2d.boxes import columns
 from dfrmot_jax.metrics.kitti2d.kept import kept_boxes
 from dfrmot_jax.metrics.kitti2d.similarity import pair_similarity_3d, parse_similarity
@@ -454,12 +454,13 @@ def preprocess(gt: PreparedGT, dets: TrackerDets, similarity: str = "2d") -> Eva
     nk = np.bincount(k_lf, minlength=L * F).astype(np.int64)
 
     # --- metric pairs: eval GT x kept dets of each lane-frame, row-major; IoU looked up in the table
-    ng_e = gt.eval_count[g_of_lf]
-    p_lf, p_e, p_k, pair_start = enumerate_pairs(ng_e, gt.eval_start[g_of_lf], nk, segment_starts(nk)[:-1])
     ev_rows = np.flatnonzero(gt.row_eval)             # class row of each eval row
     if similarity == "2d":
-        sim = pair_iou(tab, gt.row_start, ev_rows, p_e, kidx, p_k)
+        p_lf, p_e, p_k, sim, pair_start = metric_pairs(tab, gt.row_start, gt.eval_start, gt.eval_count, ev_rows,
+                                                       g_of_lf, nk, kidx)
     else:
+        ng_e = gt.eval_count[g_of_lf]
+        p_lf, p_e, p_k, pair_start = enumerate_pairs(ng_e, gt.eval_start[g_of_lf], nk, segment_starts(nk)[:-1])
         sim = pair_similarity_3d(gt.row_box3d, gt.row_has3d, ev_rows[p_e], dets.box3d, dets.has3d, kidx[p_k],
                                  similarity)
     n_tr_dets = np.bincount(grp, minlength=L * S).reshape(L, S).astype(np.int64)
