@@ -112,7 +112,9 @@ class LaneScorer:
         out = []
         for b in range(ids.shape[0]):
             lane = np.ascontiguousarray(ids[b])
-            out.append(tuple(_output_digest(lane[a:e], [lane_values(bx, ids, b, a, e) for bx in own], sh)
+            rows = [lane_values(bx, ids, b) for bx in own]          # the lane's rows once, cut per sequence
+            at = segment_starts(np.count_nonzero(lane >= 0, axis=1)) if own else None
+            out.append(tuple(_output_digest(lane[a:e], [r[at[a]:at[e]] for r in rows], sh)
                              for (a, e), sh in zip(spans, shared)))
         return out
 
