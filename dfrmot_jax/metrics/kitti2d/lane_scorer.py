@@ -261,6 +261,9 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None,
     B = ids.shape[0]
     if B == 0:
         return []
+    if not isinstance(boxes, Rows) and np.ndim(boxes) == 4 and ids.shape[1] == gt.n_frames and np.array_equal(
+            seq_offsets, gt.offsets[:-1]):
+        boxes = Rows.of(ids, boxes)      # the rows gathered once, for the digests and the scoring alike
     sc = LaneScorer(gt, seq_offsets, max(1, int(lanes_per_batch)), similarity)
     # a repeated output repeats its ids: the boxes are hashed only when some ids repeat
     by_ids = sc.seq_digests(ids, None)
