@@ -46,6 +46,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import NamedTuple, Sequence
 
+import numba
 import numpy as np
 import pandas as pd
 
@@ -475,8 +476,6 @@ def _tracker_ids(gt: PreparedGT, dets: TrackerDets, kidx: np.ndarray, lf: np.nda
     """The kept boxes ``kidx``' tracker ids, one global index per (lane, sequence, id) in sorted order ->
     (lane-frame [KD], lane x sequence [KD], id index [KD], lane x sequence of each id [NT], boxes
     per id [NT] float64). Raises (:func:`_duplicate_error`) when an id repeats within a frame."""
-    L = int(dets.n_lanes)
-    F = gt.n_frames
     S = len(gt.sequences)
     k_lane = dets.lane[kidx]
     k_frame = dets.frame[kidx]
@@ -484,6 +483,18 @@ def _tracker_ids(gt: PreparedGT, dets: TrackerDets, kidx: np.ndarray, lf: np.nda
     k_lf = lf[kidx]
     k_seq = gt.seq_of_frame[k_frame]
     grp = k_lane * S + k_seq
+    if len(kidx) and np.all(grp[1:] >= grp[:-1]):     # (rows by lane-frame: each (lane, seq) one run, compiled)
+        det_gid, tid_grp, tid_count, dup = _ids_by_run(grp, np.ascontiguousarray(k_tid, np.int64), k_lf)
+        if not dup:
+            return k_lf, grp, det_gid, tid_grp, tid_count
+    return (k_lf, grp) + _ids_numpy(gt, dets, kidx, k_lf, grp, k_tid)
+
+
+def _ids_numpy(gt: PreparedGT, dets: TrackerDets, kidx: np.ndarray, k_lf: np.ndarray, grp: np.ndarray,
+               k_tid: np.ndarray) -> tuple:
+    """:func:`_tracker_ids`' numbering by hashing or sorting (any row order; what names a repeated id):
+    (id index [KD], (lane, sequence) of each id [NT], rows per id [NT] float64)."""
+    L, F, S = int(dets.n_lanes), gt.n_frames, len(gt.sequences)
     top = int(k_tid.max(initial=0)) + 1               # ids >= 0: one int64 key per (lane, seq, id) if it fits
     if (L * S + 1) * top < 2**62:
         det_gid, uniq = pd.factorize(grp * top + k_tid, sort=True)   # ranks of (grp, id), hashed
@@ -504,4 +515,41 @@ def _tracker_ids(gt: PreparedGT, dets: TrackerDets, kidx: np.ndarray, lf: np.nda
         dup = (k_lf[o2][1:] == k_lf[o2][:-1]) & (det_gid[o2][1:] == det_gid[o2][:-1])
         if dup.any():
             raise _duplicate_error(gt, dets, int(kidx[o2[1:][dup][0]]))
-    return k_lf, grp, det_gid, tid_grp, tid_count
+    return det_gid, tid_grp, tid_count
+
+
+@numba.njit(cache=True, nogil=True)
+def _ids_by_run(grp, tid, lf):
+    """:func:`_tracker_ids`' numbering in one compiled pass where each (lane, sequence) ``grp`` is one
+    run of rows: each run's distinct ids in sorted order, numbered on from the last run's; and
+    whether an id repeats within a lane-frame ``lf`` (the caller then names it by the general path).
+    Returns (id index [KD], (lane, sequence) of each id [NT], rows per id [NT] float64, repeated)."""
+    n = len(grp)
+    det_gid = np.empty(n, np.int64)
+    tid_grp = np.empty(n, np.int64)
+    nt = 0
+    a = 0
+    while a < n:
+        e = a
+        while e < n and grp[e] == grp[a]:
+            e += 1
+        u = np.unique(tid[a:e])
+        for i in range(a, e):
+            det_gid[i] = nt + np.searchsorted(u, tid[i])
+        tid_grp[nt:nt + len(u)] = grp[a]
+        nt += len(u)
+        a = e
+    count = np.zeros(nt)
+    for i in range(n):
+        count[det_gid[i]] += 1.0
+    repeated = False
+    a = 0
+    while a < n and not repeated:
+        e = a
+        while e < n and lf[e] == lf[a]:
+            e += 1
+        for i in range(a, e):
+            for j in range(i + 1, e):
+                repeated = repeated or det_gid[i] == det_gid[j]
+        a = e
+    return det_gid, tid_grp[:nt].copy(), count, repeated
