@@ -695,3 +695,26 @@ def test_compiled_tracker_id_numbering_equals_hashing(tmp_path, monkeypatch):
     for f in ("det_gid", "tid_lane", "tid_seq", "tid_count", "n_tr_ids"):
         a, w = np.asarray(getattr(b, f)), np.asarray(getattr(want, f))
         assert a.dtype == w.dtype and a.tobytes() == w.tobytes(), f
+
+
+def test_tracker_id_runs_ranked_by_table_or_by_sorting_alike():
+    """kitti._ids_by_run ranks each run's ids by a table where their span is small and by sorting where
+    it is not: both are the sorted ranks of (run, id), with a repeat within a lane-frame reported."""
+    import pandas as pd
+
+    from dfrmot_jax.metrics.kitti2d import kitti
+
+    rng = np.random.default_rng(4)
+    for span in (50, 10**12):                      # the table, then sorting
+        runs = np.repeat(np.arange(6), rng.integers(1, 40, 6))
+        tid = rng.integers(0, span, len(runs))
+        lf = np.arange(len(runs))                  # one row per lane-frame: no repeat
+        det_gid, tid_grp, count, repeated = kitti._ids_by_run(runs, tid, lf)
+        codes, uniq = pd.factorize(pd.MultiIndex.from_arrays([runs, tid]), sort=True)
+        assert det_gid.tolist() == codes.tolist() and not repeated
+        assert tid_grp.tolist() == [r for r, _ in uniq] and count.tolist() == np.bincount(codes).tolist()
+        lf2 = lf.copy()
+        i = int(np.flatnonzero(runs[1:] == runs[:-1])[0])
+        tid2 = tid.copy()
+        tid2[i + 1], lf2[i + 1] = tid2[i], lf2[i]  # the same id twice in one lane-frame
+        assert kitti._ids_by_run(runs, tid2, lf2)[3]

@@ -527,17 +527,33 @@ def _ids_by_run(grp, tid, lf):
     n = len(grp)
     det_gid = np.empty(n, np.int64)
     tid_grp = np.empty(n, np.int64)
+    rank = np.full(4 * n + 1024, -1, np.int64)          # ids of a run within this span: ranked by a table
     nt = 0
     a = 0
     while a < n:
         e = a
+        lo, hi = tid[a], tid[a]
         while e < n and grp[e] == grp[a]:
+            lo, hi = min(lo, tid[e]), max(hi, tid[e])
             e += 1
-        u = np.unique(tid[a:e])
-        for i in range(a, e):
-            det_gid[i] = nt + np.searchsorted(u, tid[i])
-        tid_grp[nt:nt + len(u)] = grp[a]
-        nt += len(u)
+        if hi - lo < len(rank):
+            for i in range(a, e):
+                rank[tid[i] - lo] = 0
+            k = 0
+            for v in range(hi - lo + 1):
+                if rank[v] == 0:
+                    rank[v] = k
+                    k += 1
+            for i in range(a, e):
+                det_gid[i] = nt + rank[tid[i] - lo]
+            rank[:hi - lo + 1] = -1
+        else:
+            u = np.unique(tid[a:e])
+            k = len(u)
+            for i in range(a, e):
+                det_gid[i] = nt + np.searchsorted(u, tid[i])
+        tid_grp[nt:nt + k] = grp[a]
+        nt += k
         a = e
     count = np.zeros(nt)
     for i in range(n):
