@@ -217,6 +217,7 @@ def _hota_pass(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_c
     table = np.full(n_table, -1, np.int64)                  # (tracker id, GT id) -> combo, per sequence
     c_key, c_hist = np.empty(n_pairs, np.int64), np.empty((n_pairs, NA + 1), np.int64)
     c_pm, c_gc, c_tc = np.empty(n_pairs), np.empty(n_pairs), np.empty(n_pairs)
+    pos_q, pos_c = np.empty(n_pairs, np.int64), np.empty(n_pairs, np.int64)   # positive pairs, their combos
     out_rows, out_cols = np.empty(side, np.int64), np.empty(side, np.int64)
     score = np.empty(block)
     ws = workspace(side, block)
@@ -224,10 +225,10 @@ def _hota_pass(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_c
         sq = seq_of_ls[ls]
         t0, g0, n_g = tid_start[ls], gid_start[sq], gid_start[sq + 1] - gid_start[sq]
         lf0, lf1 = lf_start[ls], lf_start[ls + 1]
-        C = _align(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count, t0, g0, n_g, eps, table,
-                   c_key, c_pm, c_gc, c_tc, c_hist, side)
-        _match(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, t0, g0, n_g, table, c_pm, c_hist, thresholds,
-               hist[ls], loc_hist[ls], score, out_rows, out_cols, ws)
+        C, n_pos = _align(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count, t0, g0, n_g, eps,
+                          table, c_key, c_pm, c_gc, c_tc, c_hist, pos_q, pos_c, side)
+        _match(lf0, lf1, pair_start, ng, nk, sim, pos_q[:n_pos], pos_c[:n_pos], c_pm, c_hist, thresholds, hist[ls],
+               loc_hist[ls], score, out_rows, out_cols, ws)
         for c in np.argsort(c_key[:C]):                               # the association sums
             m = 0.0
             gc, tc = c_gc[c], c_tc[c]
@@ -244,15 +245,16 @@ def _hota_pass(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_c
 
 @numba.njit(cache=False, nogil=True)     # (compiled into _hota_kernel)
 def _align(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count, t0, g0, n_g, eps, table, c_key,
-           c_pm, c_gc, c_tc, c_hist, side):
+           c_pm, c_gc, c_tc, c_hist, pos_q, pos_c, side):
     """Step (1) of one (config, sequence), lane-frames ``lf0:lf1``: each frame's ``sim / (rowsum + colsum
     - sim)`` (0 where the denominator is not above ``0 + eps``), its sums as numpy's
     (:func:`~dfrmot_jax.metrics.common.pairs.pairwise_sum` along a row, in row order down a column of
     two or more), accumulated per (tracker id, GT id) combo in pair order; then each combo's alignment
     score ``pm / (gc + tc - pm)`` in ``c_pm``. Combos are numbered as first seen (``table`` [local
-    tracker id * n_g + local GT id]; ``c_key`` each one's entry); returns their number."""
+    tracker id * n_g + local GT id]; ``c_key`` each one's entry); the positive pairs (``sim > 0``) and
+    their combos are listed in pair order in ``pos_q``, ``pos_c``. Returns (combos, positive pairs)."""
     rowsum, colsum = np.empty(side), np.empty(side)
-    C = 0
+    C = n_pos = 0
     for lf in range(lf0, lf1):
         a, nr, nc = pair_start[lf], ng[lf], nk[lf]
         if nr == 0 or nc == 0:
@@ -280,62 +282,73 @@ def _align(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count
                         c_gc[c], c_tc[c] = gid_count[p_gid[q]], tid_count[p_tid[q]]
                         c_hist[c, :] = 0
                     c_pm[c] += x / denom if denom > 0 + eps else 0.0
+                    pos_q[n_pos], pos_c[n_pos] = q, c
+                    n_pos += 1
     for c in range(C):
         c_pm[c] = c_pm[c] / ((c_gc[c] + c_tc[c]) - c_pm[c])
-    return C
+    return C, n_pos
 
 
 @numba.njit(cache=False, nogil=True)     # (compiled into _hota_kernel)
-def _match(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, t0, g0, n_g, table, gas, c_hist, thresholds, hist,
-           loc_hist, score, out_rows, out_cols, ws):
-    """Steps (2) and (3) of one (config, sequence), lane-frames ``lf0:lf1``: each frame's scores ``gas *
-    sim``; its matches: its positive scores where no row or column holds two, else scipy's assignment
-    of the frame's score matrix (:func:`~dfrmot_jax.metrics.common.assignment.solve_block`), pairs of
-    score > 0, in row order; each match's alphas passed counted in ``hist`` [NA + 1] and its combo's
-    ``c_hist``, its similarity summed in ``loc_hist`` (pair order)."""
+def _match(lf0, lf1, pair_start, ng, nk, sim, pos_q, pos_c, gas, c_hist, thresholds, hist, loc_hist, score, rows,
+           cols, ws):
+    """Steps (2) and (3) of one (config, sequence), lane-frames ``lf0:lf1``, from its positive pairs
+    ``pos_q`` (pair order) and their combos ``pos_c`` (:func:`_align`; every other score is 0): each
+    frame's scores ``gas * sim``; its matches: its positive scores where no row or column holds two,
+    else scipy's assignment of the frame's score matrix
+    (:func:`~dfrmot_jax.metrics.common.assignment.solve_block`), pairs of score > 0, in row order; each
+    match's alphas passed counted in ``hist`` [NA + 1] and its combo's ``c_hist``, its similarity
+    summed in ``loc_hist`` (pair order)."""
     NA = len(thresholds)
+    n_row, n_col = np.zeros(len(rows), np.int64), np.zeros(len(rows), np.int64)
+    match_c = np.empty(len(rows), np.int64)
+    p = 0
     for lf in range(lf0, lf1):
         a, nr, nc = pair_start[lf], ng[lf], nk[lf]
-        if nr == 0 or nc == 0:
+        p0 = p
+        while p < len(pos_q) and pos_q[p] < a + nr * nc:
+            p += 1
+        if p == p0:
             continue
         crowded = False
-        for i in range(nr):
-            n_row = 0
-            for j in range(nc):
-                q = a + i * nc + j
-                x = sim[q]
-                v = gas[table[(p_tid[q] - t0) * n_g + (p_gid[q] - g0)]] * x if x > 0 else 0.0
-                score[i * nc + j] = v
-                n_row += v > 0
-            crowded = crowded or n_row > 1
-        for j in range(nc):               # (a column with two positive scores)
-            n_col = 0
-            for i in range(nr):
-                n_col += score[i * nc + j] > 0
-            crowded = crowded or n_col > 1
+        for k in range(p0, p):
+            if gas[pos_c[k]] * sim[pos_q[k]] > 0:
+                i, j = (pos_q[k] - a) // nc, (pos_q[k] - a) % nc
+                n_row[i] += 1
+                n_col[j] += 1
+                crowded = crowded or n_row[i] > 1 or n_col[j] > 1
         n_match = 0
         if crowded:
-            solve_block(score, 0, nr, nc, True, True, out_rows, out_cols, 0, ws)
+            score[:nr * nc] = 0.0
+            for k in range(p0, p):
+                score[pos_q[k] - a] = gas[pos_c[k]] * sim[pos_q[k]]
+            solve_block(score, 0, nr, nc, True, True, rows, cols, 0, ws)
             for k in range(min(nr, nc)):
-                i, j = out_rows[k], out_cols[k]
+                i, j = rows[k], cols[k]
                 if i >= 0 and score[i * nc + j] > 0:
-                    out_rows[n_match], out_cols[n_match] = i, j
+                    rows[n_match], cols[n_match] = i, j
                     n_match += 1
+            for k in range(p0, p):             # (each match's combo)
+                for m in range(n_match):
+                    if pos_q[k] == a + rows[m] * nc + cols[m]:
+                        match_c[m] = pos_c[k]
         else:
-            for i in range(nr):
-                for j in range(nc):
-                    if score[i * nc + j] > 0:
-                        out_rows[n_match], out_cols[n_match] = i, j
-                        n_match += 1
-        for k in range(n_match):
-            q = a + out_rows[k] * nc + out_cols[k]
-            x = sim[q]
+            for k in range(p0, p):
+                if gas[pos_c[k]] * sim[pos_q[k]] > 0:
+                    rows[n_match], cols[n_match] = (pos_q[k] - a) // nc, (pos_q[k] - a) % nc
+                    match_c[n_match] = pos_c[k]
+                    n_match += 1
+        for k in range(p0, p):
+            n_row[(pos_q[k] - a) // nc] = 0
+            n_col[(pos_q[k] - a) % nc] = 0
+        for m in range(n_match):
+            x = sim[a + rows[m] * nc + cols[m]]
             na = 0
             while na < NA and thresholds[na] <= x:
                 na += 1
             hist[na] += 1
             loc_hist[na] += x
-            c_hist[table[(p_tid[q] - t0) * n_g + (p_gid[q] - g0)], na] += 1
+            c_hist[match_c[m], na] += 1
 
 
 def _entry(digest: str):
