@@ -275,6 +275,7 @@ def test_burst_removes_all_detections_of_the_object(synthetic):
         assert not np.any(removed & (g < 0))                         # unmatched detections stay
 
 
+@pytest.mark.slow        # (bursts on the synthetic scene stay in the fast tier)
 def test_burst_on_kitti_hits_both_modalities(kitti):
     _, frames, gid2, gid3, spec = kitti
     out = lane(batch(frames, gid2, gid3, [D.level_params("burst", 8, seed=1, burst_rate=0.05)], spec), 0)
@@ -382,7 +383,7 @@ def test_score_noise_std(synthetic):
 # ---- clutter ------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("which", ["synthetic", "synthetic_float"])
+@pytest.mark.parametrize("which", ["synthetic", pytest.param("synthetic_float", marks=pytest.mark.slow)])
 def test_clutter_count_and_geometry(which, request):
     frames, gid2, gid3, spec = request.getfixturevalue(which)
     S = spec.clutter_slots
