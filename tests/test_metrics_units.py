@@ -435,25 +435,36 @@ def test_distinct_rows_by_first_appearance_bit_for_bit(n):
     assert (np.diff(first) > 0).all()
 
 
+def _scene(tmp_path, rng, n_seqs: int, n_lanes: int, n_obj: int, n_frames: int | None = None):
+    """Random dense ground truth of ``n_seqs`` sequences (``_synthetic_gt``) and ``n_lanes`` random outputs
+    for it (``_synthetic_tracker``): (gt, outputs [{seq: SeqResults}])."""
+    root = tmp_path / "root"
+    (root / "label_02").mkdir(parents=True)
+    seqs = [f"{s:04d}" for s in range(n_seqs)]
+    for s in seqs:
+        frames = n_frames if n_frames is not None else int(rng.integers(30, 60))
+        (root / "label_02" / f"{s}.txt").write_text(_synthetic_gt(rng, n_frames=frames, n_obj=n_obj))
+    gt = prepare_gt(root, "car", seqs)
+    return gt, [{s: _synthetic_tracker(rng, (root / "label_02" / f"{s}.txt").read_text(), "Car") for s in seqs}
+                for _ in range(n_lanes)]
+
+
+def _dets(gt, outputs):
+    """The outputs as the preprocessing's flat rows (packed, then flattened)."""
+    from dfrmot_jax.metrics.kitti2d.padded import tracker_dets_from_arrays
+
+    return tracker_dets_from_arrays(gt, *pack_arrays(outputs, list(gt.sequences), gt.lengths, cls="car"))
+
+
 @pytest.mark.parametrize("seed", [0] + [pytest.param(s, marks=pytest.mark.slow) for s in (1, 2)])
 def test_compiled_switches_and_fragments_equal_sorting(tmp_path, seed):
     """CLEAR's IDSW and Frag from one pass in time order equal the sorted NumPy reference on dense
     random scenes (id switches, duplicates, gaps), several lanes at once."""
     from dfrmot_jax.metrics.kitti2d import clear
     from dfrmot_jax.metrics.kitti2d.kitti import preprocess
-    from dfrmot_jax.metrics.kitti2d.padded import tracker_dets_from_arrays
 
-    rng = np.random.default_rng(seed)
-    root = tmp_path / "root"
-    (root / "label_02").mkdir(parents=True)
-    seqs = ["0000", "0001"]
-    for s in seqs:
-        (root / "label_02" / f"{s}.txt").write_text(_synthetic_gt(rng, n_frames=int(rng.integers(30, 60)), n_obj=12))
-    gt = prepare_gt(root, "car", seqs)
-    lanes = [{s: _synthetic_tracker(rng, (root / "label_02" / f"{s}.txt").read_text(), "Car") for s in seqs}
-             for _ in range(5)]
-    ids, boxes, offsets = pack_arrays(lanes, seqs, gt.lengths, cls="car")
-    b = preprocess(gt, tracker_dets_from_arrays(gt, ids, boxes, offsets))
+    gt, outputs = _scene(tmp_path, np.random.default_rng(seed), 2, 5, 12)
+    b = preprocess(gt, _dets(gt, outputs))
     p_gid, p_tid = gt.eval_gid[b.p_e], b.det_gid[b.p_k]
     m = np.flatnonzero(clear._matched_pairs(b, p_gid, p_tid))
     F, S, NG = gt.n_frames, len(gt.sequences), len(gt.gid_count)
@@ -484,17 +495,10 @@ def _dense_scene_batch(tmp_path, seed, lanes=5):
     """A preprocessed batch of random dense scenes (id switches, exact duplicates under other ids:
     frames whose positive scores share a row or column, and tied scores)."""
     from dfrmot_jax.metrics.kitti2d.kitti import preprocess
-    from dfrmot_jax.metrics.kitti2d.padded import tracker_dets_from_arrays
 
     rng = np.random.default_rng(seed)
-    root = tmp_path / "root"
-    (root / "label_02").mkdir(parents=True)
-    seqs = ["0000", "0001", "0002"]
-    for s in seqs:
-        (root / "label_02" / f"{s}.txt").write_text(_synthetic_gt(rng, n_frames=int(rng.integers(30, 60)), n_obj=12))
-    gt = prepare_gt(root, "car", seqs)
-    out = [{s: _synthetic_tracker(rng, (root / "label_02" / f"{s}.txt").read_text(), "Car") for s in seqs}
-           for _ in range(lanes)]
+    gt, out = _scene(tmp_path, rng, 3, lanes, 12)
+    seqs = list(gt.sequences)
     e = out[-1]["0001"]
     out[-1]["0001"] = SeqResults(e.frame[:0], e.track_id[:0], e.type[:0], e.box[:0])   # a lane with an empty sequence
     for s in seqs:                   # a crowd: ten jittered copies of some boxes (rows of 8+ overlaps each)
@@ -508,8 +512,7 @@ def _dense_scene_batch(tmp_path, seed, lanes=5):
                                np.concatenate([r.track_id, 7000 + np.arange(len(add_f))])[order],
                                np.concatenate([r.type, np.repeat(r.type[:1], len(add_f))])[order],
                                np.concatenate([r.box, add_b])[order])
-    ids, boxes, offsets = pack_arrays(out, seqs, gt.lengths, cls="car")
-    return preprocess(gt, tracker_dets_from_arrays(gt, ids, boxes, offsets))
+    return preprocess(gt, _dets(gt, out))
 
 
 @pytest.mark.parametrize("seed", [0] + [pytest.param(s, marks=pytest.mark.slow) for s in (1, 2, 3)])
@@ -626,19 +629,9 @@ def test_compiled_kept_boxes_equal_numpy(tmp_path, seed):
     on dense random scenes: boxes matched to vans, too low or inside DontCare regions, crowded frames."""
     from dfrmot_jax.metrics.kitti2d.box_table import box_table
     from dfrmot_jax.metrics.kitti2d.kept import _fragile, kept_boxes, kept_boxes_numpy
-    from dfrmot_jax.metrics.kitti2d.padded import tracker_dets_from_arrays
 
-    rng = np.random.default_rng(200 + seed)
-    root = tmp_path / "root"
-    (root / "label_02").mkdir(parents=True)
-    seqs = ["0000", "0001"]
-    for s in seqs:
-        (root / "label_02" / f"{s}.txt").write_text(_synthetic_gt(rng, n_frames=int(rng.integers(30, 60)), n_obj=14))
-    gt = prepare_gt(root, "car", seqs)
-    lanes = [{s: _synthetic_tracker(rng, (root / "label_02" / f"{s}.txt").read_text(), "Car") for s in seqs}
-             for _ in range(4)]
-    ids, boxes, offsets = pack_arrays(lanes, seqs, gt.lengths, cls="car")
-    dets = tracker_dets_from_arrays(gt, ids, boxes, offsets)
+    gt, outputs = _scene(tmp_path, np.random.default_rng(200 + seed), 2, 4, 14)
+    dets = _dets(gt, outputs)
     F = gt.n_frames
     lf = dets.lane * F + dets.frame
     g_of_lf = np.tile(np.arange(F, dtype=np.int64), dets.n_lanes)
@@ -655,18 +648,10 @@ def test_compiled_metric_pairs_equal_enumerated_pairs_and_their_iou(tmp_path):
     """box_table.metric_pairs (every lane-frame's eval rows x kept boxes, and their IoU, in one pass) is
     enumerate_pairs and pair_iou, bit for bit, on a dense random batch."""
     from dfrmot_jax.metrics.kitti2d.box_table import box_table, metric_pairs, pair_iou
-    from dfrmot_jax.metrics.kitti2d.padded import tracker_dets_from_arrays
 
     rng = np.random.default_rng(11)
-    root = tmp_path / "root"
-    (root / "label_02").mkdir(parents=True)
-    seqs = ["0000", "0001"]
-    for s in seqs:
-        (root / "label_02" / f"{s}.txt").write_text(_synthetic_gt(rng, n_frames=40, n_obj=12))
-    gt = prepare_gt(root, "car", seqs)
-    lanes = [{s: _synthetic_tracker(rng, (root / "label_02" / f"{s}.txt").read_text(), "Car") for s in seqs}
-             for _ in range(3)]
-    dets = tracker_dets_from_arrays(gt, *pack_arrays(lanes, seqs, gt.lengths, cls="car"))
+    gt, outputs = _scene(tmp_path, rng, 2, 3, 12, n_frames=40)
+    dets = _dets(gt, outputs)
     F, L = gt.n_frames, dets.n_lanes
     lf = dets.lane * F + dets.frame
     g_of_lf = np.tile(np.arange(F, dtype=np.int64), L)

@@ -86,7 +86,7 @@ def _solve_sequential(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np
         raise RuntimeError(f"CLEAR's assignment failed (status {status})")
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _solve_in_order)
+@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _solve_in_order: _entries)
 def _in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev_of, thr, eps):
     """The hard lane-frames (sorted: time order within each lane) one after the other: each frame's
     matrix is TrackEval's ``1000 * continues + sim``, zero where ``sim < thr`` (= 0.5 - eps), where
@@ -122,19 +122,6 @@ def _in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev
             if vals[i * c + j] > 0 + eps:
                 matched[a + i * c + j] = True
     return 0
-
-
-def _entry(digest: str):
-    """The cached entry point of :func:`_in_order`, keyed on the source of the module whose kernels it
-    calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`; compiled once per process before)."""
-    @numba.njit(cache=True, nogil=True)
-    def solve_in_order(*args):
-        digest                                   # (a closure: in numba's cache key)
-        return _in_order(*args)
-    return solve_in_order
-
-
-_solve_in_order = _entry(source_digest("dfrmot_jax.metrics.common.assignment"))
 
 
 def clear_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
@@ -270,17 +257,22 @@ def _frame_matches(a, nr, nc, sim, p_gid, p_tid, g0, last_tid, last_rank, rank, 
     return n
 
 
-def _entry_kernel(digest: str):
-    """The cached entry point of :func:`_clear_pass`, keyed on the source of the module whose kernels
-    it calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
+def _entries(digest: str):
+    """The cached entry points of :func:`_in_order` and :func:`_clear_pass`, keyed on the source of the
+    module whose kernels they call too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
+    @numba.njit(cache=True, nogil=True)
+    def solve_in_order(*args):
+        digest                                   # (a closure: in numba's cache key)
+        return _in_order(*args)
+
     @numba.njit(cache=True, nogil=True)
     def clear_kernel(*args):
-        digest                                   # (a closure: in numba's cache key)
+        digest
         return _clear_pass(*args)
-    return clear_kernel
+    return solve_in_order, clear_kernel
 
 
-_clear_kernel = _entry_kernel(source_digest("dfrmot_jax.metrics.common.assignment"))
+_solve_in_order, _clear_kernel = _entries(source_digest("dfrmot_jax.metrics.common.assignment"))
 
 
 def clear_matches(b: EvalBatch) -> dict[str, np.ndarray]:
