@@ -703,3 +703,42 @@ def test_tracker_id_runs_ranked_by_table_or_by_sorting_alike():
         tid2 = tid.copy()
         tid2[i + 1], lf2[i + 1] = tid2[i], lf2[i]  # the same id twice in one lane-frame
         assert kitti._ids_by_run(runs, tid2, lf2)[3]
+
+
+@pytest.mark.parametrize("seed", [0] + [pytest.param(s, marks=pytest.mark.slow) for s in (1, 2, 3)])
+def test_compiled_identity_equals_numpy(tmp_path, seed, monkeypatch):
+    """Identity's compiled pass per (config, sequence) (co-occurrence counts, the id graph's components,
+    each solved) equals the NumPy reference on every field, bit for bit, on dense random scenes whose
+    id graphs have components of several edges (id switches); so does the fallback for a too large id
+    table."""
+    from dfrmot_jax.metrics.kitti2d import identity
+
+    b = _dense_scene_batch(tmp_path, seed)
+    hit = b.sim >= identity.THRESHOLD
+    pairs_of = np.unique(b.p_tid[hit] * len(b.gt.gid_count) + b.p_gid[hit])
+    assert len(pairs_of) > len(np.unique(b.p_gid[hit]))                  # a GT id with two tracker ids
+    want = identity.identity_sequences_numpy(b)
+    got = identity.identity_sequences(b)
+    with monkeypatch.context() as m:
+        m.setattr(identity, "MAX_TABLE", 0)
+        fallback = identity.identity_sequences(b)
+    assert want["IDTP"].sum() > 0
+    for f in want:
+        w = np.asarray(want[f])
+        for a in (np.asarray(got[f]), np.asarray(fallback[f])):
+            assert a.dtype == w.dtype and a.shape == w.shape and a.tobytes() == w.tobytes(), f
+
+
+def test_compiled_identity_matches_through_shared_ids_and_counts_overlaps_at_exactly_the_threshold():
+    """Identity's pass on a hand-made sequence: tracker id 0 overlaps GT id 0 in 3 frames and GT id 1 in 5,
+    tracker id 1 overlaps GT id 1 once and GT id 0 once at IoU exactly 0.5 (counted: TrackEval's ``>=``).
+    One component; the best one-to-one matching is (0, 1) and (1, 0): IDTP 5 + 1."""
+    from dfrmot_jax.metrics.kitti2d import identity
+
+    pairs_ = [(0, 0, 0.9)] * 3 + [(0, 1, 0.8)] * 5 + [(1, 1, 0.7), (1, 0, 0.5)]
+    n = len(pairs_)
+    tid, gid, sim = (np.array(v) for v in zip(*pairs_))
+    got = identity._identity_kernel(np.array([0, n]), np.array([0]), np.arange(n + 1), sim.astype(np.float64),
+                                    gid.astype(np.int64), tid.astype(np.int64), np.array([0, 2]), np.array([0, 2]),
+                                    identity.THRESHOLD)
+    assert got.tolist() == [6.0]

@@ -5,18 +5,23 @@ TrackEval counts, per sequence, the frames in which GT id ``g`` and tracker id `
 ``n_gt_dets + n_tr_dets - 2 * IDTP`` with ``IDTP`` the maximum total co-occurrence of a one-to-one
 id matching. All costs are integers, so the optimum (and IDTP, IDFN, IDFP) is unique and any exact
 solver gives TrackEval's numbers: here the id graph is split into connected components; a
-component with one edge is its own optimum, larger ones are solved in one compiled call
-(:func:`dfrmot_jax.metrics.common.assignment.solve_many`, maximising). Arrays: ``L`` configs, ``S`` sequences.
+component with one edge is its own optimum, larger ones are solved by scipy's assignment
+(:mod:`dfrmot_jax.metrics.common.assignment`, maximising): per (config, sequence) in one compiled pass,
+or, in the vectorised NumPy path kept as its reference, the whole batch's in one compiled call.
+Arrays: ``L`` configs, ``S`` sequences.
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from dfrmot_jax.metrics.common.assignment import solve_many
+from dfrmot_jax.metrics.common.assignment import solve_block, solve_many, workspace
+from dfrmot_jax.metrics.common.kernel_cache import source_digest
 from dfrmot_jax.metrics.common.pairs import segment_starts
+from dfrmot_jax.metrics.kitti2d.hota import MAX_TABLE
 from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
 
 THRESHOLD = 0.5
@@ -89,7 +94,25 @@ def max_matching_value(g: np.ndarray, t: np.ndarray, w: np.ndarray) -> np.ndarra
 
 
 def identity_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
-    """Identity fields per (config, sequence): arrays [L, S] (``FIELDS``; counts as int64)."""
+    """Identity fields per (config, sequence): arrays [L, S] (``FIELDS``; counts as int64), from one
+    compiled pass per (config, sequence) (:func:`_identity_kernel`); :func:`identity_sequences_numpy`
+    is the reference it is tested against. Where one sequence's (tracker id x GT id) table would pass
+    ``hota.MAX_TABLE``'s size, the NumPy path answers."""
+    gt = b.gt
+    L, S = b.n_lanes, len(gt.sequences)
+    tid_start = segment_starts(np.bincount(b.tid_lane * S + b.tid_seq, minlength=L * S))
+    if not len(b.sim) or int((np.diff(tid_start).reshape(L, S) * np.diff(gt.gid_start)[None, :]).max(initial=0)) \
+            > MAX_TABLE:
+        return identity_sequences_numpy(b)
+    idtp = _identity_kernel(b.ls_lf_start, b.ls_seq, np.ascontiguousarray(b.pair_start, np.int64),
+                            np.ascontiguousarray(b.sim, np.float64), b.p_gid, b.p_tid, tid_start,
+                            np.ascontiguousarray(gt.gid_start, np.int64), THRESHOLD)
+    return _fields(b, np.rint(idtp).astype(np.int64).reshape(L, S))
+
+
+def identity_sequences_numpy(b: EvalBatch) -> dict[str, np.ndarray]:
+    """:func:`identity_sequences` vectorised in NumPy (the id graph's components over the batch, the
+    larger ones solved in one compiled call)."""
     gt = b.gt
     L, S = b.n_lanes, len(gt.sequences)
     NG = max(len(gt.gid_count), 1)
@@ -101,7 +124,13 @@ def identity_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     lane = b.tid_lane[c_tid]
     val = max_matching_value(lane * NG + c_gid, c_tid, cnt.astype(np.float64))
     ls = lane * S + b.tid_seq[c_tid]
-    idtp = np.rint(np.bincount(ls, weights=val, minlength=L * S)).astype(np.int64).reshape(L, S)
+    return _fields(b, np.rint(np.bincount(ls, weights=val, minlength=L * S)).astype(np.int64).reshape(L, S))
+
+
+def _fields(b: EvalBatch, idtp: np.ndarray) -> dict[str, np.ndarray]:
+    """Every field from IDTP [L, S] (int64), with TrackEval's early returns."""
+    gt = b.gt
+    L, S = b.n_lanes, len(gt.sequences)
     n_gt = np.broadcast_to(gt.n_gt_dets[None, :], (L, S)).astype(np.int64)
     n_tr = b.n_tr_dets.astype(np.int64)
     res = {"IDTP": idtp, "IDFN": n_gt - idtp, "IDFP": n_tr - idtp}
@@ -114,6 +143,115 @@ def identity_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
         res["IDFN"][no_tr] = n_gt[no_tr]
         res["IDFP"][no_gt] = n_tr[no_gt]
     return res
+
+
+@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _identity_kernel)
+def _identity_pass(ls_lf_start, ls_seq, pair_start, sim, p_gid, p_tid, tid_start, gid_start, thr):
+    """IDTP of every (config, sequence) ``ls`` (lane-frames ``ls_lf_start[ls]:ls_lf_start[ls + 1]``): the
+    frames in which each (tracker id, GT id) pair overlaps with ``sim >= thr`` counted, then the
+    maximum total count of a one-to-one id matching: per connected component of the id graph, its one
+    edge's count or scipy's assignment (:func:`~dfrmot_jax.metrics.common.assignment.solve_block`,
+    maximising) of its dense (GT id x tracker id) count matrix. Counts are integers: the optimum's
+    value is unique and exact. Returns [L*S] float64."""
+    n_ls = len(ls_lf_start) - 1
+    out = np.zeros(n_ls)
+    n_table, n_pairs, n_ids = 1, 1, 1
+    for ls in range(n_ls):
+        sq = ls_seq[ls]
+        nt, ng = tid_start[ls + 1] - tid_start[ls], gid_start[sq + 1] - gid_start[sq]
+        n_table = max(n_table, nt * ng)
+        n_ids = max(n_ids, nt + ng)
+        n_pairs = max(n_pairs, pair_start[ls_lf_start[ls + 1]] - pair_start[ls_lf_start[ls]])
+    table = np.full(n_table, -1, np.int64)
+    c_key, c_n = np.empty(n_pairs, np.int64), np.empty(n_pairs)
+    parent = np.arange(n_ids)
+    comp_of = np.empty(n_pairs, np.int64)
+    local = np.full(n_ids, -1, np.int64)
+    for ls in range(n_ls):
+        sq = ls_seq[ls]
+        t0, g0, ng = tid_start[ls], gid_start[sq], gid_start[sq + 1] - gid_start[sq]
+        nt = tid_start[ls + 1] - t0
+        C = 0
+        for q in range(pair_start[ls_lf_start[ls]], pair_start[ls_lf_start[ls + 1]]):
+            if sim[q] >= thr:
+                key = (p_tid[q] - t0) * ng + (p_gid[q] - g0)
+                c = table[key]
+                if c < 0:
+                    c, C = C, C + 1
+                    table[key], c_key[c], c_n[c] = c, key, 0.0
+                c_n[c] += 1.0
+        # the id graph's components: GT id g is node g, tracker id t node ng + t
+        for v in range(ng + nt):
+            parent[v] = v
+        for c in range(C):
+            a, z = _root(parent, c_key[c] % ng), _root(parent, ng + c_key[c] // ng)
+            if a != z:
+                parent[max(a, z)] = min(a, z)
+        for c in range(C):
+            comp_of[c] = _root(parent, c_key[c] % ng)
+        out[ls] = _matching_value(C, c_key, c_n, comp_of, ng, local)
+        for c in range(C):
+            table[c_key[c]] = -1
+    return out
+
+
+@numba.njit(cache=False, nogil=True)     # (compiled into _identity_kernel)
+def _root(parent, v):
+    """The root of ``v`` in a union-find forest (paths halved)."""
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
+
+
+@numba.njit(cache=False, nogil=True)     # (compiled into _identity_kernel)
+def _matching_value(C, c_key, c_n, comp_of, ng, local):
+    """The maximum matching value of the ``C`` edges (``c_key`` = tracker id * ``ng`` + GT id, weights
+    ``c_n``), component by component (``comp_of``): one edge its weight, else scipy's assignment of the
+    component's dense count matrix. ``local`` [ng + nt] is scratch (-1 on entry and on return)."""
+    total = 0.0
+    order = np.argsort(comp_of[:C])
+    a = 0
+    while a < C:
+        e = a
+        while e < C and comp_of[order[e]] == comp_of[order[a]]:
+            e += 1
+        if e - a == 1:
+            total += c_n[order[a]]
+        else:
+            nr = nc = 0
+            for k in range(a, e):
+                g, t = c_key[order[k]] % ng, ng + c_key[order[k]] // ng
+                if local[g] < 0:
+                    local[g], nr = nr, nr + 1
+                if local[t] < 0:
+                    local[t], nc = nc, nc + 1
+            vals = np.zeros(nr * nc)
+            for k in range(a, e):
+                c = order[k]
+                vals[local[c_key[c] % ng] * nc + local[ng + c_key[c] // ng]] = c_n[c]
+            rows, cols = np.empty(min(nr, nc), np.int64), np.empty(min(nr, nc), np.int64)
+            solve_block(vals, 0, nr, nc, True, False, rows, cols, 0, workspace(max(nr, nc), nr * nc))
+            for k in range(min(nr, nc)):
+                total += vals[rows[k] * nc + cols[k]]
+            for k in range(a, e):
+                local[c_key[order[k]] % ng] = -1
+                local[ng + c_key[order[k]] // ng] = -1
+        a = e
+    return total
+
+
+def _entry(digest: str):
+    """The cached entry point of :func:`_identity_pass`, keyed on the source of the module whose kernels
+    it calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
+    @numba.njit(cache=True, nogil=True)
+    def identity_kernel(*args):
+        digest                                   # (a closure: in numba's cache key)
+        return _identity_pass(*args)
+    return identity_kernel
+
+
+_identity_kernel = _entry(source_digest("dfrmot_jax.metrics.common.assignment"))
 
 
 def identity_combine(res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
