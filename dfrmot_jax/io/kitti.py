@@ -197,7 +197,8 @@ def _parse_table(path, layouts: dict, check_dims: bool) -> tuple[tuple[str, ...]
     if cols is not None:           # any problem: the line reader below names the first (its messages need tokens)
         numeric = {n: c for c, n in zip(cols, fields) if n not in _STRING_FIELDS}
         strings = {n: c for c, n in zip(cols, fields) if n in _STRING_FIELDS}
-        columns, problems = _checked_columns(fields, numeric, None, strings, lambda r, name: "", check_dims)
+        columns, problems = _checked_columns(fields, numeric, None, strings, lambda r, name: "", check_dims,
+                                             plain=True)
         if not problems:
             return fields, columns
 
@@ -251,7 +252,8 @@ def _parse_tables(paths: Sequence, layouts: dict, check_dims: bool) -> tuple | N
     cols, starts = joined
     numeric = {n: c for c, n in zip(cols, fields) if n not in _STRING_FIELDS}
     strings = {n: c for c, n in zip(cols, fields) if n in _STRING_FIELDS}
-    columns, problems = _checked_columns(fields, numeric, None, strings, lambda r, name: "", check_dims, starts)
+    columns, problems = _checked_columns(fields, numeric, None, strings, lambda r, name: "", check_dims, starts,
+                                         plain=True)
     return None if problems else (fields, columns, starts)
 
 
@@ -318,14 +320,17 @@ def _convert(text: _Text, fields: Sequence[str], tokens: list[str], nrows: int, 
 
 
 def _checked_columns(fields: Sequence[str], col: dict, unparsable: dict | None, strings: dict,
-                     token, check_dims: bool, starts: np.ndarray | None = None) -> tuple[dict[str, np.ndarray], list]:
+                     token, check_dims: bool, starts: np.ndarray | None = None,
+                     plain: bool = False) -> tuple[dict[str, np.ndarray], list]:
     """(columns, problems ``(row, priority, field, message)``) of a table. col: numeric field -> [R] float64
     (NaN where ``unparsable[field]`` [R] bool, when given); strings: field -> [R] object str; token(r, name):
     its text. starts: the tables' first rows where the columns hold several one after the other (their
-    frames are each sorted on their own); default one table. Of cells in one row, the leftmost is named."""
+    frames are each sorted on their own); default one table. plain: read by
+    :func:`~dfrmot_jax.io.plain_table.plain_columns`, which refused non-finite numbers and empty strings
+    already. Of cells in one row, the leftmost is named."""
     numeric = [name for name in fields if name not in _STRING_FIELDS]
     problems: list[tuple[int, int, str, str]] = []
-    at = _first_cell([(name, ~np.isfinite(col[name])) for name in numeric])
+    at = None if plain else _first_cell([(name, ~np.isfinite(col[name])) for name in numeric])
     if at is not None:
         r, name = at
         what = "not a number" if unparsable is not None and unparsable[name][r] else "not finite"
@@ -335,7 +340,7 @@ def _checked_columns(fields: Sequence[str], col: dict, unparsable: dict | None, 
     # cannot hold is refused here, located, not later at write time.
     big = float(np.finfo(np.float32).max)
     with np.errstate(invalid="ignore"):
-        at = _first_cell([(name, (np.abs(col[name]) > big) & np.isfinite(col[name])) for name in numeric])
+        at = _first_cell([(name, (np.abs(col[name]) > big) & (plain or np.isfinite(col[name]))) for name in numeric])
     if at is not None:
         r, name = at
         problems.append((r, 0, name, f"outside the float32 range: {quoted(token(r, name))}"))
@@ -383,20 +388,16 @@ def _checked_columns(fields: Sequence[str], col: dict, unparsable: dict | None, 
             problems.append((r, 6, name, f"negative 3D size {name} = {quoted(token(r, name))}"))
 
     for name, vals in strings.items():
-        r = first(vals == "")
+        r = None if plain else first(vals == "")
         if r is not None:
             problems.append((r, 7, name, "empty"))
-    if problems:
-        return {}, problems
-    out: dict[str, np.ndarray] = {}
-    for name in fields:
-        if name in strings:
-            out[name] = strings[name]
-        elif name in _INT_FIELDS:
-            out[name] = col[name].astype(np.int64)
-        else:
-            out[name] = col[name]
-    return out, problems
+    return ({}, problems) if problems else (_typed(fields, col, strings), problems)
+
+
+def _typed(fields: Sequence[str], col: dict, strings: dict) -> dict[str, np.ndarray]:
+    """The checked columns by field: strings as they are, frames and ids int64, the rest float64."""
+    return {name: strings[name] if name in strings else col[name].astype(np.int64) if name in _INT_FIELDS
+            else col[name] for name in fields}
 
 
 def _first_cell(masks: list) -> tuple[int, str] | None:
