@@ -119,3 +119,27 @@ def test_certified_blocks_keep_scipys_positive_pairs():
     assert n_certified > 300                           # the certificate was taken
     with pytest.raises(ValueError, match="maximize"):
         solve_many(np.ones(1), [1], [1], positive_only=True)
+
+
+def test_match_block_takes_scipys_pairs_above_the_bound():
+    """match_block (a frame's matching, compiled callers): the pairs of scipy's assignment with an entry
+    above the bound, on random and tie-heavy blocks (crowded or not; with TrackEval's +1000 bonus) and
+    on blocks whose positive entries share no row or column (taken without the solver)."""
+    from dfrmot_jax.metrics.common.assignment import match_block, workspace
+
+    rng = np.random.default_rng(21)
+    mats = [np.abs(m) for m in _matrices(rng, 1500, 7)]
+    for _ in range(300):                               # positives on distinct rows and columns
+        nr, nc = (int(x) for x in rng.integers(1, 8, 2))
+        m = np.zeros((nr, nc))
+        d = rng.permutation(nc)[:min(nr, nc)]
+        m[np.arange(len(d)), d] = rng.random(len(d)) * (rng.random(len(d)) < 0.8)
+        mats.append(m)
+    ws = workspace(7, 49)
+    rows, cols = np.empty(7, np.int64), np.empty(7, np.int64)
+    for above in (0.0, 2.2e-16, 0.25):
+        for m in mats:
+            n = match_block(np.ascontiguousarray(m.ravel()), m.shape[0], m.shape[1], above, rows, cols, ws)
+            r, c = scipy_lsa(-m)
+            want = [(a, b) for a, b in zip(r, c) if m[a, b] > above]
+            assert list(zip(rows[:n].tolist(), cols[:n].tolist())) == want, (m, above)

@@ -30,7 +30,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["linear_sum_assignment", "solve_many", "solve_block", "workspace", "workspace_for", "TIE_MARGIN"]
+__all__ = ["linear_sum_assignment", "solve_many", "solve_block", "match_block", "workspace", "workspace_for",
+           "TIE_MARGIN"]
 
 _INVALID, _INFEASIBLE = -1, -2
 
@@ -210,6 +211,41 @@ def solve_block(values, a, nr0, nc0, maximize, positive_only, out_rows, out_cols
             out_rows[o + k] = k if c >= 0 else -1
             out_cols[o + k] = c
     return 0
+
+
+@numba.njit(cache=True, nogil=True)
+def match_block(vals, nr, nc, above, rows, cols, ws):
+    """The pairs of ``linear_sum_assignment(-S)`` with ``S > above`` (>= 0) of one block ``S = vals[:nr * nc]``
+    (row-major, >= 0), for compiled callers (a frame's matching in the metrics): where no row or column
+    holds two positive entries, those entries (every optimum holds them all: one missing could be added);
+    else :func:`solve_block` (maximising, ``positive_only``). Writes (row, column) to ``rows``, ``cols``
+    in row order; returns their number. ws: :func:`workspace`."""
+    crowded = False
+    for i in range(nr):
+        n = 0
+        for j in range(nc):
+            n += vals[i * nc + j] > 0
+        crowded = crowded or n > 1
+    for j in range(nc):
+        n = 0
+        for i in range(nr):
+            n += vals[i * nc + j] > 0
+        crowded = crowded or n > 1
+    n = 0
+    if not crowded:
+        for i in range(nr):
+            for j in range(nc):
+                if vals[i * nc + j] > above:
+                    rows[n], cols[n] = i, j
+                    n += 1
+        return n
+    solve_block(vals, 0, nr, nc, True, True, rows, cols, 0, ws)
+    for k in range(min(nr, nc)):
+        i, j = rows[k], cols[k]
+        if i >= 0 and vals[i * nc + j] > above:
+            rows[n], cols[n] = i, j
+            n += 1
+    return n
 
 
 @numba.njit(cache=True, nogil=True)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from dfrmot_jax.metrics.common.assignment import solve_block, workspace, workspace_for
+from dfrmot_jax.metrics.common.assignment import match_block, solve_block, workspace, workspace_for
 from dfrmot_jax.metrics.common.kernel_cache import source_digest
 from dfrmot_jax.metrics.common.pairs import crowded_segments, segment_pairs, segment_rows
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
@@ -165,8 +165,8 @@ def clear_sequences_numpy(b: EvalBatch) -> dict[str, np.ndarray]:
 def _clear_pass(ls_lf_start, ls_seq, pair_start, ng, nk, sim, p_gid, p_tid, gid_start, gid_count, thr, eps):
     """TrackEval's CLEAR over the frames of every (config, sequence) ``ls`` in time order: each frame
     with GT and tracker boxes (active) matched: its pairs of ``sim >= thr`` (= 0.5 - eps) where no row
-    or column holds two, else scipy's assignment (:func:`~dfrmot_jax.metrics.common.assignment.
-    solve_block`) of ``1000 * continues + sim`` (zero below ``thr``; ``continues``: the GT id was
+    or column holds two, else those of scipy's assignment (:func:`~dfrmot_jax.metrics.common.assignment.
+    match_block`) of ``1000 * continues + sim`` (zero below ``thr``; ``continues``: the GT id was
     matched to this tracker id in the previous active frame), pairs above ``0 + eps``; each match
     counted (TP; its similarity summed, pair order), an IDSW where its GT id's last match had another
     tracker id, a new run where that last match was not in the previous active frame; per GT id,
@@ -220,27 +220,10 @@ def _clear_pass(ls_lf_start, ls_seq, pair_start, ng, nk, sim, p_gid, p_tid, gid_
 @numba.njit(cache=False, nogil=True)     # (compiled into _clear_kernel)
 def _frame_matches(a, nr, nc, sim, p_gid, p_tid, g0, last_tid, last_rank, rank, thr, eps, vals, rows, cols, ws):
     """CLEAR's matches of one active frame (pairs ``a .. a + nr * nc``, its rank ``rank`` among its
-    sequence's active frames; ``last_tid`` / ``last_rank`` each local GT id's last match): (row, column)
+    sequence's active frames; ``last_tid`` / ``last_rank`` each local GT id's last match): TrackEval's
+    matrix ``1000 * continues + sim``, zero below ``thr``, matched by
+    :func:`~dfrmot_jax.metrics.common.assignment.match_block` (pairs above ``0 + eps``); (row, column)
     in ``rows``, ``cols`` in row order; returns their number (:func:`_clear_pass`)."""
-    crowded = False
-    for i in range(nr):
-        n_row = 0
-        for j in range(nc):
-            n_row += sim[a + i * nc + j] >= thr
-        crowded = crowded or n_row > 1
-    for j in range(nc):
-        n_col = 0
-        for i in range(nr):
-            n_col += sim[a + i * nc + j] >= thr
-        crowded = crowded or n_col > 1
-    n = 0
-    if not crowded:
-        for i in range(nr):
-            for j in range(nc):
-                if sim[a + i * nc + j] >= thr:
-                    rows[n], cols[n] = i, j
-                    n += 1
-        return n
     for k in range(nr * nc):
         x = sim[a + k]
         vals[k] = x if x >= thr else 0.0
@@ -248,13 +231,7 @@ def _frame_matches(a, nr, nc, sim, p_gid, p_tid, g0, last_tid, last_rank, rank, 
             g = p_gid[a + k] - g0
             if last_rank[g] == rank - 1 and last_tid[g] == p_tid[a + k]:
                 vals[k] += 1000                   # TrackEval: 1000 * continues + sim
-    solve_block(vals, 0, nr, nc, True, False, rows, cols, 0, ws)
-    for k in range(min(nr, nc)):
-        i, j = rows[k], cols[k]
-        if vals[i * nc + j] > 0 + eps:
-            rows[n], cols[n] = i, j
-            n += 1
-    return n
+    return match_block(vals, nr, nc, eps, rows, cols, ws)
 
 
 def _entries(digest: str):

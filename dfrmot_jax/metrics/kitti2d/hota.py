@@ -19,7 +19,7 @@ import numba
 import numpy as np
 import pandas as pd
 
-from dfrmot_jax.metrics.common.assignment import solve_block, workspace
+from dfrmot_jax.metrics.common.assignment import match_block, workspace
 from dfrmot_jax.metrics.common.kernel_cache import source_digest
 from dfrmot_jax.metrics.common.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
                                              pairwise_sum, segment_rows, segment_starts)
@@ -295,8 +295,8 @@ def _match(lf0, lf1, pair_start, ng, nk, sim, pos_q, pos_c, gas, c_hist, thresho
     """Steps (2) and (3) of one (config, sequence), lane-frames ``lf0:lf1``, from its positive pairs
     ``pos_q`` (pair order) and their combos ``pos_c`` (:func:`_align`; every other score is 0): each
     frame's scores ``gas * sim``; its matches: its positive scores where no row or column holds two,
-    else scipy's assignment of the frame's score matrix
-    (:func:`~dfrmot_jax.metrics.common.assignment.solve_block`), pairs of score > 0, in row order; each
+    else those of scipy's assignment of the frame's score matrix
+    (:func:`~dfrmot_jax.metrics.common.assignment.match_block`), pairs of score > 0, in row order; each
     match's alphas passed counted in ``hist`` [NA + 1] and its combo's ``c_hist``, its similarity
     summed in ``loc_hist`` (pair order)."""
     NA = len(thresholds)
@@ -322,12 +322,7 @@ def _match(lf0, lf1, pair_start, ng, nk, sim, pos_q, pos_c, gas, c_hist, thresho
             score[:nr * nc] = 0.0
             for k in range(p0, p):
                 score[pos_q[k] - a] = gas[pos_c[k]] * sim[pos_q[k]]
-            solve_block(score, 0, nr, nc, True, True, rows, cols, 0, ws)
-            for k in range(min(nr, nc)):
-                i, j = rows[k], cols[k]
-                if i >= 0 and score[i * nc + j] > 0:
-                    rows[n_match], cols[n_match] = i, j
-                    n_match += 1
+            n_match = match_block(score, nr, nc, 0.0, rows, cols, ws)
             for k in range(p0, p):             # (each match's combo)
                 for m in range(n_match):
                     if pos_q[k] == a + rows[m] * nc + cols[m]:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from dfrmot_jax.metrics.common.assignment import solve_block, workspace
+from dfrmot_jax.metrics.common.assignment import match_block, workspace
 from dfrmot_jax.metrics.common.kernel_cache import source_digest
 from dfrmot_jax.metrics.common.pairs import match_entries, segment_starts
 from dfrmot_jax.metrics.kitti2d.box_table import BoxTable, candidate_pairs
@@ -49,9 +49,8 @@ def _kept_pass(d_start, g_of_lf, row_start, row_eval, value, cand_start, cand_ro
     """Every lane-frame (its boxes ``d_start[lf]:d_start[lf + 1]``, frame ``g_of_lf[lf]``'s class rows):
     each box's candidates (the box table's: its value ``value[box]``'s class rows ``cand_row`` of
     ``IoU >= 0.5 - eps``, ``cand_iou``, from ``cand_start``); where a distractor row or a ``fragile``
-    box is among them, the frame's match on its candidate matrix (zero elsewhere: the candidates where
-    no row or column holds two, else scipy's assignment,
-    :func:`~dfrmot_jax.metrics.common.assignment.solve_block`, pairs above ``0 + eps``): a box matched
+    box is among them, the frame's match on its candidate matrix (zero elsewhere;
+    :func:`~dfrmot_jax.metrics.common.assignment.match_block`, pairs above ``0 + eps``): a box matched
     to a distractor is removed, an unmatched fragile one too. Returns [M] bool kept."""
     M = len(fragile)
     keep = np.ones(M, np.bool_)
@@ -86,7 +85,7 @@ def _kept_pass(d_start, g_of_lf, row_start, row_eval, value, cand_start, cand_ro
             v = value[d0 + j]
             for k in range(cand_start[v], cand_start[v + 1]):
                 vals[(cand_row[k] - r0) * nc + j] = cand_iou[k]
-        n = _match(vals, nr, nc, rows, cols, ws, eps)
+        n = match_block(vals, nr, nc, eps, rows, cols, ws)
         matched[:nc] = False
         for k in range(n):
             matched[cols[k]] = True
@@ -96,39 +95,6 @@ def _kept_pass(d_start, g_of_lf, row_start, row_eval, value, cand_start, cand_ro
             if fragile[d0 + j] and not matched[j]:
                 keep[d0 + j] = False
     return keep
-
-
-@numba.njit(cache=False, nogil=True)     # (compiled into _kept_kernel)
-def _match(vals, nr, nc, rows, cols, ws, eps):
-    """The pairs (row, column) of a candidate matrix ``vals`` [nr * nc] (>= 0) that the frame's matching
-    takes, in ``rows``, ``cols``; returns their number: the positive entries where no row or column
-    holds two, else scipy's assignment maximising ``vals``, its pairs above ``eps``."""
-    crowded = False
-    for i in range(nr):
-        n_row = 0
-        for j in range(nc):
-            n_row += vals[i * nc + j] > 0
-        crowded = crowded or n_row > 1
-    for j in range(nc):
-        n_col = 0
-        for i in range(nr):
-            n_col += vals[i * nc + j] > 0
-        crowded = crowded or n_col > 1
-    n = 0
-    if not crowded:
-        for i in range(nr):
-            for j in range(nc):
-                if vals[i * nc + j] > 0:
-                    rows[n], cols[n] = i, j
-                    n += 1
-        return n
-    solve_block(vals, 0, nr, nc, True, True, rows, cols, 0, ws)
-    for k in range(min(nr, nc)):
-        i, j = rows[k], cols[k]
-        if i >= 0 and vals[i * nc + j] > eps:
-            rows[n], cols[n] = i, j
-            n += 1
-    return n
 
 
 def _entry(digest: str):
