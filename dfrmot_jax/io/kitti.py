@@ -14,7 +14,7 @@ from typing import Iterator, NamedTuple, Sequence
 
 import numpy as np
 
-from .plain_table import first_line, joined_columns, plain_columns, plain_text, read_ahead
+from .plain_table import first_line, joined_columns, plain_text, read_ahead
 
 __all__ = ["KittiFormatError", "Detections2D", "Detections3D", "TrackingLabels", "Calib", "read_detections_2d",
            "read_detections_3d", "read_tracking_labels", "iter_tracking_labels", "joined_tracking_labels",
@@ -191,16 +191,9 @@ def _parse_table(path, layouts: dict, check_dims: bool) -> tuple[tuple[str, ...]
     A plain file (:mod:`dfrmot_jax.io.plain_table`) is read in one pass and checked by the same
     :func:`_checked_columns`; any problem, or any other file, is read line by line (located errors).
     """
-    data = plain_text(path)
-    sep, ncols, fields = (None, 0, None) if data is None else _layout(first_line(data), layouts)
-    cols = fields and plain_columns(data, sep, ncols, [i for i, n in enumerate(fields) if n in _STRING_FIELDS])
-    if cols is not None:           # any problem: the line reader below names the first (its messages need tokens)
-        numeric = {n: c for c, n in zip(cols, fields) if n not in _STRING_FIELDS}
-        strings = {n: c for c, n in zip(cols, fields) if n in _STRING_FIELDS}
-        columns, problems = _checked_columns(fields, numeric, None, strings, lambda r, name: "", check_dims,
-                                             plain=True)
-        if not problems:
-            return fields, columns
+    plain = _parse_tables([path], layouts, check_dims)
+    if plain is not None:          # any problem: the line reader below names the first (its messages need tokens)
+        return plain[0], plain[1]
 
     text = read_text_file(path)
     lines = text.lines
@@ -238,9 +231,10 @@ def _parse_table(path, layouts: dict, check_dims: bool) -> tuple[tuple[str, ...]
 
 
 def _parse_tables(paths: Sequence, layouts: dict, check_dims: bool) -> tuple | None:
-    """:func:`_parse_table` of several plain files of one layout at once (:func:`~dfrmot_jax.io.plain_table.joined_columns`):
-    (field names, the columns of all their rows, [n + 1] each file's first row), or None where a file
-    is not plain, the layouts differ or any check fails (each file is then read on its own)."""
+    """The one-pass path of :func:`_parse_table`, for one or several plain files of one layout at once
+    (:func:`~dfrmot_jax.io.plain_table.joined_columns`): (field names, the columns of all their rows,
+    [n + 1] each file's first row), or None where a file is not plain, the layouts differ or any check
+    fails (each file is then read line by line, which names the problem)."""
     texts = [plain_text(p) for p in paths]
     if not texts or any(t is None for t in texts):
         return None

@@ -122,8 +122,8 @@ def _decoded(col) -> np.ndarray | None:
 
 def joined_columns(texts: Sequence[bytes], sep: str | None, ncols: int,
                    string_columns: Sequence[int] = ()) -> tuple[list, np.ndarray] | None:
-    """:func:`plain_columns` of several texts (each :func:`plain_text`'s bytes) in one parse, pyarrow's
-    threads taking its blocks: (the columns of all their lines, one text after the other; [n + 1]
+    """:func:`plain_columns` of one or several texts (each :func:`plain_text`'s bytes) in one parse
+    (several: pyarrow's threads take its blocks): (the columns of all their lines, one text after the other; [n + 1]
     int64 the first line of each text and the total). None where :func:`plain_columns` of the joined
     text is None. A text's lines are its own: it ends with a newline, or one is added after it.
 
@@ -132,7 +132,7 @@ def joined_columns(texts: Sequence[bytes], sep: str | None, ncols: int,
     texts = [t if t.endswith(b"\n") else t + b"\n" for t in texts]
     starts = np.zeros(len(texts) + 1, dtype=np.int64)
     np.cumsum([np.count_nonzero(np.frombuffer(t, np.uint8) == 10) for t in texts], out=starts[1:])   # (3x bytes.count)
-    cols = plain_columns(b"".join(texts), sep, ncols, string_columns, threads=True)
+    cols = plain_columns(b"".join(texts), sep, ncols, string_columns, threads=len(texts) > 1)
     return None if cols is None else (cols, starts)
 
 

@@ -34,7 +34,7 @@ from typing import Iterator, NamedTuple, Sequence
 import numpy as np
 
 from .kitti import KittiFormatError, quoted, read_text_file
-from .plain_table import first_line, joined_columns, plain_columns, plain_text, read_ahead
+from .plain_table import first_line, joined_columns, plain_text, read_ahead
 
 __all__ = ["ResultRows", "read_result_rows", "iter_result_rows", "parse_floats", "MIN_COLUMNS"]
 
@@ -91,18 +91,9 @@ def read_result_rows(path) -> ResultRows:
     (:mod:`dfrmot_jax.io.plain_table`) is read in one pass and checked by the same :func:`_kept_rows`;
     any problem, or any other file, is read line by line.
     """
-    data = plain_text(path)
-    first = "" if data is None else first_line(data)
-    sep = "," if "," in first else None
-    width = len(first.split(sep))
-    cols = plain_columns(data, sep, width, (2,)) if width >= MIN_COLUMNS else None
-    if cols is not None:       # any problem: the line reader below names the first (its messages need tokens)
-        n = len(cols[0])
-        kept, problems = _kept_rows(np.full(n, width), lambda j, rows: (cols[j][rows], np.ones(len(rows), bool)),
-                                    lambda r, j: "", range(1, n + 1))
-        if not problems:
-            frame, track_id, box, keep = kept
-            return ResultRows(frame, track_id, cols[2][keep], box, keep)
+    plain = _joined_rows([path])
+    if plain is not None:      # any problem: the line reader below names the first (its messages need tokens)
+        return plain[0]
 
     text = read_text_file(path)
     lines = text.lines
@@ -156,8 +147,9 @@ def iter_result_rows(paths: Sequence, ahead: bool = False) -> Iterator[ResultRow
 
 
 def _joined_rows(paths: list) -> list[ResultRows] | None:
-    """The kept rows of every file of ``paths`` from one parse, or None (module docstring: as
-    :func:`iter_result_rows` says)."""
+    """The kept rows of every file of ``paths`` (one or several) from one parse, or None where a file is
+    not plain, the files' separators or column counts differ or any check fails (as
+    :func:`iter_result_rows` says; each file is then read line by line, which names the problem)."""
     texts = [plain_text(p) for p in paths]
     if any(t is None for t in texts):
         return None
