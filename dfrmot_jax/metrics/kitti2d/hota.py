@@ -22,9 +22,9 @@ import pandas as pd
 from dfrmot_jax.metrics.common.assignment import match_block, workspace
 from dfrmot_jax.metrics.common.kernel_cache import source_digest
 from dfrmot_jax.metrics.common.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
-                                             pairwise_sum, segment_rows, segment_starts)
+                                             pairwise_sum, segment_rows)
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
-from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
+from dfrmot_jax.metrics.kitti2d.kitti import MAX_ID_TABLE, EvalBatch
 
 ALPHAS = np.arange(0.05, 0.99, 0.05)  # TrackEval's array_labels, [19]
 NA = len(ALPHAS)
@@ -32,9 +32,7 @@ FLOAT_ARRAY_FIELDS = ("HOTA", "DetA", "AssA", "DetRe", "DetPr", "AssRe", "AssPr"
 INTEGER_ARRAY_FIELDS = ("HOTA_TP", "HOTA_FN", "HOTA_FP")
 FLOAT_FIELDS = ("HOTA(0)", "LocA(0)", "HOTALocA(0)")
 FIELDS = FLOAT_ARRAY_FIELDS + INTEGER_ARRAY_FIELDS + FLOAT_FIELDS
-#: the most entries of one (config, sequence)'s (tracker id x GT id) table in the compiled pass (int64,
-#: 128 MB); a larger one is scored by the NumPy path
-MAX_TABLE = 1 << 24
+MAX_TABLE = MAX_ID_TABLE       # (the compiled pass's limit: kitti.MAX_ID_TABLE)
 
 
 def _final_fields(res: dict) -> dict:
@@ -65,15 +63,13 @@ def hota_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     (tracker id, GT id) table would pass :data:`MAX_TABLE` entries, the NumPy path answers."""
     gt = b.gt
     L, S = b.n_lanes, len(gt.sequences)
-    tid_start = segment_starts(np.bincount(b.tid_lane * S + b.tid_seq, minlength=L * S))
-    n_gid = np.diff(gt.gid_start)
-    if not len(b.sim) or int((np.diff(tid_start).reshape(L, S) * n_gid[None, :]).max(initial=0)) > MAX_TABLE:
+    if not len(b.sim) or b.id_table_size > MAX_TABLE:
         return hota_sequences_numpy(b)
     hist, loc_hist, ass = _hota_kernel(
         b.ls_lf_start, b.ls_seq, np.ascontiguousarray(b.pair_start, np.int64),
         np.ascontiguousarray(b.lf_eval_count, np.int64), np.ascontiguousarray(b.det_count, np.int64),
         np.ascontiguousarray(b.sim, np.float64), b.p_gid, b.p_tid,
-        np.ascontiguousarray(gt.gid_count, np.float64), np.ascontiguousarray(b.tid_count, np.float64), tid_start,
+        np.ascontiguousarray(gt.gid_count, np.float64), np.ascontiguousarray(b.tid_count, np.float64), b.ls_tid_start,
         np.ascontiguousarray(gt.gid_start, np.int64), ALPHAS - EPS, EPS)
     res = _fields(b, hist.reshape(L, S, NA + 1), loc_hist.reshape(L, S, NA + 1), ass)
     return _early_sequences(b, res)

@@ -21,13 +21,13 @@ from scipy.sparse.csgraph import connected_components
 from dfrmot_jax.metrics.common.assignment import solve_block, solve_many, workspace
 from dfrmot_jax.metrics.common.kernel_cache import source_digest
 from dfrmot_jax.metrics.common.pairs import segment_starts
-from dfrmot_jax.metrics.kitti2d.hota import MAX_TABLE
-from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
+from dfrmot_jax.metrics.kitti2d.kitti import MAX_ID_TABLE, EvalBatch
 
 THRESHOLD = 0.5
 INTEGER_FIELDS = ("IDTP", "IDFN", "IDFP")
 FLOAT_FIELDS = ("IDF1", "IDR", "IDP")
 FIELDS = FLOAT_FIELDS + INTEGER_FIELDS
+MAX_TABLE = MAX_ID_TABLE       # (the compiled pass's limit: kitti.MAX_ID_TABLE)
 
 
 def _final_fields(res: dict) -> dict:
@@ -97,15 +97,13 @@ def identity_sequences(b: EvalBatch) -> dict[str, np.ndarray]:
     """Identity fields per (config, sequence): arrays [L, S] (``FIELDS``; counts as int64), from one
     compiled pass per (config, sequence) (:func:`_identity_kernel`); :func:`identity_sequences_numpy`
     is the reference it is tested against. Where one sequence's (tracker id x GT id) table would pass
-    ``hota.MAX_TABLE``'s size, the NumPy path answers."""
+    :data:`MAX_TABLE` entries, the NumPy path answers."""
     gt = b.gt
     L, S = b.n_lanes, len(gt.sequences)
-    tid_start = segment_starts(np.bincount(b.tid_lane * S + b.tid_seq, minlength=L * S))
-    if not len(b.sim) or int((np.diff(tid_start).reshape(L, S) * np.diff(gt.gid_start)[None, :]).max(initial=0)) \
-            > MAX_TABLE:
+    if not len(b.sim) or b.id_table_size > MAX_TABLE:
         return identity_sequences_numpy(b)
     idtp = _identity_kernel(b.ls_lf_start, b.ls_seq, np.ascontiguousarray(b.pair_start, np.int64),
-                            np.ascontiguousarray(b.sim, np.float64), b.p_gid, b.p_tid, tid_start,
+                            np.ascontiguousarray(b.sim, np.float64), b.p_gid, b.p_tid, b.ls_tid_start,
                             np.ascontiguousarray(gt.gid_start, np.int64), THRESHOLD)
     return _fields(b, np.rint(idtp).astype(np.int64).reshape(L, S))
 

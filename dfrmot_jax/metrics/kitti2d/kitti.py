@@ -73,6 +73,11 @@ MAX_OCCLUSION = 2
 MAX_TRUNCATION = 0
 
 
+#: the most entries of one (config, sequence)'s (tracker id x GT id) table in the compiled metric passes
+#: (int64: 128 MB); a larger one is scored by the NumPy paths
+MAX_ID_TABLE = 1 << 24
+
+
 class DuplicateIdError(ValueError):
     """A tracker id occurs twice in one frame after preprocessing (TrackEval refuses this too)."""
 
@@ -399,6 +404,20 @@ class EvalBatch:
         """[L*S + 1] the first lane-frame of each (lane, sequence) ``ls = lane * S + s``, and ``L * F``."""
         L, F = self.n_lanes, self.gt.n_frames
         return np.append((np.arange(L, dtype=np.int64)[:, None] * F + self.gt.offsets[None, :-1]).reshape(-1), L * F)
+
+    @cached_property
+    def ls_tid_start(self) -> np.ndarray:
+        """[L*S + 1] the first tracker id index of each (lane, sequence) (ids are numbered by it)."""
+        S = len(self.gt.sequences)
+        return segment_starts(np.bincount(self.tid_lane * S + self.tid_seq, minlength=self.n_lanes * S))
+
+    @property
+    def id_table_size(self) -> int:
+        """The largest (tracker id x GT id) table of one (lane, sequence): entries a compiled pass
+        indexes (:data:`MAX_ID_TABLE`)."""
+        S = len(self.gt.sequences)
+        n_tid = np.diff(self.ls_tid_start).reshape(self.n_lanes, S)
+        return int((n_tid * np.diff(self.gt.gid_start)[None, :]).max(initial=0))
 
     @cached_property
     def ls_seq(self) -> np.ndarray:

@@ -16,7 +16,7 @@ from dfrmot_jax.metrics.common.pairs import segment_starts
 from dfrmot_jax.metrics.kitti2d.evaluate import (PoolParts, combine_sequences, evaluate_lanes, lane_slice, result_dicts,
                                                  run_in_worker, worker_pool)
 from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets
-from dfrmot_jax.metrics.kitti2d.padded import check_arrays, tracker_dets_from_arrays
+from dfrmot_jax.metrics.kitti2d.padded import check_arrays, frames_aligned, tracker_dets_from_arrays
 from dfrmot_jax.metrics.kitti2d.similarity import parse_similarity
 from dfrmot_jax.rows import Rows, lane_values
 
@@ -261,8 +261,7 @@ def evaluate_arrays(gt: PreparedGT, ids, boxes, seq_offsets=None, *, box3d=None,
     B = ids.shape[0]
     if B == 0:
         return []
-    if not isinstance(boxes, Rows) and np.ndim(boxes) == 4 and ids.shape[1] == gt.n_frames and np.array_equal(
-            seq_offsets, gt.offsets[:-1]):
+    if not isinstance(boxes, Rows) and np.ndim(boxes) == 4 and frames_aligned(gt, ids.shape[1], seq_offsets):
         boxes = Rows.of(ids, boxes)      # the rows gathered once, for the digests and the scoring alike
     sc = LaneScorer(gt, seq_offsets, max(1, int(lanes_per_batch)), similarity)
     # a repeated output repeats its ids: the boxes are hashed only when some ids repeat

@@ -12,7 +12,7 @@ from dfrmot_jax.metrics.common.fields3d import FIELDS_3D, box3d_problem, no_box_
 from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets
 from dfrmot_jax.rows import Rows
 
-__all__ = ["check_arrays", "tracker_dets_from_arrays"]
+__all__ = ["check_arrays", "frames_aligned", "tracker_dets_from_arrays"]
 
 
 def check_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets) -> np.ndarray:
@@ -38,6 +38,12 @@ def check_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets
     return seq_offsets
 
 
+def frames_aligned(gt: PreparedGT, n_frames: int, seq_offsets) -> bool:
+    """Whether padded output's ``n_frames`` frames are the ground truth's sequences back to back
+    (``seq_offsets`` their starts): its frame t is the ground truth's global frame t."""
+    return n_frames == gt.n_frames and np.array_equal(seq_offsets, gt.offsets[:-1])
+
+
 def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray, seq_offsets,
                              box3d: np.ndarray | None = None) -> TrackerDets:
     """Flatten padded tracker output into :class:`TrackerDets`.
@@ -54,7 +60,7 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
     ids = np.asarray(ids)
     B, T, K = ids.shape
     S = len(gt.sequences)
-    aligned = np.array_equal(seq_offsets, gt.offsets[:-1]) and T == gt.n_frames     # T is the sequences' frames
+    aligned = frames_aligned(gt, T, seq_offsets)
     if isinstance(boxes, Rows) and not aligned:
         boxes = boxes.dense(ids)        # (frames taken apart from the rows: gathered from the padded form)
     boxes = boxes if isinstance(boxes, Rows) else np.asarray(boxes)
