@@ -17,6 +17,7 @@ import pytest
 
 from dfrmot_jax.sweep import (COMBINED, HASH_VERSION, HashVersionError, expand, hash_version, load_results, run_sweep,
                               sweep_report)
+from dfrmot_jax.report.stored import read_ledger
 from dfrmot_jax.synthetic import make_scene
 from dfrmot_jax.testing.cli import kill_when
 
@@ -42,6 +43,11 @@ def _cmd(toml: Path, out: Path) -> list[str]:
             "--workers", "0", "--no-progress"]
 
 
+def _recorded_chunks(out: Path) -> list[str]:
+    """The chunk files the sweep directory's ledger records (what a rerun counts as done)."""
+    return [n for n in read_ledger(out) if n.startswith("chunks/") and (out / n).is_file()]
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGKILL")
 def test_killed_sweep_resumes_to_the_same_table(tmp_path):
@@ -53,11 +59,13 @@ def test_killed_sweep_resumes_to_the_same_table(tmp_path):
 
     proc = subprocess.Popen(_cmd(toml, out), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     chunks = out / "chunks"
-    kill_when(proc, lambda: chunks.is_dir() and any(chunks.glob("*.parquet")), timeout=240, poll=0.005)
+    kill_when(proc, lambda: len(_recorded_chunks(out)) > 0, timeout=240, poll=0.005)
     proc.wait(timeout=60)
     log = proc.stdout.read().decode()
     assert proc.returncode == -signal.SIGKILL, f"the sweep was not killed mid-run (rc {proc.returncode}):\n{log}"
-    left = len(list(chunks.glob("*.parquet")))
+    # finished: a chunk file in place and recorded (one put in place, its record not yet written when
+    # the kill came, is recomputed: the rerun names it)
+    left = len(_recorded_chunks(out))
     assert 1 <= left < N_CHUNKS, f"{left} chunks finished before the kill: the run was not interrupted"
     assert not (out / "results.parquet").exists()
 
