@@ -15,7 +15,7 @@ import numpy as np
 
 from . import distort
 from .core.devices import default_lanes_per_call, setup_host_devices
-from .data import Frames, Split, compact_slots, object_slots, prepare_frames
+from .data import Frames, Split, compact_frames, object_slots, prepare_frames
 from .config import (MAX_CAPACITY, MIN_CAPACITY, OBJECT_PARAMS, Options, Params, as_arrays, batch_size, keep_thresholds,
                      validate_params)
 from .results import output_boxes
@@ -117,7 +117,7 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     small_frames_min: frames with few detections run on a smaller copy of the step on splits of at
     least this many frames (None: one size); the results are the same, only the speed differs.
     compact: track a ``Split`` compacted to the batch's loosest score thresholds
-    (:func:`dfrmot_jax.data.compact_slots`: the detections no lane keeps dropped, the rest packed to
+    (:func:`dfrmot_jax.data.compact_frames`: the detections no lane keeps dropped, the rest packed to
     the front) and give the output back in the split's own slot layout: the same result, fewer dead
     slots per step (not with a distortion or the Hungarian assignment).
     chunk: deprecated name of ``lanes_per_call`` (kept for one release, with a ``DeprecationWarning``).
@@ -185,7 +185,7 @@ def _inputs(split: Split | Frames, params: Params, options: Options, compact: bo
     b = batch_size(params)
     packed = None
     if compact and isinstance(split, Split) and distortion is None and options.assign != "hungarian":
-        packed = _compacted(split, params, options)
+        packed = _compacted(split, frames, params, options)
     full_frames = frames
     if packed is not None:
         frames = packed[0]
@@ -279,14 +279,14 @@ class _Outputs:
                            frames=frames, options=options)
 
 
-def _compacted(split: Split, params: Params, options: Options):
+def _compacted(split: Split, frames: Frames, params: Params, options: Options):
     """(frames of the split compacted to the lanes' loosest thresholds, order2, order3), or None
-    when that saves no slot (:func:`dfrmot_jax.data.compact_slots`)."""
+    when that saves no slot (:func:`dfrmot_jax.data.compact_frames`; ``frames``: the split's own)."""
     s2, s3 = (float(np.min(s)) for s in keep_thresholds(params))
-    packed, order2, order3 = compact_slots(split, s2, s3)
-    if order2.shape[1] + order3.shape[1] >= split.valid2d.shape[1] + split.valid3d.shape[1]:
+    packed = compact_frames(split, frames, options, s2, s3)
+    if packed[1].shape[1] + packed[2].shape[1] >= split.valid2d.shape[1] + split.valid3d.shape[1]:
         return None
-    return prepare_frames(packed, options), order2, order3
+    return packed
 
 
 def _full_layout(got: dict, order2: np.ndarray, order3: np.ndarray, frames: Frames, options: Options) -> dict:

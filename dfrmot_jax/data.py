@@ -321,21 +321,55 @@ def compact_slots(split: Split, score_2d: float, score_3d: float) -> tuple[Split
     [T, M3']), ``order[t, j]`` the original slot of frame t's compacted slot j (every original slot
     at most once per frame; padding slots name slots no setting keeps)."""
     fields: dict = {}
-    orders = []
-    for keep, valid_name, pads in (
-            (split.valid2d & (split.score2d.astype(np.float32) >= np.float32(score_2d)), "valid2d", _PAD_2D),
-            (split.valid3d & (split.score3d.astype(np.float32) >= np.float32(score_3d)), "valid3d", _PAD_3D)):
-        m = max(1, int(keep.sum(axis=1).max(initial=0)))
-        order = np.argsort(~keep, axis=1, kind="stable")[:, :m]          # kept slots first, in slot order
-        orders.append(order)
-        valid = np.take_along_axis(keep, order, axis=1)
+    kept = kept_slots(split, score_2d, score_3d)
+    for (order, valid), valid_name, pads in zip(kept, ("valid2d", "valid3d"), (_PAD_2D, _PAD_3D)):
         fields[valid_name] = valid
         for name, pad in pads.items():
-            a = getattr(split, name)
-            extra = (1,) * (a.ndim - 2)
-            v = np.take_along_axis(a, order.reshape(order.shape + extra), axis=1)
-            fields[name] = np.where(valid.reshape(valid.shape + extra), v, np.asarray(pad, a.dtype))
-    return split._replace(**fields), orders[0], orders[1]
+            fields[name] = _take_slots(getattr(split, name), order, valid, pad)
+    return split._replace(**fields), kept[0][0], kept[1][0]
+
+
+def kept_slots(split: Split, score_2d: float, score_3d: float) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """((order2, valid2), (order3, valid3)) of :func:`compact_slots`: ``order [T, M']`` each frame's
+    kept slots (valid, score >= the threshold, compared in float32 as the step does) first, in slot
+    order, cut to the most any frame keeps; ``valid [T, M']`` the compacted slot holds a kept one."""
+    out = []
+    for keep in (split.valid2d & (split.score2d.astype(np.float32) >= np.float32(score_2d)),
+                 split.valid3d & (split.score3d.astype(np.float32) >= np.float32(score_3d))):
+        m = max(1, int(keep.sum(axis=1).max(initial=0)))
+        order = np.argsort(~keep, axis=1, kind="stable")[:, :m]          # kept slots first, in slot order
+        out.append((order, np.take_along_axis(keep, order, axis=1)))
+    return tuple(out)
+
+
+def _take_slots(a: np.ndarray, order: np.ndarray, valid: np.ndarray, pad) -> np.ndarray:
+    """[T, M', ...] the values of ``a [T, M, ...]`` at each frame's slots ``order``, ``pad`` where not ``valid``."""
+    t, m = a.shape[:2]
+    flat = (order + (np.arange(t) * m)[:, None]).ravel()          # one gather of whole slots
+    v = np.take(a.reshape((t * m,) + a.shape[2:]), flat, axis=0).reshape(order.shape + a.shape[2:])  # (np.take: ~5x
+    # faster than fancy indexing on rows of several values)
+    v[~valid] = np.asarray(pad, a.dtype)
+    return v
+
+
+def compact_frames(split: Split, frames: Frames, options: Options, score_2d: float,
+                   score_3d: float) -> tuple[Frames, np.ndarray, np.ndarray]:
+    """(``prepare_frames(compact_split(split, ...), options)``, order2, order3) made from the split's
+    prepared ``frames`` (``prepare_frames(split, options)``) instead: the same arrays bit for bit
+    (every prepared value is a function of its own slot's values, and an empty slot holds what a
+    prepared empty slot of the split holds), with the split's fields not read by the tracker never
+    moved and no second preparation (``track`` at B = 1: ~30 ms less of ~180 ms)."""
+    (order2, keep2), (order3, keep3) = kept_slots(split, score_2d, score_3d)
+    lo_pad, hi_pad = box3d_extent(np.array([_PAD_3D["dims3d"]] * 3, np.float64).reshape(1, 3),
+                                  np.asarray(_PAD_3D["loc3d"], np.float64).reshape(1, 3), options.centroid)
+    valid3 = keep3 & np.take_along_axis(frames.valid3, order3, axis=1)     # a kept box must be finite too
+    return Frames(
+        reset=frames.reset.copy(),
+        box2=_take_slots(frames.box2, order2, keep2, 0.0), score2=_take_slots(frames.score2, order2, keep2, 0.0),
+        valid2=keep2,
+        box3=_take_slots(frames.box3, order3, keep3, 0.0), score3=_take_slots(frames.score3, order3, keep3, 0.0),
+        valid3=valid3, lo3=_take_slots(frames.lo3, order3, keep3, lo_pad[0]),
+        hi3=_take_slots(frames.hi3, order3, keep3, hi_pad[0])), order2, order3
 
 
 # ---------------------------------------------------------------------------------------------

@@ -77,3 +77,44 @@ def test_default_sequences_are_those_with_the_class(kitti_root):
 def test_whole_training_split_packs(kitti_root):
     split = load_split(kitti_root, "rrc", "pointrcnn", "car", [f"{i:04d}" for i in range(21)])
     assert split.n_frames == 8008 and split.box2d.shape[1] == 14 and split.box3d.shape[1] == 19
+
+
+def _frames_equal(a, b):
+    for name in a._fields:
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.dtype == y.dtype and x.shape == y.shape, name
+        np.testing.assert_array_equal(x.view(np.uint8) if x.dtype != bool else x,
+                                      y.view(np.uint8) if y.dtype != bool else y, err_msg=name)   # bit for bit
+
+
+@pytest.mark.parametrize("options", [Options(), Options(truncate=False, merge="calib_projection", centroid="kitti"),
+                                     Options(centroid="head", modality="3d")])
+def test_compact_frames_equal_preparing_the_compacted_split(root, options):
+    """``compact_frames`` (what ``track`` runs on) is ``prepare_frames(compact_split(...))`` bit for bit,
+    empty slots and a kept 3D detection with a non-finite image box included, with the same slot orders."""
+    from dfrmot_jax.data import compact_frames, compact_slots
+
+    split = pack(load_sequences(root, "synth2d", "synth3d", "car"))
+    t, j = np.argwhere(split.valid3d & (split.score3d >= 8.0))[3]
+    split.proj3d[t, j, 2] = np.inf      # a kept detection whose projected box is not finite: invalid when prepared
+    split.box3d[t, j, 0] = np.nan
+    for s2, s3 in ((0.9, 8.0), (0.0, -5.0), (0.97, 0.2)):
+        packed, order2, order3 = compact_slots(split, s2, s3)
+        frames, o2, o3 = compact_frames(split, prepare_frames(split, options), options, s2, s3)
+        assert packed.valid2d.shape[1] < split.valid2d.shape[1] or s2 == 0.0
+        np.testing.assert_array_equal(o2, order2)
+        np.testing.assert_array_equal(o3, order3)
+        _frames_equal(frames, prepare_frames(packed, options))
+        assert not frames.valid3[t][order3[t] == j].any()
+
+
+def test_compact_frames_equal_on_kitti(kitti_root):
+    """The same on KITTI car's two densest sequences at the grid's loosest thresholds."""
+    from dfrmot_jax.data import compact_frames, compact_slots
+
+    split = pack(load_sequences(kitti_root, "rrc", "pointrcnn", "car", ["0019", "0020"]))
+    options = Options()
+    packed, *_ = compact_slots(split, 0.25, 4.0)
+    frames, *_ = compact_frames(split, prepare_frames(split, options), options, 0.25, 4.0)
+    assert frames.valid3.shape[1] < split.valid3d.shape[1]
+    _frames_equal(frames, prepare_frames(packed, options))

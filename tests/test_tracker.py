@@ -297,7 +297,7 @@ def test_track_compacts_the_split_and_gives_the_output_back_in_its_own_layout(sc
     rng = np.random.default_rng(23)
     batch = stack_params([random_params(rng, options.output)._replace(score_2d=0.6, score_3d=5.0)
                           for _ in range(3)])
-    assert api._compacted(split, batch, options) is not None, "nothing to compact: the test would prove nothing"
+    assert api._compacted(split, prepare_frames(split, options), batch, options) is not None, "nothing to compact: the test would prove nothing"
     packed = track(split, batch, options, detail=True)
     plain = track(split, batch, options, detail=True, compact=False)
     assert np.any(packed.ids >= 0) and packed.ids.shape == plain.ids.shape

@@ -238,13 +238,14 @@ def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: boo
 
 def _lanes(tree, b: int, pad: int, float_dtype):
     """Leaves broadcast to [b] and padded with copies of the last lane to b + pad: integers as int32,
-    floats as ``float_dtype`` (float64 ``Params`` need the caller's ``jax.enable_x64`` scope)."""
+    floats as ``float_dtype`` (float64 ``Params`` need the caller's ``jax.enable_x64`` scope); made on
+    the host and placed in one transfer."""
     out = []
     for v in tree:
         v = np.broadcast_to(np.atleast_1d(np.asarray(v)), (b,))
         v = np.concatenate([v, np.repeat(v[-1:], pad)])
-        out.append(jnp.asarray(v, jnp.int32 if v.dtype.kind in "iub" else float_dtype))
-    return type(tree)(*out)
+        out.append(v.astype(np.int32 if v.dtype.kind in "iub" else np.dtype(float_dtype)))
+    return type(tree)(*jax.device_put(out))
 
 
 def _shards(x: jax.Array, b: int):
@@ -316,7 +317,7 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
         if objs is not None and hook is not None:
             raise ValueError("objects made outside the scan cannot follow a frame hook")
         program = compiled(options, capacity, n_dev, fn, detail, small, objs is not None, platform)
-        out, overflow, peak = program(p, Frames(*(jnp.asarray(x) for x in frames)), lanes, xs, flags, objs)
+        out, overflow, peak = program(p, Frames(*jax.device_put(tuple(np.asarray(x) for x in frames))), lanes, xs, flags, objs)
     ids = _to_host(out.ids, b)
     packed = {"boxes", "box3"} if rows_only else set()
     out = out._replace(**{f: (_rows_to_host(v, ids) if f in packed and v.shape[2] else ids if f == "ids" else _to_host(v, b))
