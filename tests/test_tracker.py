@@ -7,6 +7,7 @@ import pytest
 
 from dfrmot_jax.core import run as tracker
 from dfrmot_jax.core.devices import batch_devices
+from dfrmot_jax.core.step import Frames
 from dfrmot_jax.api import default_capacity, track
 from dfrmot_jax.data import load_sequences, pack, prepare_frames
 from dfrmot_jax.config import OBJECT_PARAMS, Options, Params, stack_params
@@ -60,16 +61,33 @@ def test_weak_detections_track_like_the_oracle(scene, options):
     assert not np.array_equal(both.ids[0], both.ids[1]), "the weak detections changed nothing: the test proves nothing"
 
 
+def _three_sizes(frames, options, min_frames=None, max_sizes=3):
+    """A plan of three smaller steps for the scene (its own plan has one): frames in the first size
+    that holds their detections (None without small frames, as ``small_frames``)."""
+    if min_frames is None or options.assign == "hungarian":
+        return None
+    sizes = ((1, 1), (3, 2), (5, 4))
+    last = [np.where(v.any(1), v.shape[1] - np.argmax(v[:, ::-1], axis=1), 0) for v in (frames.valid2, frames.valid3)]
+    bucket = np.full(last[0].shape, len(sizes), np.int32)
+    for k in reversed(range(len(sizes))):
+        bucket[(last[0] <= sizes[k][0]) & (last[1] <= sizes[k][1])] = k
+    return sizes, bucket
+
+
 @pytest.mark.slow
-def test_small_frames_track_like_the_oracle_and_like_one_size(scene):
-    """Frames with few detections run on a smaller copy of the step (``core.run.small_frames``, on
-    for long splits; forced here): the oracle's tracks id for id, and the same arrays as one size,
-    for random settings, the rows' 3D sources (``detail``) included (the KITTI parity tests run it
-    on all 21 sequences, where it is on)."""
+@pytest.mark.parametrize("plan", ["own", "three sizes"])
+def test_small_frames_track_like_the_oracle_and_like_one_size(scene, plan, monkeypatch):
+    """Frames with few detections run on smaller copies of the step (``core.run.small_frames``, on
+    for long splits; forced here, with the scene's own plan and with three sizes): the oracle's tracks
+    id for id, and the same arrays as one size, for random settings, the rows' 3D sources
+    (``detail``) included (the KITTI parity tests run it on all 21 sequences, where it is on)."""
     _, seqs, split = scene
     frames = prepare_frames(split, Options())
+    if plan == "three sizes":
+        monkeypatch.setattr(tracker, "small_frames", _three_sizes)
     found = tracker.small_frames(frames, Options(), min_frames=0)
-    assert found is not None and 0 < found[1].mean() < 1, "the scene has no small frames to run"
+    assert found is not None and 0 < np.mean(found[1] < len(found[0])) < 1, "the scene has no small frames to run"
+    assert plan == "own" or np.all(np.bincount(found[1], minlength=4) > 0), "a size holds no frame"
     rng = np.random.default_rng(31)
     carried = 0
     for params, options in random_settings(rng, 2) + [(Params(), Options()), (Params(), Options(output="filtered"))]:
@@ -307,3 +325,36 @@ def test_track_compacts_the_split_and_gives_the_output_back_in_its_own_layout(sc
         a, b = getattr(packed, name), getattr(plain, name)
         if a is not None:
             np.testing.assert_array_equal(a, b, err_msg=name)
+
+
+def test_small_frame_plan_nests_its_sizes_and_puts_each_frame_in_the_first_that_holds_it():
+    """``small_frames``: nested sizes (each larger in one count, smaller in none), every frame in the
+    first size holding its last valid 2D and 3D slots (or the full step), a further size only when it
+    lowers the expected slots per step; one size is the best single size found by brute force."""
+    rng = np.random.default_rng(4)
+    T, m2, m3 = 4000, 14, 13
+    # KITTI-like: most frames hold at most 1, 4 or 8 detections of each kind, a tenth up to all slots
+    most = np.array([1, 4, 8, 14])[rng.choice(4, T, p=[0.35, 0.35, 0.2, 0.1])]
+    n2, n3 = np.minimum(rng.integers(0, most + 1), m2), np.minimum(rng.integers(0, most + 1), m3)
+    valid2 = np.arange(m2)[None, :] < n2[:, None]
+    valid3 = np.arange(m3)[None, :] < n3[:, None]
+    frames = Frames(np.zeros(T, bool), np.zeros((T, m2, 4), np.float32), np.zeros((T, m2), np.float32), valid2,
+                    np.zeros((T, m3, 4), np.float32), np.zeros((T, m3), np.float32), valid3,
+                    np.zeros((T, m3, 3), np.float32), np.zeros((T, m3, 3), np.float32))
+    expected = []
+    for k in (1, 2, 3):
+        sizes, bucket = tracker.small_frames(frames, Options(), min_frames=0, max_sizes=k)
+        assert len(sizes) == k
+        for (a2, a3), (b2, b3) in zip(sizes, sizes[1:]):
+            assert a2 <= b2 and a3 <= b3 and (a2, a3) != (b2, b3)
+        fits = np.array([(n2 <= a2) & (n3 <= a3) for a2, a3 in sizes] + [np.ones(T, bool)])
+        np.testing.assert_array_equal(bucket, np.argmax(fits, axis=0))
+        expected.append(np.array([a + b for a, b in sizes] + [m2 + m3])[bucket].mean())
+    assert expected[0] > expected[1] > expected[2], expected
+    brute = min(np.mean(np.where((n2 <= a2) & (n3 <= a3), a2 + a3, m2 + m3))
+                for a2 in range(1, m2 + 1) for a3 in range(1, m3 + 1))
+    assert np.isclose(expected[0], brute)
+    assert tracker.small_frames(frames, Options(assign="hungarian"), min_frames=0) is None
+    one = frames._replace(valid2=valid2[:, :1], valid3=valid3[:, :1])       # one slot of each: nothing smaller
+    assert tracker.small_frames(one, Options(), min_frames=0) is None
+    assert tracker.small_frames(frames, Options(), min_frames=T + 1) is None

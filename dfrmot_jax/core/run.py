@@ -4,15 +4,16 @@ per static setting (``Options``, capacity, devices, hook, detail, small-frame si
 
 Small frames: most frames hold few detections, but every step pays for the [objects, tracks]
 work of the largest frame. Frames whose valid detections all sit in the first ``m2`` 2D and ``m3``
-3D slots (a per-frame flag, the same for every lane) run a second copy of the step on those
-slots only (``lax.cond`` on an unbatched flag keeps its branches under ``vmap``); its output slots
-are padded back to the full layout. The result is the same: the slots left out hold no valid
+3D slots of one of up to three sizes (a per-frame size index, the same for every lane) run a copy
+of the step on those slots only (``lax.switch`` on an unbatched index keeps its branches under
+``vmap``); its output slots are padded back to the full layout. The result is the same: the slots left out hold no valid
 detection, and every order (greedy ties, births) follows the slot order, which is kept.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 from typing import Any, NamedTuple
 
 import jax
@@ -39,18 +40,25 @@ class FrameHook(NamedTuple):
 
 
 #: run frames with few detections on a smaller copy of the step (``small_frames``) on splits of at
-#: least this many frames (the second copy of the step costs its compilation); the default of
+#: least this many frames (each smaller copy of the step costs its compilation); the default of
 #: ``run_batch(small_frames_min=...)`` and ``track(small_frames_min=...)``, where None turns it off
 SMALL_FRAMES_MIN_T = 2000
 
 
-def small_frames(frames: Frames, options: Options, min_frames: int | None = SMALL_FRAMES_MIN_T):
-    """((m2, m3), flags [T] bool) for the small-frame step, or None when it would not pay (fewer
+#: the most smaller copies of the step (``small_frames``): each costs its compilation
+MAX_SMALL_SIZES = 3
+
+
+def small_frames(frames: Frames, options: Options, min_frames: int | None = SMALL_FRAMES_MIN_T,
+                 max_sizes: int = MAX_SMALL_SIZES):
+    """(sizes, bucket [T] int32) for the small-frame steps, or None when they would not pay (fewer
     than ``min_frames`` frames (None: never), or less than 15 % fewer slots per step).
 
-    ``flags[t]``: frame t's valid detections all sit in the first m2 2D / m3 3D slots. (m2, m3) is
-    chosen among quantiles of the frames' last valid slots to minimise the expected slots per step;
-    it depends on the data only (``valid2``, ``valid3``), so every batch on the same frames shares
+    ``sizes``: one or more (m2, m3), each slot count smaller than the last's in at least one of its
+    two, at most ``max_sizes``; ``bucket[t]``: the first size whose first m2 2D / m3 3D slots hold all
+    of frame t's valid detections, ``len(sizes)`` for none (the full step). The sizes minimise the
+    expected slots per step (from the frames' last valid slots; a further size must buy another 10 %);
+    they depend on the data only (``valid2``, ``valid3``), so every batch on the same frames shares
     one compilation. Not with the Hungarian assignment (its choice among equal optima depends on
     the matrix size). With ``detail`` too: the 3D sources keep the full layout's flat index
     (``step``'s ``stride3``) and a small frame's rows are padded back like its ids.
@@ -65,19 +73,45 @@ def small_frames(frames: Frames, options: Options, min_frames: int | None = SMAL
 
     l2, l3 = last(v2), last(v3)
     full = big2 + big3
-    best = (float(full), None)
-    for q in (50, 60, 70, 80, 90, 95):
-        m2 = max(1, int(np.ceil(np.percentile(l2, q))))
-        m3 = max(1, int(np.ceil(np.percentile(l3, q))))
-        if m2 >= big2 and m3 >= big3:
-            continue
-        small = (l2 <= m2) & (l3 <= m3)
-        cost = small.mean() * (m2 + m3) + (1 - small.mean()) * full
-        if cost < best[0]:
-            best = (cost, ((min(m2, big2), min(m3, big3)), small))
-    if best[1] is None or best[0] > 0.85 * full:      # a second program must buy at least 15 %
+    # cov[s]: the share of frames whose detections sit in the first a2[s] 2D and a3[s] 3D slots
+    hist = np.zeros((big2 + 1, big3 + 1))
+    np.add.at(hist, (l2, l3), 1.0 / l2.size)
+    # candidate counts: every count up to 24 slots, else the frames' 5 % quantiles (at most 21 x 21 sizes)
+    c2, c3 = ((np.arange(1, big + 1) if big <= 24 else
+               np.unique(np.clip(np.ceil(np.percentile(last_, np.arange(0, 101, 5))), 1, big).astype(int)))
+              for big, last_ in ((big2, l2), (big3, l3)))
+    a2, a3 = (g.ravel() for g in np.meshgrid(c2, c3, indexing="ij"))
+    ok = (a2 < big2) | (a3 < big3)
+    a2, a3 = a2[ok], a3[ok]
+    if a2.size == 0:            # one slot of each kind: nothing smaller
         return None
-    return best[1]
+    cov = hist.cumsum(0).cumsum(1)[a2, a3]
+    slots = (a2 + a3).astype(np.float64)
+    # cost[k][s]: the least expected slots of the frames in sizes 0..s's share with k + 1 nested sizes,
+    # the last s (each size holds the frames the one before it does not: larger in a count, none smaller)
+    inside = (a2[:, None] <= a2[None, :]) & (a3[:, None] <= a3[None, :]) & (cov[:, None] < cov[None, :])
+    cost, back = [cov * slots], []
+    for _ in range(1, max_sizes):
+        via = np.where(inside, cost[-1][:, None] + (cov[None, :] - cov[:, None]) * slots[None, :], np.inf)
+        back.append(np.argmin(via, axis=0))
+        cost.append(via[back[-1], np.arange(cov.size)])
+    sizes, best = None, float(full)
+    for k, c in enumerate(cost):          # each further size (one compilation more) must buy 10 %
+        total = c + (1 - cov) * full
+        s = int(np.argmin(total))
+        if total[s] < (0.85 if k == 0 else 0.9) * best:
+            chain = [s]
+            for b in reversed(back[:k]):
+                chain.append(int(b[chain[-1]]))
+            sizes, best = tuple((int(a2[i]), int(a3[i])) for i in reversed(chain)), float(total[s])
+        else:
+            break
+    if sizes is None:         # a second program must buy at least 15 %
+        return None
+    bucket = np.full(l2.shape, len(sizes), np.int32)
+    for k in reversed(range(len(sizes))):
+        bucket[(l2 <= sizes[k][0]) & (l3 <= sizes[k][1])] = k
+    return sizes, bucket
 
 
 def _slots(frame: Frames, m2: int, m3: int) -> Frames:
@@ -133,13 +167,14 @@ def _padded(out, options: Options, m2: int, m3: int, big2: int, big3: int):
 
 
 def run(params: Params, frames: Frames, options: Options, capacity: int, hook: FrameHook | None = None,
-        detail: bool = False, small=None, small_flags=None, objs: Objects | None = None):
+        detail: bool = False, small=None, small_bucket=None, objs: Objects | None = None):
     """One lane over all frames: (final Memory, StepOutput stacked [T, ...]).
 
     hook: each frame is first transformed by ``hook.fn``; the written boxes are then the lane's own
     (``StepOutput.boxes`` [K, 4]), else [K, 0] (output "detections": the data's, ``data.object_boxes``).
-    detail: see ``step``. small: (m2, m3) static and small_flags [T] bool (``small_frames``; not
-    with a hook): flagged frames run on their first m2 / m3 detection slots.
+    detail: see ``step``. small: the sizes ((m2, m3), ...) static and small_bucket [T] int32
+    (``small_frames``; not with a hook): frame t runs on its first m2 / m3 detection slots of size
+    ``small_bucket[t]``, or on all of them where that is ``len(small)``.
     """
     t = jnp.arange(frames.reset.shape[0], dtype=jnp.int32)
     xs = None if hook is None else hook.xs
@@ -152,20 +187,20 @@ def run(params: Params, frames: Frames, options: Options, capacity: int, hook: F
         return m, out
 
     def body(m, inputs):
-        frame, x, ti, flag, obj = inputs
+        frame, x, ti, bucket, obj = inputs
         if hook is not None:
             frame = hook.fn(frame, hook.lane, x, ti)
         if small is None:
             return one(m, frame, ti, obj)
-        m2, m3 = small
 
-        def on_first_slots(mm):
+        def on_first_slots(mm, m2, m3):
             mm, out = one(mm, _slots(frame, m2, m3), ti, _object_slots(obj, options, m2, m3, big2))
             return mm, _padded(out, options, m2, m3, big2, big3)
 
-        return jax.lax.cond(flag, on_first_slots, lambda mm: one(mm, frame, ti, obj), m)
+        branches = [functools.partial(on_first_slots, m2=m2, m3=m3) for m2, m3 in small]
+        return jax.lax.switch(bucket, branches + [lambda mm: one(mm, frame, ti, obj)], m)
 
-    return jax.lax.scan(body, init(options, capacity, params), (frames, xs, t, small_flags, objs))
+    return jax.lax.scan(body, init(options, capacity, params), (frames, xs, t, small_bucket, objs))
 
 
 class BatchOutput(NamedTuple):
@@ -194,7 +229,7 @@ def compiled(options: Options, capacity: int, n_devices: int, hook_fn=None, deta
     ``n_devices`` of ``platform``, fixed once JAX runs), while shapes and dtypes of the inputs select among its
     traces in ``jax.jit``'s own cache.
 
-    Called with (params [B], frames, hook lanes [B] or None, hook xs or None, small-frame flags [T]
+    Called with (params [B], frames, hook lanes [B] or None, hook xs or None, small-frame size index [T]
     or None, the lanes' shared objects [T, O, ...] or None (``shared_objects``)).
     """
     key = (options, capacity, n_devices, hook_fn, detail, small, shared_objects, platform)
@@ -221,9 +256,9 @@ def compilations() -> int:
 
 def _build(options: Options, capacity: int, n_devices: int, hook_fn, detail: bool, small, shared_objects: bool,
            platform: str):
-    def lane(params, frames, hook_lane, hook_xs, flags, objs):
+    def lane(params, frames, hook_lane, hook_xs, bucket, objs):
         hook = None if hook_fn is None else FrameHook(hook_fn, hook_lane, hook_xs)
-        mem, out = run(params, frames, options, capacity, hook, detail, small, flags, objs)
+        mem, out = run(params, frames, options, capacity, hook, detail, small, bucket, objs)
         return out, mem.overflow, mem.peak
 
     batched = jax.vmap(lane, in_axes=(0, None, 0, None, None, None))
@@ -306,18 +341,18 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
         objs = jax.device_put(objs, devices[0])
     with jax.enable_x64(True), place:
         p = _lanes(params, b, pad, jnp.float64)
-        small = flags = None
+        small = bucket = None
         if hook is None:
             fn, lanes, xs = None, jnp.zeros(b + pad, jnp.int32), None
             found = small_frames(frames, options, small_frames_min)
             if found is not None:
-                small, flags = found[0], jnp.asarray(found[1])
+                small, bucket = found[0], jnp.asarray(found[1])
         else:
             fn, lanes, xs = hook.fn, _lanes(hook.lane, b, pad, jnp.float32), jax.tree.map(jnp.asarray, hook.xs)
         if objs is not None and hook is not None:
             raise ValueError("objects made outside the scan cannot follow a frame hook")
         program = compiled(options, capacity, n_dev, fn, detail, small, objs is not None, platform)
-        out, overflow, peak = program(p, Frames(*jax.device_put(tuple(np.asarray(x) for x in frames))), lanes, xs, flags, objs)
+        out, overflow, peak = program(p, Frames(*jax.device_put(tuple(np.asarray(x) for x in frames))), lanes, xs, bucket, objs)
     ids = _to_host(out.ids, b)
     packed = {"boxes", "box3"} if rows_only else set()
     out = out._replace(**{f: (_rows_to_host(v, ids) if f in packed and v.shape[2] else ids if f == "ids" else _to_host(v, b))
