@@ -1,4 +1,4 @@
-"""Where the KITTI data lives.
+"""Where the KITTI data lives, and where ``dfrmot`` keeps compiled programs by default.
 
 The data are never part of the repository. ``DFRMOT_DATA`` names the KITTI tracking *training*
 root (the folder that holds ``label_02/``, ``calib/`` and ``detections/``); without it we look for
@@ -12,6 +12,8 @@ import os
 from pathlib import Path
 
 ENV_VAR = "DFRMOT_DATA"
+#: the compile cache folder's variable (read by ``core.devices.setup_compile_cache``, which names it too)
+COMPILE_CACHE_VAR = "DFRMOT_COMPILE_CACHE"
 RELATIVE = Path("..") / "shared" / "data" / "kitti" / "training"
 _CHECKOUT = Path(__file__).resolve().parent.parent
 
@@ -45,3 +47,10 @@ def missing_data_message(root: Path | None = None) -> str:
         return f"${ENV_VAR} = {os.environ[ENV_VAR]} holds no label_02/ or detections/"
     looked = " or ".join(str(r) for r in candidate_roots())
     return f"KITTI data not found: set ${ENV_VAR} to the KITTI tracking training root (looked in {looked})"
+
+
+def default_compile_cache() -> Path:
+    """The folder ``dfrmot`` keeps compiled tracker programs in when ``$DFRMOT_COMPILE_CACHE`` is unset:
+    ``$XDG_CACHE_HOME/dfrmot_jax/xla`` (``~/.cache/dfrmot_jax/xla`` without it)."""
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base).expanduser() / "dfrmot_jax" / "xla"

@@ -8,6 +8,9 @@ from dfrmot_jax import setup_host_devices
 from dfrmot_jax.core.run import clear_programs
 from dfrmot_jax.paths import ENV_VAR, data_available, default_data_root
 
+# No compiled program kept on disk between test runs (the in-process CLI would keep them in
+# ~/.cache): every test compiles what it runs; test_devices tests the cache in its own processes.
+os.environ["DFRMOT_COMPILE_CACHE"] = "off"
 # One XLA device per core for the whole session, before any test runs a JAX operation.
 setup_host_devices()
 

@@ -35,7 +35,7 @@ print(n, any("setup_host_devices" in str(x.message) for x in w))
 
 def _run(script, **env):
     import os
-    e = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "DFRMOT_HOST_DEVICES")}
+    e = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "DFRMOT_HOST_DEVICES", "DFRMOT_COMPILE_CACHE")}
     e.update(env)
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=e, timeout=300)
     assert out.returncode == 0, out.stderr
@@ -99,3 +99,53 @@ def test_track_on_the_chosen_platform(monkeypatch, tmp_path):
         dm.track(split, params)
     assert main(["track", "--data", str(root), "--det2d", "synth2d", "--det3d", "synth3d", "--class", "car",
                  "--out", str(tmp_path / "out")]) == 2
+
+
+def _cli(args, **env):
+    import os
+    e = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "DFRMOT_HOST_DEVICES", "DFRMOT_COMPILE_CACHE")}
+    e.update(env)
+    return subprocess.run([sys.executable, "-m", "dfrmot_jax.cli", *args], capture_output=True, text=True, env=e,
+                          timeout=300)
+
+
+@pytest.mark.slow
+def test_compiled_programs_kept_between_runs(tmp_path):
+    """``$DFRMOT_COMPILE_CACHE``: the first ``dfrmot track`` keeps its compiled program there, the second
+    process takes it from there (JAX's own log of a cache hit) and writes the same files; ``off``
+    keeps nothing, and ``dfrmot`` without the variable keeps them under ``$XDG_CACHE_HOME``."""
+    from dfrmot_jax.synthetic import make_scene
+
+    root = make_scene(tmp_path / "scene", n_sequences=1, n_frames=40, seed=2)
+    cache = tmp_path / "cache"
+    runs = []
+    for k in range(2):
+        out = tmp_path / f"out{k}"
+        r = _cli(["track", "--data", str(root), "--det2d", "synth2d", "--det3d", "synth3d", "--out", str(out)],
+                 DFRMOT_COMPILE_CACHE=str(cache), JAX_LOG_COMPILES="1")
+        assert r.returncode == 0, r.stderr
+        runs.append((r.stderr, {f.name: f.read_bytes() for f in sorted(out.glob("*.txt"))}))
+        assert any(cache.iterdir()), "nothing kept"
+    assert "Persistent compilation cache hit" not in runs[0][0]
+    assert "Persistent compilation cache hit" in runs[1][0]
+    assert runs[0][1] and runs[0][1] == runs[1][1]
+    r = _cli(["track", "--data", str(root), "--det2d", "synth2d", "--det3d", "synth3d", "--out", str(tmp_path / "o2")],
+             DFRMOT_COMPILE_CACHE="off", XDG_CACHE_HOME=str(tmp_path / "xdg"))
+    assert r.returncode == 0 and not (tmp_path / "xdg").exists(), r.stderr
+    r = _cli(["track", "--data", str(root), "--det2d", "synth2d", "--det3d", "synth3d", "--out", str(tmp_path / "o3")],
+             XDG_CACHE_HOME=str(tmp_path / "xdg"))
+    assert r.returncode == 0 and any((tmp_path / "xdg" / "dfrmot_jax" / "xla").iterdir()), r.stderr
+
+
+def test_no_compile_cache_unless_asked():
+    """A library caller keeps nothing on disk unless ``$DFRMOT_COMPILE_CACHE`` names a folder; the
+    variable's name is the one the command line sets."""
+    from dfrmot_jax.core import devices
+    from dfrmot_jax import paths
+
+    assert devices.COMPILE_CACHE_VAR == paths.COMPILE_CACHE_VAR
+    script = ("import dfrmot_jax, jax; dfrmot_jax.setup_host_devices(); "
+              "print(jax.config.jax_compilation_cache_dir)")
+    assert _run(script) == "None"
+    assert _run(script, DFRMOT_COMPILE_CACHE="off") == "None"
+    assert _run(script, DFRMOT_COMPILE_CACHE="/tmp/x") == "/tmp/x"

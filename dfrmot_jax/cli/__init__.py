@@ -31,8 +31,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
+from ..paths import COMPILE_CACHE_VAR, default_compile_cache
 from ..version import __version__
 from .commands import HELP, PARSERS
 from .errors import (EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_OVERFLOW, CommandParser,
@@ -85,5 +87,7 @@ def main(argv=None) -> int:
     returns a status (see the module docstring). Only the named command's parser module is imported
     (:func:`build_parser`); the command's own module when it runs."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    # compiled tracker programs kept between runs (core.devices.setup_compile_cache; "off": none)
+    os.environ.setdefault(COMPILE_CACHE_VAR, str(default_compile_cache()))
     args = build_parser(command_of(argv) or "").parse_args(argv)
     return args.func(args)
