@@ -81,12 +81,13 @@ def _round(key, match):
     return jnp.where(gone, _MAX64, key), match | new
 
 
-def greedy_min(cost, valid, col_key, limit, unroll: int = 2):
+def greedy_min(cost, valid, col_key, limit, unroll: int = 1):
     """Greedy matching on the smallest cost while cost < limit -> match [O, N] bool.
 
     Ties go to the smaller ``col_key`` (track id), then the smaller row: the order of the authors'
-    column-major ``minCoeff`` over tracks kept in id order. ``unroll`` rounds run inline (a CPU
-    while-loop iteration costs more than a round); a loop finishes the rare frames that need more.
+    column-major ``minCoeff`` over tracks kept in id order. ``unroll`` rounds run inline; a loop
+    finishes the frames that need more. (One inline round: measured 10-20 % faster on the CPU than
+    two, KITTI car at B = 1 and 64, with the small-frame steps; none: slower again.)
     """
     key = order_key(cost, valid, col_key, limit)
     match = jnp.zeros(cost.shape, bool)
