@@ -55,9 +55,10 @@ from .store import chunk_frame
 from .table import params_of
 
 #: lanes per compiled tracker call on the CPU (``track(lanes_per_call=...)``; the batch is split over the host
-#: devices); on a GPU ``core.devices.default_lanes_per_call()``; half as many with AB3DMOT's figures, whose 3D
-#: detail makes each call's output 2.5x larger (grid sweep with AB3DMOT: peak RSS 2.2-2.3 GB at 32 lanes per
-#: call, 1.8 GB at 16, in the same time within noise)
+#: devices); on a GPU ``core.devices.default_lanes_per_call()``; a quarter as many with AB3DMOT's figures, whose
+#: 3D detail makes each call's output 2.5x larger (grid sweep with AB3DMOT: peak RSS 2.2-2.3 GB at 32 lanes per
+#: call, 1.8 GB at 16 (2.0 GB with the three small-frame sizes of 2026-11-27), 1.84 GB at 8, in the same time
+#: within noise)
 LANES_PER_CALL = 32
 
 #: config-frames of a class's chunks from which the metrics run in worker processes by default
@@ -164,7 +165,7 @@ class ChunkRunner:
         scorer = LaneScorer(gt, split.offsets, as_written=True)     # rows as the files carry them
         per_call = LANES_PER_CALL if chosen_platform() == "cpu" else default_lanes_per_call()
         if spec.ab3dmot is not None:        # the rows' 3D detail: each call's device output 2.5x larger
-            per_call = max(1, per_call // 2)
+            per_call = max(1, per_call // 4)      # (8 lanes per call on the CPU)
         groups = option_groups(table) if spec.distortion is not None else {}
         runner = cls(spec, table, data, split, gt, tuple(todo), ChunkScorer(scorer, ab3dmot, timing),
                      max(1, min(spec.chunk, per_call)), groups, timing)

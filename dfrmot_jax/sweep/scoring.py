@@ -139,7 +139,8 @@ class InOrderScoring:
 
     What may overlap: a chunk's scoring (start, metrics, AB3DMOT figures) with the tracking of the
     next chunks (the tracker's compiled code runs without Python's lock); the metric processes with
-    the tracker; at most ``max(1, workers)`` chunks in flight while the next one tracks.
+    the tracker; at most ``max(1, workers)`` chunks in flight while the next one tracks (one with
+    AB3DMOT's figures, whose one thread scores one chunk at a time).
 
     What happens in order: the ``prep`` and ``ab3dmot`` threads take the chunks one at a time in
     submission order (so AB3DMOT's memo is written in order, by its thread alone), and chunks
@@ -160,7 +161,9 @@ class InOrderScoring:
 
     def __init__(self, scoring: ChunkScorer, gt: PreparedGT, workers: int):
         self.scoring = scoring
-        self.limit = max(1, workers)                 # chunks in flight before the oldest is waited for
+        # chunks in flight before the oldest is waited for; with AB3DMOT's figures one: its thread
+        # takes one chunk at a time, so a second chunk in flight would only wait there, held in memory
+        self.limit = 1 if scoring.ab3dmot is not None else max(1, workers)
         self.pool = worker_pool(gt, workers) if workers > 0 else None
         self.prep = ThreadPoolExecutor(1, "scoring")
         self.ab3dmot = ThreadPoolExecutor(1, "ab3dmot") if scoring.ab3dmot is not None else None
