@@ -90,7 +90,8 @@ def test_small_frames_track_like_the_oracle_and_like_one_size(scene, plan, monke
     assert plan == "own" or np.all(np.bincount(found[1], minlength=4) > 0), "a size holds no frame"
     rng = np.random.default_rng(31)
     carried = 0
-    for params, options in random_settings(rng, 2) + [(Params(), Options()), (Params(), Options(output="filtered"))]:
+    for params, options in (random_settings(rng, 2 if plan == "own" else 1)
+                            + [(Params(), Options()), (Params(), Options(output="filtered"))]):
         batch = stack_params([params, random_params(rng, options.output)])
         small = track(split, batch, options, small_frames_min=0, detail=True)
         mm = lane_mismatches(split, small, 0, reference_rows(seqs, params, options))
