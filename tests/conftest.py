@@ -1,5 +1,8 @@
+import atexit
 import gc
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -8,9 +11,13 @@ from dfrmot_jax import setup_host_devices
 from dfrmot_jax.core.run import clear_programs
 from dfrmot_jax.paths import ENV_VAR, data_available, default_data_root
 
-# No compiled program kept on disk between test runs (the in-process CLI would keep them in
-# ~/.cache): every test compiles what it runs; test_devices tests the cache in its own processes.
-os.environ["DFRMOT_COMPILE_CACHE"] = "off"
+# Compiled programs kept for this test session only, in a folder of its own removed at exit (never
+# ~/.cache, where the in-process CLI would keep them): a program compiled again (after
+# clear_programs, or in a test's subprocess or Ray worker) is taken from there, JAX's own key
+# naming all it depends on; test_devices tests the cache in processes of its own.
+_COMPILE_CACHE = tempfile.mkdtemp(prefix="dfrmot_tests_xla_")
+atexit.register(shutil.rmtree, _COMPILE_CACHE, True)
+os.environ["DFRMOT_COMPILE_CACHE"] = _COMPILE_CACHE
 # One XLA device per core for the whole session, before any test runs a JAX operation.
 setup_host_devices()
 
