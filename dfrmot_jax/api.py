@@ -283,10 +283,10 @@ def _compacted(split: Split, frames: Frames, params: Params, options: Options):
     """(frames of the split compacted to the lanes' loosest thresholds, order2, order3), or None
     when that saves no slot (:func:`dfrmot_jax.data.compact_frames`; ``frames``: the split's own)."""
     s2, s3 = (float(np.min(s)) for s in keep_thresholds(params))
-    packed = compact_frames(split, frames, options, s2, s3)
-    if packed[1].shape[1] + packed[2].shape[1] >= split.valid2d.shape[1] + split.valid3d.shape[1]:
+    packed, order2, order3 = compact_frames(split, frames, options, s2, s3)
+    if order2.shape[1] + order3.shape[1] >= split.valid2d.shape[1] + split.valid3d.shape[1]:
         return None
-    return packed
+    return packed, order2, order3
 
 
 def _full_layout(got: dict, order2: np.ndarray, order3: np.ndarray, frames: Frames, options: Options) -> dict:
