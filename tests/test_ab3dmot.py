@@ -28,7 +28,7 @@ def _figure_lines():
 def test_reference_figures(fig, kitti_root):
     seqmap = FIXTURES / "seqmaps" / f"evaluate_tracking.seqmap.{fig['seqmap']}"
     r = evaluate_ab3dmot_files(FIXTURES / fig["folder"], kitti_root, "car", iou=f"{fig['mode']}:{fig['thres']}",
-                               seqmap=seqmap)
+                               seqmap=seqmap, sum_mode="sequential")      # the figures of CPython 3.11
     got = {k: round(100 * r[k], 4) for k in ("sAMOTA", "AMOTA", "AMOTP", "MOTA", "MOTP", "recall", "precision")}
     got.update({k: r[k] for k in ("IDS", "FRAG", "FP", "FN", "TP", "n_recall_points")})
     want = {k: fig[k] for k in got}

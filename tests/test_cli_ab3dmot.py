@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS
+from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_OTHER_COLUMNS
 from dfrmot_jax.paths import default_data_root
 from dfrmot_jax.testing.cli import error_line, run_cli
 
@@ -56,7 +56,8 @@ def test_ab3dmot_columns_in_the_csv(tmp_path, capsys):
     assert status == 0, err
     only = _rows(out2)
     assert list(only) == [("res", "car", "COMBINED")]
-    assert set(next(iter(only.values()))) == {"tracker", "class", "seq", *AB3DMOT_COLUMNS}
+    assert set(next(iter(only.values()))) == {"tracker", "class", "seq", "ab3dmot_sum", *AB3DMOT_COLUMNS,
+                                              *AB3DMOT_OTHER_COLUMNS}
     r = only[("res", "car", "COMBINED")]
     assert (r["ab3dmot_FP"], r["ab3dmot_FN"], float(r["ab3dmot_MOTA"])) == ("0", "0", 100.0)
     assert float(r["sAMOTA"]) == pytest.approx(100 * 7 / 40)
@@ -70,7 +71,8 @@ def test_fixture_figures_through_the_cli(tmp_path, capsys, kitti_root):
                 and f["thres"] == 0.5 and f["seqmap"] == "val")
     out = tmp_path / "m.csv"
     status, stdout, err = run_cli(capsys, ["eval", FIXTURES / want["folder"], "--data", kitti_root, "--metrics",
-                                           "kitti2d,ab3dmot", "--ab3dmot-iou", "3d:0.5", "--seqmap",
+                                           "kitti2d,ab3dmot", "--ab3dmot-iou", "3d:0.5", "--ab3dmot-sum",
+                                           "sequential", "--seqmap",
                                            FIXTURES / "seqmaps" / "evaluate_tracking.seqmap.val", "--csv", out])
     assert status == 0, err
     r = _rows(out)[(want["folder"], "car", "COMBINED")]

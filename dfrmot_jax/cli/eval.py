@@ -1,8 +1,8 @@
 """``dfrmot eval``: TrackEval-identical KITTI evaluation of result folders from the command line.
 
 Usage: ``dfrmot eval RESULTS_DIR [RESULTS_DIR ...] [--data ROOT] [--class car[,pedestrian]]
-[--seqs 0000,0002 | --seqmap FILE] [--metrics kitti2d,ab3dmot] [--ab3dmot-iou 3d:0.25] [--similarity 2d|3d|bev]
-[--allow-missing]
+[--seqs 0000,0002 | --seqmap FILE] [--metrics kitti2d,ab3dmot] [--ab3dmot-iou 3d:0.25]
+[--ab3dmot-sum compensated|sequential] [--recall-table F] [--similarity 2d|3d|bev] [--allow-missing]
 [--per-seq] [--csv F]``. Each class is scored on its own rows
 of the result files (one file may hold ``Car`` and ``Pedestrian`` rows), by default on the
 sequences whose ground truth has the class (car: 20 of KITTI's 21, pedestrian: 15); ``--seqs``
@@ -36,6 +36,16 @@ COMBINED counts as TrackEval does for the same sequence list.
 ``COMBINED`` rows; percent like the other ratio columns). ``--seqmap FILE`` evaluates the sequences
 of a KITTI seqmap (e.g. AB3DMOT's validation split), like ``--seqs``; a seqmap naming a sequence
 without ground truth is refused with its file and line.
+
+AB3DMOT's evaluator averages track scores with Python's ``sum``, whose float arithmetic changed in
+CPython 3.12 (:mod:`dfrmot_jax.metrics.ab3dmot.sums`): ``--ab3dmot-sum compensated`` (the default,
+CPython >= 3.12) or ``sequential`` (CPython <= 3.11, with the drift that drops tracks at their own
+threshold). Where the other sum gives other figures, one line after the table says what they are
+(the CSV holds them as ``other_sAMOTA other_AMOTA other_ab3dmot_MOTA``, and the sum as
+``ab3dmot_sum``). ``--recall-table F`` (implies ``--metrics ab3dmot``) writes where the recall
+points go: per tracker, class, sum and recall point, the threshold, recall, counts, sMOTA, the
+matches to ignored ground truth and the tracks dropped by the drift
+(:func:`dfrmot_jax.metrics.ab3dmot.table.recall_table`).
 """
 
 from __future__ import annotations
@@ -51,12 +61,15 @@ from ..io.kitti import KittiFormatError
 from ..io.result_rows import read_result_rows
 from ..metrics.ab3dmot.evaluate import parse_iou
 from ..metrics.ab3dmot.prep import read_seqmap
+from ..metrics.ab3dmot.sums import DEFAULT_SUM, SUM_HELP, SUMS
 from ..metrics.ab3dmot.table import (
     AB3DMOT_COLUMNS,
     ab3dmot_table,
     add_ab3dmot_columns,
     evaluate_ab3dmot_classes,
+    other_sum_line,
     parse_metric_families,
+    recall_table,
 )
 from ..metrics.common.sequences import CLASS_NAME_TO_ID, cached_class_sequences
 from ..metrics.kitti2d.evaluate import (
@@ -70,6 +83,7 @@ from ..metrics.kitti2d.evaluate import (
 from ..metrics.kitti2d.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
 from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
 from ..paths import default_data_root
+from .args import output_file
 from .commands import HELP
 from .errors import guarded
 from .track_parser import parse_seqs
@@ -136,6 +150,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default="3d:0.25", type=iou_arg, metavar="2d:T|3d:T",
                    help="AB3DMOT matching: image-box IoU (2d) or 3D IoU of the rotated boxes (3d) at threshold T "
                         "(default 3d:0.25; AB3DMOT uses 2d:0.5 and 3d:0.25/0.5/0.7)")
+    p.add_argument("--ab3dmot-sum", dest="ab3dmot_sum", default=DEFAULT_SUM, choices=SUMS,
+                   help=f"{SUM_HELP}; where the other gives other figures, a line after the table shows them")
+    p.add_argument("--recall-table", dest="recall_table", default=None, metavar="F", type=output_file,
+                   help="write AB3DMOT's recall points as CSV (implies --metrics ab3dmot): per tracker, class, sum "
+                        "and recall point the score threshold, recall, TP/FP/FN/IDS, sMOTA, the matches to ignored "
+                        "ground truth and the tracks dropped by the sequential sum's drift")
     p.add_argument("--similarity", default="2d", choices=("2d", "3d", "bev"),
                    help="kitti2d family: the similarity HOTA / CLEAR / Identity match on: 2d image-box IoU (TrackEval's "
                         "Kitti2DBox, default), 3d IoU of rotated boxes or bev IoU; KITTI's distractor and DontCare "
@@ -259,20 +279,23 @@ def _mark_empty_gt(shown):
                    f"false positives, counted in COMBINED as TrackEval counts them for the same sequences")
 
 
-def _ab3dmot(d: Path, root: Path, seq_lists: dict, iou: str) -> dict:
-    """AB3DMOT's figures of folder ``d`` per class (missing files were checked by the caller)."""
-    return evaluate_ab3dmot_classes(d, root, seq_lists, iou=iou)
+def _ab3dmot(d: Path, root: Path, seq_lists: dict, iou: str, sum_mode: str) -> dict:
+    """AB3DMOT's figures of folder ``d`` per class, both sums (missing files were checked by the caller)."""
+    return evaluate_ab3dmot_classes(d, root, seq_lists, iou=iou, sum_mode=sum_mode, other=True)
 
 
-def _print_ab3dmot(df, seq_lists: dict, iou: str, note_avg: str) -> None:
+def _print_ab3dmot(df, seq_lists: dict, iou: str, note_avg: str, others: list) -> None:
     split = "; ".join(f"{c}, {len(s)} sequences" for c, s in seq_lists.items())
     rows = df[df["seq"] == "COMBINED"]
     cols = [c for c in ("tracker", "class") if c in rows.columns] + list(AB3DMOT_COLUMNS)
     fmt = {c: (lambda v: f"{int(v)}") if c.endswith(("IDS", "FRAG", "FP", "FN")) else (lambda v: f"{v:.2f}")
            for c in AB3DMOT_COLUMNS}
-    print(f"{split} (AB3DMOT KITTI, IoU {iou}; sAMOTA/AMOTA/AMOTP and the best-threshold ab3dmot_* figures, "
-          f"%{note_avg})")
+    sums = ", ".join(sorted(set(rows["ab3dmot_sum"]))) if "ab3dmot_sum" in rows.columns else DEFAULT_SUM
+    print(f"{split} (AB3DMOT KITTI, IoU {iou}, {sums} sum; sAMOTA/AMOTA/AMOTP and the best-threshold ab3dmot_* "
+          f"figures, %{note_avg})")
     print(rows[cols].to_string(index=False, formatters=fmt))
+    for line in others:
+        print(line)
 
 
 def ground_truth(root: Path, cls, seqs, kitti2d: bool) -> tuple[dict, dict]:
@@ -298,11 +321,14 @@ def run(args) -> int:
     root, label_dir = label_root(args.data)
     seqs = chosen_sequences(args.seqs, getattr(args, "seqmap", None), root)
     families = getattr(args, "metrics", ("kitti2d",))
+    recall_csv = getattr(args, "recall_table", None)
+    sum_mode = getattr(args, "ab3dmot_sum", DEFAULT_SUM)
+    if recall_csv is not None and "ab3dmot" not in families:
+        families = (*families, "ab3dmot")
     gts, seq_lists = ground_truth(root, args.cls, seqs, "kitti2d" in families)
     folders = [Path(d) for d in args.results]
     check_folders(folders, label_dir, seq_lists, seqs, args.allow_missing)
-    tables = []
-    names = []
+    tables, names, others, recalls = [], [], [], []
     for d in folders:
         name = tracker_name(d)
         if name in names:
@@ -310,7 +336,9 @@ def run(args) -> int:
         names.append(name)
         similarity = getattr(args, "similarity", "2d")
         dets = {c: read_tracker_files(d, gt, need_3d=similarity != "2d") for c, gt in gts.items()}
-        ab = _ab3dmot(d, root, seq_lists, args.ab3dmot_iou) if "ab3dmot" in families else {}
+        ab = _ab3dmot(d, root, seq_lists, args.ab3dmot_iou, sum_mode) if "ab3dmot" in families else {}
+        others += [line for c, r in ab.items() if (line := other_sum_line(r, f"{name} {c}")) is not None]
+        recalls += [recall_table(r, tracker=name, **{"class": c}) for c, r in ab.items()]
         for c in seq_lists:
             if c in gts:
                 n_gt, n_rows = int(gts[c].n_gt_dets.sum()), dets[c].frame.size
@@ -338,10 +366,11 @@ def run(args) -> int:
         if note:
             print(note)
     if "ab3dmot" in families:
-        _print_ab3dmot(df, seq_lists, args.ab3dmot_iou, note_avg)
-    if args.csv:
-        out = Path(args.csv)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        df.to_csv(out, index=False)
-        print(f"wrote {out}")
+        _print_ab3dmot(df, seq_lists, args.ab3dmot_iou, note_avg, others)
+    for path, table in ((args.csv, df), (recall_csv, pd.concat(recalls, ignore_index=True) if recalls else None)):
+        if path:
+            out = Path(path)
+            out.parent.mkdir(parents=True, exist_ok=True)
+            table.to_csv(out, index=False)
+            print(f"wrote {out}")
     return 0

@@ -18,18 +18,11 @@ import sys
 from pathlib import Path
 
 from ..report import RAW_COLUMN, load_results, report_folds, sweep_report, write_html
+from .args import output_file
 from .commands import HELP
 from .errors import guarded
 
 __all__ = ["add_parser", "run", "parse_contrast"]
-
-
-def output_file(text: str) -> str:
-    """An output file name (``--html``, ``--csv``): refused when empty (argparse: exit 2), since an
-    empty name would otherwise write nothing and say nothing."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a file name")
-    return text
 
 
 def add_parser(sub) -> argparse.ArgumentParser:

@@ -14,7 +14,7 @@ Everything that does not depend on the output's tracks is done once for all outp
 every output are flattened together, the distinct (frame, box) values found (the outputs of a sweep
 mostly carry the same detections' boxes), their candidate pairs with the ground truth (IoU) and the
 static ignore rule computed once each and joined back to every output's rows; track means in one
-call. The passes then run per output (all its thresholds together,
+call (with the chosen sum). The passes then run per output (all its thresholds together,
 :mod:`~dfrmot_jax.metrics.ab3dmot.passes`). Results are the
 dicts of :func:`~dfrmot_jax.metrics.ab3dmot.ab3dmot_metrics`, identical to scoring the written
 files with :func:`~dfrmot_jax.metrics.ab3dmot.evaluate_ab3dmot_files`.
@@ -32,10 +32,10 @@ from dfrmot_jax.metrics.ab3dmot.evaluate import (
     iou_2d_pairs,
     parse_iou,
     prepare_passes,
-    seq_sum_rows,
     static_ignore,
 )
 from dfrmot_jax.metrics.ab3dmot.passes import run_passes_many
+from dfrmot_jax.metrics.ab3dmot.sums import DEFAULT_SUM
 from dfrmot_jax.metrics.ab3dmot.prep import Ab3dGT, Ab3dTracker
 from dfrmot_jax.metrics.common.box3d import iou_3d
 from dfrmot_jax.metrics.common.distinct import distinct_rows
@@ -231,28 +231,30 @@ def _pairs(gt: Ab3dGT, rows: _Rows, kind: str, threshold: float, key: np.ndarray
 
 
 def evaluate_ab3dmot_arrays(gt: Ab3dGT, ids, boxes, scores, box3d=None, seq_offsets=None,
-                            iou="3d:0.25") -> list[dict]:
+                            iou="3d:0.25", sum_mode: str = DEFAULT_SUM, other: bool = False) -> list[dict]:
     """AB3DMOT's figures of B padded outputs (module docstring) -> a list of B result dicts.
 
     gt: :func:`~dfrmot_jax.metrics.ab3dmot.prep.prepare_ab3dmot_gt`; ids [B, T, K]; boxes
     [B, T, K, 4]; scores [B, T, K]; box3d [B, T, K, 7] (needed for ``3d`` IoU); iou ``'3d:0.25'``,
-    ``'2d:0.5'``, ...; seq_offsets as in :func:`tracker_rows_from_arrays`."""
+    ``'2d:0.5'``, ...; seq_offsets as in :func:`tracker_rows_from_arrays`; sum_mode, other:
+    :func:`~dfrmot_jax.metrics.ab3dmot.evaluate.ab3dmot_metrics`'s."""
     kind, _ = parse_iou(iou)
     if kind == "3d" and box3d is None:
         raise ValueError("3D IoU needs box3d [B, T, K, 7] (h w l x y z rot_y per slot)")
     return evaluate_ab3dmot_rows(gt, **_padded_rows(ids, boxes, scores, box3d if kind == "3d" else None),
-                                 seq_offsets=seq_offsets, iou=iou)
+                                 seq_offsets=seq_offsets, iou=iou, sum_mode=sum_mode, other=other)
 
 
 def evaluate_ab3dmot_rows(gt: Ab3dGT, lane, t, slot, ids, box, score, box3d, n_lanes: int, n_frames: int,
                           seq_offsets=None, iou="3d:0.25", box_key=None, box3d_key=None,
-                          check_ids: bool = True) -> list[dict]:
+                          check_ids: bool = True, sum_mode: str = DEFAULT_SUM, other: bool = False) -> list[dict]:
     """:func:`evaluate_ab3dmot_arrays` of B outputs given as their rows, flat, in (lane, t, slot)
     order (the fields of :class:`dfrmot_jax.results.KittiRows`): lane, t (frame along the T frames),
     slot, ids [R]; box [R, 4]; score [R]; box3d [R, 7] or None; n_lanes B; n_frames T. box_key /
     box3d_key [R] int64 or None: equal keys within a frame mean equal image / 3D boxes (the distinct
     values are then taken from the keys); any key of a row without a 3D box. check_ids: refuse an id
-    twice in a lane's frame (False: the caller vouches for it, as the tracker's own rows do)."""
+    twice in a lane's frame (False: the caller vouches for it, as the tracker's own rows do);
+    sum_mode, other: :func:`~dfrmot_jax.metrics.ab3dmot.evaluate.ab3dmot_metrics`'s."""
     kind, thr = parse_iou(iou)
     if kind == "3d" and box3d is None:
         raise ValueError("3D IoU needs box3d [R, 7] (h w l x y z rot_y per row)")
@@ -262,17 +264,11 @@ def evaluate_ab3dmot_rows(gt: Ab3dGT, lane, t, slot, ids, box, score, box3d, n_l
     if not B:
         return []
     pairs = _pairs(gt, rows, kind, thr, box_key if kind == "2d" else box3d_key)
-    # the static ignore rule once per distinct (frame, image box); track means in one call
+    # the static ignore rule once per distinct (frame, image box); track means in one call (run_passes_many)
     first, bid = distinct_rows(rows.frame, rows.box, box_key)
     static = static_ignore(gt, rows.frame[first], rows.box[first], np.zeros(len(first), dtype=bool))[bid]
-    gtrack = rows.track_start[rows.lane] + rows.track
-    n_all = int(rows.track_start[-1])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = seq_sum_rows(rows.score, gtrack, n_all) / np.bincount(gtrack, minlength=n_all)
     preps = []
     for b in range(B):
         i, j = rows.lane_start[b], rows.lane_start[b + 1]
-        t0 = rows.track_start[b]
-        preps.append(prepare_passes(gt, rows.tracker(gt, b), kind, thr, pairs=pairs[b], static=static[i:j],
-                                    track_mean=mean[t0:t0 + rows.n_tracks[b]]))
-    return run_passes_many(preps)
+        preps.append(prepare_passes(gt, rows.tracker(gt, b), kind, thr, pairs=pairs[b], static=static[i:j]))
+    return run_passes_many(preps, sum_mode, other)

@@ -73,6 +73,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from dfrmot_jax.metrics.ab3dmot.passes import run_passes
+from dfrmot_jax.metrics.ab3dmot.sums import DEFAULT_SUM
 from dfrmot_jax.metrics.ab3dmot.prep import (
     MIN_HEIGHT,
     Ab3dGT,
@@ -86,8 +87,7 @@ from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.common.sequences import cached_class_sequences
 from dfrmot_jax.paths import default_data_root
 
-__all__ = ["AB3DMOT_FIELDS", "parse_iou", "Ab3dPrepared", "prepare_passes", "static_ignore", "seq_sum_rows",
-           "iou_2d_pairs", "ab3dmot_metrics",
+__all__ = ["AB3DMOT_FIELDS", "parse_iou", "Ab3dPrepared", "prepare_passes", "static_ignore", "iou_2d_pairs", "ab3dmot_metrics",
            "evaluate_ab3dmot", "evaluate_ab3dmot_files"]
 
 #: the figures of one evaluation (fractions except counts), in the order the CLI writes them
@@ -153,8 +153,8 @@ class Ab3dPrepared:
     Components of two or more pairs (C): ``comp_edges`` [E_nt] edge indices grouped by component,
     ``comp_start`` [C+1]; ``comps``: per component (objects, rows, edge-index matrix [n_obj, n_row]
     with -1 off the candidates, cost matrix with 1e9 off them). ``trk_static_ignore`` [M] bool
-    (neighbour class, <= 25 px, or in DontCare). Track scores: ``track_mean`` [n_tracks] (pass 0's
-    averaged score), ``track_len`` [n_tracks].
+    (neighbour class, <= 25 px, or in DontCare). ``track_len`` [n_tracks] rows per track (the
+    tracks' scores are averaged by the passes, with the chosen sum: :func:`~.passes.track_means`).
     """
     gt: Ab3dGT
     trk: Ab3dTracker
@@ -169,30 +169,6 @@ class Ab3dPrepared:
     comps: list
     trk_static_ignore: np.ndarray
     track_len: np.ndarray
-    track_mean: np.ndarray
-
-
-def seq_sum_rows(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
-    """Sequential float64 sum (Python's ``sum``: left to right from 0) of ``values`` per group,
-    in array order within a group. values, group: [R]; returns [n_groups]."""
-    out = np.zeros(n_groups)
-    if len(values) == 0:
-        return out
-    order = np.argsort(group, kind="stable")
-    g = group[order]
-    v = values[order]
-    counts = np.bincount(g, minlength=n_groups)
-    starts = segment_starts(counts)[:-1]
-    rank = np.arange(len(g)) - starts[g]
-    # step k adds the k-th value of every group that has one
-    by_rank = np.argsort(rank, kind="stable")
-    rank_counts = np.bincount(rank)
-    pos = 0
-    for n in rank_counts.tolist():
-        idx = by_rank[pos:pos + n]
-        out[g[idx]] += v[idx]
-        pos += n
-    return out
 
 
 def _candidate_pairs(gt: Ab3dGT, trk: Ab3dTracker, kind: str, threshold: float):
@@ -229,13 +205,12 @@ def static_ignore(gt: Ab3dGT, frame: np.ndarray, box: np.ndarray, neighbour: np.
 
 
 def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: float = 0.25,
-                   pairs: tuple | None = None, static: np.ndarray | None = None,
-                   track_mean: np.ndarray | None = None) -> Ab3dPrepared:
+                   pairs: tuple | None = None, static: np.ndarray | None = None) -> Ab3dPrepared:
     """The shared preprocessing of :func:`ab3dmot_metrics` (see :class:`Ab3dPrepared`).
 
     Computed for many outputs at once by :mod:`dfrmot_jax.metrics.ab3dmot.arrays`, and then given:
     pairs, the candidate pairs ``(e_g, e_t, e_c)`` (by frame, object, row); static, the rows'
-    :func:`static_ignore`; track_mean, the tracks' mean scores (:func:`seq_sum_rows` / length)."""
+    :func:`static_ignore`."""
     kind, threshold = parse_iou((kind, threshold))
     N, M = len(gt.frame), len(trk.frame)
     e_g, e_t, e_c = _candidate_pairs(gt, trk, kind, threshold) if pairs is None else pairs
@@ -268,29 +243,31 @@ def prepare_passes(gt: Ab3dGT, trk: Ab3dTracker, kind: str = "3d", threshold: fl
                 cost[gi, ti] = e_c[ed]
                 comps.append((objs, rows, idx, cost))
     track_len = np.bincount(trk.track, minlength=trk.n_tracks)
-    mean = track_mean
-    if mean is None:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = seq_sum_rows(trk.score, trk.track, trk.n_tracks) / track_len
     return Ab3dPrepared(gt=gt, trk=trk, kind=kind, threshold=threshold, e_g=e_g, e_t=e_t, e_c=e_c, trivial=trivial,
                         comp_edges=comp_edges, comp_start=comp_start, comps=comps, trk_static_ignore=static,
-                        track_len=track_len, track_mean=mean)
+                        track_len=track_len)
 
 
-def ab3dmot_metrics(prep: Ab3dPrepared) -> dict:
+def ab3dmot_metrics(prep: Ab3dPrepared, sum_mode: str = DEFAULT_SUM, other: bool = False) -> dict:
     """The reference's full evaluation on prepared inputs (module docstring) -> dict of figures;
-    its passes computed together (:mod:`dfrmot_jax.metrics.ab3dmot.passes`)."""
-    return run_passes(prep)
+    its passes computed together (:mod:`dfrmot_jax.metrics.ab3dmot.passes`). sum_mode: the
+    evaluator's ``sum`` of track scores (:mod:`~dfrmot_jax.metrics.ab3dmot.sums`: ``"compensated"``,
+    CPython >= 3.12, the default; ``"sequential"``, CPython <= 3.11); other: also the other sum's
+    figures, under ``"other"``."""
+    return run_passes(prep, sum_mode, other)
 
 
-def evaluate_ab3dmot(gt: Ab3dGT, trk: Ab3dTracker, iou="3d:0.25") -> dict:
-    """Score one tracker output (:func:`~dfrmot_jax.metrics.ab3dmot.prep.read_ab3dmot_results`)."""
+def evaluate_ab3dmot(gt: Ab3dGT, trk: Ab3dTracker, iou="3d:0.25", sum_mode: str = DEFAULT_SUM,
+                     other: bool = False) -> dict:
+    """Score one tracker output (:func:`~dfrmot_jax.metrics.ab3dmot.prep.read_ab3dmot_results`);
+    sum_mode, other: :func:`ab3dmot_metrics`'s."""
     kind, thr = parse_iou(iou)
-    return ab3dmot_metrics(prepare_passes(gt, trk, kind, thr))
+    return ab3dmot_metrics(prepare_passes(gt, trk, kind, thr), sum_mode, other)
 
 
 def evaluate_ab3dmot_files(results_dir, root=None, cls: str = "car", sequences: Sequence | None = None,
-                           iou="3d:0.25", seqmap=None, missing: str = "empty") -> dict:
+                           iou="3d:0.25", seqmap=None, missing: str = "empty", sum_mode: str = DEFAULT_SUM,
+                           other: bool = False) -> dict:
     """AB3DMOT's KITTI evaluation of ``results_dir/SSSS.txt`` (one class) -> dict of figures.
 
     root: KITTI training root (default :func:`dfrmot_jax.paths.default_data_root`) or an
@@ -299,6 +276,7 @@ def evaluate_ab3dmot_files(results_dir, root=None, cls: str = "car", sequences: 
     seqmap file (e.g. AB3DMOT's ``evaluate_tracking.seqmap.val``); iou: ``'3d:0.25'`` (default),
     ``'2d:0.5'``, ... (:func:`parse_iou`). missing: a sequence without a file is scored as an empty
     file (``'empty'``, the reference's behaviour with an empty file) or an error (``'error'``).
+    sum_mode, other: :func:`ab3dmot_metrics`'s.
     """
     kind, thr = parse_iou(iou)
     if isinstance(root, Ab3dGT):
@@ -312,4 +290,4 @@ def evaluate_ab3dmot_files(results_dir, root=None, cls: str = "car", sequences: 
             sequences = cached_class_sequences(root, cls)
         gt = cached_ab3dmot_gt(root, cls, sequences)
     trk = read_ab3dmot_results(results_dir, gt, need_3d=(kind == "3d"), missing=missing)
-    return ab3dmot_metrics(prepare_passes(gt, trk, kind, thr))
+    return ab3dmot_metrics(prepare_passes(gt, trk, kind, thr), sum_mode, other)

@@ -37,40 +37,25 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from dfrmot_jax.metrics.ab3dmot.sums import DEFAULT_SUM, group_sums, other_sum, parse_sum, repeat_sums
 from dfrmot_jax.metrics.common.pairs import segment_starts
 
-__all__ = ["N_SAMPLE_POINTS", "ALL_TRACKS", "score_rounds", "thresholds", "TrajLayout", "traj_layout", "ids_frag",
-           "run_passes", "run_passes_many"]
+__all__ = ["N_SAMPLE_POINTS", "ALL_TRACKS", "PASS_FIELDS", "score_rounds", "track_means", "thresholds", "TrajLayout",
+           "traj_layout", "ids_frag", "run_passes", "run_passes_many"]
 
 N_SAMPLE_POINTS = 41
 ALL_TRACKS = -10000.0          # the reference's threshold of the pass that keeps every track
 _NO = np.iinfo(np.int64).max
 
 
-def _seq_repeat_sum(value: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Sequential float64 sum of ``n[i]`` copies of ``value[i]`` ([T] each) -> [T] (Python's ``sum``)."""
-    out = np.zeros(len(value))
-    if len(value) == 0:
-        return out
-    order = np.argsort(-n, kind="stable")
-    v, ns = value[order], n[order]
-    acc = np.zeros(len(v))
-    active = len(v)
-    for k in range(1, int(ns.max(initial=0)) + 1):
-        while active and ns[active - 1] < k:
-            active -= 1
-        acc[:active] += v[:active]
-    out[order] = acc
-    return out
-
-
-def score_rounds(mean: np.ndarray, n: np.ndarray, rounds: int) -> np.ndarray:
+def score_rounds(mean: np.ndarray, n: np.ndarray, rounds: int, sum_mode: str = DEFAULT_SUM) -> np.ndarray:
     """The reference's track scores after 0..rounds averaging rounds -> [rounds + 1, T].
 
     mean [T]: round 0 (each track's mean row score); n [T] rows per track. A round replaces each
-    score by the sequential sum of ``n`` copies of it divided by ``n`` (its per-pass re-averaging of
-    already averaged scores); a score that a round leaves unchanged stays (the reference stops at
-    that fixed point), so only the others are recomputed. Tracks with ``n == 0`` keep their score."""
+    score by the ``sum`` of ``n`` copies of it divided by ``n`` (its per-pass re-averaging of already
+    averaged scores; the sum as ``sum_mode``'s interpreters compute it, :mod:`.sums`); a score that a
+    round leaves unchanged stays (the reference stops at that fixed point), so only the others are
+    recomputed. Tracks with ``n == 0`` keep their score."""
     out = np.empty((rounds + 1, len(mean)))
     out[0] = mean
     live = np.flatnonzero(n > 0)
@@ -79,10 +64,24 @@ def score_rounds(mean: np.ndarray, n: np.ndarray, rounds: int) -> np.ndarray:
         if live.size:
             cur = out[r - 1, live]
             with np.errstate(invalid="ignore", divide="ignore"):
-                new = _seq_repeat_sum(cur, n[live]) / n[live]
+                new = repeat_sums(cur, n[live], sum_mode) / n[live]
             out[r, live] = new
             live = live[~(new == cur)]
     return out
+
+
+def track_means(preps: list, sum_mode: str = DEFAULT_SUM) -> list[np.ndarray]:
+    """Each prepared output's track scores before any pass: ``sum(row scores) / len`` per track, the
+    rows in file order, the sum as ``sum_mode``'s interpreters compute it; one call for all outputs
+    -> a [n_tracks] array per output."""
+    n = np.array([p.trk.n_tracks for p in preps], dtype=np.int64)
+    starts = segment_starts(n)
+    score = np.concatenate([p.trk.score for p in preps]) if preps else np.zeros(0)
+    track = np.concatenate([p.trk.track + starts[i] for i, p in enumerate(preps)]) if preps else np.zeros(0, np.int64)
+    length = np.concatenate([p.track_len for p in preps]) if preps else np.zeros(0, np.int64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = group_sums(score, track, int(starts[-1]), sum_mode) / length
+    return [mean[starts[i]:starts[i + 1]] for i in range(len(preps))]
 
 
 def thresholds(scores: np.ndarray, num_gt: int) -> tuple[list, list]:
@@ -300,7 +299,7 @@ class _Structure:
         ids, frag = ids_frag(self.layout, kept, comp_g, self.comp_index)
         matched_scores = [on[j] for j in range(P)]
         return dict(TP=tp, FN=self.n_gt - tpn, FP=kept @ self.rows_t - tp - ignored, IDS=ids, FRAG=frag,
-                    total=total, on=matched_scores), valid
+                    TP_ignored=tp - tpn, total=total, on=matched_scores), valid
 
 
 def _figures(c: dict, j: int, n_gt: int, recall: float) -> dict:
@@ -320,35 +319,70 @@ def _figures(c: dict, j: int, n_gt: int, recall: float) -> dict:
                 precision=prec)
 
 
-def run_passes(prep) -> dict:
+#: the columns of a result's per-pass table (``res["passes"]``, :func:`run_passes_many`): the recall
+#: point ``r`` and the score threshold of each pass, the recall reached, the pass's counts and
+#: figures, ``TP_ignored`` (matches to ignored ground truth: neighbouring class, truncated or
+#: occluded objects, in TP and so in the recall that places the points, but not in sMOTA's
+#: denominator) and ``drifted`` (tracks whose first mean is at or above the threshold but whose
+#: re-averaged score is below it: dropped by the sequential sum's drift; 0 with the compensated one
+#: wherever its re-average is a fixed point)
+PASS_FIELDS = ("recall_point", "threshold", "recall", "precision", "TP", "FP", "FN", "IDS", "FRAG", "MOTA", "MOTP",
+               "sMOTA", "TP_ignored", "drifted")
+
+
+def run_passes(prep, sum_mode: str = DEFAULT_SUM, other: bool = False) -> dict:
     """The reference's full evaluation of one prepared output (:mod:`dfrmot_jax.metrics.ab3dmot.evaluate`)."""
-    return run_passes_many([prep])[0]
+    return run_passes_many([prep], sum_mode, other)[0]
 
 
-def run_passes_many(preps: list) -> list[dict]:
-    """:func:`run_passes` of several prepared outputs; their score rounds computed in one call."""
+def run_passes_many(preps: list, sum_mode: str = DEFAULT_SUM, other: bool = False) -> list[dict]:
+    """:func:`run_passes` of several prepared outputs, each mode's track means in one call.
+
+    sum_mode: how the evaluator's ``sum`` adds the track scores (:mod:`.sums`); other: also the
+    figures with the other sum, under ``"other"`` (a result dict of its own, without ``other``).
+    Each result names its ``sum``; ``passes``: its per-pass table ({:data:`PASS_FIELDS` field: list})."""
+    sum_mode = parse_sum(sum_mode)
+    modes = (sum_mode, other_sum(sum_mode)) if other else (sum_mode,)
+    structs = [_Structure(prep) for prep in preps]
+    out = [None] * len(preps)
+    for mode in modes:
+        res = _run_mode(preps, structs, mode)
+        for i, r in enumerate(res):
+            if mode == sum_mode:
+                out[i] = r
+            else:
+                out[i]["other"] = r
+    return out
+
+
+def _run_mode(preps: list, structs: list, sum_mode: str) -> list[dict]:
+    """Every pass of each output with one sum (``structs``: their :class:`_Structure`, shared by the modes)."""
+    means = track_means(preps, sum_mode)
     first_passes = []
-    for prep in preps:
-        st = _Structure(prep)
+    for prep, st, mean in zip(preps, structs, means):
         valid = np.zeros(len(st.comp_rows), dtype=bool)
-        c0, valid = st.counts(~(prep.track_mean < ALL_TRACKS)[None], valid)
+        c0, valid = st.counts(~(mean < ALL_TRACKS)[None], valid)
         first = _figures(c0, 0, st.n_gt, 1.0)
         num_gt = first["TP"] + first["FN"]
-        matched = prep.track_mean[st.edge_track[c0["on"][0]]]
+        matched = mean[st.edge_track[c0["on"][0]]]
         thr, rec = thresholds(matched, num_gt) if num_gt else ([], [])
         first_passes.append((st, valid, first, thr, rec))
     n_rounds = max(len(f[3]) for f in first_passes) + 1 if preps else 0
-    starts = segment_starts(np.array([len(p.track_mean) for p in preps], dtype=np.int64))
-    all_rounds = score_rounds(np.concatenate([p.track_mean for p in preps]) if preps else np.zeros(0),
+    starts = segment_starts(np.array([len(m) for m in means], dtype=np.int64))
+    all_rounds = score_rounds(np.concatenate(means) if preps else np.zeros(0),
                               np.concatenate([p.track_len for p in preps]) if preps else np.zeros(0, np.int64),
-                              n_rounds)
+                              n_rounds, sum_mode)
     out = []
     for i, (prep, (st, valid, first, thr, rec)) in enumerate(zip(preps, first_passes)):
         rounds = all_rounds[:, starts[i]:starts[i + 1]]
         s_smota = s_mota = s_motp = 0
         best_mota, best_thr = 0, ALL_TRACKS
+        passes = {k: [] for k in PASS_FIELDS}
         if thr:
-            kept = ~(rounds[1:len(thr) + 1] < np.asarray(thr)[:, None])
+            t_arr = np.asarray(thr)[:, None]
+            scored = rounds[1:len(thr) + 1]
+            kept = ~(scored < t_arr)
+            drifted = ((~(rounds[0] < t_arr)) & ~kept).sum(axis=1)
             c, valid = st.counts(kept, valid)
             for j, (t, r) in enumerate(zip(thr, rec)):
                 f = _figures(c, j, st.n_gt, r)
@@ -357,6 +391,10 @@ def run_passes_many(preps: list) -> list[dict]:
                 s_motp += f["MOTP"]
                 if f["MOTA"] > best_mota:
                     best_thr, best_mota = t, f["MOTA"]
+                row = dict(f, recall_point=r, threshold=t, TP_ignored=int(c["TP_ignored"][j]),
+                           drifted=int(drifted[j]))
+                for k in PASS_FIELDS:
+                    passes[k].append(row[k])
         cb, _ = st.counts(~(rounds[len(thr) + 1] < best_thr)[None], valid)
         best = _figures(cb, 0, st.n_gt, 1.0)
         keys = ("MOTA", "MOTP", "IDS", "FRAG", "FP", "FN", "TP")
@@ -365,6 +403,6 @@ def run_passes_many(preps: list) -> list[dict]:
         res.update({k: best[k] for k in keys})
         res.update(recall=best["recall"], precision=best["precision"], best_threshold=float(best_thr),
                    n_recall_points=len(thr), all_tracks={k: first[k] for k in keys + ("recall",)},
-                   n_rows=len(prep.trk.frame), n_objects=st.n_gt)
+                   n_rows=len(prep.trk.frame), n_objects=st.n_gt, sum=sum_mode, passes=passes)
         out.append(res)
     return out
