@@ -12,7 +12,7 @@ import pytest
 from dfrmot_jax.api import track
 from dfrmot_jax.data import load_split
 from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
-from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS, ab3dmot_columns
+from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_OTHER_COLUMNS, ab3dmot_columns
 from dfrmot_jax.results import ClassRun, write_runs
 from dfrmot_jax.sweep import SweepConfigError, expand, params_of, parse_spec, plan, resolve_data, run_sweep, sweep_report
 from dfrmot_jax.sweep.plan import option_groups
@@ -33,7 +33,8 @@ def _spec(root, **extra) -> dict:
     return spec
 
 
-def _file_figures(root, table: pd.DataFrame, rows, out: Path, iou: str, columns: str = "kitti") -> list[dict]:
+def _file_figures(root, table: pd.DataFrame, rows, out: Path, iou: str, columns: str = "kitti",
+                  sum_mode: str = "compensated") -> list[dict]:
     """AB3DMOT's columns of config rows of ``table``, from their written result files."""
     split = load_split(root, "synth2d", "synth3d", "car")
     figures = {}
@@ -47,23 +48,26 @@ def _file_figures(root, table: pd.DataFrame, rows, out: Path, iou: str, columns:
             write_runs(d, [ClassRun(split, res.frames, res.options, res.ids[j],
                                     None if res.boxes.ndim == 3 else res.boxes[j], res.src3[j], res.own3[j],
                                     None if res.box3 is None else res.box3[j])], columns=columns)
-            figures[p] = ab3dmot_columns(evaluate_ab3dmot_files(d, root, "car", list(split.names), iou=iou))
+            figures[p] = ab3dmot_columns(evaluate_ab3dmot_files(d, root, "car", list(split.names), iou=iou,
+                                                                sum_mode=sum_mode, other=True))
     return [figures[p] for p in rows]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("iou, columns", [("3d:0.25", "kitti"), ("2d:0.5", "kitti"), ("3d:0.25", "kitti-stale")])
-def test_a_sweep_scores_ab3dmot_as_its_written_files(scene, tmp_path, iou, columns):
-    spec = _spec(scene, metrics={"ab3dmot": iou, "ab3dmot_columns": columns})
+@pytest.mark.parametrize("iou, columns, sum_mode", [("3d:0.25", "kitti", "compensated"), ("2d:0.5", "kitti", "compensated"),
+                                                     ("3d:0.25", "kitti-stale", "compensated"),
+                                                     ("3d:0.25", "kitti", "sequential")])
+def test_a_sweep_scores_ab3dmot_as_its_written_files(scene, tmp_path, iou, columns, sum_mode):
+    spec = _spec(scene, metrics={"ab3dmot": iou, "ab3dmot_columns": columns, "ab3dmot_sum": sum_mode})
     df = run_sweep(spec, progress=False, log=lambda m: None)
     comb = df[df["sequence"] == "COMBINED"].reset_index(drop=True)
     per_seq = df[df["sequence"] != "COMBINED"]
     assert per_seq[list(AB3DMOT_COLUMNS)].isna().all().all()          # a whole sequence list only
     table = expand(parse_spec(spec))
     rows = list(range(len(table)))
-    for p, want in zip(rows, _file_figures(scene, table, rows, tmp_path, iou, columns)):
+    for p, want in zip(rows, _file_figures(scene, table, rows, tmp_path, iou, columns, sum_mode)):
         got = comb.loc[comb["config"] == p].iloc[0]
-        for col in AB3DMOT_COLUMNS:
+        for col in AB3DMOT_COLUMNS + AB3DMOT_OTHER_COLUMNS:       # the other sum's headline figures too
             assert got[col] == pytest.approx(want[col], abs=1e-9), (p, col)
     assert comb["sAMOTA"].nunique() > 1                               # the settings change the figure
     assert str(df["ab3dmot_IDS"].dtype) == "Int64"
@@ -88,6 +92,11 @@ def test_metrics_settings_are_checked_and_keep_other_chunk_ids(scene):
         parse_spec(_spec(scene, metrics={"ab3dmot": False}))
     with pytest.raises(SweepConfigError, match="metrics.ab3dmot_columns"):
         parse_spec(_spec(scene, metrics={"ab3dmot_columns": "authors"}))
+    with pytest.raises(SweepConfigError, match="metrics.ab3dmot_sum"):
+        parse_spec(_spec(scene, metrics={"ab3dmot_sum": "fsum"}))
+    comp, seq = (parse_spec(_spec(scene, metrics={"ab3dmot_sum": m})) for m in ("compensated", "sequential"))
+    assert comp.ab3dmot_sum == parse_spec(_spec(scene)).ab3dmot_sum == "compensated"      # the default
+    assert comp.metrics_identity() != seq.metrics_identity()        # chunks of one sum are never the other's
     plain = parse_spec(_spec(scene, report={"objective": "HOTA"}))
     assert plain.ab3dmot is None
     table = expand(plain)

@@ -13,6 +13,7 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
+from ..metrics.ab3dmot.sums import other_sum, python_of
 from ..metrics.columns import canonical_objective
 from .analysis import (
     check_objective,
@@ -159,6 +160,9 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         diff = [f"{a}={fmt_value(best[a])} (baseline {fmt_value(baseline[a])})" for a in axes if best[a] != baseline[a]]
         lines.append(paragraph(f"best vs baseline: {objective} {best[objective]:.3f} vs {baseline[objective]:.3f} "
                                f"({best[objective] - baseline[objective]:+.3f}); changed: {', '.join(diff) or 'nothing'}"))
+    sum_line = ab3dmot_sum_line(comb, best, baseline, src.manifest)
+    if sum_line:
+        lines.append(paragraph(sum_line))
     lines += _interval_lines(rep, df, cls, objective)
     rep.sensitivity = sensitivity(df, objective) if axes else pd.DataFrame()
     lines += _sensitivity_lines(rep.sensitivity, objective)
@@ -186,6 +190,23 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         rep.summary["contrast"] = {**contrast_doc(src.contrast), "answer": rep.contrast}
     rep.text = "\n".join(lines + ["", json.dumps(rep.summary)])
     return rep
+
+
+def ab3dmot_sum_line(comb: pd.DataFrame, best, baseline, manifest: Mapping | None) -> str | None:
+    """Which sum AB3DMOT's figures of a sweep were computed with and, where the other sum's differ, the
+    best config's and the baseline's sAMOTA with it (``other_sAMOTA``); None without AB3DMOT's figures."""
+    if "sAMOTA" not in comb.columns:
+        return None
+    mode = (manifest or {}).get("ab3dmot_sum")
+    if mode is None or "other_sAMOTA" not in comb.columns:
+        return ("AB3DMOT's figures: sequential sum of track scores (CPython <= 3.11's evaluator; written before the "
+                "sum was a setting): rerun with [metrics] ab3dmot_sum for the compensated figures")
+    other = other_sum(mode)
+    rows = [("best", best)] + ([("baseline", baseline)] if baseline is not None else [])
+    diff = [f"{k} sAMOTA {r['other_sAMOTA']:.3f} (vs {r['sAMOTA']:.3f})" for k, r in rows
+            if np.isfinite(r["other_sAMOTA"]) and r["other_sAMOTA"] != r["sAMOTA"]]
+    text = f"AB3DMOT's figures: {mode} sum of track scores (its evaluator on {python_of(mode)})"
+    return text + (f"; with the {other} sum ({python_of(other)}): {', '.join(diff)}" if diff else "")
 
 
 def _headline(full: pd.DataFrame, df: pd.DataFrame, comb: pd.DataFrame, classes: list, cls, objective: str,

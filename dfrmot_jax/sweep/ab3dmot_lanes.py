@@ -24,7 +24,8 @@ from ..api import TrackResult
 from ..data import Split
 from ..metrics.ab3dmot.arrays import evaluate_ab3dmot_rows
 from ..metrics.ab3dmot.prep import Ab3dGT
-from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, ab3dmot_columns
+from ..metrics.ab3dmot.sums import DEFAULT_SUM
+from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, AB3DMOT_OTHER_COLUMNS, ab3dmot_columns
 from ..metrics.kitti2d.lane_scorer import LaneScorer
 from ..results import kitti_rows
 from ..rows import Rows, lane_values
@@ -39,12 +40,14 @@ LANES_PER_PASS = 16
 class Ab3dmotLanes:
     """AB3DMOT scoring of lanes on one split: ``gt`` its ground truth (the split's sequences, in
     order), ``iou`` ``"3d:0.25"`` / ``"2d:0.5"``, ``columns`` the result columns scored (``"kitti"``
-    or ``"kitti-stale"``); :meth:`score` gives each lane's columns."""
+    or ``"kitti-stale"``), ``sum_mode`` the evaluator's sum of track scores (the figures with the
+    other sum too, as :data:`~dfrmot_jax.metrics.ab3dmot.table.AB3DMOT_OTHER_COLUMNS`); :meth:`score`
+    gives each lane's columns."""
 
-    def __init__(self, gt: Ab3dGT, split: Split, iou: str, columns: str = "kitti"):
+    def __init__(self, gt: Ab3dGT, split: Split, iou: str, columns: str = "kitti", sum_mode: str = DEFAULT_SUM):
         if tuple(gt.sequences) != tuple(split.names):
             raise RuntimeError("AB3DMOT ground truth and detections disagree on the sequences")
-        self.gt, self.split, self.iou, self.columns = gt, split, iou, columns
+        self.gt, self.split, self.iou, self.columns, self.sum_mode = gt, split, iou, columns, sum_mode
         self.memo: dict[bytes, dict] = {}
 
     def digests(self, res: TrackResult, base: Sequence[bytes] | None = None) -> list[bytes]:
@@ -52,7 +55,7 @@ class Ab3dmotLanes:
         image boxes (the lane's own, or the ones the lanes share, whole) and, per row, the 3D source
         (``src3``, ``own3``); with output "filtered" also the lane's own 3D boxes. (With output
         "detections" a row's score and 3D box follow from the options, its slot and its 3D source,
-        on the one split; the split, ground truth, IoU and columns are the instance's own.) ``base``: the lanes' digests of ids and own image boxes
+        on the one split; the split, ground truth, IoU, columns and sum are the instance's own.) ``base``: the lanes' digests of ids and own image boxes
         (:meth:`dfrmot_jax.metrics.kitti2d.lane_scorer.LaneScorer.digests` or ``lane_digests``, made here
         when not given), extended here instead of hashing them again."""
         ids = np.asarray(res.ids)
@@ -82,7 +85,7 @@ class Ab3dmotLanes:
             part = new[at:at + LANES_PER_PASS]
             rows = kitti_rows(self.split, res, self.columns, lanes=part)
             out = evaluate_ab3dmot_rows(self.gt, **rows._asdict(), seq_offsets=self.split.offsets, iou=self.iou,
-                                        check_ids=False)
+                                        check_ids=False, sum_mode=self.sum_mode, other=True)
             for b, r in zip(part, out):
                 self.memo[digests[b]] = ab3dmot_columns(r)
         return [self.memo[d] for d in digests]
@@ -94,7 +97,7 @@ def add_columns(df: pd.DataFrame, per_config: Sequence[dict]) -> pd.DataFrame:
     comb = (df["sequence"] == COMBINED).to_numpy()
     if comb.sum() != len(per_config):
         raise RuntimeError("one COMBINED row per config expected")
-    for col in AB3DMOT_COLUMNS:
+    for col in AB3DMOT_COLUMNS + AB3DMOT_OTHER_COLUMNS:
         full = np.full(len(df), np.nan)
         full[comb] = [c[col] for c in per_config]
         df[col] = pd.Series(full, index=df.index).astype("Int64") if col in AB3DMOT_COUNT_COLUMNS else full

@@ -160,7 +160,7 @@ class ChunkRunner:
         ab3dmot = None
         if spec.ab3dmot is not None:
             gt3 = cached_ab3dmot_gt(data.root, data.cls, list(split.names))
-            ab3dmot = Ab3dmotLanes(gt3, split, spec.ab3dmot, spec.ab3dmot_columns)
+            ab3dmot = Ab3dmotLanes(gt3, split, spec.ab3dmot, spec.ab3dmot_columns, spec.ab3dmot_sum)
         timing = Timing()
         scorer = LaneScorer(gt, split.offsets, as_written=True)     # rows as the files carry them
         per_call = LANES_PER_CALL if chosen_platform() == "cpu" else default_lanes_per_call()

@@ -17,6 +17,7 @@ import numpy as np
 from ..config import CLASSES, INT_PARAMS, PRESETS, option_problem, param_problem
 from ..lidar import lidar_dir
 from ..metrics.ab3dmot.evaluate import DEFAULT_AB3DMOT_IOU, parse_iou
+from ..metrics.ab3dmot.sums import DEFAULT_SUM, SUMS
 from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
 from ..metrics.columns import canonical_objective
 from ..checks import (
@@ -38,7 +39,7 @@ RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
 
 TOP_KEYS = ("name", "description", "chunk", "seed", "samples", "data", "baseline", "params", "options", "variants",
             "distortion", "report", "metrics", "lift", "simulate")
-METRICS_KEYS = ("ab3dmot", "ab3dmot_columns")
+METRICS_KEYS = ("ab3dmot", "ab3dmot_columns", "ab3dmot_sum")
 DATA_KEYS = ("root", "det2d", "det3d", "class", "sequences")
 BASELINE_KEYS = ("preset", "class")
 REPORT_KEYS = ("objective", "folds", "top", "contrast", "class")
@@ -102,10 +103,13 @@ class SweepSpec:
 
     def metrics_identity(self) -> str | None:
         """What the chunks' metric columns depend on beyond the 2D metrics (part of the chunk ids):
-        AB3DMOT's IoU setting and, when not "kitti", the result columns it scores; None without it."""
+        AB3DMOT's IoU setting, when not "kitti" the result columns it scores, and the sum of its
+        track scores (always named: chunks written before the sum was a setting summed sequentially,
+        so their ids, which lack it, are never taken for another sum's); None without it."""
         if self.ab3dmot is None:
             return None
-        return self.ab3dmot if self.ab3dmot_columns == "kitti" else f"{self.ab3dmot} {self.ab3dmot_columns}"
+        columns = "" if self.ab3dmot_columns == "kitti" else f" {self.ab3dmot_columns}"
+        return f"{self.ab3dmot}{columns} sum={self.ab3dmot_sum}"
 
     name: str
     description: str = ""
@@ -126,6 +130,7 @@ class SweepSpec:
     folds: int | None = None
     ab3dmot: str | None = None                  # metrics.ab3dmot: AB3DMOT's figures too, at this IoU ("3d:0.25")
     ab3dmot_columns: str = "kitti"              # metrics.ab3dmot_columns: the result columns scored ("kitti-stale")
+    ab3dmot_sum: str = DEFAULT_SUM              # metrics.ab3dmot_sum: how its evaluator sums track scores
     top: int = 10
     distortion: DistortionAxes | None = None
     lidar: LidarAxes | None = None              # [lift] / [simulate]: LiDAR settings crossed with every config
@@ -362,6 +367,8 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     ab3dmot = _parse_metrics(metrics, rep, objective, folds)
     ab3dmot_columns = metrics.choice("ab3dmot_columns", "kitti", ("kitti", "kitti-stale"),
                                      "the result columns AB3DMOT's figures score")
+    ab3dmot_sum = metrics.choice("ab3dmot_sum", DEFAULT_SUM, SUMS, "how AB3DMOT's evaluator sums track scores "
+                                 "(compensated: CPython >= 3.12; sequential: CPython <= 3.11)")
     if ab3dmot is not None and distortion is not None:
         raise metrics.error("ab3dmot", "AB3DMOT's figures are not computed in distortion studies yet (their "
                                        "lanes' 3D rows include clutter)")
@@ -371,7 +378,8 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
                      sequences=sequences, baseline=base, variants=variants, objective=objective,
                      folds=folds, top=top_n, distortion=distortion, contrast=contrast, source=source,
                      raw=dict(doc), classes=classes, baseline_class=base_cls, report_class=report_class,
-                     ab3dmot=ab3dmot, ab3dmot_columns=ab3dmot_columns, lidar=parse_lidar(doc, source))
+                     ab3dmot=ab3dmot, ab3dmot_columns=ab3dmot_columns, ab3dmot_sum=ab3dmot_sum,
+                     lidar=parse_lidar(doc, source))
     for v in spec.variants:
         if samples > 1 and all(a.is_grid for a in v.params):
             raise config_error("samples", f"samples = {samples} repeats the grid with random parameters redrawn, but "

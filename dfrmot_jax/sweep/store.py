@@ -243,6 +243,8 @@ def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings],
                                   "seeds": list(spec.distortion.seeds), **spec.distortion.identity()}
     if spec.contrast is not None:
         manifest["contrast"] = contrast_doc(spec.contrast)
+    if spec.ab3dmot is not None:
+        manifest["ab3dmot_sum"] = spec.ab3dmot_sum
     write_text_atomic(outdir / "manifest.json", json.dumps(manifest, indent=1), parents=False)
     write_parquet_atomic(outdir / "configs.parquet", table)
     return old is not None and "ledger" not in old

@@ -24,6 +24,7 @@ from ..api import track
 from ..data import cached_split
 from ..metrics.ab3dmot.arrays import evaluate_ab3dmot_arrays
 from ..metrics.ab3dmot.prep import cached_ab3dmot_gt
+from ..metrics.ab3dmot.sums import DEFAULT_SUM
 from ..metrics.ab3dmot.table import ab3dmot_columns
 from ..results import kitti_row_arrays
 from ..sweep.plan import DataSettings, option_groups
@@ -55,11 +56,11 @@ def _stack(parts: Sequence[tuple]) -> tuple:
 
 
 def ab3dmot_held_out(data: DataSettings, table: pd.DataFrame, folds: Sequence[Sequence[str]], iou: str,
-                     objective: str, columns: str = "kitti") -> dict:
+                     objective: str, columns: str = "kitti", sum_mode: str = DEFAULT_SUM) -> dict:
     """The nested cross-validation's held-out figures of an AB3DMOT ``objective`` (module docstring).
 
     ``table``: the config table of the k chosen configs (row f chosen without fold f) and, last, the
-    baseline. Returns ``cross_validated``, ``baseline``, ``mean_held_out`` and ``per_fold`` (each
+    baseline; ``sum_mode`` the evaluator's sum of track scores. Returns ``cross_validated``, ``baseline``, ``mean_held_out`` and ``per_fold`` (each
     ``held_out``, ``baseline_held_out``), as :func:`dfrmot_jax.tuning.nested.held_out_scores`."""
     split = cached_split(data.root, data.det2d, data.det3d, data.cls, data.sequences)
     names = list(split.names)
@@ -77,7 +78,7 @@ def ab3dmot_held_out(data: DataSettings, table: pd.DataFrame, folds: Sequence[Se
             sl = slice(int(split.offsets[s]), int(split.offsets[s] + split.lengths[s]))
             for c, a in zip(comp, (ids, boxes, scores, box3d)):
                 c[0, sl] = a[which[r], sl]
-        res = evaluate_ab3dmot_arrays(gt, *comp, seq_offsets=split.offsets[idx], iou=iou)[0]
+        res = evaluate_ab3dmot_arrays(gt, *comp, seq_offsets=split.offsets[idx], iou=iou, sum_mode=sum_mode)[0]
         return float(ab3dmot_columns(res)[objective])
 
     per_fold = []
