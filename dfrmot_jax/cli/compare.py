@@ -2,13 +2,16 @@
 intervals over sequences (:mod:`dfrmot_jax.report.compare`).
 
 Usage: ``dfrmot compare A B [--data ROOT] [--class car[,pedestrian]] [--seqs 0000,0002 | --seqmap FILE]
-[--resamples 10000] [--seed 0] [--csv OUT.csv] [--html OUT.html] [--allow-missing]``. A and B are read and checked as
+[--resamples 10000] [--seed 0] [--metrics kitti2d,ab3dmot] [--ab3dmot-sum compensated|sequential]
+[--recall-table F] [--csv OUT.csv] [--html OUT.html] [--allow-missing]``. A and B are read and checked as
 ``dfrmot eval`` reads them (the same refusals, exit 2). Prints, per class, the COMBINED figures of A and
 B, B - A with its 95 % interval and the share of resamples where B is better, and the sequences where
 HOTA moves most; ``--csv`` writes the tidy table (one row per class, sequence or ``COMBINED``, metric:
 ``class seq metric a b diff ci_low ci_high p_b_better resamples``); ``--html`` one self-contained page
 with the ground-truth tracks treated most differently, their timelines and bird's-eye views
-(:mod:`dfrmot_jax.report.compare_html`).
+(:mod:`dfrmot_jax.report.compare_html`). With AB3DMOT's figures (``--metrics ab3dmot``), the sum of
+track scores is ``--ab3dmot-sum``'s (the other sum's figures in a line where they differ), and
+``--recall-table`` writes both outputs' recall points (also on the page).
 """
 
 from __future__ import annotations
@@ -25,8 +28,11 @@ from ..sweep.config_output import write_config_output
 from ..metrics.kitti2d.tracker_files import read_tracker_files
 from ..paths import default_data_root
 from ..report.compare import DEFAULT_RESAMPLES, compare_outputs, comparison_text
+from ..metrics.ab3dmot.sums import DEFAULT_SUM, SUM_HELP, SUMS
+from ..metrics.ab3dmot.table import other_sum_line, recall_table
 from ..report.compare_ab3dmot import AB3DMOT_RESAMPLES, ab3dmot_rows
 from ..report.compare_html import write_compare_html
+from .args import output_file
 from .commands import HELP
 from .errors import guarded
 from .eval import (check_class_rows, check_folders, chosen_sequences, classes_arg, families_arg, ground_truth,
@@ -91,6 +97,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
                         "(--ab3dmot-iou), each resample rescored")
     p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default="3d:0.25", type=iou_arg, metavar="2d:T|3d:T",
                    help="AB3DMOT's matching (default 3d:0.25)")
+    p.add_argument("--ab3dmot-sum", dest="ab3dmot_sum", default=DEFAULT_SUM, choices=SUMS,
+                   help=f"{SUM_HELP}; where the other gives other figures, a line shows them")
+    p.add_argument("--recall-table", dest="recall_table", default=None, metavar="F", type=output_file,
+                   help="write AB3DMOT's recall points of A and B as CSV (implies --metrics ab3dmot; the columns of "
+                        "dfrmot eval --recall-table, with output A or B)")
     p.add_argument("--ab3dmot-resamples", dest="ab3dmot_resamples", default=AB3DMOT_RESAMPLES, type=_resamples,
                    help=f"resamples of AB3DMOT's figures, each a full evaluation of both outputs (default "
                         f"{AB3DMOT_RESAMPLES}; about 0.2 s each for 11 sequences)")
@@ -134,7 +145,7 @@ def _compare(args, root: Path, label_dir: Path, seqs, gts: dict, seq_lists: dict
         dets.append(per_class)
     result = compare_outputs(gts, dets[0], dets[1], names[0], names[1], args.resamples, args.seed)
     print(comparison_text(result))
-    if "ab3dmot" in args.metrics:
+    if "ab3dmot" in args.metrics or args.recall_table:
         _ab3dmot(args, root, seq_lists, folders, result)
     if args.csv:
         out = Path(args.csv)
@@ -149,19 +160,30 @@ def _compare(args, root: Path, label_dir: Path, seqs, gts: dict, seq_lists: dict
 
 def _ab3dmot(args, root: Path, seq_lists: dict, folders: list, result) -> None:
     """AB3DMOT's figures with their intervals: printed, and added to ``result.table``'s COMBINED rows."""
-    rows = []
+    rows, recalls = [], []
+    result.ab3dmot = {}
     for cls, seqs in seq_lists.items():
-        got, per = ab3dmot_rows(root, cls, list(seqs), folders[0], folders[1], args.ab3dmot_resamples, args.seed,
-                                args.ab3dmot_iou)
+        got, per, points = ab3dmot_rows(root, cls, list(seqs), folders[0], folders[1], args.ab3dmot_resamples,
+                                        args.seed, args.ab3dmot_iou, sum_mode=args.ab3dmot_sum)
         rows += got
-        print(f"\n{cls}, AB3DMOT (IoU {args.ab3dmot_iou}): {args.ab3dmot_resamples:,} paired resamples, each rescored "
-              f"({per:.2f} s per resample)")
+        result.ab3dmot[cls] = tuple(points)
+        recalls += [recall_table(r, output=k, **{"class": cls}) for k, r in zip("AB", points)]
+        print(f"\n{cls}, AB3DMOT (IoU {args.ab3dmot_iou}, {args.ab3dmot_sum} sum): {args.ab3dmot_resamples:,} paired "
+              f"resamples, each rescored ({per:.2f} s per resample)")
         for r in got:
             count = r["metric"].split("@")[0] in ("ab3dmot_IDS", "ab3dmot_FP", "ab3dmot_FN")
             f = (lambda v: f"{int(round(v)):+d}") if count else (lambda v: f"{v:+.2f}")
             g = (lambda v: f"{int(round(v))}") if count else (lambda v: f"{v:.2f}")
             print(f"{r['metric']:<22} {g(r['a']):>8} {g(r['b']):>8} {f(r['diff']):>8}   [{f(r['ci_low']):>8}, "
                   f"{f(r['ci_high']):>8}]   {r['p_b_better']:.3f}")
+        for k, r in zip("AB", points):
+            if (line := other_sum_line(r, k)) is not None:
+                print(line)
+    if args.recall_table:
+        out = Path(args.recall_table)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        pd.concat(recalls, ignore_index=True).to_csv(out, index=False)
+        print(f"wrote {out}")
     result.table = pd.concat([result.table, pd.DataFrame(rows, columns=list(result.table.columns))],
                              ignore_index=True)
     result.table["resamples"] = result.table["resamples"].astype("Int64")

@@ -44,7 +44,9 @@ class Comparison:
     """The tidy table (:data:`COLUMNS`) and what it was made from: the names of A and B, the
     resamples, the seed and the interval level; per class the ground truth, both outputs' CLEAR
     matches (``events``: class -> (gt, A's, B's :class:`~.compare_views.OutputEvents`)) and the
-    ground-truth tracks they treat most differently (``differing``: class -> DataFrame)."""
+    ground-truth tracks they treat most differently (``differing``: class -> DataFrame); with AB3DMOT's
+    figures, per class A's and B's result dicts (``ab3dmot``: class -> (A's, B's), each with the other
+    sum's figures and the per-pass tables of both sums)."""
 
     table: pd.DataFrame
     name_a: str
@@ -54,6 +56,7 @@ class Comparison:
     level: float = 0.95
     events: dict | None = None
     differing: dict | None = None
+    ab3dmot: dict | None = None
 
 
 def _scored(gt, fields: Mapping) -> dict:

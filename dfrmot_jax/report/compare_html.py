@@ -12,6 +12,7 @@ import pandas as pd
 
 from ..io.atomic import write_text_atomic
 from ..version import __version__
+from ..metrics.ab3dmot.table import other_sum_line, recall_table
 from .columns import COMBINED
 from .compare import Comparison
 from .compare_views import bev_svg, timeline_svg
@@ -69,6 +70,21 @@ def _whole_sequence(c: Comparison, cls: str) -> list[str]:
             + timeline_svg(gt, ev_b, s, 0, n - 1, "B", most=None) + "</figure>"]
 
 
+def _recall_points(c: Comparison, cls: str) -> list[str]:
+    """AB3DMOT's recall points of A and B (their sum's), and the other sum's figures where they differ."""
+    if not c.ab3dmot or cls not in c.ab3dmot:
+        return []
+    a, b = c.ab3dmot[cls]
+    table = pd.concat([recall_table(r, output=k).query("sum == @r['sum']") for k, r in (("A", a), ("B", b))],
+                      ignore_index=True)
+    others = [line for k, r in (("A", a), ("B", b)) if (line := other_sum_line(r, k)) is not None]
+    return [f"<h2>{escape(cls)}: AB3DMOT's recall points</h2>",
+            f"<p>Per recall point r of AB3DMOT's evaluator ({escape(a['sum'])} sum of track scores): the score "
+            "threshold it chose, the recall reached, the pass's counts, sMOTA, the matches to ignored ground truth "
+            "(in the recall that places the points, not in sMOTA's denominator) and the tracks dropped only by the "
+            "sequential sum's drift.</p>", *(f"<p>{escape(x)}</p>" for x in others), _table(table)]
+
+
 def render_compare_html(c: Comparison) -> str:
     """The page of a comparison (:func:`~.compare.compare_outputs`)."""
     pct = int(round(100 * c.level))
@@ -86,7 +102,7 @@ def render_compare_html(c: Comparison) -> str:
                  "<p>The ground-truth tracks with the largest differences in missed frames, identity switches and "
                  "fragmentations (CLEAR's matching at IoU 0.5; frames within the sequence).</p>",
                  _table(c.differing[cls].drop(columns=["gid"]))]
-        body += _views(c, cls) + _whole_sequence(c, cls)
+        body += _views(c, cls) + _whole_sequence(c, cls) + _recall_points(c, cls)
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>dfrmot compare</title>'
             f"<style>{CSS}</style></head>\n<body>\n" + "\n".join(body) + "\n</body></html>\n")
 
