@@ -28,7 +28,6 @@ bottom centre); a detection's *raw* box is ``[h, w, l, x, y, z, theta]`` as in t
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from dataclasses import dataclass
@@ -36,6 +35,9 @@ from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+
+from .ab3dmot_geometry import (DegenerateGeometry, bottom_polygon, box_corners, box_dict, clip_polygon,
+                               convex_hull, hull_area, iou_pair, polygon_area)
 
 PI = np.pi
 TWO_PI = np.pi * 2
@@ -95,11 +97,16 @@ class FrameDets:
 
 
 def read_detections(path) -> dict[int, FrameDets]:
+    """``parse_detections`` of a file."""
+    return parse_detections(Path(path).read_text())
+
+
+def parse_detections(text: str) -> dict[int, FrameDets]:
     """Parse a PointRCNN detection CSV (``frame,type,x1,y1,x2,y2,score,h,w,l,x,y,z,rot_y,alpha``)
     into ``{frame: FrameDets}``. Rows keep their order within a frame: that is the detection
     index. Frames without a row are absent."""
     rows: dict[int, list[list[float]]] = {}
-    for line in Path(path).read_text().splitlines():
+    for line in text.splitlines():
         if not line.strip():
             continue
         v = [float(s) for s in line.split(",")]
@@ -226,145 +233,10 @@ class Track:
 
 
 # ----------------------------------------------------------------------------------------------
-# boxes and affinities
+# affinities (box geometry in ab3dmot_geometry)
 
-def box_corners(states: np.ndarray) -> np.ndarray:
-    """Corners [n, 8, 3] of box states [n, 7]: in the box frame ``x = +-l/2``, ``z = +-w/2``,
-    ``y = 0`` (corners 0-3, the bottom: y points down) or ``-h`` (corners 4-7), in the order
-    (l,w), (l,-w), (-l,-w), (-l,w); rotated by ``roty(theta) = [[c,0,s],[0,1,0],[-s,0,c]]``, then
-    translated by the centre."""
-    x, y, z, t, l, w, h = (states[:, i:i + 1] for i in range(7))
-    c, s = np.cos(t), np.sin(t)
-    hl, hw = l / 2, w / 2
-    xc = np.concatenate([hl, hl, -hl, -hl, hl, hl, -hl, -hl], axis=1)         # [n, 8]
-    zc = np.concatenate([hw, -hw, -hw, hw, hw, -hw, -hw, hw], axis=1)
-    zero = np.zeros_like(h)
-    yc = np.concatenate([zero] * 4 + [-h] * 4, axis=1)
-    return np.stack([c * xc + s * zc + x, yc + y, -s * xc + c * zc + z], axis=2)
-
-
-def bottom_polygon(corners: np.ndarray) -> list[tuple[float, float]]:
-    """The bottom face [4] as ``(x, z)`` points in counter-clockwise order: corners 3, 2, 1, 0 of
-    one box's corners [8, 3]."""
-    return [(float(corners[i, 0]), float(corners[i, 2])) for i in (3, 2, 1, 0)]
-
-
-def clip_polygon(subject, clip):
-    """Sutherland-Hodgman: ``subject`` (any polygon, list of (x, y)) clipped by each edge of the
-    convex counter-clockwise ``clip`` polygon in turn, from edge (last, first) on. A point p is
-    inside edge (a, b) iff ``(b.x - a.x)(p.y - a.y) > (b.y - a.y)(p.x - a.x)`` (strict); an edge
-    crossing adds the intersection of the two lines, ``(n1 dp - n2 dc) / (dc x dp)`` with
-    ``dc = a - b``, ``dp = s - e``, ``n1 = a x b``, ``n2 = s x e``. Returns the points, or None as
-    soon as a stage leaves none."""
-    def inside(p):
-        return (b[0] - a[0]) * (p[1] - a[1]) > (b[1] - a[1]) * (p[0] - a[0])
-
-    def crossing():
-        dc = (a[0] - b[0], a[1] - b[1])
-        dp = (s[0] - e[0], s[1] - e[1])
-        n1 = a[0] * b[1] - a[1] * b[0]
-        n2 = s[0] * e[1] - s[1] * e[0]
-        n3 = 1.0 / (dc[0] * dp[1] - dc[1] * dp[0])
-        return ((n1 * dp[0] - n2 * dc[0]) * n3, (n1 * dp[1] - n2 * dc[1]) * n3)
-
-    out = list(subject)
-    a = clip[-1]
-    for b in clip:
-        pts, out = out, []
-        s = pts[-1]
-        for e in pts:
-            if inside(e):
-                if not inside(s):
-                    out.append(crossing())
-                out.append(e)
-            elif inside(s):
-                out.append(crossing())
-            s = e
-        a = b
-        if not out:
-            return None
-    return out
-
-
-def polygon_area(pts) -> float:
-    """Shoelace area ``|sum(x_i y_i+1 - y_i x_i+1)| / 2`` of a simple polygon (list of (x, y))."""
-    acc = 0.0
-    n = len(pts)
-    for i in range(n):
-        x0, y0 = pts[i]
-        x1, y1 = pts[(i + 1) % n]
-        acc += x0 * y1 - y0 * x1
-    return abs(acc) * 0.5
-
-
-def convex_hull(pts):
-    """Andrew's monotone chain: the convex hull (counter-clockwise, collinear points dropped) of a
-    list of (x, y) points."""
-    p = sorted(set(pts))
-    if len(p) <= 2:
-        return p
-
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower, upper = [], []
-    for q in p:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], q) <= 0:
-            lower.pop()
-        lower.append(q)
-    for q in reversed(p):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], q) <= 0:
-            upper.pop()
-        upper.append(q)
-    return lower[:-1] + upper[:-1]
-
-
-def _overlap_possible(pa, pb) -> bool:
-    """False when two bottom polygons (lists of 4 (x, z) points) are surely apart: centre distance
-    above the sum of their circumradii (with 1e-6 slack). Then the clip is empty (area 0)."""
-    ca = (sum(q[0] for q in pa) / 4, sum(q[1] for q in pa) / 4)
-    cb = (sum(q[0] for q in pb) / 4, sum(q[1] for q in pb) / 4)
-    ra = max(math.hypot(q[0] - ca[0], q[1] - ca[1]) for q in pa)
-    rb = max(math.hypot(q[0] - cb[0], q[1] - cb[1]) for q in pb)
-    return math.hypot(ca[0] - cb[0], ca[1] - cb[1]) <= ra + rb + 1e-6
-
-
-def iou_pair(det, trk, metric: str, det_poly, trk_poly) -> float:
-    """IoU / GIoU of a detection and a track (boxes as dicts of floats x y z theta l w h; bottom
-    polygons from ``bottom_polygon``), in float64:
-
-    - ``I_2D``: area of the detection's bottom clipped by the track's (0 when the clip is empty);
-    - ``C_2D`` (GIoU only): area of the convex hull of both bottoms' 8 points;
-    - 2D: ``U = w_a l_a + w_b l_b - I``; IoU ``I / U``; GIoU ``I / U - (C - U) / C``;
-    - 3D: overlap height ``max(0, min(y_a, y_b) - max(y_a - h_a, y_b - h_b))`` (y is the bottom),
-      ``I3 = I_2D * overlap``, ``U3 = w_a l_a h_a + w_b l_b h_b - I3``; IoU ``I3 / U3``; GIoU uses
-      the union height ``max(0, max(y_a, y_b) - min(y_a - h_a, y_b - h_b))``, ``C3 = C_2D * union``
-      and ``I3 / U3 - (C3 - U3) / C3``.
-    """
-    inter = 0.0
-    if _overlap_possible(det_poly, trk_poly):
-        clipped = clip_polygon(det_poly, trk_poly)
-        if clipped is not None:
-            inter = polygon_area(clipped)
-    hull = polygon_area(convex_hull(det_poly + trk_poly)) if metric.startswith("giou") else None
-    if metric.endswith("2d"):
-        union = det["w"] * det["l"] + trk["w"] * trk["l"] - inter
-        if metric == "iou_2d":
-            return inter / union
-        return inter / union - (hull - union) / hull
-    ya, yb = det["y"], trk["y"]
-    ta, tb = ya - det["h"], yb - trk["h"]
-    overlap = max(0.0, min(ya, yb) - max(ta, tb))
-    inter3 = inter * overlap
-    union3 = det["w"] * det["l"] * det["h"] + trk["w"] * trk["l"] * trk["h"] - inter3
-    if metric == "iou_3d":
-        return inter3 / union3
-    hull3 = hull * max(0.0, max(ya, yb) - min(ta, tb))
-    return inter3 / union3 - (hull3 - union3) / hull3
-
-
-def _box_dict(state) -> dict:
-    return dict(zip(("x", "y", "z", "theta", "l", "w", "h"), (float(v) for v in state)))
+__all__ = ["DegenerateGeometry", "bottom_polygon", "box_corners", "box_dict", "clip_polygon", "convex_hull",
+           "hull_area", "iou_pair", "polygon_area"]
 
 
 def affinity_matrix(det_states: np.ndarray, trk_states: np.ndarray, metric: str,
@@ -374,7 +246,10 @@ def affinity_matrix(det_states: np.ndarray, trk_states: np.ndarray, metric: str,
 
     - ``iou_2d``/``iou_3d``/``giou_2d``/``giou_3d``: ``iou_pair``;
     - ``dist_2d``: ``-|(dx, dz)|`` of the states (bottom centres on the ground);
-    - ``dist_3d``: ``-|c_det - c_trk|``, c the mean of a box's 8 corners;
+    - ``dist_3d``: ``-|c_det - c_trk|``, c the mean of a box's 8 corners (summed row by row, then
+      divided by 8: ``np.average`` over corners stored column-major, i.e. NumPy's summation along
+      a contiguous axis, as for AB3DMOT's transposed corner array; the norm as ``np.linalg.norm``;
+      boxes with the same centre give 0 or a few 1e-15 depending on these orders);
     - ``m_dis``: ``-sqrt(d' S^-1 d)``, ``d = det - trk`` [7] with the heading difference through
       ``yaw_difference``, ``S^-1`` [m, 7, 7] the inverse innovation of each track.
     """
@@ -388,8 +263,8 @@ def affinity_matrix(det_states: np.ndarray, trk_states: np.ndarray, metric: str,
         dc, tc = box_corners(det_states), box_corners(trk_states)
         dpoly = [bottom_polygon(c) for c in dc]
         tpoly = [bottom_polygon(c) for c in tc]
-        dbox = [_box_dict(s) for s in det_states]
-        tbox = [_box_dict(s) for s in trk_states]
+        dbox = [box_dict(s) for s in det_states]
+        tbox = [box_dict(s) for s in trk_states]
         for i in range(n):
             for j in range(m):
                 out[i, j] = iou_pair(dbox[i], tbox[j], metric, dpoly[i], tpoly[j])
@@ -397,10 +272,11 @@ def affinity_matrix(det_states: np.ndarray, trk_states: np.ndarray, metric: str,
         d = det_states[:, None, [0, 2]] - trk_states[None, :, [0, 2]]
         out[:] = -np.sqrt(np.sum(d * d, axis=-1))
     elif metric == "dist_3d":
-        cd = box_corners(det_states).mean(axis=1)                     # [n, 3]
-        ct = box_corners(trk_states).mean(axis=1)                     # [m, 3]
-        d = cd[:, None, :] - ct[None, :, :]
-        out[:] = -np.sqrt(np.sum(d * d, axis=-1))
+        cd = [np.average(c, axis=0) for c in box_corners(det_states)]     # [3] each
+        ct = [np.average(c, axis=0) for c in box_corners(trk_states)]
+        for i in range(n):
+            for j in range(m):
+                out[i, j] = -np.linalg.norm(cd[i] - ct[j])
     else:                                                             # m_dis
         for i in range(n):
             for j in range(m):
@@ -413,12 +289,105 @@ def affinity_matrix(det_states: np.ndarray, trk_states: np.ndarray, metric: str,
 # ----------------------------------------------------------------------------------------------
 # association
 
+def _less(a, b) -> bool:
+    """NumPy's float order for sorting: NaN after everything."""
+    return a < b or (b != b and a == a)
+
+
+def _argheapsort(v, idx, lo: int, n: int) -> None:
+    """NumPy's indirect heapsort of ``idx[lo:lo+n]`` by ``v`` (the introsort's fallback), in place."""
+    a = lambda k: idx[lo + k - 1]                                     # noqa: E731 (1-based heap)
+
+    def put(k, val):
+        idx[lo + k - 1] = val
+
+    def sift(tmp, i, size):
+        j = 2 * i
+        while j <= size:
+            if j < size and _less(v[a(j)], v[a(j + 1)]):
+                j += 1
+            if _less(v[tmp], v[a(j)]):
+                put(i, a(j))
+                i, j = j, 2 * j
+            else:
+                break
+        put(i, tmp)
+
+    for l in range(n >> 1, 0, -1):
+        sift(a(l), l, n)
+    while n > 1:
+        tmp = a(n)
+        put(n, a(1))
+        n -= 1
+        sift(tmp, 1, n)
+
+
+def numpy_argsort(values) -> list[int]:
+    """``np.argsort(values)`` with NumPy 1.23's default ``kind='quicksort'`` for floats, tie order
+    included (NumPy 2 may dispatch to SIMD sorts that order ties otherwise): introsort on an index
+    array, median-of-3 pivot moved to ``pr - 1``, both scans stopping at equal keys, the larger
+    part pushed, insertion sort for parts of at most 16 items, heapsort past depth
+    ``2 * floor(log2(n))``."""
+    v = [float(x) for x in values]
+    n = len(v)
+    idx = list(range(n))
+    stack = []
+    pl, pr = 0, n - 1
+    cdepth = 2 * (n.bit_length() - 1) if n else 0
+    while True:
+        if cdepth < 0:
+            _argheapsort(v, idx, pl, pr - pl + 1)
+        else:
+            while pr - pl > 15:
+                pm = pl + ((pr - pl) >> 1)
+                if _less(v[idx[pm]], v[idx[pl]]):
+                    idx[pm], idx[pl] = idx[pl], idx[pm]
+                if _less(v[idx[pr]], v[idx[pm]]):
+                    idx[pr], idx[pm] = idx[pm], idx[pr]
+                if _less(v[idx[pm]], v[idx[pl]]):
+                    idx[pm], idx[pl] = idx[pl], idx[pm]
+                vp = v[idx[pm]]
+                pi, pj = pl, pr - 1
+                idx[pm], idx[pj] = idx[pj], idx[pm]
+                while True:
+                    pi += 1
+                    while _less(v[idx[pi]], vp):
+                        pi += 1
+                    pj -= 1
+                    while _less(vp, v[idx[pj]]):
+                        pj -= 1
+                    if pi >= pj:
+                        break
+                    idx[pi], idx[pj] = idx[pj], idx[pi]
+                idx[pi], idx[pr - 1] = idx[pr - 1], idx[pi]
+                if pi - pl < pr - pi:
+                    stack.append((pi + 1, pr, cdepth - 1))
+                    pr = pi - 1
+                else:
+                    stack.append((pl, pi - 1, cdepth - 1))
+                    pl = pi + 1
+                cdepth -= 1                                           # checked only for popped parts
+            for i in range(pl + 1, pr + 1):                           # insertion sort
+                vi = idx[i]
+                key = v[vi]
+                j = i
+                while j > pl and _less(key, v[idx[j - 1]]):
+                    idx[j] = idx[j - 1]
+                    j -= 1
+                idx[j] = vi
+        if not stack:
+            break
+        pl, pr, cdepth = stack.pop()
+    return idx
+
+
 def greedy_assignment(cost: np.ndarray) -> np.ndarray:
-    """Pairs [k, 2] (det, trk): all pairs visited by ascending cost (``np.argsort`` of the
-    flattened row-major [n, m] matrix; ties keep the flat order), each taken when both its
-    detection and its track are still free. Rows come in the order taken."""
+    """Pairs [k, 2] (det, trk): all pairs visited by ascending cost (``numpy_argsort`` of the
+    flattened row-major [n, m] matrix: NumPy 1.23's introsort, whose order of equal costs matters,
+    e.g. the many zero IoUs), each taken when both its detection and its track are still free.
+    Rows come in the order taken."""
     n, m = cost.shape
-    order = np.argsort(cost.reshape(-1), kind="stable")
+    order = numpy_argsort(cost.reshape(-1))
     det_free, trk_free = [True] * n, [True] * m
     pairs = []
     for k in order:
