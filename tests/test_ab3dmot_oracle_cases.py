@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
+from dfrmot_jax.testing import ab3dmot_geometry as geo
 from dfrmot_jax.testing import ab3dmot_oracle as ab
 
 FIXTURES = Path(__file__).parent / "fixtures" / "ab3dmot_oracle"
@@ -39,7 +40,7 @@ def test_affinity_pairs_match_ab3dmot(metric):
         want = p["affinity"][metric]
         if want is None:
             raised += 1
-            with pytest.raises(ab.DegenerateGeometry):
+            with pytest.raises(geo.DegenerateGeometry):
                 ab.affinity_matrix(det, trk, metric, inv_s)
             continue
         got = ab.affinity_matrix(det, trk, metric, inv_s)[0, 0]
@@ -135,17 +136,17 @@ def _random_rects(rng, n):
 def test_intersection_and_hull_areas_against_shapely():
     rng = np.random.default_rng(2)
     a, b = _random_rects(rng, 300), _random_rects(rng, 300)
-    ca, cb = ab.box_corners(a), ab.box_corners(b)
+    ca, cb = geo.box_corners(a), geo.box_corners(b)
     for i in range(300):
-        pa, pb = ab.bottom_polygon(ca[i]), ab.bottom_polygon(cb[i])
+        pa, pb = geo.bottom_polygon(ca[i]), geo.bottom_polygon(cb[i])
         sa, sb = Polygon(pa), Polygon(pb)
         assert sa.exterior.is_ccw and math.isclose(sa.area, a[i, 4] * a[i, 5], rel_tol=1e-12)
-        clipped = ab.clip_polygon(pa, pb)
-        inter = 0.0 if clipped is None else ab.hull_area(clipped)
+        clipped = geo.clip_polygon(pa, pb)
+        inter = 0.0 if clipped is None else geo.hull_area(clipped)
         assert math.isclose(inter, sa.intersection(sb).area, rel_tol=1e-9, abs_tol=1e-9)
-        assert math.isclose(ab.hull_area(pa + pb), sa.union(sb).convex_hull.area, rel_tol=1e-12)
-        g = ab.iou_pair(ab.box_dict(a[i]), ab.box_dict(b[i]), "giou_3d", pa, pb)
-        j = ab.iou_pair(ab.box_dict(a[i]), ab.box_dict(b[i]), "iou_3d", pa, pb)
+        assert math.isclose(geo.hull_area(pa + pb), sa.union(sb).convex_hull.area, rel_tol=1e-12)
+        g = geo.iou_pair(geo.box_dict(a[i]), geo.box_dict(b[i]), "giou_3d", pa, pb)
+        j = geo.iou_pair(geo.box_dict(a[i]), geo.box_dict(b[i]), "iou_3d", pa, pb)
         assert -1.0 <= g <= j <= 1.0
 
 

@@ -36,8 +36,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .ab3dmot_geometry import (DegenerateGeometry, bottom_polygon, box_corners, box_dict, clip_polygon,
-                               convex_hull, hull_area, iou_pair, polygon_area)
+from .ab3dmot_geometry import DegenerateGeometry, bottom_polygon, box_corners, box_dict, iou_pair
 
 PI = np.pi
 TWO_PI = np.pi * 2
@@ -233,10 +232,7 @@ class Track:
 
 
 # ----------------------------------------------------------------------------------------------
-# affinities (box geometry in ab3dmot_geometry)
-
-__all__ = ["DegenerateGeometry", "bottom_polygon", "box_corners", "box_dict", "clip_polygon", "convex_hull",
-           "hull_area", "iou_pair", "polygon_area"]
+# affinities (box geometry in ab3dmot_geometry; its DegenerateGeometry propagates)
 
 
 def affinity_matrix(det_states: np.ndarray, trk_states: np.ndarray, metric: str,
@@ -245,7 +241,7 @@ def affinity_matrix(det_states: np.ndarray, trk_states: np.ndarray, metric: str,
     predicted track states ([n, 7], [m, 7]):
 
     - ``iou_2d``/``iou_3d``/``giou_2d``/``giou_3d``: ``iou_pair``;
-    - ``dist_2d``: ``-|(dx, dz)|`` of the states (bottom centres on the ground);
+    - ``dist_2d``: ``-|(dx, dz)|`` of the states (bottom centres on the ground; ``np.linalg.norm``);
     - ``dist_3d``: ``-|c_det - c_trk|``, c the mean of a box's 8 corners (summed row by row, then
       divided by 8: ``np.average`` over corners stored column-major, i.e. NumPy's summation along
       a contiguous axis, as for AB3DMOT's transposed corner array; the norm as ``np.linalg.norm``;
@@ -269,8 +265,9 @@ def affinity_matrix(det_states: np.ndarray, trk_states: np.ndarray, metric: str,
             for j in range(m):
                 out[i, j] = iou_pair(dbox[i], tbox[j], metric, dpoly[i], tpoly[j])
     elif metric == "dist_2d":
-        d = det_states[:, None, [0, 2]] - trk_states[None, :, [0, 2]]
-        out[:] = -np.sqrt(np.sum(d * d, axis=-1))
+        for i in range(n):
+            for j in range(m):
+                out[i, j] = -np.linalg.norm(det_states[i, [0, 2]] - trk_states[j, [0, 2]])
     elif metric == "dist_3d":
         cd = [np.average(c, axis=0) for c in box_corners(det_states)]     # [3] each
         ct = [np.average(c, axis=0) for c in box_corners(trk_states)]
