@@ -176,3 +176,22 @@ def test_numpy_argsort_ties_as_numpy_1_23():
     for n in (1, 2, 17, 50, 300):
         v = rng.normal(size=n).astype(np.float32)
         assert ab.numpy_argsort(v) == np.argsort(v, kind="stable").tolist()
+
+
+def test_sequences_share_one_id_counter_and_empty_files_are_skipped(tmp_path):
+    """Ids run on across sequences in order; a sequence with an empty detection file is skipped
+    (AB3DMOT writes no file for it and its counter does not move); frames come from label_02."""
+    det_dir = tmp_path / "detections" / "pointrcnn" / "car"
+    det_dir.mkdir(parents=True)
+    (tmp_path / "label_02").mkdir()
+    row = "{f},2,1,2,3,4,0.5,1.5,1.6,4.0,{x},1.5,20.0,0.1,0.1\n"
+    (det_dir / "0000.txt").write_text(row.format(f=0, x=1.0) + row.format(f=0, x=9.0))
+    (det_dir / "0001.txt").write_text("")
+    (det_dir / "0002.txt").write_text(row.format(f=1, x=1.0))
+    for seq, last in (("0000", 2), ("0001", 3), ("0002", 1)):
+        (tmp_path / "label_02" / f"{seq}.txt").write_text(f"{last} -1 DontCare\n")
+    out = ab.track_sequences(tmp_path, ab.PRESETS["car_default"], ["0000", "0001", "0002"], out_dir=tmp_path / "out")
+    assert sorted(out) == ["0000", "0002"]
+    assert [s.split()[:2] for s in out["0000"]] == [["0", "2"], ["0", "1"], ["1", "2"], ["1", "1"]]
+    assert [s.split()[:2] for s in out["0002"]] == [["1", "3"]]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["0000.txt", "0002.txt"]
