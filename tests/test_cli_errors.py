@@ -218,3 +218,28 @@ def test_one_parser_one_handler():
         # guarded(run), or (track, whose parser is built without its module) run_later: guarded(run) when it runs
         module = func.__wrapped__.__module__ if hasattr(func, "__wrapped__") else func.module
         assert func.__name__ == "run" and module == f"dfrmot_jax.cli.{name}"
+
+
+# ---- --seqs --------------------------------------------------------------------------------------
+
+_SEQS_COMMANDS = {
+    "track": ["track", "--out", "{tmp}/o"],
+    "eval": ["eval", "{tmp}"],
+    "compare": ["compare", "{tmp}", "{tmp}"],
+    "lidar simulate": ["lidar", "simulate", "--out", "{tmp}/o"],
+    "lidar lift": ["lidar", "lift", "--scans", "{tmp}", "--out", "{tmp}/o"],
+}
+
+
+@pytest.mark.parametrize("command", list(_SEQS_COMMANDS))
+@pytest.mark.parametrize("seqs, twice", [("0006,0012,0006", "0006"), ("1,0001", "0001")])
+def test_a_sequence_listed_twice_in_seqs_is_refused_naming_it(command, seqs, twice, scene, tmp_path, capsys):
+    """``--seqs 0006,0012,0006`` scored 0006 twice (COMBINED counted it twice): refused by every
+    command with ``--seqs``, naming the flag and the sequence, before anything is written."""
+    argv = [a.format(tmp=tmp_path) for a in _SEQS_COMMANDS[command]] + ["--data", str(scene), "--seqs", seqs]
+    status, _, err = run_cli(capsys, argv)
+    line = error_line(err, command, alone=True)
+    assert status == 2 and "--seqs" in line and f"sequence {twice} is listed twice" in line, line
+    assert not (tmp_path / "o").exists()
+    with pytest.raises(ValueError, match=f"--seqs {seqs}: sequence {twice} is listed twice"):
+        track_parser.parse_seqs(seqs)

@@ -35,6 +35,7 @@ from ..report.compare_html import write_compare_html
 from .args import output_file
 from .commands import HELP
 from .errors import guarded
+from .track_parser import seqs_arg
 from .eval import (check_class_rows, check_folders, chosen_sequences, classes_arg, families_arg, ground_truth,
                    iou_arg, label_root)
 
@@ -86,7 +87,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help=f"KITTI tracking training root (default: $DFRMOT_DATA or {default_data_root()})")
     p.add_argument("--class", dest="cls", default=("car",), type=classes_arg, metavar="CLASSES",
                    help="class or comma-separated classes (default car)")
-    p.add_argument("--seqs", default=None, help="comma-separated sequences (default: per class, those whose "
+    p.add_argument("--seqs", default=None, type=seqs_arg, help="comma-separated sequences (default: per class, those whose "
                                                 "ground truth has it)")
     p.add_argument("--seqmap", default=None, metavar="FILE", help="the sequences of a KITTI seqmap, like --seqs")
     p.add_argument("--resamples", default=DEFAULT_RESAMPLES, type=_resamples,

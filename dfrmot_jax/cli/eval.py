@@ -86,7 +86,7 @@ from ..paths import default_data_root
 from .args import output_file
 from .commands import HELP
 from .errors import guarded
-from .track_parser import parse_seqs
+from .track_parser import parse_seqs, seqs_arg
 
 __all__ = ["add_parser", "run", "check_folder", "check_folders", "check_class_rows", "chosen_sequences", "classes_arg",
            "families_arg", "ground_truth", "iou_arg", "label_root", "tracker_name"]
@@ -138,7 +138,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--class", dest="cls", default=("car",), type=classes_arg, metavar="CLASSES",
                    help="class or comma-separated classes: car, pedestrian or car,pedestrian (default car); "
                         "several classes add a class average row per tracker")
-    p.add_argument("--seqs", default=None,
+    p.add_argument("--seqs", default=None, type=seqs_arg,
                    help="comma-separated sequences, e.g. 0000,0002, for every class (default: per class the "
                         "sequences whose ground truth has it); other result files are not looked at")
     p.add_argument("--seqmap", default=None, metavar="FILE",

@@ -20,7 +20,7 @@ from ..lidar import LiftSettings, SimSettings, simulate_to_folder, with_setting,
 from ..paths import ENV_VAR, default_data_root
 from .commands import HELP
 from .errors import guarded
-from .track_parser import parse_seqs
+from .track_parser import parse_seqs, seqs_arg
 
 __all__ = ["add_parser", "run", "run_simulate", "run_lift", "lift_settings"]
 
@@ -50,7 +50,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
     s = lsub.add_parser("simulate", help="write simulated scans DIR/velodyne/SSSS/FFFFFF.bin from the labels")
     s.add_argument("--data", help=data_help)
-    s.add_argument("--seqs", help="comma-separated sequences (default: every sequence of label_02)")
+    s.add_argument("--seqs", type=seqs_arg, help="comma-separated sequences (default: every sequence of label_02)")
     s.add_argument("--out", required=True, help="output folder (scans go to OUT/velodyne/SSSS/)")
     d = SimSettings()
     s.add_argument("--beams", type=int, default=d.beams, help=f"lasers (default {d.beams})")
@@ -68,7 +68,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     lf.add_argument("--det2d", default="rrc", help="2D detector: name under ROOT/detections, or a directory")
     lf.add_argument("--scans", required=True, help="folder holding velodyne/SSSS/FFFFFF.bin")
     lf.add_argument("--class", dest="cls", default="car", help="car | pedestrian")
-    lf.add_argument("--seqs", help="comma-separated sequences (default: those whose ground truth has the class)")
+    lf.add_argument("--seqs", type=seqs_arg, help="comma-separated sequences (default: those whose ground truth has the class)")
     lf.add_argument("--set", action="append", metavar="NAME=VALUE",
                     help="a lifting setting (repeatable): " + ", ".join(LiftSettings._fields))
     lf.add_argument("--out", required=True, help="output folder of SSSS.txt files (15 PointRCNN columns)")

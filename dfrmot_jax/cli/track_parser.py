@@ -15,14 +15,30 @@ from ..paths import ENV_VAR
 from .commands import HELP
 from .errors import run_later
 
-__all__ = ["add_parser", "config_help", "docstring_fields", "parse_seqs"]
+__all__ = ["add_parser", "config_help", "docstring_fields", "parse_seqs", "seqs_arg"]
 
 
 def parse_seqs(text: str | None) -> list[str] | None:
-    """``--seqs 1,0002`` -> ["0001", "0002"] (KITTI names are zero-padded to 4 digits)."""
+    """``--seqs 1,0002`` -> ["0001", "0002"] (KITTI names are zero-padded to 4 digits); None when not
+    given. A sequence listed twice (``1,0001`` too) is a ValueError naming it and the flag: scored
+    twice it would count twice in every combined figure."""
     if not text:
         return None
-    return [s.strip().zfill(4) for s in text.split(",") if s.strip()]
+    seqs = [s.strip().zfill(4) for s in text.split(",") if s.strip()]
+    twice = next((s for i, s in enumerate(seqs) if s in seqs[:i]), None)
+    if twice is not None:
+        raise ValueError(f"--seqs {text}: sequence {twice} is listed twice")
+    return seqs
+
+
+def seqs_arg(text: str) -> str:
+    """The argparse type of every ``--seqs``: ``text`` as given, once :func:`parse_seqs` accepts it
+    (refused at parse time, before a command writes anything)."""
+    try:
+        parse_seqs(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e).removeprefix(f"--seqs {text}: ")) from None
+    return text
 
 
 # ---- help text generated from dfrmot_jax.config ----------------------------------------------------
@@ -150,7 +166,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
                         "rather than ignored)")
     t.add_argument("--class", dest="cls", default="car",
                    help="car | pedestrian | car,pedestrian (each class with its own settings, one file per sequence)")
-    t.add_argument("--seqs", help="comma-separated sequences (default: those whose ground truth has the class)")
+    t.add_argument("--seqs", type=seqs_arg,
+                   help="comma-separated sequences (default: those whose ground truth has the class)")
     t.add_argument("--columns", default="kitti", choices=["kitti", "kitti-stale", "authors"],
                    help="result columns: kitti (standard KITTI rows with each row's own 3D box and score; rows "
                         "without one: placeholders) | kitti-stale (as kitti, but a row without its own 3D box "
