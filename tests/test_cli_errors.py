@@ -1,6 +1,7 @@
 """The ``dfrmot`` command's contract: help and version, one error handler (exit 2 one line for bad
 input, exit 1 with the --debug hint for anything else, 130 for Ctrl-C), clear --set messages."""
 
+import os
 import subprocess
 import sys
 from argparse import Namespace
@@ -243,3 +244,35 @@ def test_a_sequence_listed_twice_in_seqs_is_refused_naming_it(command, seqs, twi
     assert not (tmp_path / "o").exists()
     with pytest.raises(ValueError, match=f"--seqs {seqs}: sequence {twice} is listed twice"):
         track_parser.parse_seqs(seqs)
+
+
+@pytest.mark.parametrize("argv, command, want", [
+    (["eval", "{tmp}", "--seqs", ","], "eval", "argument --seqs: names no sequence"),
+    (["compare", "{tmp}", "{tmp}", "--seqs", " , "], "compare", "argument --seqs: names no sequence"),
+    (["track", "--out", "{tmp}/o", "--seqs", ""], "track", "argument --seqs: names no sequence"),
+    (["compare", "{tmp}", "{tmp}", "--seed", "-1"], "compare", "argument --seed: -1: expected a whole number >= 0"),
+    (["demo", "--out", "{tmp}/o", "--seed", "-1"], "demo", "argument --seed: -1: expected a whole number >= 0"),
+    (["lidar", "simulate", "--out", "{tmp}/o", "--seed", "-1"], "lidar simulate", "argument --seed: -1"),
+])
+def test_flags_are_named_not_the_data(argv, command, want, tmp_path, capsys):
+    """``--seqs ,`` was blamed on the ground truth (no sequence has the class), ``--seed -1`` was
+    NumPy's "expected non-negative integer": each names its flag."""
+    status, _, err = run_cli(capsys, [a.format(tmp=tmp_path) for a in argv])
+    assert status == 2 and want in error_line(err, command, alone=True)
+    assert not (tmp_path / "o").exists()
+
+
+def test_host_devices_variable_is_named(scene, tmp_path, monkeypatch, capsys):
+    """``DFRMOT_HOST_DEVICES=abc``: "invalid literal for int()" named nothing."""
+    from dfrmot_jax.core import devices
+
+    for bad in ("abc", "-2", "1.5"):
+        monkeypatch.setenv("DFRMOT_HOST_DEVICES", bad)
+        with pytest.raises(ValueError, match=f"DFRMOT_HOST_DEVICES='{bad}': expected a whole number"):
+            devices.wanted_devices()
+    monkeypatch.setenv("DFRMOT_HOST_DEVICES", "abc")
+    status, _, err = run_cli(capsys, ["track", "--data", str(scene), "--det2d", "synth2d", "--det3d", "synth3d",
+                                      "--out", str(tmp_path / "o")])
+    assert status == 2 and "DFRMOT_HOST_DEVICES='abc'" in error_line(err, "track", alone=True)
+    monkeypatch.setenv("DFRMOT_HOST_DEVICES", "")
+    assert devices.wanted_devices() == min(os.cpu_count() or 1, 8)

@@ -32,7 +32,7 @@ from ..metrics.ab3dmot.sums import DEFAULT_SUM, SUM_HELP, SUMS
 from ..metrics.ab3dmot.table import other_sum_line, recall_table
 from ..report.compare_ab3dmot import AB3DMOT_RESAMPLES, ab3dmot_rows
 from ..report.compare_html import write_compare_html
-from .args import output_file
+from .args import output_file, seed_arg
 from .commands import HELP
 from .errors import guarded
 from .track_parser import seqs_arg
@@ -92,7 +92,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--seqmap", default=None, metavar="FILE", help="the sequences of a KITTI seqmap, like --seqs")
     p.add_argument("--resamples", default=DEFAULT_RESAMPLES, type=_resamples,
                    help=f"bootstrap resamples (default {DEFAULT_RESAMPLES:,})")
-    p.add_argument("--seed", default=0, type=int, help="seed of the resamples (default 0)")
+    p.add_argument("--seed", default=0, type=seed_arg, help="seed of the resamples (default 0)")
     p.add_argument("--metrics", default=("kitti2d",), type=families_arg, metavar="FAMILIES",
                    help="kitti2d (TrackEval's, default) and/or ab3dmot: AB3DMOT's sAMOTA / AMOTA / MOTA / IDS / FP / FN "
                         "(--ab3dmot-iou), each resample rescored")

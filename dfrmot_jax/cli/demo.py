@@ -27,6 +27,7 @@ from ..report.text import paragraph, text_table
 from ..sweep import load_spec, run_sweep
 from ..sweep.folder import clear, read_old_manifest
 from ..synthetic import make_scene
+from .args import seed_arg
 from .commands import HELP
 from .errors import guarded
 
@@ -52,7 +53,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
                         "(default: results/demo)")
     d.add_argument("--sequences", type=int, default=4, help="synthetic sequences (default 4)")
     d.add_argument("--frames", type=int, default=120, help="frames per sequence (default 120)")
-    d.add_argument("--seed", type=int, default=0, help="scene seed, >= 0 (default 0)")
+    d.add_argument("--seed", type=seed_arg, default=0, help="scene seed, >= 0 (default 0)")
     d.add_argument("--top", type=int, default=5, help="configs printed above the baseline (default 5)")
     d.set_defaults(func=guarded(run))
     return d

@@ -18,6 +18,7 @@ from ..data import detection_dir, load_sequences
 from ..io.kitti import read_calib, read_tracking_labels, sequence_lengths
 from ..lidar import LiftSettings, SimSettings, simulate_to_folder, with_setting, write_detections3d
 from ..paths import ENV_VAR, default_data_root
+from .args import seed_arg
 from .commands import HELP
 from .errors import guarded
 from .track_parser import parse_seqs, seqs_arg
@@ -54,7 +55,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="output folder (scans go to OUT/velodyne/SSSS/)")
     d = SimSettings()
     s.add_argument("--beams", type=int, default=d.beams, help=f"lasers (default {d.beams})")
-    s.add_argument("--seed", type=int, default=0, help="seed (scans are a function of sequence, frame and seed)")
+    s.add_argument("--seed", type=seed_arg, default=0, help="seed (scans are a function of sequence, frame and seed)")
     s.add_argument("--noise", type=float, default=d.range_noise, help=f"range noise std, m (default {d.range_noise})")
     s.add_argument("--dropout", type=float, default=d.dropout, help="probability a return is lost (default 0)")
     s.add_argument("--clutter", type=float, default=d.clutter, help="probability a ray returns from rain (default 0)")

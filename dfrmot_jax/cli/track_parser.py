@@ -21,10 +21,13 @@ __all__ = ["add_parser", "config_help", "docstring_fields", "parse_seqs", "seqs_
 def parse_seqs(text: str | None) -> list[str] | None:
     """``--seqs 1,0002`` -> ["0001", "0002"] (KITTI names are zero-padded to 4 digits); None when not
     given. A sequence listed twice (``1,0001`` too) is a ValueError naming it and the flag: scored
-    twice it would count twice in every combined figure."""
-    if not text:
+    twice it would count twice in every combined figure; so is a text naming none (``,``, ``''``),
+    which would otherwise read as data without the class."""
+    if text is None:
         return None
     seqs = [s.strip().zfill(4) for s in text.split(",") if s.strip()]
+    if not seqs:
+        raise ValueError(f"--seqs {text}: names no sequence (expected e.g. 0000,0002)")
     twice = next((s for i, s in enumerate(seqs) if s in seqs[:i]), None)
     if twice is not None:
         raise ValueError(f"--seqs {text}: sequence {twice} is listed twice")

@@ -41,8 +41,17 @@ _warned = False
 
 
 def wanted_devices() -> int:
-    """``$DFRMOT_HOST_DEVICES``, else one per core (at most 8)."""
-    return int(os.environ.get(ENV_VAR, "0") or 0) or min(os.cpu_count() or 1, 8)
+    """``$DFRMOT_HOST_DEVICES`` (a whole number; 0 or empty: the default), else one per core (at
+    most 8); anything else is a ValueError naming the variable."""
+    text = os.environ.get(ENV_VAR, "").strip()
+    try:
+        n = int(text or 0)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise ValueError(f"{ENV_VAR}={text!r}: expected a whole number of CPU devices >= 1 (0 or unset: one per "
+                         f"core, at most 8)")
+    return n or min(os.cpu_count() or 1, 8)
 
 
 def setup_host_devices(n: int | None = None) -> int:
