@@ -253,6 +253,7 @@ def test_a_sequence_listed_twice_in_seqs_is_refused_naming_it(command, seqs, twi
     (["compare", "{tmp}", "{tmp}", "--seed", "-1"], "compare", "argument --seed: -1: expected a whole number >= 0"),
     (["demo", "--out", "{tmp}/o", "--seed", "-1"], "demo", "argument --seed: -1: expected a whole number >= 0"),
     (["lidar", "simulate", "--out", "{tmp}/o", "--seed", "-1"], "lidar simulate", "argument --seed: -1"),
+    (["eval", "{tmp}", "--csv", ""], "eval", "argument --csv: '': expected a file name"),
 ])
 def test_flags_are_named_not_the_data(argv, command, want, tmp_path, capsys):
     """``--seqs ,`` was blamed on the ground truth (no sequence has the class), ``--seed -1`` was

@@ -118,6 +118,22 @@ def test_bad_input_is_one_line_and_exit_2(outputs, tmp_path, capsys, argv, fragm
     assert fragment in error_line(err, "compare")
 
 
+@pytest.mark.parametrize("flags, fragment", [
+    (["--csv", ""], "argument --csv: '': expected a file name"),
+    (["--html", " "], "argument --html: ' ': expected a file name"),
+    (["--csv", "{tmp}/x", "--html", "{tmp}/x"], "name one file: the page would replace the table"),
+    (["--csv", "{tmp}/x", "--html", "{tmp}/sub/../x"], "name one file"),
+])
+def test_output_files_are_named_and_distinct(tmp_path, capsys, flags, fragment):
+    """``--csv ''`` / ``--html ''`` wrote nothing and said nothing; ``--csv X --html X`` let the page
+    replace the table. Both refused before anything is read."""
+    (tmp_path / "sub").mkdir()
+    argv = ["compare", tmp_path, tmp_path] + [f.format(tmp=tmp_path) for f in flags]
+    status, out, err = run_cli(capsys, argv)
+    assert status == 2 and fragment in error_line(err, "compare", alone=True) and not out
+    assert not (tmp_path / "x").exists()
+
+
 @pytest.mark.slow
 def test_the_interval_covers_a_known_difference_about_95_percent_of_the_time(tmp_path):
     """A pool of 120 generated sequences tracked with two settings is the population; its combined

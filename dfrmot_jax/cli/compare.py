@@ -39,7 +39,7 @@ from .track_parser import seqs_arg
 from .eval import (check_class_rows, check_folders, chosen_sequences, classes_arg, families_arg, ground_truth,
                    iou_arg, label_root)
 
-__all__ = ["add_parser", "run", "parse_reference"]
+__all__ = ["add_parser", "run", "parse_reference", "check_outputs"]
 
 
 def parse_reference(text: str) -> tuple[Path, str | int] | None:
@@ -108,17 +108,25 @@ def add_parser(sub) -> argparse.ArgumentParser:
                         f"{AB3DMOT_RESAMPLES}; about 0.2 s each for 11 sequences)")
     p.add_argument("--allow-missing", action="store_true",
                    help="score a sequence without a result file as an empty output (with a warning)")
-    p.add_argument("--csv", default=None, metavar="OUT", help="write the tidy table: class seq metric a b diff "
+    p.add_argument("--csv", default=None, metavar="OUT", type=output_file, help="write the tidy table: class seq metric a b diff "
                                                                "ci_low ci_high p_b_better resamples")
-    p.add_argument("--html", default=None, metavar="OUT.html",
+    p.add_argument("--html", default=None, metavar="OUT.html", type=output_file,
                    help="write one self-contained page: the figures with their intervals, HOTA per sequence, the "
                         "ground-truth tracks treated most differently, their timelines and bird's-eye views")
     p.set_defaults(func=guarded(run))
     return p
 
 
+def check_outputs(csv: str | None, html: str | None) -> None:
+    """Refuse (ValueError) ``--csv`` and ``--html`` naming one file: the page would replace the table."""
+    if csv and html and Path(csv).resolve() == Path(html).resolve():
+        raise ValueError(f"--csv {csv} and --html {html} name one file: the page would replace the table; "
+                         f"give each its own")
+
+
 def run(args) -> int:
     """Run ``compare`` for parsed ``args``: 0, or raises ValueError (bad ground truth, folders, arguments)."""
+    check_outputs(args.csv, args.html)
     root, label_dir = label_root(args.data)
     refs = [parse_reference(str(x)) for x in (args.a, args.b)]
     sweep_seqs = next((read_manifest(r[0])["data"]["sequences"] for r in refs if r is not None), None)

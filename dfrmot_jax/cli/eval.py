@@ -164,7 +164,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="score a sequence without a result file, or a class without a row in any file, as an "
                         "empty output (with a warning) instead of refusing")
     p.add_argument("--per-seq", action="store_true", help="also print every sequence")
-    p.add_argument("--csv", default=None, metavar="F",
+    p.add_argument("--csv", default=None, metavar="F", type=output_file,
                    help="write all metrics, one row per (tracker, class, sequence) with columns tracker, class, seq")
     p.set_defaults(func=guarded(run))
     return p
