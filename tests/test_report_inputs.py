@@ -54,3 +54,27 @@ def test_an_html_target_that_cannot_be_written_is_named_not_its_temp_file(tmp_pa
     with pytest.raises(PermissionError) as e:
         atomic_write(tmp_path / "y.html", refused)
     assert e.value.filename == str(tmp_path / "y.html") and ".tmp" not in str(e.value)
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("[]", "not a sweep manifest: expected an object, got a list"),
+    ("{}", "not a sweep manifest: no 'data' object"),
+    ("garbage", ":1: damaged, not valid JSON"),
+    ("", ":1: damaged, not valid JSON"),
+    ('{"data": {"root": "r", "det2d": "a", "det3d": "b", "sequences": ["0000"]}}', "chunks: missing"),
+    ('{"data": {"root": "r", "det2d": "a", "det3d": "b", "sequences": ["0000"]}, "chunks": [], "classes": 3}',
+     "classes: a whole number, expected a list"),
+])
+@pytest.mark.parametrize("command", ["report", "report --html", "compare"])
+def test_a_damaged_manifest_is_named(text, fragment, command, tmp_path, capsys):
+    """``[]``, ``{}`` or garbage in a sweep's manifest.json: exit 1 (TypeError, KeyError: 'data',
+    AttributeError, KeyError: 'chunks') or a JSON parser's message naming no file."""
+    d = tmp_path / "sweep"
+    shutil.copytree(FIXTURE, d)
+    (d / "manifest.json").write_text(text)
+    argv = {"report": ["report", d], "report --html": ["report", d, "--html", tmp_path / "p.html"],
+            "compare": ["compare", f"{d}:best", f"{d}:baseline"]}[command]
+    status, out, err = run_cli(capsys, argv)
+    line = error_line(err, command.split()[0], alone=True)
+    assert status == 2 and f"{d / 'manifest.json'}" in line and fragment in line, line
+    assert not out and not (tmp_path / "p.html").exists()

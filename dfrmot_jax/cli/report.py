@@ -13,11 +13,10 @@ The report's last line is one JSON object.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from ..report import RAW_COLUMN, load_results, report_folds, sweep_report, write_html
+from ..report import RAW_COLUMN, load_results, read_manifest, report_folds, sweep_report, write_html
 from .args import output_file
 from .commands import HELP
 from .errors import guarded
@@ -98,8 +97,9 @@ def run(args) -> int:
 
 
 def _manifest_objective(d) -> str:
-    path = Path(d) / "manifest.json"
+    """The directory's objective (its manifest's), else HOTA; a damaged manifest is a ValueError
+    naming it (:func:`~dfrmot_jax.report.read_manifest`); a directory without one is the report's to refuse."""
     try:
-        return json.loads(path.read_text()).get("objective") or "HOTA"
-    except (OSError, ValueError):
+        return read_manifest(Path(d)).get("objective") or "HOTA"
+    except FileNotFoundError:
         return "HOTA"

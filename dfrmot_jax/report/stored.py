@@ -20,7 +20,7 @@ from ..metrics.kitti2d.evaluate import RAW_FIELDS
 from .columns import AVERAGE, COMBINED, LATE_OPTIONS, LATE_PARAMS, RAW_COLUMN
 
 __all__ = ["LEDGER", "NO_RECORD", "chunk_name", "Record", "read_ledger", "file_problem", "finish_table", "load_results",
-           "read_manifest"]
+           "read_manifest", "manifest_problem"]
 
 
 #: The ledger of a sweep directory (module docstring).
@@ -179,8 +179,61 @@ def load_results(out, *, allow_partial: bool = False) -> pd.DataFrame:
     return finish_table(pd.concat(list(tables.values()), ignore_index=True), manifest.get("classes", ()))
 
 
+#: the fields of a manifest's ``data`` (the sweep's data: ``sweep.plan.DataSettings.identity``) that its
+#: readers use, with their JSON types
+_DATA_FIELDS = {"root": str, "det2d": str, "det3d": str, "sequences": list}
+#: fields a manifest may lack, and their JSON types where present
+_OPTIONAL_FIELDS = {"kind": (str,), "objective": (str,), "classes": (list,), "lengths": (list,),
+                    "folds": (int, type(None)), "report_class": (str, type(None))}
+
+
+_JSON_TYPES = {str: "a string", list: "a list", int: "a whole number", float: "a number", bool: "true or false",
+               dict: "an object", type(None): "null"}
+
+
+def _json_type(kind: type) -> str:
+    """A Python type of parsed JSON by its JSON name: ``list`` -> "a list"."""
+    return _JSON_TYPES.get(kind, kind.__name__)
+
+
+def manifest_problem(doc) -> str | None:
+    """What makes ``doc`` (a parsed ``manifest.json``) no manifest its readers can use, None when
+    nothing does: an object, with a ``data`` object of the sweep's data (:data:`_DATA_FIELDS`, its
+    sequences names) and, but for a tune's, the list of its chunks' names."""
+    if not isinstance(doc, dict):
+        return f"expected an object, got {_json_type(type(doc))}"
+    data = doc.get("data")
+    if not isinstance(data, dict):
+        return "no 'data' object (the sweep's data: root, detectors, class, sequences)"
+    for name, kind in _DATA_FIELDS.items():
+        if not isinstance(data.get(name), kind):
+            return f"data.{name}: missing or not {_json_type(kind)}"
+    if not all(isinstance(s, str) for s in data["sequences"]):
+        return "data.sequences: expected sequence names"
+    if not isinstance(data.get("class", ""), str):
+        return "data.class: not a string"
+    for name, kinds in _OPTIONAL_FIELDS.items():
+        if name in doc and not isinstance(doc[name], kinds):
+            return f"{name}: {_json_type(type(doc[name]))}, expected {' or '.join(_json_type(k) for k in kinds)}"
+    chunks = doc.get("chunks", [] if doc.get("kind") == "tune" else None)
+    if not isinstance(chunks, list) or not all(isinstance(c, str) for c in chunks):
+        return "chunks: missing or not a list of chunk names"
+    return None
+
+
 def read_manifest(out: Path) -> dict:
+    """The manifest of sweep or tune directory ``out``: FileNotFoundError when there is none,
+    ValueError naming it when it is damaged (not JSON, or not a manifest: :func:`manifest_problem`)."""
     path = Path(out) / "manifest.json"
     if not path.is_file():
         raise FileNotFoundError(f"{out} is not a sweep directory (no manifest.json)")
-    return json.loads(path.read_text())
+    try:
+        doc = json.loads(path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{path}: damaged, not UTF-8 text (byte {e.start})") from None
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path}:{e.lineno}: damaged, not valid JSON ({e.msg}, column {e.colno})") from None
+    problem = manifest_problem(doc)
+    if problem is not None:
+        raise ValueError(f"{path}: damaged, not a sweep manifest: {problem}")
+    return doc
