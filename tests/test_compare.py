@@ -316,3 +316,33 @@ def test_an_ab3dmot_resample_is_the_resampled_files_scored(outputs, tmp_path, ca
     ab = t[t["metric"].str.startswith("sAMOTA@")]
     assert len(ab) == 1 and ab["resamples"].iloc[0] == 12 and ab["ci_low"].iloc[0] <= ab["ci_high"].iloc[0]
     assert "12 paired resamples, each rescored" in out
+
+
+def test_a_sweep_of_an_older_results_version_is_compared_as_the_report_reads_it(tmp_path, capsys):
+    """``compare DIR:best`` of a directory whose table lacks the parameters and options added since
+    (kf_q3, kf_r3, the weak margins, assign: ``tests/fixtures/sweep_v1``) was ``internal error:
+    KeyError: 'kf_q3'`` where ``report`` read it: they are their defaults, the rows' figures scored."""
+    import json
+    from pathlib import Path
+
+    from dfrmot_jax.report.columns import LATE_OPTIONS, LATE_PARAMS
+    from dfrmot_jax.report.stored import load_results
+
+    v1 = Path(__file__).parent / "fixtures" / "sweep_v1"
+    scene = json.loads((v1 / "scene.json").read_text())["make_scene"]
+    root = make_scene(tmp_path / "scene", **{k: v for k, v in scene.items() if k != "directory"})
+    d = tmp_path / "sweep"
+    shutil.copytree(v1, d)
+    manifest = json.loads((d / "manifest.json").read_text())
+    manifest["data"]["root"] = str(root)
+    (d / "manifest.json").write_text(json.dumps(manifest))
+    df = load_results(d)
+    assert not set(LATE_PARAMS) & set(df.columns) and not set(LATE_OPTIONS) & set(df.columns)
+    comb = df[df["sequence"] == "COMBINED"].set_index("config")
+    csv = tmp_path / "t.csv"
+    status, out, err = run_cli(capsys, ["compare", f"{d}:baseline", f"{d}:best", "--data", root, "--resamples", "50",
+                                        "--csv", csv])
+    assert status == 0, err
+    row = pd.read_csv(csv, dtype={"seq": str}).query("seq == 'COMBINED' and metric == 'HOTA'").iloc[0]
+    assert row["a"] == pytest.approx(comb.loc[comb["baseline"], "HOTA"].iloc[0], abs=1e-9)
+    assert row["b"] == pytest.approx(comb["HOTA"].max(), abs=1e-9)

@@ -325,8 +325,15 @@ def n_settings(table: pd.DataFrame) -> int:
 
 def params_of(table: pd.DataFrame, rows: Sequence[int], cls: str | None = None) -> Params:
     """The parameters of table rows for class ``cls`` (its ``<cls>.<parameter>`` columns where the
-    table has them, else the plain ones)."""
+    table has them, else the plain ones; a parameter of ``LATE_PARAMS`` that a table written before
+    it existed lacks: its default, as the report reads such a table)."""
     sub = table.iloc[list(rows)]
-    return as_arrays(Params(**{n: sub[f"{cls}.{n}" if f"{cls}.{n}" in sub.columns else n].to_numpy()
-                               for n in PARAM_NAMES}))
+
+    def column(n: str) -> np.ndarray:
+        name = f"{cls}.{n}" if f"{cls}.{n}" in sub.columns else n
+        if name not in sub.columns and n in LATE_PARAMS:
+            return np.full(len(sub), LATE_PARAMS[n])
+        return sub[name].to_numpy()
+
+    return as_arrays(Params(**{n: column(n) for n in PARAM_NAMES}))
 
