@@ -101,6 +101,33 @@ def test_track_on_the_chosen_platform(monkeypatch, tmp_path):
                  "--out", str(tmp_path / "out")]) == 2
 
 
+@pytest.mark.parametrize("command", ["sweep", "tune"])
+def test_sweep_and_tune_refuse_a_missing_gpu_before_writing(command, monkeypatch, tmp_path, capsys):
+    """``DFRMOT_DEVICE=gpu dfrmot sweep ... --out NEW`` without a GPU wrote the manifest, ledger and
+    config table before refusing, ``tune`` a batch folder: nothing is written now, exit 2."""
+    import jax
+
+    from dfrmot_jax.synthetic import make_scene
+    from dfrmot_jax.testing.cli import error_line, run_cli
+
+    try:
+        if jax.devices("gpu"):
+            pytest.skip("JAX sees a GPU here")
+    except RuntimeError:
+        pass
+    root = make_scene(tmp_path / "scene", n_sequences=1, n_frames=20, seed=1)
+    text = (f'name = "gpu"\nchunk = 4\n[data]\nroot = "{root}"\ndet2d = "synth2d"\ndet3d = "synth3d"\n'
+            f'[baseline]\npreset = "dfr2023"\n')
+    text += ('[params]\na_l = [4.0, 8.0]\n' if command == "sweep" else
+             '[params]\na_l = {uniform = [2.0, 8.0]}\n[tune]\nbudget = 4\nbatch = 2\n')
+    (tmp_path / "s.toml").write_text(text)
+    monkeypatch.setenv("DFRMOT_DEVICE", "gpu")
+    out = tmp_path / "out"
+    status, _, err = run_cli(capsys, [command, tmp_path / "s.toml", "--out", out, "--no-progress"])
+    assert status == 2 and "DFRMOT_DEVICE=gpu, but JAX sees no GPU" in error_line(err, command), err
+    assert not out.exists()
+
+
 def _cli(args, **env):
     import os
     e = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "DFRMOT_HOST_DEVICES", "DFRMOT_COMPILE_CACHE")}

@@ -19,6 +19,7 @@ import pandas as pd
 
 from . import ray_backend
 from ..checks import SweepConfigError
+from ..core.devices import chosen_platform
 from .chunks import ChunkRunner, Keep
 from .plan import Chunk, DataSettings
 from .spec import SweepSpec
@@ -35,7 +36,9 @@ class LocalBackend:
     name: str = "local"
 
     def check(self) -> None:
-        """Nothing to check: this process is there."""
+        """The platform this process tracks on (``$DFRMOT_DEVICE``, :func:`~dfrmot_jax.core.devices.chosen_platform`):
+        ``gpu`` where JAX sees none is refused before anything is written."""
+        chosen_platform()
 
     def run_chunks(self, spec: SweepSpec, table: pd.DataFrame, data: DataSettings, todo: Sequence[Chunk],
                    keep: Keep, bar, log, *, compact: bool = True) -> None:

@@ -84,6 +84,7 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
         raise SweepConfigError(bad.key, f"sampler \"{settings.sampler}\" needs lists or grids"
                                f"{' (or randint)' if settings.sampler == 'pairwise' else ''}, not distributions",
                                spec.source)
+    backend.check()             # a missing GPU, an unreachable cluster: refused before anything is written
     outdir = Path(out) if out is not None else None
     if outdir is None:
         return _run(spec, settings, space, data, None, data_root, backend, progress, log, plots)
