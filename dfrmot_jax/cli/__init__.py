@@ -33,12 +33,13 @@ import argparse
 import importlib
 import os
 import sys
+from contextlib import nullcontext
 
 from ..paths import COMPILE_CACHE_VAR, default_compile_cache
 from ..version import __version__
 from .commands import HELP, PARSERS
 from .errors import (EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_OVERFLOW, CommandParser,
-                     guarded)
+                     guarded, warning_lines)
 
 __all__ = ["main", "build_parser", "guarded", "EXIT_OK", "EXIT_INTERNAL", "EXIT_INPUT", "EXIT_OVERFLOW",
            "EXIT_INTERRUPTED"]
@@ -89,5 +90,9 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     # compiled tracker programs kept between runs (core.devices.setup_compile_cache; "off": none)
     os.environ.setdefault(COMPILE_CACHE_VAR, str(default_compile_cache()))
-    args = build_parser(command_of(argv) or "").parse_args(argv)
+    command = command_of(argv) or ""
+    # a warning raised while the command's parser module is imported (the metrics' kernel cache) is
+    # one line too, as those of the command's run (errors.guarded)
+    with nullcontext() if "--debug" in argv else warning_lines(f"dfrmot {command}".rstrip()):
+        args = build_parser(command).parse_args(argv)
     return args.func(args)

@@ -27,8 +27,9 @@ tie-heavy (small integers, repeated rows and columns, constant) and rectangular 
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 
 __all__ = ["linear_sum_assignment", "solve_many", "solve_block", "match_block", "workspace", "workspace_for",
            "TIE_MARGIN"]
@@ -36,7 +37,7 @@ __all__ = ["linear_sum_assignment", "solve_many", "solve_block", "match_block", 
 _INVALID, _INFEASIBLE = -1, -2
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _augmenting_path(nc, cost, u, v, path, row4col, short, i, SR, SC, remaining):
     """Grow the shortest path tree from row ``i`` to an unassigned column (the sink): returns
     (sink or -1 where no finite path exists, min_val). Work arrays are reused across calls."""
@@ -76,7 +77,7 @@ def _augmenting_path(nc, cost, u, v, path, row4col, short, i, SR, SC, remaining)
     return sink, min_val
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining):
     """Assign each of ``nr`` rows (nr <= nc) of the row-major ``cost`` [nr * nc] (no NaN, no -inf):
     fills col4row [nr]; returns 0, or _INFEASIBLE."""
@@ -113,7 +114,7 @@ def _solve(nr, nc, cost, col4row, row4col, u, v, short, path, SR, SC, remaining)
 TIE_MARGIN = 1e-9
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _rows_certified(nr, nc, cost, col4row, taken):
     """A block of ``maximize`` (``cost`` = -S, S >= 0) whose optimum is each row's largest entry,
     proven unique: in every row with a positive entry the largest exceeds the row's others, and 0,
@@ -145,7 +146,7 @@ def _rows_certified(nr, nc, cost, col4row, taken):
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def workspace(side, size):
     """Work arrays for :func:`solve_block` on blocks of at most ``side`` rows or columns and ``size``
     entries (one tuple, reused across blocks)."""
@@ -155,7 +156,7 @@ def workspace(side, size):
             np.empty(side, np.int64))
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def workspace_for(n_rows, n_cols):
     """:func:`workspace` for every block of shapes ``n_rows`` x ``n_cols`` [G]."""
     size, side = 1, 1
@@ -165,7 +166,7 @@ def workspace_for(n_rows, n_cols):
     return workspace(side, size)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def solve_block(values, a, nr0, nc0, maximize, positive_only, out_rows, out_cols, o, ws):
     """One block, in compiled code: ``values[a:a + nr0 * nc0]`` row-major [nr0, nc0]; its min(nr0, nc0)
     pairs written at ``out_rows[o:]``, ``out_cols[o:]`` in scipy's order (sorted by row; with
@@ -213,7 +214,7 @@ def solve_block(values, a, nr0, nc0, maximize, positive_only, out_rows, out_cols
     return 0
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def match_block(vals, nr, nc, above, rows, cols, ws):
     """The pairs of ``linear_sum_assignment(-S)`` with ``S > above`` (>= 0) of one block ``S = vals[:nr * nc]``
     (row-major, >= 0), for compiled callers (a frame's matching in the metrics): where no row or column
@@ -248,7 +249,7 @@ def match_block(vals, nr, nc, above, rows, cols, ws):
     return n
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _solve_blocks(values, starts, n_rows, n_cols, maximize, positive_only, out_rows, out_cols, out_start):
     """Every block b (:func:`solve_block`): ``values[starts[b]:...]`` row-major [n_rows[b], n_cols[b]],
     its pairs at ``out_start[b]``. Returns -1 or the first block that failed, its status in the second value."""

@@ -6,9 +6,10 @@ boxes, and both metric families compute what depends on a box once per distinct 
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 import pandas as pd
+
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 
 __all__ = ["row_ids", "distinct_rows"]
 
@@ -60,7 +61,7 @@ def distinct_rows(frame: np.ndarray, vals: np.ndarray, key: np.ndarray | None = 
     return first, ids
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _factorize_rows(frame, bits):
     """(ids [R], first [U]): rows (``frame`` [R] int64, ``bits`` [R, C] uint64) numbered in order of
     first appearance, equal ids exactly for equal rows: an open-addressing hash table of each

@@ -18,10 +18,10 @@ exactly TrackEval's matrix. Helpers:
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from dfrmot_jax.metrics.common.assignment import TIE_MARGIN, solve_many
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 
 
 def segment_starts(counts: np.ndarray) -> np.ndarray:
@@ -81,7 +81,7 @@ def numpy_row_sums(values: np.ndarray, row_first: np.ndarray, row_len: np.ndarra
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def pairwise_sum(values, start, n):
     """``values[start:start + n].sum()`` as numpy sums a contiguous float64 row, bit for bit (its
     pairwise summation: up to 7 terms one after the other from 0, up to 128 in eight interleaved
@@ -167,7 +167,7 @@ def crowded_segments(positive: np.ndarray, row_seg: np.ndarray, row_first: np.nd
                                    col_seg.astype(np.int64), n_seg))
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _crowded(positive, row_seg, row_first, pair_col, col_seg, n_seg):
     """[n_seg] bool: a row (pairs row_first[r] .. the next row's first) or a column holds 2+ positives."""
     crowded = np.zeros(n_seg, np.bool_)

@@ -17,10 +17,10 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import numba
 import numpy as np
 
 from dfrmot_jax.metrics.common.distinct import distinct_rows
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.kitti2d.boxes import EPS, columns, gather_iou, pair_ioa
 
@@ -103,7 +103,7 @@ def box_table_numpy(row_start: np.ndarray, row_cols: tuple, dc_start: np.ndarray
                     cand_row=row[cand], cand_iou=iou[cand], in_dontcare=in_dc)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _table(row_start, rx1, ry1, rx2, ry2, vstart, ubox, iou_start, dc_start, dc_box, eps, match_iou):
     """The table's IoU, candidates and DontCare flags in one pass per frame: each pair's IoU by the
     operations of :func:`~dfrmot_jax.metrics.kitti2d.boxes.gather_iou` in the same order (so bit for
@@ -204,7 +204,7 @@ def metric_pairs(t: BoxTable, row_start: np.ndarray, eval_start: np.ndarray, eva
                          t.n_values, t.iou, np.ascontiguousarray(t.local[kidx], np.int64)) + (pair_start,)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _metric_pairs(g_of_lf, eval_start, eval_count, ev_rows, row_start, k_start, pair_start, iou_start, n_values, iou,
                   k_local):
     """The body of :func:`metric_pairs`: each pair's lane-frame, eval row, kept box and IoU."""

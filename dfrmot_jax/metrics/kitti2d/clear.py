@@ -20,7 +20,7 @@ import numba
 import numpy as np
 
 from dfrmot_jax.metrics.common.assignment import match_block, solve_block, workspace, workspace_for
-from dfrmot_jax.metrics.common.kernel_cache import source_digest
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit, source_digest
 from dfrmot_jax.metrics.common.pairs import crowded_segments, segment_pairs, segment_rows
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
 from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
@@ -237,12 +237,12 @@ def _frame_matches(a, nr, nc, sim, p_gid, p_tid, g0, last_tid, last_rank, rank, 
 def _entries(digest: str):
     """The cached entry points of :func:`_in_order` and :func:`_clear_pass`, keyed on the source of the
     module whose kernels they call too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
-    @numba.njit(cache=True, nogil=True)
+    @cached_njit(nogil=True)
     def solve_in_order(*args):
         digest                                   # (a closure: in numba's cache key)
         return _in_order(*args)
 
-    @numba.njit(cache=True, nogil=True)
+    @cached_njit(nogil=True)
     def clear_kernel(*args):
         digest
         return _clear_pass(*args)
@@ -348,7 +348,7 @@ def _switches_and_fragments(b: EvalBatch, key: np.ndarray, m_lf: np.ndarray, m_t
     return idsw.reshape(L, S), frag_per_gid
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _switch_runs(key, m_lf, m_tid, m_ls, rank, n_keys, n_ls):
     """One pass over the matches in time order: IDSW per (lane, sequence) [n_ls] (a GT id's matched
     tracker id differs from its previous match's) and runs per (lane, GT id) [n_keys] float64 (a run

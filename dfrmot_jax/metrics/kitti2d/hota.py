@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from dfrmot_jax.metrics.common.assignment import match_block, workspace
-from dfrmot_jax.metrics.common.kernel_cache import source_digest
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit, source_digest
 from dfrmot_jax.metrics.common.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
                                              pairwise_sum, segment_rows)
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
@@ -345,7 +345,7 @@ def _match(lf0, lf1, pair_start, ng, nk, sim, pos_q, pos_c, gas, c_hist, thresho
 def _entry(digest: str):
     """The cached entry point of :func:`_hota_pass`, keyed on the source of the modules whose kernels
     it calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
-    @numba.njit(cache=True, nogil=True)
+    @cached_njit(nogil=True)
     def hota_kernel(*args):
         digest                                   # (a closure: in numba's cache key)
         return _hota_pass(*args)
@@ -355,7 +355,7 @@ def _entry(digest: str):
 _hota_kernel = _entry(source_digest("dfrmot_jax.metrics.common.assignment", "dfrmot_jax.metrics.common.pairs"))
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _sim_iou(sim, row_first, row_len, rowsum, colsum, p_k, eps):
     """[P] ``sim / (colsum + rowsum - sim)`` of each pair (0 where the denominator is not above
     ``0 + eps``): rows of pairs ``row_first[r] .. + row_len[r]``, ``rowsum`` [R] per row, ``colsum``
@@ -370,7 +370,7 @@ def _sim_iou(sim, row_first, row_len, rowsum, colsum, p_k, eps):
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _association_sums(mc, gc, tc, ls_c, n_ls):
     """[3, n_ls * NA]: per (lane, sequence) and alpha, the sums over combos (in combo order) of
     ``mc * AssA``, ``mc * AssRe``, ``mc * AssPr`` with TrackEval's per-combo ratios

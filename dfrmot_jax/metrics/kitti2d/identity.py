@@ -19,7 +19,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from dfrmot_jax.metrics.common.assignment import solve_block, solve_many, workspace
-from dfrmot_jax.metrics.common.kernel_cache import source_digest
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit, source_digest
 from dfrmot_jax.metrics.common.pairs import segment_starts
 from dfrmot_jax.metrics.kitti2d.kitti import MAX_ID_TABLE, EvalBatch
 
@@ -242,7 +242,7 @@ def _matching_value(C, c_key, c_n, comp_of, ng, local):
 def _entry(digest: str):
     """The cached entry point of :func:`_identity_pass`, keyed on the source of the module whose kernels
     it calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
-    @numba.njit(cache=True, nogil=True)
+    @cached_njit(nogil=True)
     def identity_kernel(*args):
         digest                                   # (a closure: in numba's cache key)
         return _identity_pass(*args)

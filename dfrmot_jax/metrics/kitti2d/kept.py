@@ -16,7 +16,7 @@ import numba
 import numpy as np
 
 from dfrmot_jax.metrics.common.assignment import match_block, workspace
-from dfrmot_jax.metrics.common.kernel_cache import source_digest
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit, source_digest
 from dfrmot_jax.metrics.common.pairs import match_entries, segment_starts
 from dfrmot_jax.metrics.kitti2d.box_table import BoxTable, candidate_pairs
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
@@ -100,7 +100,7 @@ def _kept_pass(d_start, g_of_lf, row_start, row_eval, value, cand_start, cand_ro
 def _entry(digest: str):
     """The cached entry point of :func:`_kept_pass`, keyed on the source of the module whose kernels it
     calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
-    @numba.njit(cache=True, nogil=True)
+    @cached_njit(nogil=True)
     def kept_kernel(*args):
         digest                                   # (a closure: in numba's cache key)
         return _kept_pass(*args)

@@ -46,12 +46,12 @@ from functools import cached_property
 from pathlib import Path
 from typing import NamedTuple, Sequence
 
-import numba
 import numpy as np
 import pandas as pd
 
 from dfrmot_jax.io import kitti as kio  # the shared reader (KittiFormatError, read_tracking_labels)
 from dfrmot_jax.metrics.common.fields3d import box_rows
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.common.sequences import CLASS_NAME_TO_ID, DISTRACTORS, distinct_types, seq_name
 from dfrmot_jax.metrics.kitti2d.box_table import box_table, metric_pairs
@@ -537,7 +537,7 @@ def _ids_numpy(gt: PreparedGT, dets: TrackerDets, kidx: np.ndarray, k_lf: np.nda
     return det_gid, tid_grp, tid_count
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _ids_by_run(grp, tid, lf):
     """:func:`_tracker_ids`' numbering in one compiled pass where each (lane, sequence) ``grp`` is one
     run of rows: each run's distinct ids in sorted order, numbered on from the last run's; and

@@ -5,10 +5,10 @@ into the preprocessing's :class:`~dfrmot_jax.metrics.kitti2d.kitti.TrackerDets`:
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from dfrmot_jax.metrics.common.fields3d import FIELDS_3D, box3d_problem, no_box_rows
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.kitti2d.kitti import PreparedGT, TrackerDets
 from dfrmot_jax.rows import Rows
 
@@ -107,7 +107,7 @@ def tracker_dets_from_arrays(gt: PreparedGT, ids: np.ndarray, boxes: np.ndarray,
                        tid.astype(np.int64, copy=False), box, k.astype(np.int64, copy=False), (), b3, h3)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _flat_rows(ids):
     """The rows (ids >= 0) of ``ids`` [B, T, K] in (b, t, k) order, one pass: (flat index, b, t, k,
     id), each [M] int64."""
