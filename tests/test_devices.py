@@ -161,6 +161,73 @@ def test_compiled_programs_kept_between_runs(tmp_path):
     assert r.returncode == 0 and any((tmp_path / "xdg" / "dfrmot_jax" / "xla").iterdir()), r.stderr
 
 
+def _read_only(folder):
+    """Make ``folder`` unwritable, as a read-only mount is (``chattr +i`` where chmod does not bind,
+    i.e. for root); None when neither can."""
+    import shutil
+    import tempfile
+
+    folder.chmod(0o555)
+    try:
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError:
+        return lambda: folder.chmod(0o755)
+    if shutil.which("chattr") and subprocess.run(["chattr", "+i", str(folder)], capture_output=True).returncode == 0:
+        return lambda: subprocess.run(["chattr", "-i", str(folder)], check=True)
+    folder.chmod(0o755)
+    return None
+
+
+def test_a_read_only_compile_cache_is_one_warning(tmp_path):
+    """A compile cache folder that cannot be written (JAX also takes a lock file there to read) gave 8
+    warning lines per run, one per program read and written: now one, and the run as without it."""
+    from dfrmot_jax.synthetic import make_scene
+
+    root = make_scene(tmp_path / "scene", n_sequences=1, n_frames=20, seed=2)
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    undo = _read_only(cache)
+    if undo is None:
+        pytest.skip("cannot make a folder read-only here")
+    try:
+        r = _cli(["track", "--data", str(root), "--det2d", "synth2d", "--det3d", "synth3d", "--out",
+                  str(tmp_path / "o")], DFRMOT_COMPILE_CACHE=str(cache))
+    finally:
+        undo()
+    assert r.returncode == 0, r.stderr
+    [line] = [s for s in r.stderr.splitlines() if "warning" in s]
+    assert line.startswith(f"dfrmot track: warning: DFRMOT_COMPILE_CACHE: {cache}: not writable"), line
+
+
+@pytest.mark.slow
+def test_compile_cache_entries_that_do_not_load_are_compiled_anew(tmp_path):
+    """Two compile cache entries with swapped contents: ``internal error: AssertionError: (8, 6)``
+    (JAX loads another program and its checks fail). Now each is one warning naming it, compiled anew
+    and replaced: the same files, and the next run loads the new entries without a word."""
+    from dfrmot_jax.synthetic import make_scene
+
+    root = make_scene(tmp_path / "scene", n_sequences=1, n_frames=40, seed=2)
+    cache = tmp_path / "cache"
+    args = ["track", "--data", str(root), "--det2d", "synth2d", "--det3d", "synth3d", "--out"]
+    files = []
+    for k in range(3):
+        r = _cli(args + [str(tmp_path / f"o{k}")], DFRMOT_COMPILE_CACHE=str(cache))
+        assert r.returncode == 0, r.stderr
+        files.append({f.name: f.read_bytes() for f in sorted((tmp_path / f"o{k}").glob("*.txt"))})
+        warned = [s for s in r.stderr.splitlines() if "warning" in s]
+        if k == 0:
+            a, b = sorted(cache.glob("*-cache"), key=lambda p: p.stat().st_size)[-2:]
+            data = a.read_bytes()
+            a.write_bytes(b.read_bytes())
+            b.write_bytes(data)
+        elif k == 1:
+            assert len(warned) == 2 and all("do not load as their programs" in s for s in warned), r.stderr
+            assert {str(a), str(b)} == {s.split("): ")[1].split(": compiled")[0] for s in warned}
+        else:
+            assert not warned, r.stderr
+    assert files[0] and files[0] == files[1] == files[2]
+
+
 def test_no_compile_cache_unless_asked():
     """A library caller keeps nothing on disk unless ``$DFRMOT_COMPILE_CACHE`` names a folder; the
     variable's name is the one the command line sets."""

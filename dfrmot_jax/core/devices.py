@@ -23,7 +23,11 @@ on fewer devices than asked for.
 from __future__ import annotations
 
 import os
+import tempfile
+import time
 import warnings
+from pathlib import Path
+from typing import Callable, TypeVar
 
 import jax
 
@@ -38,6 +42,9 @@ DEVICE_CHOICES = ("auto", "cpu", "gpu")
 LANES_PER_CALL = {"cpu": 64, "gpu": 1024}
 _FORCE_FLAG = "xla_force_host_platform_device_count"
 _warned = False
+#: compile cache folders refused in this process (not writable), each said once
+_refused_caches: set[str] = set()
+T = TypeVar("T")
 
 
 def wanted_devices() -> int:
@@ -90,10 +97,63 @@ def setup_compile_cache(folder: str | os.PathLike | None = None) -> str | None:
     if folder.strip().lower() in ("", "0", "off", "none", "false"):
         return None
     folder = os.path.expanduser(folder)
+    if folder in _refused_caches:
+        return None
+    problem = _unwritable(folder)
+    if problem is not None:     # JAX would warn at every read and write of it (its reads take a lock file too)
+        _refused_caches.add(folder)
+        warnings.warn(f"{COMPILE_CACHE_VAR}: {folder}: {problem}: compiled programs are not kept between runs "
+                      f"(name a writable folder, or {COMPILE_CACHE_VAR}=off)", RuntimeWarning, stacklevel=2)
+        return None
     jax.config.update("jax_compilation_cache_dir", folder)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     jax.config.update("jax_compilation_cache_max_size", COMPILE_CACHE_MAX_BYTES)
     return folder
+
+
+def _unwritable(folder: str) -> str | None:
+    """Why ``folder`` cannot hold the compile cache (made if missing), None when it can."""
+    try:
+        os.makedirs(folder, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError as e:
+        return f"not writable ({e.strerror or e})"
+    return None
+
+
+def _entries_read_since(folder: str, t0: int) -> list[Path]:
+    """The compile cache entries of ``folder`` read since ``t0`` (``time.time_ns()``): JAX's cache
+    stamps an entry's ``-atime`` file at each read."""
+    read = []
+    for stamp in Path(folder).glob("*-atime"):
+        try:
+            if int.from_bytes(stamp.read_bytes()[:8], "little") >= t0:
+                read.append(stamp.with_name(stamp.name.removesuffix("-atime") + "-cache"))
+        except OSError:
+            continue
+    return read
+
+
+def call_compiled(call: Callable[[], T]) -> T:
+    """``call()``, a call of a jitted program; where it fails (JAX's checks of a loaded executable, an
+    ``AssertionError`` or a runtime error) after reading entries of the compile cache, those entries
+    did not load as their programs (swapped or tampered with): they are removed, with one warning
+    naming them, and the call is made again, compiling anew (and keeping the new programs)."""
+    t0 = time.time_ns()
+    try:
+        return call()
+    except (AssertionError, jax.errors.JaxRuntimeError) as e:
+        folder = jax.config.jax_compilation_cache_dir
+        read = _entries_read_since(folder, t0) if folder else []
+        if not read:
+            raise
+        for entry in read:
+            for path in (entry, entry.with_name(entry.name.removesuffix("-cache") + "-atime")):
+                path.unlink(missing_ok=True)
+        warnings.warn(f"compile cache entries that do not load as their programs ({type(e).__name__}: {e}): "
+                      f"{', '.join(str(p) for p in read)}: compiled anew and replaced", RuntimeWarning, stacklevel=2)
+        jax.clear_caches()
+    return call()
 
 
 def platform_of(backend: str) -> str:

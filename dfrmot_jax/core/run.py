@@ -23,7 +23,7 @@ from jax.sharding import Mesh
 from jax.sharding import PartitionSpec as P
 
 from ..config import Options, Params
-from .devices import batch_devices, chosen_platform, platform_of
+from .devices import batch_devices, call_compiled, chosen_platform, platform_of
 from .step import Frames, Objects, init, objects, step
 
 
@@ -143,7 +143,8 @@ def split_objects(params: Params, frames: Frames, options: Options) -> Objects:
         fn = _OBJECT_PROGRAMS[options] = jax.jit(jax.vmap(lambda p, f: objects(p, f, options), in_axes=(None, 0)))
     with jax.enable_x64(True):
         p = Params(*(v[0] for v in _lanes(params, 1, 0, jnp.float64)))      # the step's dtypes, as scalars
-        return fn(p, Frames(*(jnp.asarray(x) for x in frames)))
+        f = Frames(*(jnp.asarray(x) for x in frames))
+        return call_compiled(lambda: fn(p, f))
 
 
 _OBJECT_PROGRAMS: dict = {}
@@ -357,7 +358,8 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
         if objs is not None and hook is not None:
             raise ValueError("objects made outside the scan cannot follow a frame hook")
         program = compiled(options, capacity, n_dev, fn, detail, small, objs is not None, platform)
-        out, overflow, peak = program(p, Frames(*jax.device_put(tuple(np.asarray(x) for x in frames))), lanes, xs, bucket, objs)
+        f = Frames(*jax.device_put(tuple(np.asarray(x) for x in frames)))
+        out, overflow, peak = call_compiled(lambda: program(p, f, lanes, xs, bucket, objs))
     ids = _to_host(out.ids, b)
     packed = {"boxes", "box3"} if rows_only else set()
     out = out._replace(**{f: (_rows_to_host(v, ids) if f in packed and v.shape[2] else ids if f == "ids" else _to_host(v, b))
