@@ -346,3 +346,44 @@ def test_a_sweep_of_an_older_results_version_is_compared_as_the_report_reads_it(
     row = pd.read_csv(csv, dtype={"seq": str}).query("seq == 'COMBINED' and metric == 'HOTA'").iloc[0]
     assert row["a"] == pytest.approx(comb.loc[comb["baseline"], "HOTA"].iloc[0], abs=1e-9)
     assert row["b"] == pytest.approx(comb["HOTA"].max(), abs=1e-9)
+
+
+@pytest.fixture(scope="module")
+def two_classes(tmp_path_factory):
+    """A sweep over car and pedestrian whose best config by its objective (AssA) on the class average
+    (config 2) is not its best on car (config 0): (scene root, sweep directory, its table)."""
+    from test_sweep_classes import multiclass_scene
+
+    from dfrmot_jax.sweep import run_sweep
+
+    base = tmp_path_factory.mktemp("two_classes")
+    root = multiclass_scene(base / "scene")
+    spec = {"name": "two", "chunk": 8, "report": {"objective": "AssA"},
+            "data": {"root": str(root), "det2d": "synth2d", "det3d": "synth3d", "class": ["car", "pedestrian"]},
+            "baseline": {"preset": "dfr2023", "class": "car"},
+            "params": {"car.min_hits": [1, 3], "pedestrian.score_2d": [0.95, 0.3]}}
+    df = run_sweep(spec, base / "sweep", progress=False, workers=0, log=lambda m: None)
+    return root, base / "sweep", df
+
+
+@pytest.mark.slow
+def test_best_of_a_two_class_sweep_is_the_reports_best_for_every_class(two_classes, tmp_path, capsys):
+    """``compare A SW:best`` of a two-class sweep tracked the car ranking's best, car only, where
+    ``dfrmot report SW`` names the class average's: now the report's best, tracked for every class."""
+    from dfrmot_jax.report import sweep_report
+
+    root, d, df = two_classes
+    comb = df[df["sequence"] == "COMBINED"]
+    pick = {c: int(comb[comb["class"] == c].sort_values(["AssA", "config"], ascending=[False, True]).iloc[0]["config"])
+            for c in ("car", "average")}
+    assert pick == {"car": 0, "average": 2}                  # (the case: the two rankings differ)
+    assert sweep_report(d, objective="AssA").summary["best_config"]["config"] == 2      # dfrmot report SW
+    csv = tmp_path / "t.csv"
+    status, out, err = run_cli(capsys, ["compare", f"{d}:baseline", f"{d}:best", "--class", "car,pedestrian",
+                                        "--data", root, "--resamples", "50", "--csv", csv])
+    assert status == 0, err
+    assert f"{d} config 2 (hash " in out and "best by AssA on the class average" in out
+    t = pd.read_csv(csv, dtype={"seq": str}).query("seq == 'COMBINED' and metric == 'HOTA'").set_index("class")
+    for c in ("car", "pedestrian"):
+        want = comb[(comb["class"] == c)].set_index("config")["HOTA"]
+        assert t.at[c, "a"] == pytest.approx(want[0], abs=1e-9) and t.at[c, "b"] == pytest.approx(want[2], abs=1e-9)

@@ -80,8 +80,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                                    "sequences): the 95 %% interval of B - A and the share of resamples where B "
                                    "is better. Folders are read and checked as dfrmot eval reads them.")
     p.add_argument("a", metavar="A", help="the first result folder (SSSS.txt files), or a sweep / tune directory's "
-                                          "config: DIR:best, DIR:baseline, DIR:config=N (tracked alone, on the "
-                                          "directory's data; its sequences unless --seqs)")
+                                          "config: DIR:best (as dfrmot report DIR ranks it), DIR:baseline, "
+                                          "DIR:config=N (tracked alone, for each class of the directory, on its "
+                                          "data; its sequences unless --seqs)")
     p.add_argument("b", metavar="B", help="the second, likewise; differences are B - A")
     p.add_argument("--data", default=None, metavar="ROOT",
                    help=f"KITTI tracking training root (default: $DFRMOT_DATA or {default_data_root()})")

@@ -196,25 +196,44 @@ def _json_type(kind: type) -> str:
     return _JSON_TYPES.get(kind, kind.__name__)
 
 
+def _data_problem(key: str, data: dict) -> str | None:
+    """What is wrong with a manifest's data object ``data`` (at ``key``), None when nothing is."""
+    for name, kind in _DATA_FIELDS.items():
+        if not isinstance(data.get(name), kind):
+            return f"{key}.{name}: missing or not {_json_type(kind)}"
+    if not all(isinstance(s, str) for s in data["sequences"]):
+        return f"{key}.sequences: expected sequence names"
+    if not isinstance(data.get("class", ""), str):
+        return f"{key}.class: not a string"
+    return None
+
+
 def manifest_problem(doc) -> str | None:
     """What makes ``doc`` (a parsed ``manifest.json``) no manifest its readers can use, None when
     nothing does: an object, with a ``data`` object of the sweep's data (:data:`_DATA_FIELDS`, its
-    sequences names) and, but for a tune's, the list of its chunks' names."""
+    sequences names; a sweep of several classes: each one's in ``class_data``) and, but for a tune's,
+    the list of its chunks' names."""
     if not isinstance(doc, dict):
         return f"expected an object, got {_json_type(type(doc))}"
     data = doc.get("data")
     if not isinstance(data, dict):
         return "no 'data' object (the sweep's data: root, detectors, class, sequences)"
-    for name, kind in _DATA_FIELDS.items():
-        if not isinstance(data.get(name), kind):
-            return f"data.{name}: missing or not {_json_type(kind)}"
-    if not all(isinstance(s, str) for s in data["sequences"]):
-        return "data.sequences: expected sequence names"
-    if not isinstance(data.get("class", ""), str):
-        return "data.class: not a string"
+    problem = _data_problem("data", data)
+    if problem is not None:
+        return problem
     for name, kinds in _OPTIONAL_FIELDS.items():
         if name in doc and not isinstance(doc[name], kinds):
             return f"{name}: {_json_type(type(doc[name]))}, expected {' or '.join(_json_type(k) for k in kinds)}"
+    per_class = doc.get("class_data") if isinstance(doc.get("class_data"), dict) else {}
+    for cls in doc.get("classes") or []:        # (a sweep of several classes: each class's data)
+        if not isinstance(cls, str):
+            return "classes: expected class names"
+        per = per_class.get(cls)
+        if not isinstance(per, dict):
+            return f"class_data.{cls}: missing or not an object"
+        problem = _data_problem(f"class_data.{cls}", per)
+        if problem is not None:
+            return problem
     chunks = doc.get("chunks", [] if doc.get("kind") == "tune" else None)
     if not isinstance(chunks, list) or not all(isinstance(c, str) for c in chunks):
         return "chunks: missing or not a list of chunk names"

@@ -1,10 +1,13 @@
 """One config of a sweep or tune directory written as result files: ``dfrmot compare DIR:best ...``.
 
-A reference ``DIR:best`` (the directory's best config by its objective, the report's ranking),
-``DIR:baseline`` or ``DIR:config=N`` names a row of the stored table; :func:`write_config_output`
-tracks that config alone on the directory's data (its manifest: root, detectors, class, sequences) and
-writes one KITTI result file per sequence, which score what the row says (a sweep row equals the config
-run alone). Distortion and LiDAR sweeps, whose rows also depend on lanes or simulated scans, are refused.
+A reference ``DIR:best`` (the directory's best config by its objective, ranked as ``dfrmot report DIR``
+ranks it: on the class average of a sweep over several classes unless its file's ``report.class``
+names one class), ``DIR:baseline`` or ``DIR:config=N`` names a config of the stored table;
+:func:`write_config_output` tracks that config alone, for every class the directory tracked, on the
+directory's data (its manifest: root, detectors, class, sequences) and writes one KITTI result file per
+sequence (the classes merged, as ``dfrmot track --class car,pedestrian`` writes them), which score what
+the rows say (a sweep row equals the config run alone). Distortion and LiDAR sweeps, whose rows also
+depend on lanes or simulated scans, are refused.
 """
 
 from __future__ import annotations
@@ -12,58 +15,85 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from ..api import track
 from ..config import Options
 from ..data import load_split
-from ..report.analysis import rank_configs
-from ..report.columns import COMBINED, OPTION_NAMES, extra_axes
+from ..metrics.columns import canonical_objective
+from ..report.analysis import class_view, classes_of, rank_configs, report_class_of
+from ..report.columns import AVERAGE, COMBINED, OPTION_NAMES, extra_axes
 from ..report.stored import load_results, read_manifest
-from ..results import write_lane
+from ..results import ClassRun, write_runs
 from .table import params_of
 
-__all__ = ["write_config_output"]
+__all__ = ["write_config_output", "sweep_classes", "class_data"]
 
 
-def _row(directory: Path, which, manifest: dict):
-    """The COMBINED row (of the manifest's class) that ``which`` names, and the table."""
-    df = load_results(directory)
-    cls = manifest.get("data", {}).get("class", "car")
-    if "class" in df.columns:
-        df = df[df["class"] == cls]
-    comb = df[df["sequence"] == COMBINED].drop_duplicates("config").reset_index(drop=True)
+def sweep_classes(manifest: dict) -> list[str]:
+    """The classes a directory tracked (its manifest's), in order."""
+    return list(manifest.get("classes") or [manifest["data"].get("class", "car")])
+
+
+def class_data(manifest: dict, cls: str) -> dict:
+    """The data a directory tracked class ``cls`` on (root, detectors, class, sequences)."""
+    return (manifest.get("class_data") or {}).get(cls) or manifest["data"]
+
+
+def _config(directory: Path, which, manifest: dict, df: pd.DataFrame) -> tuple[int, str]:
+    """The config number ``which`` names, and how it was chosen ("" unless by ranking)."""
+    classes = classes_of(df)
+    cls = report_class_of(df, manifest.get("report_class")) if classes else None
+    view = class_view(df, cls) if classes else df
+    comb = view[view["sequence"] == COMBINED].drop_duplicates("config").reset_index(drop=True)
     if which == "best":
-        objective = manifest.get("objective", "HOTA")
-        return comb.iloc[int(rank_configs(comb[objective].to_numpy(), objective)[0])], comb
+        objective = canonical_objective(manifest.get("objective") or "HOTA")
+        row = comb.iloc[int(rank_configs(comb[objective].to_numpy(), objective)[0])]
+        on = "the class average" if cls == AVERAGE else f"{cls}" if len(classes) > 1 else ""
+        return int(row["config"]), f"best by {objective}" + (f" on {on}" if on else "")
     if which == "baseline":
         base = comb[comb["baseline"]]
         if not len(base):
             raise ValueError(f"{directory}: the directory has no baseline row")
-        return base.iloc[0], comb
-    hit = comb[comb["config"] == which]
-    if not len(hit):
+        return int(base.iloc[0]["config"]), ""
+    if not (comb["config"] == which).any():
         raise ValueError(f"{directory}: no config {which} (configs {int(comb['config'].min())} to "
                          f"{int(comb['config'].max())})")
-    return hit.iloc[0], comb
+    return int(which), ""
+
+
+def _class_run(directory: Path, df: pd.DataFrame, config: int, cls: str, data: dict) -> tuple[ClassRun, str]:
+    """Config ``config`` tracked alone for class ``cls`` on ``data``, and its hash."""
+    rows = df[df["class"] == cls] if "class" in df.columns else df
+    comb = rows[rows["sequence"] == COMBINED].drop_duplicates("config").reset_index(drop=True)
+    pos = int(np.flatnonzero(comb["config"].to_numpy() == config)[0])
+    row = comb.iloc[pos]
+    for name, default in extra_axes().items():
+        if name in row.index and row[name] != default:
+            raise ValueError(f"{directory}: config {config} has {name} = {row[name]!r}: a distortion or "
+                             f"LiDAR sweep's rows are not one config's output; track it with dfrmot track")
+    params = params_of(comb, [pos], cls)
+    options = Options(**{n: (row[n].item() if hasattr(row[n], "item") else row[n]) for n in OPTION_NAMES
+                         if n in row.index}).validate()
+    split = load_split(data["root"], data["det2d"], data["det3d"], cls, data["sequences"])
+    res = track(split, params, options, detail=True)
+    run = ClassRun(split, res.frames, res.options, res.ids[0], res.lane_boxes(0), res.src3[0], res.own3[0],
+                   None if res.box3 is None else res.box3[0])
+    return run, str(row["config_hash"])
 
 
 def write_config_output(directory, which, out_dir) -> str:
-    """Track config ``which`` ('best', 'baseline' or a config number) of a sweep / tune directory alone
-    and write its result files to ``out_dir``; returns a description (``DIR config N (hash ...)``)."""
+    """Track config ``which`` ('best', 'baseline' or a config number) of a sweep / tune directory alone,
+    for every class it tracked, and write its result files to ``out_dir``; returns a description
+    (``DIR config N (hash ..., best by HOTA on the class average)``)."""
     directory = Path(directory)
     manifest = read_manifest(directory)
-    row, comb = _row(directory, which, manifest)
-    for name, default in extra_axes().items():
-        if name in row.index and row[name] != default:
-            raise ValueError(f"{directory}: config {int(row['config'])} has {name} = {row[name]!r}: a distortion or "
-                             f"LiDAR sweep's rows are not one config's output; track it with dfrmot track")
-    data = manifest["data"]
-    pos = int(np.flatnonzero(comb["config"].to_numpy() == row["config"])[0])
-    params = params_of(comb, [pos], data.get("class", "car"))
-    options = Options(**{n: (row[n].item() if hasattr(row[n], "item") else row[n]) for n in OPTION_NAMES
-                         if n in row.index}).validate()
-    split = load_split(data["root"], data["det2d"], data["det3d"], data.get("class", "car"), data["sequences"])
-    res = track(split, params, options, detail=True)
-    write_lane(out_dir, split, res.frames, res.options, res.ids[0], res.lane_boxes(0), src3=res.src3[0],
-               own3=res.own3[0], box3=None if res.box3 is None else res.box3[0])
-    return f"{directory} config {int(row['config'])} (hash {row['config_hash']})"
+    df = load_results(directory)
+    config, how = _config(directory, which, manifest, df)
+    runs, hashes = [], []
+    for cls in sweep_classes(manifest):
+        run, h = _class_run(directory, df, config, cls, class_data(manifest, cls))
+        runs.append(run)
+        hashes.append(h)
+    write_runs(out_dir, runs)
+    return f"{directory} config {config} (hash {hashes[0]}{', ' + how if how else ''})"
