@@ -387,3 +387,26 @@ def test_best_of_a_two_class_sweep_is_the_reports_best_for_every_class(two_class
     for c in ("car", "pedestrian"):
         want = comb[(comb["class"] == c)].set_index("config")["HOTA"]
         assert t.at[c, "a"] == pytest.approx(want[0], abs=1e-9) and t.at[c, "b"] == pytest.approx(want[2], abs=1e-9)
+
+
+@pytest.mark.slow
+def test_a_class_or_sequence_a_sweep_did_not_track_names_the_sweep(tmp_path, capsys):
+    """``compare BOTH SW:best --class car,pedestrian`` where SW tracked car only named a temporary folder
+    (``.../dfrmot-compare-.../B: no pedestrian row``) and blamed result files; ``--seqs`` outside the
+    sweep likewise. Now the sweep folder and what it lacks, before anything is tracked."""
+    from dfrmot_jax.sweep import run_sweep
+
+    root = make_scene(tmp_path / "scene", n_sequences=3, n_frames=30, n_cars=3, seed=6)
+    d = tmp_path / "sweep"
+    run_sweep({"name": "cars", "chunk": 4, "data": {"root": str(root), "det2d": "synth2d", "det3d": "synth3d",
+                                                    "sequences": ["0000", "0001"]},
+               "params": {"a_l": [4.0, 8.0]}}, d, progress=False, workers=0, log=lambda m: None)
+    (tmp_path / "res").mkdir()
+    status, _, err = run_cli(capsys, ["compare", tmp_path / "res", f"{d}:best", "--class", "car,pedestrian",
+                                      "--data", root])
+    line = error_line(err, "compare", alone=True)
+    assert status == 2 and f"{d}: the directory tracked car only, not pedestrian (--class car,pedestrian)" in line
+    assert "dfrmot-compare-" not in line
+    status, _, err = run_cli(capsys, ["compare", f"{d}:baseline", f"{d}:best", "--seqs", "0001,0002", "--data", root])
+    line = error_line(err, "compare", alone=True)
+    assert status == 2 and f"{d}: sequences 0002 are outside the directory's data (it tracked 0000, 0001)" in line

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from ..io.kitti import KittiFormatError
 from ..report.stored import read_manifest
-from ..sweep.config_output import write_config_output
+from ..sweep.config_output import class_data, sweep_classes, write_config_output
 from ..metrics.kitti2d.tracker_files import read_tracker_files
 from ..paths import default_data_root
 from ..report.compare import DEFAULT_RESAMPLES, compare_outputs, comparison_text
@@ -39,7 +39,7 @@ from .track_parser import seqs_arg
 from .eval import (check_class_rows, check_folders, chosen_sequences, classes_arg, families_arg, ground_truth,
                    iou_arg, label_root)
 
-__all__ = ["add_parser", "run", "parse_reference", "check_outputs"]
+__all__ = ["add_parser", "run", "parse_reference", "check_outputs", "check_reference"]
 
 
 def parse_reference(text: str) -> tuple[Path, str | int] | None:
@@ -125,13 +125,35 @@ def check_outputs(csv: str | None, html: str | None) -> None:
                          f"give each its own")
 
 
+def check_reference(directory: Path, manifest: dict, classes, seqs) -> None:
+    """Refuse (ValueError naming ``directory``) a sweep / tune directory's config for a class it did
+    not track or sequences outside its data: its result files would lack them, and the refusal would
+    name a temporary folder and blame its files."""
+    tracked = sweep_classes(manifest)
+    missing = [c for c in classes if c not in tracked]
+    if missing:
+        both = ",".join(c for c in classes if c in tracked) or tracked[0]
+        raise ValueError(f"{directory}: the directory tracked {', '.join(tracked)} only, not {', '.join(missing)} "
+                         f"(--class {','.join(classes)}): compare --class {both}, or a directory that tracked "
+                         f"{', '.join(missing)}")
+    held = {s for c in tracked for s in class_data(manifest, c)["sequences"]}
+    outside = [s for s in seqs or () if s not in held]
+    if outside:
+        raise ValueError(f"{directory}: sequences {', '.join(outside)} are outside the directory's data (it tracked "
+                         f"{', '.join(sorted(held))}): name sequences it tracked (--seqs, --seqmap)")
+
+
 def run(args) -> int:
     """Run ``compare`` for parsed ``args``: 0, or raises ValueError (bad ground truth, folders, arguments)."""
     check_outputs(args.csv, args.html)
     root, label_dir = label_root(args.data)
     refs = [parse_reference(str(x)) for x in (args.a, args.b)]
-    sweep_seqs = next((read_manifest(r[0])["data"]["sequences"] for r in refs if r is not None), None)
+    manifests = [None if r is None else read_manifest(r[0]) for r in refs]
+    sweep_seqs = next((m["data"]["sequences"] for m in manifests if m is not None), None)
     seqs = chosen_sequences(args.seqs, args.seqmap, root, sweep_seqs)
+    for ref, manifest in zip(refs, manifests):
+        if ref is not None:
+            check_reference(ref[0], manifest, args.cls, seqs)
     gts, seq_lists = ground_truth(root, args.cls, seqs, True)
     with tempfile.TemporaryDirectory(prefix="dfrmot-compare-") as tmp:
         names = [str(args.a), str(args.b)]
