@@ -410,3 +410,33 @@ def test_a_class_or_sequence_a_sweep_did_not_track_names_the_sweep(tmp_path, cap
     status, _, err = run_cli(capsys, ["compare", f"{d}:baseline", f"{d}:best", "--seqs", "0001,0002", "--data", root])
     line = error_line(err, "compare", alone=True)
     assert status == 2 and f"{d}: sequences 0002 are outside the directory's data (it tracked 0000, 0001)" in line
+
+
+@pytest.mark.slow
+def test_a_sweep_side_is_scored_against_its_own_ground_truth(tmp_path, capsys, monkeypatch):
+    """After ``dfrmot demo``, ``compare SW:baseline SW:best`` scored the configs (tracked on the demo's
+    scene) against --data's default labels (KITTI): HOTA 2.81 vs 2.81, exit 0. A ``DIR:`` side is now
+    scored against its own data; two sides on different data, or --data naming another root, refused."""
+    from dfrmot_jax.sweep import run_sweep
+
+    sweeps = []
+    for k in range(2):
+        root = make_scene(tmp_path / f"scene{k}", n_sequences=2, n_frames=30, n_cars=3, seed=10 + k)
+        d = tmp_path / f"sweep{k}"
+        df = run_sweep({"name": f"s{k}", "chunk": 4, "data": {"root": str(root), "det2d": "synth2d", "det3d": "synth3d"},
+                        "params": {"a_l": [2.0, 8.0]}}, d, progress=False, workers=0, log=lambda m: None)
+        sweeps.append((root, d, df[df["sequence"] == "COMBINED"].set_index("config")))
+    (root0, d0, comb0), (root1, d1, _) = sweeps
+    monkeypatch.setenv("DFRMOT_DATA", str(root1))          # the default data: another scene
+    csv = tmp_path / "t.csv"
+    status, _, err = run_cli(capsys, ["compare", f"{d0}:baseline", f"{d0}:best", "--resamples", "50", "--csv", csv])
+    assert status == 0, err
+    row = pd.read_csv(csv, dtype={"seq": str}).query("seq == 'COMBINED' and metric == 'HOTA'").iloc[0]
+    assert row["a"] == pytest.approx(comb0.loc[comb0["baseline"], "HOTA"].iloc[0], abs=1e-9)
+    assert row["b"] == pytest.approx(comb0["HOTA"].max(), abs=1e-9)
+    status, _, err = run_cli(capsys, ["compare", f"{d0}:best", f"{d1}:best"])
+    line = error_line(err, "compare", alone=True)
+    assert status == 2 and f"{d0} was tracked on {root0}, {d1} on {root1}: two sides on different data" in line
+    status, _, err = run_cli(capsys, ["compare", f"{d0}:baseline", f"{d0}:best", "--data", root1])
+    line = error_line(err, "compare", alone=True)
+    assert status == 2 and f"--data {root1}, but {d0} was tracked on {root0}" in line

@@ -85,7 +85,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
                                           "data; its sequences unless --seqs)")
     p.add_argument("b", metavar="B", help="the second, likewise; differences are B - A")
     p.add_argument("--data", default=None, metavar="ROOT",
-                   help=f"KITTI tracking training root (default: $DFRMOT_DATA or {default_data_root()})")
+                   help=f"KITTI tracking training root (default: a DIR: side's own, else $DFRMOT_DATA or "
+                        f"{default_data_root()})")
     p.add_argument("--class", dest="cls", default=("car",), type=classes_arg, metavar="CLASSES",
                    help="class or comma-separated classes (default car)")
     p.add_argument("--seqs", default=None, type=seqs_arg, help="comma-separated sequences (default: per class, those whose "
@@ -125,6 +126,28 @@ def check_outputs(csv: str | None, html: str | None) -> None:
                          f"give each its own")
 
 
+def scoring_root(data, refs, manifests, classes) -> str | None:
+    """The KITTI root both sides are scored against: a ``DIR:`` side's own data root (the ground
+    truth its configs were tracked and scored on), else ``--data`` (``data``; None: the default).
+    Two sides tracked on different roots, or ``--data`` naming another, are refused naming both."""
+    tracked = []
+    for ref, manifest in zip(refs, manifests):
+        if ref is not None:
+            cls = next((c for c in classes if c in sweep_classes(manifest)), sweep_classes(manifest)[0])
+            tracked.append((ref[0], class_data(manifest, cls)["root"]))
+    for (d1, r1), (d2, r2) in zip(tracked, tracked[1:]):
+        if Path(r1).resolve() != Path(r2).resolve():
+            raise ValueError(f"{d1} was tracked on {r1}, {d2} on {r2}: two sides on different data cannot be "
+                             f"compared")
+    if not tracked:
+        return data
+    d, r = tracked[0]
+    if data is not None and Path(data).resolve() != Path(r).resolve():
+        raise ValueError(f"--data {data}, but {d} was tracked on {r}: a directory's config is scored against its "
+                         f"own data's ground truth (leave out --data, or compare outputs of one data root)")
+    return r
+
+
 def check_reference(directory: Path, manifest: dict, classes, seqs) -> None:
     """Refuse (ValueError naming ``directory``) a sweep / tune directory's config for a class it did
     not track or sequences outside its data: its result files would lack them, and the refusal would
@@ -146,9 +169,9 @@ def check_reference(directory: Path, manifest: dict, classes, seqs) -> None:
 def run(args) -> int:
     """Run ``compare`` for parsed ``args``: 0, or raises ValueError (bad ground truth, folders, arguments)."""
     check_outputs(args.csv, args.html)
-    root, label_dir = label_root(args.data)
     refs = [parse_reference(str(x)) for x in (args.a, args.b)]
     manifests = [None if r is None else read_manifest(r[0]) for r in refs]
+    root, label_dir = label_root(scoring_root(args.data, refs, manifests, args.cls))
     sweep_seqs = next((m["data"]["sequences"] for m in manifests if m is not None), None)
     seqs = chosen_sequences(args.seqs, args.seqmap, root, sweep_seqs)
     for ref, manifest in zip(refs, manifests):
