@@ -43,7 +43,7 @@ class Params(NamedTuple):
     kf_r:       measurement noise variance (pixels^2 or m^2) of the Kalman filter.
     kf_p0:      initial variance of velocity and acceleration at a track's first observation.
     kf_q3, kf_r3:  kf_q and kf_r of the 3D corners (metres; kf_q, kf_r then apply to the 2D corners,
-                pixels); 0 (the default) = the same as kf_q / kf_r (``INHERITED_PARAMS``).
+                pixels); 0 (the default) = the same as kf_q / kf_r.
     keep_lost:  output="filtered" only: frames a lost track keeps being written with its predicted box.
     min_hits:   a track is written only once it has been matched (including its birth) min_hits times.
     weak_2d, weak_3d:  margins below score_2d / score_3d of "weak" detections (two-stage thresholds, as

@@ -35,6 +35,14 @@ def test_every_help_works_without_rst_markup(argv, capsys):
     assert out.startswith("usage: dfrmot") and "`" not in out
 
 
+@pytest.mark.parametrize("argv", [[c, "--help"] for c in COMMANDS])
+def test_help_shows_no_escaped_percent_or_internal_name(argv, capsys):
+    """``compare --help`` printed "95 %%" (a description is not %-formatted); ``track --help`` an
+    internal constant's name, ``(INHERITED_PARAMS)``."""
+    _, out, _ = run_cli(capsys, argv)
+    assert "%%" not in out and "INHERITED_PARAMS" not in out
+
+
 def test_top_help_lists_commands_and_exit_statuses(capsys):
     _, out, _ = run_cli(capsys, ["--help"])
     for c in COMMANDS:

@@ -77,7 +77,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
                                    "differences of HOTA, DetA, AssA, LocA, DetRe, DetPr, AssRe, AssPr, MOTA, "
                                    "IDF1, IDSW, FP, FN, Frag and, on the combined figures, a paired bootstrap "
                                    "over sequences (each resample recombined exactly as TrackEval combines "
-                                   "sequences): the 95 %% interval of B - A and the share of resamples where B "
+                                   "sequences): the 95 % interval of B - A and the share of resamples where B "
                                    "is better. Folders are read and checked as dfrmot eval reads them.")
     p.add_argument("a", metavar="A", help="the first result folder (SSSS.txt files), or a sweep / tune directory's "
                                           "config: DIR:best (as dfrmot report DIR ranks it), DIR:baseline, "
