@@ -440,3 +440,22 @@ def test_a_sweep_side_is_scored_against_its_own_ground_truth(tmp_path, capsys, m
     status, _, err = run_cli(capsys, ["compare", f"{d0}:baseline", f"{d0}:best", "--data", root1])
     line = error_line(err, "compare", alone=True)
     assert status == 2 and f"--data {root1}, but {d0} was tracked on {root0}" in line
+
+
+def test_the_page_shows_counts_as_whole_numbers(outputs, tmp_path, capsys):
+    """The compare page printed counts with decimals (IDSW 177.000); now as the printed comparison:
+    whole numbers, differences and interval bounds signed."""
+    import re
+
+    root, folders = outputs
+    page = tmp_path / "p.html"
+    status, _, err = run_cli(capsys, ["compare", folders[0], folders[1], "--data", root, "--resamples", "200",
+                                      "--html", page])
+    assert status == 0, err
+    html = page.read_text()
+    for metric in ("IDSW", "CLR_FP", "CLR_FN", "Frag"):
+        [row] = re.findall(rf"<tr><td>{metric}</td>(.*?)</tr>", html)
+        cells = re.findall(r"<td>(.*?)</td>", row)
+        assert all(re.fullmatch(r"[+-]?\d+", v) for v in cells[:5]) and "." in cells[5], (metric, cells)
+    [hota] = re.findall(r"<tr><td>HOTA</td>(.*?)</tr>", html)
+    assert all("." in v for v in re.findall(r"<td>(.*?)</td>", hota))

@@ -11,6 +11,7 @@ from html import escape
 import pandas as pd
 
 from ..io.atomic import write_text_atomic
+from ..metrics.kitti2d.bootstrap import LOWER_IS_BETTER
 from ..version import __version__
 from ..metrics.ab3dmot.table import other_sum_line, recall_table
 from .columns import COMBINED
@@ -37,6 +38,18 @@ def _cell(v) -> str:
     if isinstance(v, float):
         return "" if pd.isna(v) else f"{v:.3f}"
     return str(v)
+
+
+def _combined(comb: pd.DataFrame) -> pd.DataFrame:
+    """The combined figures as shown: counts (IDSW, FP, FN, Frag) as whole numbers, their differences
+    and interval bounds signed, as the printed comparison shows them; other figures as :func:`_cell`."""
+    out = comb.astype(object)
+    counts = out["metric"].isin(LOWER_IS_BETTER)
+    for col in ("a", "b", "diff", "ci_low", "ci_high"):
+        signed = col != "a" and col != "b"
+        out.loc[counts, col] = [("" if pd.isna(v) else f"{int(round(v)):+d}" if signed else f"{int(round(v))}")
+                                for v in out.loc[counts, col]]
+    return out
 
 
 def _views(c: Comparison, cls: str) -> list[str]:
@@ -96,7 +109,7 @@ def render_compare_html(c: Comparison) -> str:
     for cls, g in c.table.groupby("class", sort=False):
         comb = g[g["seq"] == COMBINED][["metric", "a", "b", "diff", "ci_low", "ci_high", "p_b_better"]]
         per = g[(g["seq"] != COMBINED) & (g["metric"] == "HOTA")][["seq", "a", "b", "diff"]]
-        body += [f"<h2>{escape(cls)}: combined</h2>", _table(comb),
+        body += [f"<h2>{escape(cls)}: combined</h2>", _table(_combined(comb)),
                  f"<h2>{escape(cls)}: HOTA per sequence</h2>", _table(per),
                  f"<h2>{escape(cls)}: where they differ</h2>",
                  "<p>The ground-truth tracks with the largest differences in missed frames, identity switches and "
