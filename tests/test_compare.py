@@ -123,10 +123,13 @@ def test_bad_input_is_one_line_and_exit_2(outputs, tmp_path, capsys, argv, fragm
     (["--html", " "], "argument --html: ' ': expected a file name"),
     (["--csv", "{tmp}/x", "--html", "{tmp}/x"], "name one file: the page would replace the table"),
     (["--csv", "{tmp}/x", "--html", "{tmp}/sub/../x"], "name one file"),
+    (["--metrics", "ab3dmot", "--ab3dmot-resamples", "10000000"],
+     "argument --ab3dmot-resamples: expected 1 to 20,000 resamples, got 10,000,000"),
 ])
 def test_output_files_are_named_and_distinct(tmp_path, capsys, flags, fragment):
     """``--csv ''`` / ``--html ''`` wrote nothing and said nothing; ``--csv X --html X`` let the page
-    replace the table. Both refused before anything is read."""
+    replace the table; ``--ab3dmot-resamples 10000000`` (0.2 s each) was accepted and ran for days. All
+    refused before anything is read."""
     (tmp_path / "sub").mkdir()
     argv = ["compare", tmp_path, tmp_path] + [f.format(tmp=tmp_path) for f in flags]
     status, out, err = run_cli(capsys, argv)

@@ -30,7 +30,7 @@ from ..paths import default_data_root
 from ..report.compare import DEFAULT_RESAMPLES, compare_outputs, comparison_text
 from ..metrics.ab3dmot.sums import DEFAULT_SUM, SUM_HELP, SUMS
 from ..metrics.ab3dmot.table import other_sum_line, recall_table
-from ..report.compare_ab3dmot import AB3DMOT_RESAMPLES, ab3dmot_rows
+from ..report.compare_ab3dmot import AB3DMOT_MAX_RESAMPLES, AB3DMOT_RESAMPLES, ab3dmot_rows
 from ..report.compare_html import write_compare_html
 from .args import output_file, seed_arg
 from .commands import HELP
@@ -60,14 +60,19 @@ def parse_reference(text: str) -> tuple[Path, str | int] | None:
     raise ValueError(f"{text}: expected DIR:best, DIR:baseline or DIR:config=N")
 
 
-def _resamples(text: str) -> int:
+def _resamples(text: str, most: int = 10_000_000) -> int:
     try:
         n = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number of resamples, got {text!r}") from None
-    if not 1 <= n <= 10_000_000:
-        raise argparse.ArgumentTypeError(f"expected 1 to 10,000,000 resamples, got {n}")
+    if not 1 <= n <= most:
+        raise argparse.ArgumentTypeError(f"expected 1 to {most:,} resamples, got {n:,}")
     return n
+
+
+def _ab3dmot_resamples(text: str) -> int:
+    """``--ab3dmot-resamples``: each a full evaluation of both outputs, so at most AB3DMOT_MAX_RESAMPLES."""
+    return _resamples(text, AB3DMOT_MAX_RESAMPLES)
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -105,9 +110,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--recall-table", dest="recall_table", default=None, metavar="F", type=output_file,
                    help="write AB3DMOT's recall points of A and B as CSV (implies --metrics ab3dmot; the columns of "
                         "dfrmot eval --recall-table, with output A or B)")
-    p.add_argument("--ab3dmot-resamples", dest="ab3dmot_resamples", default=AB3DMOT_RESAMPLES, type=_resamples,
+    p.add_argument("--ab3dmot-resamples", dest="ab3dmot_resamples", default=AB3DMOT_RESAMPLES,
+                   type=_ab3dmot_resamples,
                    help=f"resamples of AB3DMOT's figures, each a full evaluation of both outputs (default "
-                        f"{AB3DMOT_RESAMPLES}; about 0.2 s each for 11 sequences)")
+                        f"{AB3DMOT_RESAMPLES}, at most {AB3DMOT_MAX_RESAMPLES:,}; about 0.2 s each for 11 sequences; "
+                        f"a terminal shows a bar with the time left)")
     p.add_argument("--allow-missing", action="store_true",
                    help="score a sequence without a result file as an empty output (with a warning)")
     p.add_argument("--csv", default=None, metavar="OUT", type=output_file, help="write the tidy table: class seq metric a b diff "
@@ -219,7 +226,7 @@ def _ab3dmot(args, root: Path, seq_lists: dict, folders: list, result) -> None:
     result.ab3dmot = {}
     for cls, seqs in seq_lists.items():
         got, per, points = ab3dmot_rows(root, cls, list(seqs), folders[0], folders[1], args.ab3dmot_resamples,
-                                        args.seed, args.ab3dmot_iou, sum_mode=args.ab3dmot_sum)
+                                        args.seed, args.ab3dmot_iou, sum_mode=args.ab3dmot_sum, progress=True)
         rows += got
         result.ab3dmot[cls] = tuple(points)
         recalls += [recall_table(r, output=k, **{"class": cls}) for k, r in zip("AB", points)]

@@ -11,11 +11,13 @@ sequences on 2 cores), so fewer resamples are drawn than for the 2D family; the 
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from tqdm import tqdm
 
 from ..metrics.ab3dmot.evaluate import evaluate_ab3dmot
 from ..metrics.ab3dmot.prep import prepare_ab3dmot_gt, read_ab3dmot_results
@@ -23,12 +25,15 @@ from ..metrics.ab3dmot.sums import DEFAULT_SUM
 from ..metrics.ab3dmot.table import ab3dmot_columns
 from ..metrics.kitti2d.bootstrap import resample_indices
 
-__all__ = ["AB3DMOT_BOOTSTRAP_FIELDS", "AB3DMOT_RESAMPLES", "ab3dmot_rows", "split_results", "split_figures"]
+__all__ = ["AB3DMOT_BOOTSTRAP_FIELDS", "AB3DMOT_RESAMPLES", "AB3DMOT_MAX_RESAMPLES", "ab3dmot_rows", "split_results",
+           "split_figures"]
 
 #: the AB3DMOT columns a comparison reports (``dfrmot eval --metrics ab3dmot``'s names, percent and counts)
 AB3DMOT_BOOTSTRAP_FIELDS = ("sAMOTA", "AMOTA", "ab3dmot_MOTA", "ab3dmot_IDS", "ab3dmot_FP", "ab3dmot_FN")
 #: fewer than the 2D family's: each resample is a full evaluation of both outputs
 AB3DMOT_RESAMPLES = 200
+#: the most a comparison draws: about an hour at 0.2 s a resample (AB3DMOT's 11 validation sequences)
+AB3DMOT_MAX_RESAMPLES = 20_000
 _LOWER = frozenset({"ab3dmot_IDS", "ab3dmot_FP", "ab3dmot_FN"})
 
 
@@ -50,22 +55,27 @@ def split_figures(root, cls: str, names: Sequence[str], folders: Sequence[Path],
 
 def ab3dmot_rows(root, cls: str, sequences: Sequence[str], folder_a, folder_b, resamples: int = AB3DMOT_RESAMPLES,
                  seed: int = 0, iou: str = "3d:0.25", level: float = 0.95,
-                 sum_mode: str = DEFAULT_SUM) -> tuple[list[dict], float, list[dict]]:
+                 sum_mode: str = DEFAULT_SUM, progress: bool = False) -> tuple[list[dict], float, list[dict]]:
     """The ``COMBINED`` rows (``report.compare.COLUMNS``) of AB3DMOT's figures of outputs A and B on
     ``sequences``, with the ``level`` interval of B - A over ``resamples`` paired resamples, each rescored
     (with ``sum_mode``); the seconds one resample took; and A's and B's result dicts on ``sequences``
     (with the other sum's figures and both per-pass tables: ``metrics.ab3dmot.table.recall_table``).
-    ``metric`` names carry the IoU (``sAMOTA@3d:0.25``)."""
+    ``metric`` names carry the IoU (``sAMOTA@3d:0.25``). ``progress``: a bar with the time left on a
+    terminal's stderr (tqdm's)."""
     folders = [Path(folder_a), Path(folder_b)]
     points = split_results(root, cls, sequences, folders, iou, sum_mode, other=True)
     a, b = (ab3dmot_columns(r) for r in points)
     idx = resample_indices(len(sequences), resamples, seed)
     boot = {f: np.empty((resamples, 2)) for f in AB3DMOT_BOOTSTRAP_FIELDS}
     t0 = time.perf_counter()
+    bar = tqdm(total=resamples, unit="resample", desc=f"{cls}, AB3DMOT", file=sys.stderr, dynamic_ncols=True,
+               disable=None if progress else True, leave=False)
     for r, draw in enumerate(idx):
         ra, rb = split_figures(root, cls, [sequences[i] for i in draw], folders, iou, sum_mode)
         for f in AB3DMOT_BOOTSTRAP_FIELDS:
             boot[f][r] = ra[f], rb[f]
+        bar.update()
+    bar.close()
     per = (time.perf_counter() - t0) / max(1, resamples)
     lo_q = (1 - level) / 2
     rows = []
