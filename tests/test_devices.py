@@ -200,10 +200,12 @@ def test_a_read_only_compile_cache_is_one_warning(tmp_path):
 
 
 @pytest.mark.slow
-def test_compile_cache_entries_that_do_not_load_are_compiled_anew(tmp_path):
+@pytest.mark.parametrize("damage", ["swapped", "truncated"])
+def test_compile_cache_entries_that_do_not_load_are_compiled_anew(damage, tmp_path):
     """Two compile cache entries with swapped contents: ``internal error: AssertionError: (8, 6)``
-    (JAX loads another program and its checks fail). Now each is one warning naming it, compiled anew
-    and replaced: the same files, and the next run loads the new entries without a word."""
+    (JAX loads another program and its checks fail); a truncated entry: JAX's warning, every run, the
+    entry never replaced. Now each is one warning naming it, compiled anew and replaced: the same
+    files, and the next run loads the new entries without a word."""
     from dfrmot_jax.synthetic import make_scene
 
     root = make_scene(tmp_path / "scene", n_sequences=1, n_frames=40, seed=2)
@@ -218,11 +220,15 @@ def test_compile_cache_entries_that_do_not_load_are_compiled_anew(tmp_path):
         if k == 0:
             a, b = sorted(cache.glob("*-cache"), key=lambda p: p.stat().st_size)[-2:]
             data = a.read_bytes()
-            a.write_bytes(b.read_bytes())
-            b.write_bytes(data)
-        elif k == 1:
+            a.write_bytes(b.read_bytes()[:100] if damage == "truncated" else b.read_bytes())
+            b.write_bytes(b.read_bytes()[:100] if damage == "truncated" else data)
+        elif k == 1 and damage == "swapped":
             assert len(warned) == 2 and all("do not load as their programs" in s for s in warned), r.stderr
             assert {str(a), str(b)} == {s.split("): ")[1].split(": compiled")[0] for s in warned}
+        elif k == 1:
+            assert len(warned) == 2 and all("Error reading persistent compilation cache entry" in s for s in warned)
+            assert all(s.endswith(": compiled anew and replaced)") for s in warned), r.stderr
+            assert {str(a), str(b)} == {s.rsplit(" (", 1)[1].split(": compiled")[0] for s in warned}
         else:
             assert not warned, r.stderr
     assert files[0] and files[0] == files[1] == files[2]

@@ -26,6 +26,7 @@ import os
 import tempfile
 import time
 import warnings
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable, TypeVar
 
@@ -134,22 +135,57 @@ def _entries_read_since(folder: str, t0: int) -> list[Path]:
     return read
 
 
+#: the start of JAX's warning about a compile cache entry it cannot read (it then compiles the program,
+#: but leaves the entry: every later run would warn and compile again)
+_READ_ERROR = "Error reading persistent compilation cache entry"
+
+
+def _drop_read_entries(folder: str, t0: int) -> list[Path]:
+    """Remove the entries of compile cache ``folder`` read since ``t0``; returns them."""
+    read = _entries_read_since(folder, t0)
+    for entry in read:
+        for path in (entry, entry.with_name(entry.name.removesuffix("-cache") + "-atime")):
+            path.unlink(missing_ok=True)
+    return read
+
+
+@contextmanager
+def _replacing_unreadable_entries(t0: int):
+    """Inside, JAX's warning that a compile cache entry cannot be read (truncated, garbled) removes the
+    entries read since ``t0`` as it is shown, so that the program JAX then compiles is kept in their
+    place; the warning says so."""
+    folder = jax.config.jax_compilation_cache_dir
+    if not folder:
+        yield
+        return
+    with warnings.catch_warnings():
+        shown = warnings.showwarning
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if str(message).startswith(_READ_ERROR):
+                gone = _drop_read_entries(folder, t0)
+                message = f"{message} ({', '.join(str(p) for p in gone) or 'in ' + folder}: compiled anew and replaced)"
+            shown(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = show
+        yield
+
+
 def call_compiled(call: Callable[[], T]) -> T:
     """``call()``, a call of a jitted program; where it fails (JAX's checks of a loaded executable, an
     ``AssertionError`` or a runtime error) after reading entries of the compile cache, those entries
     did not load as their programs (swapped or tampered with): they are removed, with one warning
-    naming them, and the call is made again, compiling anew (and keeping the new programs)."""
+    naming them, and the call is made again, compiling anew (and keeping the new programs). An entry
+    JAX cannot read at all (its own warning) is replaced by the program compiled in its place."""
     t0 = time.time_ns()
     try:
-        return call()
+        with _replacing_unreadable_entries(t0):
+            return call()
     except (AssertionError, jax.errors.JaxRuntimeError) as e:
         folder = jax.config.jax_compilation_cache_dir
-        read = _entries_read_since(folder, t0) if folder else []
+        read = _drop_read_entries(folder, t0) if folder else []
         if not read:
             raise
-        for entry in read:
-            for path in (entry, entry.with_name(entry.name.removesuffix("-cache") + "-atime")):
-                path.unlink(missing_ok=True)
         warnings.warn(f"compile cache entries that do not load as their programs ({type(e).__name__}: {e}): "
                       f"{', '.join(str(p) for p in read)}: compiled anew and replaced", RuntimeWarning, stacklevel=2)
         jax.clear_caches()
