@@ -5,7 +5,7 @@ Usage::
     dfrmot report results/grid [--objective HOTA|MOTA|IDF1|AssA|IDSW] [--folds 5] [--top 10]
     dfrmot report results/classes --class pedestrian      # several classes: one class, or average (default)
     dfrmot report results/robustness --contrast epsilon:30,60/1,2,3:filter    # distortion sweeps
-    dfrmot report results/grid --html grid.html           # also one self-contained page to open and share
+    dfrmot report results/grid --html results/grid.html   # also one self-contained page to open and share
 
 The report's last line is one JSON object.
 """
