@@ -87,6 +87,7 @@ def test_each_batch_is_one_call_and_the_baseline_is_trial_0(scene, tmp_path, mon
     pd.testing.assert_frame_equal(load_results(tmp_path / "out"), pd.read_parquet(tmp_path / "out" / "results.parquet"))
     rep = sweep_report(tmp_path / "out")
     assert f"{res.best_value:.2f}" in rep.text
+    assert rep.text.startswith("tune ")             # a tune directory's report is headed so (was "sweep ...")
     assert (tmp_path / "out" / "plots" / "history.png").is_file()
 
 

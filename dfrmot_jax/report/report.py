@@ -153,7 +153,8 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     topdf.insert(0, "rank", np.arange(1, len(topdf) + 1))
     rep = SweepReport("", {}, topdf, pd.DataFrame(), data=full, view=df, manifest=src.manifest,
                       directory=src.directory, baseline=baseline, folds_note=folds_note)
-    head, seqs = _headline(full, df, comb, classes, cls, objective, src.n_expected)
+    kind = "tune" if src.manifest is not None and src.manifest.get("kind") == "tune" else "sweep"
+    head, seqs = _headline(full, df, comb, classes, cls, objective, src.n_expected, kind)
     lines = [head, "", f"top {len(topdf)} configs (in-sample, COMBINED over all sequences):",
              text_table(rep.top_with_baseline(), keys=("rank",), float_format=lambda v: f"{v:.3f}")]
     if baseline is not None:
@@ -210,9 +211,10 @@ def ab3dmot_sum_line(comb: pd.DataFrame, best, baseline, manifest: Mapping | Non
 
 
 def _headline(full: pd.DataFrame, df: pd.DataFrame, comb: pd.DataFrame, classes: list, cls, objective: str,
-              n_expected: int | None) -> tuple[str, int]:
-    """The report's first paragraph (what was swept, on what, ranked how) and the sequences counted."""
-    name = df["sweep"].iloc[0] if "sweep" in df.columns else "sweep"
+              n_expected: int | None, kind: str = "sweep") -> tuple[str, int]:
+    """The report's first paragraph (what was swept or tuned (``kind``), on what, ranked how) and the
+    sequences counted."""
+    name = df["sweep"].iloc[0] if "sweep" in df.columns else kind
     n_cfg = int(full["config"].nunique())
     partial = f" (partial: {n_cfg} of {n_expected} configs)" if n_expected and n_expected != n_cfg else ""
     better = "lower" if objective_direction(objective) < 0 else "higher"
@@ -223,10 +225,10 @@ def _headline(full: pd.DataFrame, df: pd.DataFrame, comb: pd.DataFrame, classes:
         on = (f"the class average ({', '.join(classes)}: ratios averaged over the classes, counts summed)"
               if cls == AVERAGE else f"class {cls}" + (f" ({len(comb):,} distinct configs for it)"
                                                         if len(comb) != n_cfg else ""))
-        return paragraph(f"sweep {name}: objective {objective} ({better} is better) on {on}; {n_cfg:,} configs "
+        return paragraph(f"{kind} {name}: objective {objective} ({better} is better) on {on}; {n_cfg:,} configs "
                          f"x classes {', '.join(f'{k} ({n} sequences)' for k, n in per.items())}{partial}"), seqs
     seqs = df.loc[df["sequence"] != COMBINED, "sequence"].nunique()
-    return paragraph(f"sweep {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
+    return paragraph(f"{kind} {name}: {len(comb):,} configs x {seqs} sequences{partial}; objective {objective} "
                      f"({better} is better)" + (f"; class {cls}" if cls and cls != "car" else "")), seqs
 
 
