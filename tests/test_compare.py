@@ -462,3 +462,31 @@ def test_the_page_shows_counts_as_whole_numbers(outputs, tmp_path, capsys):
         assert all(re.fullmatch(r"[+-]?\d+", v) for v in cells[:5]) and "." in cells[5], (metric, cells)
     [hota] = re.findall(r"<tr><td>HOTA</td>(.*?)</tr>", html)
     assert all("." in v for v in re.findall(r"<td>(.*?)</td>", hota))
+
+
+def test_the_two_birds_eye_views_of_a_pair_share_one_extent(outputs, tmp_path, capsys):
+    """A's and B's bird's-eye views were drawn on extents of their own, so they could not be read side by
+    side: one extent per pair now, the ground truth drawn at the same place in both."""
+    import re
+
+    root, _ = outputs
+    split = dm.load_split(root, "synth2d", "synth3d", "car")
+    res = dm.track(split, stack_params(list(SETTINGS)), Options(), detail=True)
+    a, b = tmp_path / "a", tmp_path / "b"
+    for k, d in enumerate((a, b)):            # with each row's own 3D box, which the views draw
+        write_lane(d, split, res.frames, res.options, res.ids[k], res.lane_boxes(k), src3=res.src3[k],
+                   own3=res.own3[k])
+    for f in b.glob("*.txt"):                 # B's rows moved 30 m right: its own extent would be another
+        rows = [ln.split(" ") for ln in f.read_text().splitlines()]
+        f.write_text("".join(" ".join(r[:13] + [f"{float(r[13]) + 30:.6f}" if float(r[13]) > -999 else r[13]]
+                                      + r[14:]) + "\n" for r in rows))
+    page = tmp_path / "p.html"
+    status, _, err = run_cli(capsys, ["compare", a, b, "--data", root, "--resamples", "50", "--html", page])
+    assert status == 0, err
+    figures = re.findall(r"<figure>(<svg [^>]*class=\"bev\".*?)</figure>", page.read_text(), flags=re.S)
+    assert figures
+    for fig in figures:
+        views = re.findall(r"<svg [^>]*class=\"bev\".*?</svg>", fig, flags=re.S)
+        gt = [re.findall(r'<polyline class="gt" points="([^"]*)"', v) for v in views]
+        assert len(views) == 2 and gt[0] and gt[0] == gt[1]
+        assert all('class="row"' in v for v in views)

@@ -65,7 +65,8 @@ def _views(c: Comparison, cls: str) -> list[str]:
                 f"fragmentations {r.frags_a} &rarr; {r.frags_b} (A &rarr; B).</p>",
                 "<figure>" + timeline_svg(gt, ev_a, s, f0, f1, "A") + timeline_svg(gt, ev_b, s, f0, f1, "B")
                 + "</figure>",
-                "<figure>" + bev_svg(gt, ev_a, s, f0, f1, "A") + bev_svg(gt, ev_b, s, f0, f1, "B") + "</figure>"]
+                "<figure>" + bev_svg(gt, ev_a, s, f0, f1, "A", extent_of=[ev_b])
+                + bev_svg(gt, ev_b, s, f0, f1, "B", extent_of=[ev_a]) + "</figure>"]
     return out
 
 

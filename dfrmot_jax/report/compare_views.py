@@ -20,7 +20,7 @@ Plain SVG strings (no plotting library: a few hundred shapes whose classes tests
 from __future__ import annotations
 
 from html import escape
-from typing import Mapping, NamedTuple
+from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 import pandas as pd
@@ -133,11 +133,22 @@ def timeline_svg(gt, ev: OutputEvents, seq: int, f0: int, f1: int, title: str, g
     return "".join(parts)
 
 
-def bev_svg(gt, ev: OutputEvents, seq: int, f0: int, f1: int, title: str, size: int = 420) -> str:
+def _bev_rows(ev: OutputEvents, lo: int, hi: int) -> np.ndarray:
+    """The rows of an output with a 3D box in (global) frames lo..hi."""
+    d = ev.dets
+    if d is None or d.box3d is None:
+        return np.zeros(0, np.int64)
+    return np.flatnonzero((d.frame >= lo) & (d.frame <= hi) & d.has3d)
+
+
+def bev_svg(gt, ev: OutputEvents, seq: int, f0: int, f1: int, title: str, size: int = 420,
+            extent_of: Sequence[OutputEvents] = ()) -> str:
     """Bird's-eye view (x, z camera coordinates) of sequence index ``seq``, frames f0..f1: the ground
     truth's tracks (grey lines), the output's rows with a 3D box (dots coloured by tracker id; rows
     without one are not drawn), switches (``path.switch``, one per IDSW) and misses (open circles)
-    at the ground truth's position."""
+    at the ground truth's position. The view's extent holds the ground truth and the rows of ``ev``
+    and of every output of ``extent_of`` (both outputs of a comparison: one extent for the pair, so
+    that the two views read side by side)."""
     frame, gid, crow = _eval_rows(gt)
     g0 = int(gt.offsets[seq])
     lo, hi = g0 + f0, g0 + f1
@@ -145,11 +156,10 @@ def bev_svg(gt, ev: OutputEvents, seq: int, f0: int, f1: int, title: str, size: 
     gx, gz = gt.row_box3d[crow, 3], gt.row_box3d[crow, 5]
     ok = inside & gt.row_has3d[crow]
     d = ev.dets
-    rows = np.zeros(0, np.int64)
-    if d is not None and d.box3d is not None:
-        rows = np.flatnonzero((d.frame >= lo) & (d.frame <= hi) & d.has3d)
-    xs = np.concatenate([gx[ok], d.box3d[rows, 3] if rows.size else []])
-    zs = np.concatenate([gz[ok], d.box3d[rows, 5] if rows.size else []])
+    rows = _bev_rows(ev, lo, hi)
+    placed = [(o.dets, _bev_rows(o, lo, hi)) for o in (ev, *extent_of)]
+    xs = np.concatenate([gx[ok]] + [o.box3d[r, 3] for o, r in placed if r.size])
+    zs = np.concatenate([gz[ok]] + [o.box3d[r, 5] for o, r in placed if r.size])
     if not xs.size:
         xs, zs = np.array([-10.0, 10.0]), np.array([0.0, 40.0])
     x0, x1 = float(xs.min()) - 2, float(xs.max()) + 2
