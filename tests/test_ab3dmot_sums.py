@@ -97,7 +97,8 @@ def _runs():
         path = FIXTURES / f"figures_py{py}.jsonl"
         for line in path.read_text().splitlines() if path.is_file() else ():
             f = json.loads(line)
-            params.append(pytest.param(py, f, id=f"py{py}-{Path(f['folder']).name}-{f['mode']}{f['thres']}-{f['seqmap']}"))
+            params.append(pytest.param(py, f, id=f"py{py}-{Path(f['folder']).name}-{f['mode']}{f['thres']}-{f['seqmap']}",
+                                       marks=[pytest.mark.slow] if f["seqmap"] == "all" else []))   # 21 sequences
     return params
 
 
@@ -140,7 +141,8 @@ def _differing_runs():
     runs = {py: {(f["folder"], f["mode"], f["thres"], f["seqmap"]): f for f in (p.values[1] for p in _runs()
                                                                                  if p.values[0] == py)}
             for py in ("311", "312")}
-    return [pytest.param(runs["311"][k], runs["312"][k], id=f"{Path(k[0]).name}-{k[1]}{k[2]}-{k[3]}")
+    return [pytest.param(runs["311"][k], runs["312"][k], id=f"{Path(k[0]).name}-{k[1]}{k[2]}-{k[3]}",
+                         marks=[pytest.mark.slow] if k[3] == "all" else [])
             for k in runs["311"] if k in runs["312"] and runs["311"][k]["sAMOTA"] != runs["312"][k]["sAMOTA"]]
 
 
