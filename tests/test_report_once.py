@@ -102,3 +102,17 @@ def test_a_page_is_a_function_of_its_report(grid):
 
     first = page()
     assert 'id="f' in "\n".join(first) and page() == first
+
+
+def test_the_page_shows_the_held_out_gain_over_the_baseline(grid, tmp_path, capsys):
+    """Issue 41, item 17: the page's cross-validation says the held-out gain over the baseline (mean ± sd,
+    folds better) as the printed report does."""
+    path = tmp_path / "page.html"
+    status, out, err = run_cli(capsys, ["report", grid, "--html", path, "--folds", "3"])
+    assert status == 0, err
+    m = re.search(r"held-out gain over the baseline ([+-][0-9.]+) \+- ([0-9.]+) \(sd over (\d+) folds; (\d+) of \d+ "
+                  r"folds better\)", out)
+    assert m, out
+    section = html.unescape(re.search(r"<h2>Cross-validated</h2>(.*?)</p>", path.read_text(), re.S).group(1))
+    assert (f"held-out gain over the baseline {m.group(1)} ± {m.group(2)} (sd over {m.group(3)} folds; "
+            f"{m.group(4)} of {m.group(3)} folds better)") in section

@@ -28,7 +28,7 @@ from ..io.atomic import write_text_atomic
 from ..version import __version__
 from . import figures
 from .analysis import MINIMISE, axis_profiles, fmt_value, pareto_front, varied_axes
-from .report import SweepReport, report_folds, sweep_report
+from .report import SweepReport, held_out_gain, report_folds, sweep_report
 from .robustness import robustness_contrast
 from .columns import AVERAGE, COMBINED
 from .stored import read_manifest
@@ -263,6 +263,13 @@ def render_html(rep: SweepReport) -> str:
             + "\n".join(body) + "\n</body></html>\n")
 
 
+def _gain_text(cv: Mapping) -> str:
+    """The held-out gain over the baseline (mean ± sd over folds, folds better), as the text report says it."""
+    gain = held_out_gain(cv)
+    return ("" if gain is None else f"; held-out gain over the baseline {gain['mean']:+.3f} ± {gain['sd']:.3f} "
+            f"(sd over {gain['folds']} folds; {gain['positive']} of {gain['folds']} folds better)")
+
+
 def _cross_validated(rep: SweepReport, objective: str) -> list[str]:
     """The cross-validated section (the report's folds) or a tune's nested cross-validation."""
     out = []
@@ -273,7 +280,7 @@ def _cross_validated(rep: SweepReport, objective: str) -> list[str]:
                 f"is chosen on the other folds and scored on the held-out one. Cross-validated {objective} "
                 f"{rep.cv['cross_validated']:.3f} against the in-sample best {rep.top.iloc[0][objective]:.3f}; "
                 f"the folds' held-out figures range {min(p['held_out'] for p in rep.cv['per_fold']):.3f} .. "
-                f"{max(p['held_out'] for p in rep.cv['per_fold']):.3f}.</p>",
+                f"{max(p['held_out'] for p in rep.cv['per_fold']):.3f}{_gain_text(rep.cv)}.</p>",
                 _figure(figures.folds_figure(rep.cv, objective, float(rep.top.iloc[0][objective])),
                         "Per fold: the chosen config on its training folds and on the held-out fold, and the "
                         "baseline on the held-out fold.")]

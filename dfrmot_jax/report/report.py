@@ -285,15 +285,27 @@ def _cv_lines(rep: SweepReport, folds: int, comb: pd.DataFrame, axes: list, best
     lines.append(text_table(pd.DataFrame(fold_rows), keys=("fold",), text=("held_out_sequences", "changed"),
                             float_format=lambda v: f"{v:.3f}"))
     held = np.array([p["held_out"] for p in cv["per_fold"]])
-    gain = np.array([p["held_out"] - p["baseline_held_out"] for p in cv["per_fold"]
-                     if p["baseline_held_out"] is not None])
+    gain = held_out_gain(cv)
     spread = (f"; folds' held-out {held.min():.3f} .. {held.max():.3f}"
-              + (f", held-out gain over the baseline {gain.mean():+.3f} +- {gain.std(ddof=1):.3f} (sd over "
-                 f"{len(gain)} folds; {int((gain > 0).sum())} of {len(gain)} folds better)" if len(gain) > 1 else ""))
+              + (f", held-out gain over the baseline {gain['mean']:+.3f} +- {gain['sd']:.3f} (sd over "
+                 f"{gain['folds']} folds; {gain['positive']} of {gain['folds']} folds better)" if gain else ""))
     lines.append(paragraph(f"{objective}: cross-validated {cv['cross_validated']:.3f} (each sequence scored with the "
                            f"config chosen without it{spread}) | in-sample best {best[objective]:.3f}"
                            + (f" | baseline {baseline[objective]:.3f}" if baseline is not None else "")))
     return lines
+
+
+def held_out_gain(cv: Mapping) -> dict | None:
+    """The held-out gain over the baseline of a cross-validation (``cross_validate``'s result): per fold
+    the chosen config's held-out figure minus the baseline's on the same fold, as ``mean``, ``sd`` (over
+    the folds, ddof 1), ``folds`` and ``positive`` (folds with a gain above 0); None with fewer than two
+    folds that score the baseline. What the text report and the page both say."""
+    gain = np.array([p["held_out"] - p["baseline_held_out"] for p in cv["per_fold"]
+                     if p["baseline_held_out"] is not None])
+    if len(gain) < 2:
+        return None
+    return {"mean": float(gain.mean()), "sd": float(gain.std(ddof=1)), "folds": int(len(gain)),
+            "positive": int((gain > 0).sum())}
 
 
 def _summary(rep: SweepReport, objective: str, comb: pd.DataFrame, seqs: int, classes: list, cls, best,
