@@ -116,3 +116,33 @@ def test_the_page_shows_the_held_out_gain_over_the_baseline(grid, tmp_path, caps
     section = html.unescape(re.search(r"<h2>Cross-validated</h2>(.*?)</p>", path.read_text(), re.S).group(1))
     assert (f"held-out gain over the baseline {m.group(1)} ± {m.group(2)} (sd over {m.group(3)} folds; "
             f"{m.group(4)} of {m.group(3)} folds better)") in section
+
+
+@pytest.fixture(scope="module")
+def gains(tmp_path_factory):
+    """A sweep shaped as sweeps/kitti_dfr_grid.toml: the dfr2023 baseline (the C++'s float32 gains,
+    0.89999997615814209, ...) and two [[variants]] of gains, the first the file's 0.9, 0.9, 0.1."""
+    d = tmp_path_factory.mktemp("gains")
+    root = make_scene(d / "scene", n_sequences=3, n_frames=40, n_cars=4, seed=3)
+    run_sweep({"name": "gains", "chunk": 16, "data": {"root": str(root), "det2d": "synth2d", "det3d": "synth3d"},
+               "baseline": {"preset": "dfr2023"}, "params": {"a_l": [8.0, 2.0]}, "options": {"output": ["filtered"]},
+               "variants": [{"name": "gains_code", "params": {"gain_alpha": 0.9, "gain_beta": 0.9, "gain_gamma": 0.1}},
+                            {"name": "gains_low", "params": {"gain_alpha": 1.0, "gain_beta": 0.4, "gain_gamma": 0.03}}]},
+              d / "sweep", **QUIET)
+    return d / "sweep"
+
+
+def test_a_setting_the_hash_treats_as_one_is_one_value_in_the_report(gains):
+    """Issue 41, item 16: the baseline's float32 gains and the file's 0.9 are one setting (one config
+    hash), so the report's sensitivity and plots count two values of the gains, not three; the stored
+    table keeps the values each config was tracked with."""
+    from dfrmot_jax.report import axis_profiles
+
+    stored = load_results(gains)
+    assert stored["gain_alpha"].nunique() == 3        # 0.89999997615814209 (baseline), 0.9, 1.0: as tracked
+    rep = sweep_report(gains, objective="HOTA")
+    row = rep.sensitivity.set_index("axis").loc["gain_alpha+gain_beta+gain_gamma"]
+    assert row["values"] == 2
+    prof = axis_profiles(rep.view)["gain_alpha+gain_beta+gain_gamma"]
+    assert list(prof["label"]) == ["0.9/0.9/0.1", "1/0.4/0.03"]
+    assert sorted(rep.data["gain_alpha"].unique()) == [0.9, 1.0]

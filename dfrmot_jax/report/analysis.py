@@ -13,8 +13,8 @@ from ..metrics.columns import canonical_objective, class_average_columns  # noqa
 from ..metrics.kitti2d import clear, identity
 from ..metrics.kitti2d.evaluate import RAW_FIELDS, combine_sequences, summary_columns
 from ..metrics.kitti2d.table import TABLE_FIELDS
-from .columns import (AVERAGE, COMBINED, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, class_columns, extra_axes,
-                      split_class_column)
+from .columns import (AVERAGE, COMBINED, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, canonical_params, class_columns,
+                      extra_axes, split_class_column)
 
 #: Objectives the report knows by name (any metric column works); these are minimised.
 MINIMISE = frozenset({"IDSW", "Frag", "ML", "CLR_FN", "CLR_FP", "IDFN", "IDFP", "PT", "MLR", "FP_per_frame",
@@ -75,8 +75,8 @@ def axis_profiles(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> d
     """Per varied axis (axes that always move together: one, ``a+b+c``) the objective per value
     (:func:`_profile`: ``value``, ``label``, ``best``, ``mean``, ``n``): what :func:`sensitivity`
     measures the spread of, for plots."""
-    comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
-    return {"+".join(g): _profile(comb, g, objective, bins) for g in _axis_groups(comb, varied_axes(df))}
+    comb = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True))
+    return {"+".join(g): _profile(comb, g, objective, bins) for g in _axis_groups(comb, varied_axes(comb))}
 
 
 def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.DataFrame:
@@ -88,21 +88,22 @@ def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.
     effect), ``corr`` = Spearman rank correlation of a numeric axis with the objective,
     ``best_value`` (the overall best config's value) and ``oat_range`` = the range when only this
     axis moves away from the best config (NaN when the sweep has no such configs). Axes that always
-    move together (e.g. gains swept as one set through [[variants]]) are one row, ``a+b+c``.
-    Sorted by ``spread_best``, largest first.
+    move together (e.g. gains swept as one set through [[variants]]) are one row, ``a+b+c``; values
+    that are one setting (:func:`~.columns.canonical_params`) are one value. Sorted by ``spread_best``,
+    largest first.
     """
-    comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
+    comb = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True))
     y = comb[objective].to_numpy(np.float64)
     best = int(rank_configs(y, objective)[0])
     rows = []
-    for group in _axis_groups(comb, varied_axes(df)):
+    for group in _axis_groups(comb, varied_axes(comb)):
         a = group[0]
         col = comb[a]
         numeric = len(group) == 1 and pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col)
         prof = _profile(comb, group, objective, bins)
         by_best, by_mean = prof["best"], prof["mean"]
         mask = np.ones(len(comb), bool)
-        for other in _axis_groups(comb, varied_axes(df)):
+        for other in _axis_groups(comb, varied_axes(comb)):
             if other != group:
                 for o in other:
                     mask &= (comb[o] == comb.at[best, o]).to_numpy()

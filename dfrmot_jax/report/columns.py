@@ -19,13 +19,16 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..checks import Table, config_error, is_scalar, type_name
-from ..config import CLASSES, INHERITED_PARAMS, Options, Params
+import numpy as np
+import pandas as pd
+
+from ..config import CLASSES, INHERITED_PARAMS, INT_PARAMS, Options, Params
 from ..lidar_settings import LIFT_SETTINGS, LiftSettings, SimSettings
 
 __all__ = ["COMBINED", "RAW_COLUMN", "AVERAGE", "PARAM_NAMES", "OPTION_NAMES", "LATE_OPTIONS", "LATE_PARAMS",
            "split_class_column", "class_columns", "SIM_INT", "CROP", "crop_text", "lift_value", "LIFT_COLUMNS",
            "SIM_COLUMNS", "LIDAR_AXES", "EXTRA_AXES", "DISTORTION_AXES", "extra_axes", "CONTRAST_KEYS", "Contrast",
-           "parse_contrast", "contrast_doc"]
+           "parse_contrast", "contrast_doc", "param_key", "canonical_params"]
 
 COMBINED = "COMBINED"
 #: the per-alpha HOTA fields of a row (``RAW_FIELDS``, flattened, 7 x 19), so that any subset of
@@ -58,6 +61,40 @@ def split_class_column(name: str) -> tuple[str, str] | None:
 def class_columns(columns) -> list[str]:
     """The per-class parameter columns (``<class>.<parameter>``) among ``columns``, in their order."""
     return [c for c in columns if split_class_column(c) is not None]
+
+
+def param_key(name: str, v):
+    """The identity of a parameter's value, as ``sweep.table.config_hash`` hashes it: an integer
+    parameter's int, any other's float32 value (its repr). Two values with one key are one setting."""
+    return int(v) if name in INT_PARAMS else repr(float(np.float32(v)))
+
+
+def canonical_params(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with one value per setting in each float parameter column (plain and per class): values
+    one setting by :func:`param_key` (e.g. the C++'s float32 gain 0.89999997615814209 of a preset and
+    a sweep file's 0.9, which hash alike) replaced by the most frequent of them (the first met on a
+    tie), so that the report counts, ranks and draws them as one value. The same table when no column
+    holds two values of one setting; the stored tables are not changed."""
+    out = df
+    for col in [c for c in list(PARAM_NAMES) + class_columns(df.columns) if c in df.columns]:
+        name = split_class_column(col)[1] if split_class_column(col) else col
+        if name in INT_PARAMS or not pd.api.types.is_float_dtype(df[col]):
+            continue
+        counts = df[col].value_counts(sort=False, dropna=True)          # in order of appearance
+        if len(counts) < 2:
+            continue
+        keys = counts.index.to_numpy(np.float64).astype(np.float32)
+        if len(np.unique(keys)) == len(keys):
+            continue
+        chosen: dict = {}
+        for v, k, n in zip(counts.index, keys, counts.to_numpy()):
+            if k not in chosen or n > chosen[k][1]:
+                chosen[k] = (v, n)
+        mapping = {v: chosen[k][0] for v, k in zip(counts.index, keys) if chosen[k][0] != v}
+        if out is df:
+            out = df.copy()
+        out[col] = df[col].replace(mapping)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

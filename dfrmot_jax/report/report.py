@@ -31,7 +31,7 @@ from .analysis import (
 )
 from .intervals import interval_problem, report_intervals
 from .robustness import contrast_text, robustness_curves, robustness_text
-from .columns import AVERAGE, COMBINED, Contrast, contrast_doc, parse_contrast
+from .columns import AVERAGE, COMBINED, Contrast, canonical_params, contrast_doc, parse_contrast
 from .stored import load_results, read_manifest
 from .text import WIDTH, paragraph, text_table  # noqa: F401  (WIDTH: the report's width)
 
@@ -137,7 +137,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     objective = canonical_objective(objective)
     if not isinstance(top, (int, np.integer)) or isinstance(top, bool) or top < 1:
         raise ValueError(f"top={top!r}: expected a whole number >= 1 (configs listed)")
-    full = src.df
+    full = canonical_params(src.df)         # one value per setting (the config hash's identity)
     check_objective(full, objective)
     classes = classes_of(full)
     cls = report_class_of(full, src.cls)

@@ -24,7 +24,7 @@ from ..lidar import lidar_dir
 from .axes import AxisKind, cross_rows, hash_settings
 from .lidar_axes import tie_table_scores
 from ..report.columns import (LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, class_columns, extra_axes,
-                              split_class_column)
+                              param_key, split_class_column)
 from .spec import Axis, SweepSpec, Variant, as_spec
 
 #: The scheme of ``config_hash`` and chunk ids; recorded in the manifest as ``hash_version``.
@@ -38,7 +38,7 @@ MAX_CONFIGS = 250_000
 def canonical_value(name: str, v):
     """Canonical value for hashing: parameters as the tracker sees them (float32 / int32)."""
     if name in PARAM_NAMES:
-        return int(v) if name in INT_PARAMS else repr(float(np.float32(v)))
+        return param_key(name, v)
     if isinstance(v, (bool, np.bool_)):
         return bool(v)
     if isinstance(v, (int, np.integer)):
