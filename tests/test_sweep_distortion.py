@@ -366,3 +366,15 @@ def test_report_prints_levels_and_contrast(dist_table, scene, tmp_path, capsys):
     assert main(["report", str(out), "--contrast", "epsilon:30/1"]) == 0
     last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert last["contrast"]["high"] == [30] and last["contrast"]["low"] == [1]
+
+
+def test_a_robustness_report_leads_with_its_robustness_tables(dist_table):
+    """Issue 41, item 18: a robustness sweep's report led with the generic sections (the best of every
+    lane vs the baseline, a distortion lane's seed as a sensitivity axis) before its robustness tables:
+    the robustness tables come first, and a seed (a replicate, no setting) is no sensitivity axis."""
+    rep = sweep_report(dist_table, top=3, contrast={"axis": "epsilon", "high": [30], "low": [1]})
+    lines = rep.text.splitlines()
+    first = lambda prefix: next(i for i, x in enumerate(lines) if x.startswith(prefix))  # noqa: E731
+    assert first("robustness: HOTA") < first("contrast epsilon in [30] minus epsilon in [1]") < first("top 3 configs")
+    assert "distortion.seed" not in set(rep.sensitivity["axis"])
+    assert "epsilon" in set(rep.sensitivity["axis"])

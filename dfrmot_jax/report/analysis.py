@@ -38,6 +38,14 @@ def rank_configs(values: np.ndarray, objective: str) -> np.ndarray:
     return np.lexsort((np.arange(len(key)), key))
 
 
+#: axes whose values are replicates, not settings (a distortion lane's seed): no axis of the sensitivity
+REPLICATE_AXES = ("distortion.seed",)
+
+
+def _sensitivity_axes(comb: pd.DataFrame) -> list[str]:
+    return [a for a in varied_axes(comb) if a not in REPLICATE_AXES]
+
+
 def varied_axes(df: pd.DataFrame) -> list[str]:
     comb = df[df["sequence"] == COMBINED]
     return [c for c in list(PARAM_NAMES) + class_columns(comb.columns) + list(OPTION_NAMES) + list(extra_axes())
@@ -76,7 +84,7 @@ def axis_profiles(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> d
     (:func:`_profile`: ``value``, ``label``, ``best``, ``mean``, ``n``): what :func:`sensitivity`
     measures the spread of, for plots."""
     comb = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True))
-    return {"+".join(g): _profile(comb, g, objective, bins) for g in _axis_groups(comb, varied_axes(comb))}
+    return {"+".join(g): _profile(comb, g, objective, bins) for g in _axis_groups(comb, _sensitivity_axes(comb))}
 
 
 def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.DataFrame:
@@ -89,21 +97,21 @@ def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.
     ``best_value`` (the overall best config's value) and ``oat_range`` = the range when only this
     axis moves away from the best config (NaN when the sweep has no such configs). Axes that always
     move together (e.g. gains swept as one set through [[variants]]) are one row, ``a+b+c``; values
-    that are one setting (:func:`~.columns.canonical_params`) are one value. Sorted by ``spread_best``,
-    largest first.
+    that are one setting (:func:`~.columns.canonical_params`) are one value; a distortion lane's seed
+    (:data:`REPLICATE_AXES`) is no axis. Sorted by ``spread_best``, largest first.
     """
     comb = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True))
     y = comb[objective].to_numpy(np.float64)
     best = int(rank_configs(y, objective)[0])
     rows = []
-    for group in _axis_groups(comb, varied_axes(comb)):
+    for group in _axis_groups(comb, _sensitivity_axes(comb)):
         a = group[0]
         col = comb[a]
         numeric = len(group) == 1 and pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col)
         prof = _profile(comb, group, objective, bins)
         by_best, by_mean = prof["best"], prof["mean"]
         mask = np.ones(len(comb), bool)
-        for other in _axis_groups(comb, varied_axes(comb)):
+        for other in _axis_groups(comb, _sensitivity_axes(comb)):
             if other != group:
                 for o in other:
                     mask &= (comb[o] == comb.at[best, o]).to_numpy()

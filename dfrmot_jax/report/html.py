@@ -235,8 +235,11 @@ def render_html(rep: SweepReport) -> str:
     name = m.get("name") or d.name
     body = [f"<h1>{'Tune' if tune else 'Sweep'} {escape(name)}</h1>",
             f'<p class="lead">{escape(rep.text.splitlines()[0])}</p>',
-            "<h2>The run</h2>", _identity(d, m, rep),
-            f"<h2>Top configs by {escape(objective)}</h2>", _top(rep, objective)]
+            "<h2>The run</h2>", _identity(d, m, rep)]
+    rob = _robustness(rep, objective)
+    if rob:             # a robustness study's answer first, as in the text report
+        body += ["<h2>Robustness</h2>", rob]
+    body += [f"<h2>Top configs by {escape(objective)}</h2>", _top(rep, objective)]
     profiles = axis_profiles(rep.view, objective)
     if profiles:
         body += ["<h2>Sensitivity per axis</h2>",
@@ -250,9 +253,6 @@ def render_html(rep: SweepReport) -> str:
     if heat:
         body += ["<h2>Per sequence</h2>", heat]
     body += _cross_validated(rep, objective)
-    rob = _robustness(rep, objective)
-    if rob:
-        body += ["<h2>Robustness</h2>", rob]
     if tune:
         body += ["<h2>The tune</h2>", _tune(d, m, rep, objective)]
     body += ["<h2>The text report</h2>",

@@ -155,7 +155,16 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
                       directory=src.directory, baseline=baseline, folds_note=folds_note)
     kind = "tune" if src.manifest is not None and src.manifest.get("kind") == "tune" else "sweep"
     head, seqs = _headline(full, df, comb, classes, cls, objective, src.n_expected, kind)
-    lines = [head, "", f"top {len(topdf)} configs (in-sample, COMBINED over all sequences):",
+    rob_lines, rob_summary = [], None
+    if "distortion.kind" in df.columns and (df["distortion.kind"] != "none").any():
+        # a robustness study's answer first: its tables, then the generic sections (ranked over every lane)
+        rob_lines, rob_summary = robustness_text(df, objective, top)
+        rob_lines = ["", *rob_lines]
+        rep.curves = robustness_curves(df, [objective])
+        if src.contrast is not None:
+            con_lines, rep.contrast = contrast_text(df, src.contrast, objective)
+            rob_lines += con_lines
+    lines = [head, *rob_lines, "", f"top {len(topdf)} configs (in-sample, COMBINED over all sequences):",
              text_table(rep.top_with_baseline(), keys=("rank",), float_format=lambda v: f"{v:.3f}")]
     if baseline is not None:
         diff = [f"{a}={fmt_value(best[a])} (baseline {fmt_value(baseline[a])})" for a in axes if best[a] != baseline[a]]
@@ -167,14 +176,6 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     lines += _interval_lines(rep, df, cls, objective)
     rep.sensitivity = sensitivity(df, objective) if axes else pd.DataFrame()
     lines += _sensitivity_lines(rep.sensitivity, objective)
-    rob_summary = None
-    if "distortion.kind" in df.columns and (df["distortion.kind"] != "none").any():
-        rob_lines, rob_summary = robustness_text(df, objective, top)
-        lines += ["", *rob_lines]
-        rep.curves = robustness_curves(df, [objective])
-        if src.contrast is not None:
-            con_lines, rep.contrast = contrast_text(df, src.contrast, objective)
-            lines += con_lines
     if src.folds:
         rep.cv = cross_validate(full, src.folds, objective, cls)
         lines += _cv_lines(rep, src.folds, comb, axes, best, objective)
