@@ -24,6 +24,19 @@ def test_tuned_both_is_the_chosen_trial():
     assert preset("tuned_both", "car") == (chosen, Options(output="filtered"))
 
 
+def test_pedestrians_keep_no_weak_detections_of_the_car_tuned_margins():
+    """Issue 41, also: under ``tuned_both`` pedestrians kept the car-tuned ``weak_3d = 6`` against their
+    ``score_3d = 2``, so 3D detections down to score -4; the weak margins are per class: none for
+    pedestrians (their defaults were chosen without weak detections), whatever the preset."""
+    from dfrmot_jax.config import PRESETS as presets, keep_thresholds
+
+    for name in presets:
+        ped = preset(name, "pedestrian")[0]
+        assert (ped.weak_2d, ped.weak_3d) == (0.0, 0.0), name
+        assert keep_thresholds(ped) == (np.float32(ped.score_2d), np.float32(ped.score_3d)), name
+    assert preset("tuned_both", "car")[0].weak_3d == 6.0          # the cars keep theirs
+
+
 @pytest.mark.slow
 def test_tuned_both_files_score_as_documented(kitti_root, tmp_path, capsys):
     out = tmp_path / "tuned_both"
