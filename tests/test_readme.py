@@ -23,18 +23,42 @@ def test_readme_python_block_runs(i, kitti_root):
     assert out.returncode == 0, f"README python block {i + 1} failed:\n{out.stderr[-3000:]}"
 
 
-SHELL = "\n".join(body for lang, body in re.findall(r"```(\w*)\n(.*?)```", (REPO / "README.md").read_text(), flags=re.S)
-                  if lang in ("", "bash", "sh", "text"))
+def _shell_commands() -> list[str]:
+    """The README's shell commands (```bash blocks and plain transcripts): each `dfrmot ...` line,
+    continuations joined, comments dropped."""
+    blocks, lang, lines = [], None, []
+    for line in (REPO / "README.md").read_text().splitlines():
+        if line.startswith("```"):
+            if lang is None:
+                lang, lines = line[3:].strip(), []
+            else:
+                if lang in ("", "bash"):
+                    blocks.append("\n".join(lines))
+                lang = None
+        elif lang is not None:
+            lines.append(line)
+    return [re.sub(r"\s+#.*", "", c) for b in blocks for c in re.sub(r"\\\n\s*", " ", b).splitlines()
+            if c.startswith("dfrmot ")]
 
 
-def test_the_readme_examples_write_under_results_and_do_not_clash():
-    """The examples wrote ``scores.csv`` and ``grid.html`` into the repository root (not ignored by git),
-    and the compare example re-created ``results/dfr2023``, which exits 2 for a reader who followed
-    "Tracking KITTI": every ``--csv`` / ``--html`` of a command goes under ``results/`` (ignored), and no
-    two ``dfrmot track`` commands write one folder."""
-    commands = [c for c in re.sub(r"\\\n\s*", " ", SHELL).splitlines() if c.lstrip("$ ").startswith("dfrmot ")]
-    outputs = [p for c in commands for p in re.findall(r"--(?:csv|html) (\S+)", c)]
-    assert outputs and all(p.startswith("results/") for p in outputs), outputs
-    assert "/results/" in (REPO / ".gitignore").read_text().split()
-    tracked = [p for c in commands if c.lstrip("$ ").startswith("dfrmot track ") for p in re.findall(r"--out (\S+)", c)]
-    assert len(tracked) >= 3 and len(tracked) == len(set(tracked)), tracked
+SHELL = _shell_commands()
+
+
+def test_the_readme_writes_nothing_into_the_repository_root():
+    """Issue 41, item 18: the examples wrote scores.csv and grid.html beside the code, which .gitignore
+    does not cover: every file or folder a README command writes is under results/ or out/ (ignored)."""
+    ignored = (REPO / ".gitignore").read_text().split()
+    assert "/results/" in ignored and "out/" in ignored
+    written = [(c, m) for c in SHELL for m in re.findall(r"--(?:csv|html|recall-table|out) (\S+)", c)]
+    assert len(written) > 10
+    assert [(c, m) for c, m in written if not m.startswith(("results/", "out/"))] == []
+
+
+def test_the_readme_makes_each_track_folder_once():
+    """Issue 41, item 18: the compare example re-created results/dfr2023, made by "Tracking KITTI", and
+    exits 2 there (an output folder that is not empty): each `dfrmot track --out D` of the README once,
+    unless --overwrite."""
+    outs = [re.search(r"--out (\S+)", c).group(1) for c in SHELL
+            if c.startswith("dfrmot track ") and "--overwrite" not in c]
+    assert len(outs) > 3
+    assert sorted(d for d in set(outs) if outs.count(d) > 1) == []
