@@ -65,6 +65,25 @@ def test_track_help_lists_parameters_options_presets(capsys):
     assert " ".join(meanings["a_c"].split()) in " ".join(out.split())
     assert "integer in [0, 4096]" in out                       # capacity, config.MAX_CAPACITY
     assert "fixed_gain | kalman" in out and "a_l=10 centroid=head" in out
+    options = {n for names, _ in track_parser.docstring_fields(Options.__doc__, Options._fields) for n in names}
+    assert options == set(Options._fields)
+
+
+def test_docstring_fields_read_indented_and_dedented_docstrings():
+    """Python >= 3.13 compiles a docstring with its common indentation stripped, earlier versions
+    keep it: both forms give the same entries (on whichever interpreter runs the test)."""
+    indented = """Settings.
+
+        a_c:   camera gate: IoU below a_c
+               counts as 0. Second sentence.
+        b, c:  both (e.g. b. c) here.
+
+        Not_a: field line.
+        """
+    dedented = "Settings.\n\na_c:   camera gate: IoU below a_c\n       counts as 0. Second sentence.\nb, c:  both (e.g. b. c) here.\n\nNot_a: field line.\n"
+    expected = [(("a_c",), "camera gate: IoU below a_c counts as 0"), (("b", "c"), "both (e.g. b. c) here")]
+    for doc in (indented, dedented):
+        assert track_parser.docstring_fields(doc, ("a_c", "b", "c")) == expected
 
 
 # ---- bad input: exit 2, one line -----------------------------------------------------------------

@@ -6,6 +6,7 @@ imports no tracker; the command's module is imported when it runs (``errors.run_
 from __future__ import annotations
 
 import argparse
+import inspect
 import re
 import shutil
 import textwrap
@@ -46,7 +47,10 @@ def seqs_arg(text: str) -> str:
 
 # ---- help text generated from dfrmot_jax.config ----------------------------------------------------
 
-_FIELD = re.compile(r"^(\s+)([a-z_][a-z0-9_]*(?:,\s*[a-z_][a-z0-9_]*)*):\s+(\S.*)$")
+#: a ``name: text`` / ``a, b: text`` line of a docstring cleaned by ``inspect.cleandoc`` (the entries at
+#: its left margin: Python >= 3.13 strips a docstring's common indentation when compiling, earlier
+#: versions keep it, and cleandoc gives the same text on both)
+_FIELD = re.compile(r"^\s*([a-z_][a-z0-9_]*(?:,\s*[a-z_][a-z0-9_]*)*):\s+(\S.*)$")
 
 
 def _plain(text: str) -> str:
@@ -68,11 +72,11 @@ def docstring_fields(doc: str, fields) -> list[tuple[tuple[str, ...], str]]:
     """The ``name: text`` entries of a NamedTuple docstring, in order: [(names, first sentence)]
     (``a, b: text`` is one entry for both names; continuation lines are joined; RST markup dropped)."""
     entries: list[tuple[list[str], list[str]]] = []
-    for line in (doc or "").splitlines():
+    for line in inspect.cleandoc(doc or "").splitlines():
         m = _FIELD.match(line)
-        names = [n.strip() for n in m.group(2).split(",")] if m else []
+        names = [n.strip() for n in m.group(1).split(",")] if m else []
         if names and all(n in fields for n in names):
-            entries.append((names, [m.group(3).strip()]))
+            entries.append((names, [m.group(2).strip()]))
         elif entries and line.strip():
             entries[-1][1].append(line.strip())
         elif entries:
