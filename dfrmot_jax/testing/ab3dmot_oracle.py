@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .ab3dmot_geometry import DegenerateGeometry, bottom_polygon, box_corners, box_dict, iou_pair
+from .ab3dmot_geometry import bottom_polygon, box_corners, box_dict, iou_pair
 
 PI = np.pi
 TWO_PI = np.pi * 2
