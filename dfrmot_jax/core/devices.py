@@ -35,6 +35,7 @@ import jax
 ENV_VAR = "DFRMOT_HOST_DEVICES"
 #: a folder for compiled programs kept between processes (``off``, ``0`` or empty: none)
 COMPILE_CACHE_VAR = "DFRMOT_COMPILE_CACHE"
+MIN_COMPILE_VAR = "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"   # JAX reads it itself
 #: the most the compile cache folder holds (JAX evicts the least recently used entries beyond it)
 COMPILE_CACHE_MAX_BYTES = 1 << 30
 DEVICE_VAR = "DFRMOT_DEVICE"
@@ -89,7 +90,8 @@ def setup_host_devices(n: int | None = None) -> int:
 def setup_compile_cache(folder: str | os.PathLike | None = None) -> str | None:
     """Keep compiled programs in ``folder`` (default ``$DFRMOT_COMPILE_CACHE``; ``off``, ``0`` or
     empty: none) through JAX's persistent compilation cache, for the programs whose compilation
-    takes 0.5 s or more, at most :data:`COMPILE_CACHE_MAX_BYTES`. A cache folder the process has
+    takes 0.5 s or more (JAX's ``$JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS``, where set, instead),
+    at most :data:`COMPILE_CACHE_MAX_BYTES`. A cache folder the process has
     already set (JAX's ``jax_compilation_cache_dir``) is left as it is. Returns the folder in use, or None."""
     current = jax.config.jax_compilation_cache_dir
     if current:
@@ -107,7 +109,8 @@ def setup_compile_cache(folder: str | os.PathLike | None = None) -> str | None:
                       f"(name a writable folder, or {COMPILE_CACHE_VAR}=off)", RuntimeWarning, stacklevel=2)
         return None
     jax.config.update("jax_compilation_cache_dir", folder)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    if MIN_COMPILE_VAR not in os.environ:     # JAX's own variable, where set, decides
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     jax.config.update("jax_compilation_cache_max_size", COMPILE_CACHE_MAX_BYTES)
     return folder
 
