@@ -25,6 +25,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from ..choices import DEFAULT_RESAMPLES
 from ..metrics.kitti2d.bootstrap import (BOOTSTRAP_FIELDS, LOWER_IS_BETTER, batch_seq_fields, intervals,
                                          paired_bootstrap)
 from ..metrics.kitti2d.evaluate import combine_sequences, result_dicts
@@ -36,7 +37,6 @@ from .compare_views import differing_tracks, output_events
 __all__ = ["COLUMNS", "Comparison", "compare_outputs", "comparison_text", "DEFAULT_RESAMPLES"]
 
 COLUMNS = ("class", "seq", "metric", "a", "b", "diff", "ci_low", "ci_high", "p_b_better", "resamples")
-DEFAULT_RESAMPLES = 10_000
 
 
 @dataclass

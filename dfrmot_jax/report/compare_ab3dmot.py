@@ -19,6 +19,7 @@ from typing import Sequence
 import numpy as np
 from tqdm import tqdm
 
+from ..choices import AB3DMOT_MAX_RESAMPLES, AB3DMOT_RESAMPLES
 from ..metrics.ab3dmot.evaluate import evaluate_ab3dmot
 from ..metrics.ab3dmot.prep import prepare_ab3dmot_gt, read_ab3dmot_results
 from ..metrics.ab3dmot.sums import DEFAULT_SUM
@@ -30,10 +31,6 @@ __all__ = ["AB3DMOT_BOOTSTRAP_FIELDS", "AB3DMOT_RESAMPLES", "AB3DMOT_MAX_RESAMPL
 
 #: the AB3DMOT columns a comparison reports (``dfrmot eval --metrics ab3dmot``'s names, percent and counts)
 AB3DMOT_BOOTSTRAP_FIELDS = ("sAMOTA", "AMOTA", "ab3dmot_MOTA", "ab3dmot_IDS", "ab3dmot_FP", "ab3dmot_FN")
-#: fewer than the 2D family's: each resample is a full evaluation of both outputs
-AB3DMOT_RESAMPLES = 200
-#: the most a comparison draws: about an hour at 0.2 s a resample (AB3DMOT's 11 validation sequences)
-AB3DMOT_MAX_RESAMPLES = 20_000
 _LOWER = frozenset({"ab3dmot_IDS", "ab3dmot_FP", "ab3dmot_FN"})
 
 

@@ -19,12 +19,12 @@ import pandas as pd
 
 from . import ray_backend
 from ..checks import SweepConfigError
+from ..choices import BACKENDS
 from ..core.devices import chosen_platform
 from .chunks import ChunkRunner, Keep
 from .plan import Chunk, DataSettings
 from .spec import SweepSpec
 
-BACKENDS = ("local", "ray")
 
 
 @dataclass(frozen=True)

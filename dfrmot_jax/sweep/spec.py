@@ -16,7 +16,7 @@ import numpy as np
 
 from ..config import CLASSES, INT_PARAMS, PRESETS, option_problem, param_problem
 from ..lidar import lidar_dir
-from ..metrics.ab3dmot.evaluate import DEFAULT_AB3DMOT_IOU, parse_iou
+from ..choices import DEFAULT_AB3DMOT_IOU, parse_iou
 from ..metrics.ab3dmot.sums import DEFAULT_SUM, SUMS
 from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
 from ..metrics.columns import canonical_objective

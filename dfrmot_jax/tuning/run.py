@@ -11,7 +11,7 @@ from typing import Mapping
 
 from ..io.atomic import write_text_atomic
 from ..io.lock import folder_lock
-from ..metrics.ab3dmot.evaluate import DEFAULT_AB3DMOT_IOU
+from ..choices import DEFAULT_AB3DMOT_IOU
 from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
 from ..sweep.backend import make_backend
 from ..sweep.plan import resolve_data

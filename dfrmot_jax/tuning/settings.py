@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 from typing import Mapping
 
+from ..choices import SAMPLERS
 from ..config import param_problem
 from ..metrics.columns import canonical_objective
 from ..report.analysis import MINIMISE
@@ -29,7 +30,6 @@ from ..report.columns import PARAM_NAMES
 from ..checks import Table, is_number, type_name
 from ..sweep.spec import SweepConfigError, SweepSpec, parse_spec, read_toml
 
-SAMPLERS = ("tpe", "cmaes", "gp", "pairwise", "nsga2", "random", "grid")
 TUNE_KEYS = ("sampler", "budget", "batch", "objectives", "folds", "seed", "refine", "transfer")
 TRANSFER_KEYS = ("det2d", "det3d", "baseline")
 REFINE_KEYS = ("steps", "pairs", "sigma", "learning_rate", "patience")

@@ -72,6 +72,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from dfrmot_jax.choices import parse_iou
 from dfrmot_jax.metrics.ab3dmot.passes import run_passes
 from dfrmot_jax.metrics.ab3dmot.sums import DEFAULT_SUM
 from dfrmot_jax.metrics.ab3dmot.prep import (
@@ -93,33 +94,6 @@ __all__ = ["AB3DMOT_FIELDS", "parse_iou", "Ab3dPrepared", "prepare_passes", "sta
 #: the figures of one evaluation (fractions except counts), in the order the CLI writes them
 AB3DMOT_FIELDS = ("sAMOTA", "AMOTA", "AMOTP", "MOTA", "MOTP", "IDS", "FRAG", "FP", "FN", "TP")
 _MAX_COST = 1e9
-
-
-#: the IoU AB3DMOT's KITTI results are usually given at (its 3D IoU 0.25)
-DEFAULT_AB3DMOT_IOU = "3d:0.25"
-
-
-def parse_iou(spec) -> tuple[str, float]:
-    """``'3d:0.25'`` / ``'2d:0.5'`` / ``('3d', 0.25)`` -> ``('3d', 0.25)``; ValueError otherwise.
-
-    The threshold must be in (0, 1] (at 0 every pair, even of disjoint boxes, would match)."""
-    if isinstance(spec, str):
-        kind, sep, thr = spec.strip().lower().partition(":")
-        if not sep:
-            raise ValueError(f"AB3DMOT IoU {spec!r}: expected 2d:T or 3d:T, e.g. 3d:0.25")
-        try:
-            value = float(thr)
-        except ValueError:
-            raise ValueError(f"AB3DMOT IoU {spec!r}: threshold {thr!r} is not a number") from None
-    else:
-        kind, value = spec
-        kind = str(kind).lower()
-        value = float(value)
-    if kind not in ("2d", "3d"):
-        raise ValueError(f"AB3DMOT IoU {spec!r}: kind must be 2d or 3d, got {kind!r}")
-    if not (0.0 < value <= 1.0):
-        raise ValueError(f"AB3DMOT IoU {spec!r}: threshold must be in (0, 1], got {value}")
-    return kind, value
 
 
 def iou_2d_pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:

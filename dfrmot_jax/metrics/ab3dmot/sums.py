@@ -27,18 +27,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from dfrmot_jax.choices import DEFAULT_SUM, SUM_HELP, SUMS
 from dfrmot_jax.metrics.common.pairs import segment_starts
 
 __all__ = ["SUMS", "DEFAULT_SUM", "SUM_HELP", "parse_sum", "other_sum", "python_of", "python_sum", "group_sums",
            "repeat_sums"]
 
-#: the two behaviours, by name
-SUMS = ("compensated", "sequential")
-#: the default: CPython >= 3.12's compensated sum
-DEFAULT_SUM = "compensated"
-#: one line for the command line's and the sweep files' help
-SUM_HELP = ("how AB3DMOT's evaluator sums track scores: compensated (CPython >= 3.12, the default: no drift) or "
-            "sequential (CPython <= 3.11: re-averaged scores drift by ulps and tracks at their own threshold drop)")
 _PYTHON = {"compensated": "CPython >= 3.12", "sequential": "CPython <= 3.11"}
 
 

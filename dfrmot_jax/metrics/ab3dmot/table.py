@@ -24,10 +24,10 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from dfrmot_jax.choices import METRIC_FAMILIES, parse_metric_families
 from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
 from dfrmot_jax.metrics.ab3dmot.passes import PASS_FIELDS
 from dfrmot_jax.metrics.ab3dmot.sums import DEFAULT_SUM, other_sum, python_of
-from dfrmot_jax.metrics.common.names import name_list
 
 __all__ = ["METRIC_FAMILIES", "AB3DMOT_RATIO_COLUMNS", "AB3DMOT_COUNT_COLUMNS", "AB3DMOT_COLUMNS",
            "AB3DMOT_OTHER_COLUMNS", "RATIO_SCALE", "RECALL_TABLE_COLUMNS", "parse_metric_families", "ab3dmot_columns",
@@ -46,22 +46,12 @@ _OTHER = {"other_sAMOTA": "sAMOTA", "other_AMOTA": "AMOTA", "other_ab3dmot_MOTA"
 #: a track score)
 RECALL_TABLE_COLUMNS = PASS_FIELDS
 _RECALL_PERCENT = ("recall", "precision", "MOTA", "MOTP", "sMOTA")
-#: metric families ``dfrmot eval --metrics`` can pick
-METRIC_FAMILIES = ("kitti2d", "ab3dmot")
 #: the result dict's keys -> column names
 _RENAME = {"sAMOTA": "sAMOTA", "AMOTA": "AMOTA", "AMOTP": "AMOTP", "MOTA": "ab3dmot_MOTA", "MOTP": "ab3dmot_MOTP",
            "IDS": "ab3dmot_IDS", "FRAG": "ab3dmot_FRAG", "FP": "ab3dmot_FP", "FN": "ab3dmot_FN"}
 assert tuple(_RENAME.values()) == AB3DMOT_COLUMNS
 _COUNTS = AB3DMOT_COUNT_COLUMNS
 RATIO_SCALE = 100.0
-
-
-def parse_metric_families(text) -> tuple:
-    """``'kitti2d,ab3dmot'`` (or a list) -> ``('kitti2d', 'ab3dmot')`` in the given order, lower
-    case, duplicates dropped; ValueError naming the families for anything else or nothing."""
-    return name_list(text, METRIC_FAMILIES,
-                     lambda m: f"metric family {m!r}: expected {', '.join(METRIC_FAMILIES)} (comma-separated)",
-                     f"no metric family given (expected {', '.join(METRIC_FAMILIES)})")
 
 
 def ab3dmot_columns(res: Mapping[str, object]) -> dict:

@@ -51,9 +51,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from dfrmot_jax.choices import EVAL_CLASSES, parse_classes
 from dfrmot_jax.io.memo import FileMemo, file_stamps
 from dfrmot_jax.io.result_rows import iter_result_rows
-from dfrmot_jax.metrics.common.names import name_list
 from dfrmot_jax.metrics.common.sequences import cached_class_sequences, seq_name
 from dfrmot_jax.metrics.common.sequences import clear_cache as clear_sequence_cache
 from dfrmot_jax.metrics.kitti2d import clear, hota, identity, table
@@ -79,7 +79,6 @@ CLASS_AVERAGED_FIELDS = tuple(f for f in ALL_FIELDS if f not in CLASS_SUMMED_FIE
 #: per-alpha HOTA fields that, with CLEAR's summed fields, Identity's and the counts, re-combine any
 #: subset of sequences exactly as TrackEval combines sequences (:func:`combine_sequences`).
 RAW_FIELDS = ("HOTA_TP", "HOTA_FN", "HOTA_FP", "AssA", "AssRe", "AssPr", "LocA")
-EVAL_CLASSES = ("car", "pedestrian")
 AVERAGE = "average"
 
 _GT_CACHE = FileMemo()
@@ -112,14 +111,6 @@ def clear_caches() -> None:
     the next call reads the files again, as a cold start does."""
     _GT_CACHE.clear()
     clear_sequence_cache()
-
-
-def parse_classes(classes) -> tuple:
-    """``'car,pedestrian'`` / ``['Car', 'pedestrian']`` -> ``('car', 'pedestrian')`` (lower case, in
-    the given order, duplicates dropped). Raises ValueError for an empty list or a class TrackEval's
-    KITTI 2D box cannot evaluate (only ``car`` and ``pedestrian``)."""
-    return name_list(classes, EVAL_CLASSES, lambda c: f"class {c!r} is not evaluatable (TrackEval's KITTI 2D "
-                                                      f"box: {', '.join(EVAL_CLASSES)})", "no class given")
 
 
 def class_average(per_class: Mapping[str, Mapping[str, object]]) -> dict[str, object]:
