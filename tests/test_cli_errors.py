@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import dfrmot_jax
+from dfrmot_jax.cli import args as cli_args
 from dfrmot_jax.cli import build_parser, main
 from dfrmot_jax.cli import track as track_cmd
 from dfrmot_jax.cli import track_parser
@@ -243,9 +244,8 @@ def test_one_parser_one_handler():
     assert list(sub.choices) == list(COMMANDS)
     for name, sp in sub.choices.items():
         func = sp.get_default("func")
-        # guarded(run), or (track, whose parser is built without its module) run_later: guarded(run) when it runs
-        module = func.__wrapped__.__module__ if hasattr(func, "__wrapped__") else func.module
-        assert func.__name__ == "run" and module == f"dfrmot_jax.cli.{name}"
+        # run_later: every parser is built without its command's module, guarded(run) when it runs
+        assert func.__name__ == "run" and func.module == f"dfrmot_jax.cli.{name}"
 
 
 # ---- --seqs --------------------------------------------------------------------------------------
@@ -270,7 +270,7 @@ def test_a_sequence_listed_twice_in_seqs_is_refused_naming_it(command, seqs, twi
     assert status == 2 and "--seqs" in line and f"sequence {twice} is listed twice" in line, line
     assert not (tmp_path / "o").exists()
     with pytest.raises(ValueError, match=f"--seqs {seqs}: sequence {twice} is listed twice"):
-        track_parser.parse_seqs(seqs)
+        cli_args.parse_seqs(seqs)
 
 
 @pytest.mark.parametrize("argv, command, want", [

@@ -272,7 +272,7 @@ def test_metrics_table(kitti_root):
 def test_cli_eval(kitti_root, tmp_path, capsys):
     import argparse
 
-    from dfrmot_jax.cli.eval import add_parser as add_eval_parser
+    from dfrmot_jax.cli.eval_parser import add_parser as add_eval_parser
 
     parser = argparse.ArgumentParser(prog="dfrmot")
     sub = parser.add_subparsers(dest="command")

@@ -1,9 +1,10 @@
 """The ``dfrmot`` command line: one parser, one error handler, one module per subcommand.
 
-Each subcommand module (``track``, ``demo``, ``eval``, ``sweep``, ``tune``, ``report``, ``lidar``) has
-``add_parser(sub)``, which registers the subcommand with ``func=guarded(run)``, and ``run(args)``,
-which returns the exit status or raises. :func:`~dfrmot_jax.cli.errors.guarded` is the only place that turns exceptions
-into messages and exit statuses:
+Each subcommand (``track``, ``demo``, ``eval``, ``compare``, ``sweep``, ``tune``, ``report``, ``lidar``)
+has a parser module, ``CMD_parser``, whose ``add_parser(sub)`` registers it with
+``func=run_later("dfrmot_jax.cli.CMD")``, and a module ``CMD`` whose ``run(args)`` returns the exit
+status or raises. :func:`~dfrmot_jax.cli.errors.guarded` (through ``run_later``) is the only place that
+turns exceptions into messages and exit statuses:
 
 ==========  ========================================================================================
 exit 0      done
@@ -23,8 +24,10 @@ lock taken over from a killed run, ...) is one line ``dfrmot CMD: warning: MESSA
 
 Each command imports what it uses, and only when it runs: the parser lists every command from
 :mod:`.commands` (names and help) and builds in full only the subparser of the command named on the
-command line, importing that command's parser module (``dfrmot --help`` imports none; ``dfrmot
-track --help`` only ``config``, through :mod:`.track_parser`; ``dfrmot eval`` the metrics, not JAX).
+command line, importing that command's parser module, which imports only light modules (``dfrmot
+--help`` imports none; ``dfrmot CMD --help`` no JAX, pandas, pyarrow, SciPy, Optuna or Matplotlib:
+``config`` for ``track``, ``lidar_settings`` for ``lidar``, :mod:`dfrmot_jax.choices` for the names a
+user picks); the command's own module is imported when it runs (``dfrmot eval`` the metrics, not JAX).
 """
 
 from __future__ import annotations

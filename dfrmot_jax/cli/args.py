@@ -1,10 +1,40 @@
-"""Argument types shared by the commands' parsers (light: no heavy import, so that ``--help`` stays fast)."""
+"""Argument types and option groups shared by the commands' parsers (light: nothing heavy is imported, so
+that ``--help`` stays fast; the names a user picks are :mod:`dfrmot_jax.choices`')."""
 
 from __future__ import annotations
 
 import argparse
 
-__all__ = ["output_file", "seed_arg"]
+from ..choices import BACKENDS, parse_classes, parse_iou, parse_metric_families
+
+__all__ = ["parse_seqs", "seqs_arg", "output_file", "seed_arg", "classes_arg", "families_arg", "iou_arg",
+           "add_backend_arguments"]
+
+
+def parse_seqs(text: str | None) -> list[str] | None:
+    """``--seqs 1,0002`` -> ["0001", "0002"] (KITTI names are zero-padded to 4 digits); None when not
+    given. A sequence listed twice (``1,0001`` too) is a ValueError naming it and the flag: scored
+    twice it would count twice in every combined figure; so is a text naming none (``,``, ``''``),
+    which would otherwise read as data without the class."""
+    if text is None:
+        return None
+    seqs = [s.strip().zfill(4) for s in text.split(",") if s.strip()]
+    if not seqs:
+        raise ValueError(f"--seqs {text}: names no sequence (expected e.g. 0000,0002)")
+    twice = next((s for i, s in enumerate(seqs) if s in seqs[:i]), None)
+    if twice is not None:
+        raise ValueError(f"--seqs {text}: sequence {twice} is listed twice")
+    return seqs
+
+
+def seqs_arg(text: str) -> str:
+    """The argparse type of every ``--seqs``: ``text`` as given, once :func:`parse_seqs` accepts it
+    (refused at parse time, before a command writes anything)."""
+    try:
+        parse_seqs(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e).removeprefix(f"--seqs {text}: ")) from None
+    return text
 
 
 def output_file(text: str) -> str:
@@ -25,3 +55,43 @@ def seed_arg(text: str) -> int:
     if seed < 0:
         raise argparse.ArgumentTypeError(f"{seed}: expected a whole number >= 0")
     return seed
+
+
+def classes_arg(text: str) -> tuple:
+    """A ``--class`` of ``eval`` / ``compare``: the classes :func:`~dfrmot_jax.choices.parse_classes` reads."""
+    try:
+        return parse_classes(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def families_arg(text: str) -> tuple:
+    """A ``--metrics``: the families :func:`~dfrmot_jax.choices.parse_metric_families` reads."""
+    try:
+        return parse_metric_families(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def iou_arg(text: str) -> str:
+    """An ``--ab3dmot-iou``: ``KIND:T`` as :func:`~dfrmot_jax.choices.parse_iou` reads it, written back
+    in one form (``3D:0.250`` -> ``3d:0.25``)."""
+    try:
+        kind, thr = parse_iou(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    return f"{kind}:{thr:g}"
+
+
+def add_backend_arguments(p) -> None:
+    """The ``--workers`` / ``--backend`` / ``--address`` / ``--worker-cpus`` options of ``sweep`` and
+    ``tune`` (the backend they name: :func:`dfrmot_jax.cli.backend.backend_from`, when the command runs)."""
+    p.add_argument("--workers", type=int, help="local backend: metric processes beside the tracker (default: 2 for "
+                                               "large sweeps, 0: in-process)")
+    p.add_argument("--backend", choices=BACKENDS, default="local",
+                   help="where chunks run: this process (default) or a Ray cluster (pip install \"dfrmot_jax[ray]\")")
+    p.add_argument("--address", metavar="ADDR",
+                   help="Ray cluster address (HOST:PORT of 'ray start --head', 'auto', ray://HOST:10001); "
+                        "default: a local Ray instance")
+    p.add_argument("--worker-cpus", type=int, metavar="N",
+                   help="Ray: one worker per N CPUs of a node (default: one worker per node, all its CPUs)")

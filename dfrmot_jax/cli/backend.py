@@ -1,20 +1,9 @@
-"""The ``--backend`` / ``--address`` / ``--worker-cpus`` / ``--workers`` options of ``sweep`` and ``tune``."""
+"""The backend ``sweep`` and ``tune`` run on, from their ``--backend`` / ``--address`` / ``--worker-cpus``
+/ ``--workers`` options (the options themselves: :func:`dfrmot_jax.cli.args.add_backend_arguments`)."""
 
 from __future__ import annotations
 
 from ..sweep.backend import make_backend
-
-
-def add_backend_arguments(p) -> None:
-    p.add_argument("--workers", type=int, help="local backend: metric processes beside the tracker (default: 2 for "
-                                               "large sweeps, 0: in-process)")
-    p.add_argument("--backend", choices=("local", "ray"), default="local",
-                   help="where chunks run: this process (default) or a Ray cluster (pip install \"dfrmot_jax[ray]\")")
-    p.add_argument("--address", metavar="ADDR",
-                   help="Ray cluster address (HOST:PORT of 'ray start --head', 'auto', ray://HOST:10001); "
-                        "default: a local Ray instance")
-    p.add_argument("--worker-cpus", type=int, metavar="N",
-                   help="Ray: one worker per N CPUs of a node (default: one worker per node, all its CPUs)")
 
 
 def backend_from(args):

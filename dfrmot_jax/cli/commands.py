@@ -1,7 +1,7 @@
 """The ``dfrmot`` subcommands: their names in the order ``dfrmot --help`` lists them, each one's line
 of help, and the module that registers its parser (``add_parser(sub)``). A light module: the parser
 lists every command from this table without importing the commands' modules (:mod:`dfrmot_jax.cli`
-imports only the one that runs)."""
+imports only the named command's parser module, and that command's own module when it runs)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,8 @@ HELP = {
     "lidar": "simulate LiDAR scans; lift 2D detections to 3D boxes from scans",
 }
 
-#: command -> the module (of ``dfrmot_jax.cli``) whose ``add_parser(sub)`` registers it: the command's
-#: own module, except ``track``, whose parser needs only ``config`` (``track_parser``: ``dfrmot track
-#: --help`` lists every parameter, option and preset without importing the tracker)
-PARSERS = {name: name for name in HELP} | {"track": "track_parser"}
+#: command -> the module (of ``dfrmot_jax.cli``) whose ``add_parser(sub)`` registers it: ``CMD_parser``,
+#: which imports nothing heavy (``dfrmot CMD --help`` imports neither the command's module nor what it
+#: runs: ``track``'s lists every parameter, option and preset from ``config`` alone); its ``func`` imports
+#: the command's own module, ``CMD``, when it runs (``errors.run_later``)
+PARSERS = {name: f"{name}_parser" for name in HELP}

@@ -12,7 +12,6 @@ folder ``DIR/sweep`` of another sweep is refused, as ``dfrmot sweep`` refuses it
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -27,36 +26,12 @@ from ..report.text import paragraph, text_table
 from ..sweep import load_spec, run_sweep
 from ..sweep.folder import clear, read_old_manifest
 from ..synthetic import make_scene
-from .args import seed_arg
-from .commands import HELP
-from .errors import guarded
+from .demo_parser import GRID, NAME, grid_shape
 
-__all__ = ["add_parser", "run", "GRID", "sweep_file"]
+__all__ = ["run", "GRID", "sweep_file"]
 
-#: the demo's grid: the 2D score threshold and the fixed-gain filter's beta and gamma (27 settings)
-GRID = {"score_2d": [0.35, 0.45, 0.55], "gain_beta": [0.5, 0.7, 0.9], "gain_gamma": [0.02, 0.05, 0.1]}
 #: the columns printed beside the swept axes
 SHOWN = ["HOTA", "DetA", "AssA", "MOTA", "IDF1", "IDSW"]
-NAME = "demo"
-
-
-def add_parser(sub) -> argparse.ArgumentParser:
-    """Register ``demo`` on an argparse ``subparsers`` object; returns its parser."""
-    d = sub.add_parser("demo", help=HELP["demo"],
-                       description="Generate a synthetic KITTI-layout scene, sweep a grid of settings over it "
-                                   f"(the dfr2023 preset as baseline and a {_shape()} grid of {', '.join(GRID)}, "
-                                   "tracked in one vmapped call and scored), print the best configs "
-                                   "beside the baseline and write the HTML report next to the results; no data "
-                                   "needed.")
-    d.add_argument("--out", metavar="DIR", default=str(Path("results") / NAME),
-                   help="work directory, kept: DIR/scene, DIR/demo.toml, DIR/sweep (results and report.html) "
-                        "(default: results/demo)")
-    d.add_argument("--sequences", type=int, default=4, help="synthetic sequences (default 4)")
-    d.add_argument("--frames", type=int, default=120, help="frames per sequence (default 120)")
-    d.add_argument("--seed", type=seed_arg, default=0, help="scene seed, >= 0 (default 0)")
-    d.add_argument("--top", type=int, default=5, help="configs printed above the baseline (default 5)")
-    d.set_defaults(func=guarded(run))
-    return d
 
 
 def run(args) -> int:
@@ -72,7 +47,7 @@ def run(args) -> int:
           f"detections) -> {root}")
     toml = work / f"{NAME}.toml"
     toml.write_text(sweep_file(root.resolve(), names))
-    print(f"sweep file: {toml}: the dfr2023 preset as baseline + a {_shape()} grid of {', '.join(GRID)}")
+    print(f"sweep file: {toml}: the dfr2023 preset as baseline + a {grid_shape()} grid of {', '.join(GRID)}")
     out = work / "sweep"
     _restart(out, toml)
     df = run_sweep(load_spec(toml), out, progress=False, workers=0, log=lambda m: print(paragraph(m)))
@@ -93,7 +68,7 @@ def sweep_file(root: Path, sequences: list[str]) -> str:
     min(5, sequences) for the report (none for one sequence)."""
     folds = min(5, len(sequences))
     grid = "\n".join(f"{k} = [{', '.join(map(repr, v))}]" for k, v in _grid_on_baseline().items())
-    shape = _shape()
+    shape = grid_shape()
     return (f"# dfrmot demo: the dfr2023 preset and a {shape} grid of {', '.join(GRID)} on a synthetic scene.\n"
             f"name = {json.dumps(NAME)}\n"
             f"description = \"the dfr2023 baseline + a {shape} grid of {', '.join(GRID)} (dfrmot demo)\"\n"
@@ -101,11 +76,6 @@ def sweep_file(root: Path, sequences: list[str]) -> str:
             f"class = \"car\"\nsequences = {json.dumps(sequences)}\n\n[baseline]\npreset = \"dfr2023\"\n\n"
             f"[params]\n# values equal to the preset's are written as its exact constants (the authors' float gains)\n"
             f"{grid}\n" + (f"\n[report]\nfolds = {folds}\n" if folds >= 2 else ""))
-
-
-def _shape() -> str:
-    """The grid's shape, e.g. ``3 x 3 x 3``."""
-    return " x ".join(str(len(v)) for v in GRID.values())
 
 
 def _grid_on_baseline() -> dict[str, list[float]]:

@@ -1,8 +1,8 @@
 """The ``dfrmot`` command line's one error handler (:func:`guarded`) and exit statuses; see
 :mod:`dfrmot_jax.cli` for what each status means. It also shows each Python warning raised while a
 command runs as one line, ``dfrmot CMD: warning: MESSAGE`` (``--debug``: Python's own format, with
-the source line). :func:`run_later` is the handler of a command whose parser is built without its
-module (``track``): the module is imported when the command runs.
+the source line). :func:`run_later` is every command's handler: its parser is built without its
+module (``CMD_parser``), which is imported when the command runs.
 
 Bad input is a ``ValueError`` (``KittiFormatError`` and ``SweepConfigError`` are ValueErrors) or an
 ``OSError`` naming a file; this module imports neither class (nor anything of the package), so that

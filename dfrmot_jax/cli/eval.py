@@ -50,124 +50,38 @@ matches to ignored ground truth and the tracks dropped by the drift
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections import Counter
 from pathlib import Path
 
 import pandas as pd
 
+from ..choices import DEFAULT_SUM, EVAL_CLASSES, parse_classes
 from ..io.kitti import KittiFormatError
 from ..io.result_rows import read_result_rows
-from ..metrics.ab3dmot.evaluate import parse_iou
 from ..metrics.ab3dmot.prep import read_seqmap
-from ..metrics.ab3dmot.sums import DEFAULT_SUM, SUM_HELP, SUMS
 from ..metrics.ab3dmot.table import (
     AB3DMOT_COLUMNS,
     ab3dmot_table,
     add_ab3dmot_columns,
     evaluate_ab3dmot_classes,
     other_sum_line,
-    parse_metric_families,
     recall_table,
 )
 from ..metrics.common.sequences import CLASS_NAME_TO_ID, cached_class_sequences
-from ..metrics.kitti2d.evaluate import (
-    AVERAGE,
-    EVAL_CLASSES,
-    cached_gt,
-    class_average,
-    evaluate_dets,
-    parse_classes,
-)
+from ..metrics.kitti2d.evaluate import AVERAGE, cached_gt, class_average, evaluate_dets
 from ..metrics.kitti2d.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
 from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
 from ..paths import default_data_root
-from .args import output_file
-from .commands import HELP
-from .errors import guarded
-from .track_parser import parse_seqs, seqs_arg
+from .args import parse_seqs
 
-__all__ = ["add_parser", "run", "check_folder", "check_folders", "check_class_rows", "chosen_sequences", "classes_arg",
-           "families_arg", "ground_truth", "iou_arg", "label_root", "tracker_name"]
+__all__ = ["run", "check_folder", "check_folders", "check_class_rows", "chosen_sequences", "ground_truth",
+           "label_root", "tracker_name"]
 
 
 def tracker_name(d: Path) -> str:
     d = Path(d)
     return d.parent.name if d.name == "data" and d.parent.name else d.name
-
-
-def classes_arg(text: str) -> tuple:
-    try:
-        return parse_classes(text)
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(str(e)) from None
-
-
-def families_arg(text: str) -> tuple:
-    try:
-        return parse_metric_families(text)
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(str(e)) from None
-
-
-def iou_arg(text: str) -> str:
-    try:
-        kind, thr = parse_iou(text)
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(str(e)) from None
-    return f"{kind}:{thr:g}"
-
-
-def add_parser(sub) -> argparse.ArgumentParser:
-    """Register ``eval`` on an argparse ``subparsers`` object; returns its parser."""
-    p = sub.add_parser(
-        "eval",
-        help=HELP["eval"],
-        description="Evaluate KITTI tracking results (RESULTS_DIR/SSSS.txt) exactly like TrackEval's Kitti2DBox "
-                    "(files are read as TrackEval reads them: rows in any order, x2 < x1 allowed). Refused: a "
-                    "sequence without a result file (see --allow-missing), a result file name that is a "
-                    "directory or a dangling symlink, *.txt files that are no sequence of the ground truth "
-                    "(unless --seqs), and results with no row of an evaluated class while the ground truth "
-                    "has it (wrong --class?). With --per-seq, '*' marks a sequence without ground truth "
-                    "of the class (its rows can only be false positives).",
-    )
-    p.add_argument("results", nargs="+", metavar="RESULTS_DIR", help="folder(s) with SSSS.txt result files")
-    p.add_argument("--data", default=None, metavar="ROOT",
-                   help=f"KITTI tracking training root (default: $DFRMOT_DATA or {default_data_root()})")
-    p.add_argument("--class", dest="cls", default=("car",), type=classes_arg, metavar="CLASSES",
-                   help="class or comma-separated classes: car, pedestrian or car,pedestrian (default car); "
-                        "several classes add a class average row per tracker")
-    p.add_argument("--seqs", default=None, type=seqs_arg,
-                   help="comma-separated sequences, e.g. 0000,0002, for every class (default: per class the "
-                        "sequences whose ground truth has it); other result files are not looked at")
-    p.add_argument("--seqmap", default=None, metavar="FILE",
-                   help="evaluate the sequences of a KITTI seqmap (NAME empty FIRST LAST a line, e.g. AB3DMOT's "
-                        "evaluate_tracking.seqmap.val), like --seqs")
-    p.add_argument("--metrics", default=("kitti2d",), type=families_arg, metavar="FAMILIES",
-                   help="metric families, comma-separated: kitti2d (TrackEval's HOTA/CLEAR/Identity, default), "
-                        "ab3dmot (AB3DMOT's KITTI sAMOTA/AMOTA/AMOTP and best-threshold MOTA/MOTP/IDS/FRAG/FP/FN)")
-    p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default="3d:0.25", type=iou_arg, metavar="2d:T|3d:T",
-                   help="AB3DMOT matching: image-box IoU (2d) or 3D IoU of the rotated boxes (3d) at threshold T "
-                        "(default 3d:0.25; AB3DMOT uses 2d:0.5 and 3d:0.25/0.5/0.7)")
-    p.add_argument("--ab3dmot-sum", dest="ab3dmot_sum", default=DEFAULT_SUM, choices=SUMS,
-                   help=f"{SUM_HELP}; where the other gives other figures, a line after the table shows them")
-    p.add_argument("--recall-table", dest="recall_table", default=None, metavar="F", type=output_file,
-                   help="write AB3DMOT's recall points as CSV (implies --metrics ab3dmot): per tracker, class, sum "
-                        "and recall point the score threshold, recall, TP/FP/FN/IDS, sMOTA, the matches to ignored "
-                        "ground truth and the tracks dropped by the sequential sum's drift")
-    p.add_argument("--similarity", default="2d", choices=("2d", "3d", "bev"),
-                   help="kitti2d family: the similarity HOTA / CLEAR / Identity match on: 2d image-box IoU (TrackEval's "
-                        "Kitti2DBox, default), 3d IoU of rotated boxes or bev IoU; KITTI's distractor and DontCare "
-                        "rules stay 2D; rows without a 3D box are unmatched in 3D")
-    p.add_argument("--allow-missing", action="store_true",
-                   help="score a sequence without a result file, or a class without a row in any file, as an "
-                        "empty output (with a warning) instead of refusing")
-    p.add_argument("--per-seq", action="store_true", help="also print every sequence")
-    p.add_argument("--csv", default=None, metavar="F", type=output_file,
-                   help="write all metrics, one row per (tracker, class, sequence) with columns tracker, class, seq")
-    p.set_defaults(func=guarded(run))
-    return p
 
 
 def _fmt_table(df) -> str:

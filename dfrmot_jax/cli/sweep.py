@@ -11,56 +11,19 @@ directory of another sweep without ``--force``; nothing was run, or the finished
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 from ..metrics.columns import canonical_objective
 from ..sweep import OPTION_NAMES, class_columns, load_spec, n_settings, prepare_sweep, run_sweep, sweep_report
-from .backend import add_backend_arguments, backend_from
-from .commands import HELP
-from .errors import guarded
+from .backend import backend_from
 
-__all__ = ["add_parser", "run"]
-
-
-def add_parser(sub) -> argparse.ArgumentParser:
-    """Register ``sweep`` on an argparse ``subparsers`` object; returns its parser."""
-    p = sub.add_parser(
-        "sweep", help=HELP["sweep"],
-        description="Expand a sweep file (sweeps/*.toml) into configs, track and score them in chunks "
-                    "(one compilation per static option value), append each finished chunk to Parquet under "
-                    "--out; a rerun skips finished chunks. The result is one tidy table: one row per "
-                    "(config, sequence) plus a COMBINED row per config (OUT/results.parquet). Exit status 2: "
-                    "bad sweep file, data or arguments (nothing was run); 3: some config overflowed its track "
-                    "memory.")
-    p.add_argument("file", metavar="FILE", help="sweep file (TOML; see sweeps/README.md)")
-    p.add_argument("--out", metavar="DIR", help="result directory (default: results/sweeps/<name>)")
-    p.add_argument("--data", metavar="ROOT", help="KITTI tracking training root (overrides the file and $DFRMOT_DATA)")
-    p.add_argument("--chunk", type=int, help="configs per chunk (overrides the file)")
-    p.add_argument("--folds", type=int, help="k-fold cross-validation over sequences in the report (k >= 2)")
-    p.add_argument("--summary", action="store_true", help="print the report when the sweep is done")
-    p.add_argument("--objective", help="report objective (default: the file's, else HOTA); IDSW etc. are minimised")
-    p.add_argument("--top", type=int, help="configs listed in the report (default 10)")
-    p.add_argument("--class", dest="cls", metavar="CLASS",
-                   help="report on one class of the sweep, or 'average' (default for several classes: the "
-                        "class average; else the file's report.class)")
-    add_backend_arguments(p)
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--dry-run", action="store_true", help="check the file and data, print the plan, run nothing")
-    p.add_argument("--force", action="store_true",
-                   help="--out holds another sweep: delete its chunks and results and run this one (without it: "
-                        "refused)")
-    p.add_argument("--max-configs", type=int, metavar="N",
-                   help="refuse sweeps of more configs, before expanding them (default 250,000)")
-    p.add_argument("--max-memory", type=float, metavar="GB",
-                   help="refuse chunks whose tracker output (configs x frames x track slots) would exceed this "
-                        "(default 2 GB)")
-    p.set_defaults(func=guarded(run))
-    return p
+__all__ = ["run"]
 
 
 def run(args) -> int:
+    """Run ``sweep`` for parsed ``args`` (``--dry-run``: print the plan, run nothing): 0, 3 when a config
+    overflowed its track memory, or raises."""
     if args.objective is not None:                  # before any work, not after the sweep
         args.objective = canonical_objective(args.objective)
     if args.top is not None and args.top < 1:

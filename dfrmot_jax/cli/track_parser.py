@@ -13,36 +13,11 @@ import textwrap
 
 from ..config import CLASS_DEFAULTS, INT_PARAMS, MAX_CAPACITY, OPTION_CHOICES, PARAM_RANGES, PRESETS, Options, Params
 from ..paths import ENV_VAR
+from .args import seqs_arg
 from .commands import HELP
 from .errors import run_later
 
-__all__ = ["add_parser", "config_help", "docstring_fields", "parse_seqs", "seqs_arg"]
-
-
-def parse_seqs(text: str | None) -> list[str] | None:
-    """``--seqs 1,0002`` -> ["0001", "0002"] (KITTI names are zero-padded to 4 digits); None when not
-    given. A sequence listed twice (``1,0001`` too) is a ValueError naming it and the flag: scored
-    twice it would count twice in every combined figure; so is a text naming none (``,``, ``''``),
-    which would otherwise read as data without the class."""
-    if text is None:
-        return None
-    seqs = [s.strip().zfill(4) for s in text.split(",") if s.strip()]
-    if not seqs:
-        raise ValueError(f"--seqs {text}: names no sequence (expected e.g. 0000,0002)")
-    twice = next((s for i, s in enumerate(seqs) if s in seqs[:i]), None)
-    if twice is not None:
-        raise ValueError(f"--seqs {text}: sequence {twice} is listed twice")
-    return seqs
-
-
-def seqs_arg(text: str) -> str:
-    """The argparse type of every ``--seqs``: ``text`` as given, once :func:`parse_seqs` accepts it
-    (refused at parse time, before a command writes anything)."""
-    try:
-        parse_seqs(text)
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(str(e).removeprefix(f"--seqs {text}: ")) from None
-    return text
+__all__ = ["add_parser", "config_help", "docstring_fields"]
 
 
 # ---- help text generated from dfrmot_jax.config ----------------------------------------------------

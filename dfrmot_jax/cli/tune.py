@@ -12,42 +12,14 @@ arguments, 3 some config overflowed its track memory.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
 from ..tuning import load_tune, run_tune
-from ..tuning.settings import SAMPLERS
-from .backend import add_backend_arguments, backend_from
-from .commands import HELP
-from .errors import guarded
+from .backend import backend_from
 
-__all__ = ["add_parser", "run"]
-
-
-def add_parser(sub) -> argparse.ArgumentParser:
-    """Register ``tune`` on an argparse ``subparsers`` object; returns its parser."""
-    p = sub.add_parser(
-        "tune", help=HELP["tune"],
-        description="Search the [params] / [options] of a tune file (a sweep file with a [tune] table) with an "
-                    "Optuna sampler, each batch of trials tracked and scored in one vmapped call; the study lives "
-                    "in --out (a rerun resumes). With --folds, nested cross-validation: the tune runs per fold "
-                    "on the training sequences and each chosen config is scored on its held-out fold.")
-    p.add_argument("file", metavar="FILE", help="tune file (TOML: a sweep file with a [tune] table; sweeps/README.md)")
-    p.add_argument("--out", metavar="DIR", help="tune directory (default: results/tunes/<name>)")
-    p.add_argument("--data", metavar="ROOT", help="KITTI tracking training root (overrides the file and $DFRMOT_DATA)")
-    p.add_argument("--sampler", choices=SAMPLERS, help="overrides tune.sampler")
-    p.add_argument("--budget", type=int, help="configs evaluated (overrides tune.budget)")
-    p.add_argument("--batch", type=int, help="configs per ask, one batched call (overrides tune.batch)")
-    p.add_argument("--folds", type=int, help="nested cross-validation over sequences (overrides tune.folds)")
-    p.add_argument("--seed", type=int, help="overrides tune.seed")
-    p.add_argument("--refine-steps", type=int, metavar="N", help="gradient refinement steps (0: none)")
-    add_backend_arguments(p)
-    p.add_argument("--force", action="store_true", help="replace a different tune's (or a sweep's) --out")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(func=guarded(run))
-    return p
+__all__ = ["run"]
 
 
 def _positive(name: str, v, minimum: int = 1):
@@ -56,6 +28,8 @@ def _positive(name: str, v, minimum: int = 1):
 
 
 def run(args) -> int:
+    """Run ``tune`` for parsed ``args`` and print the best config: 0, 3 when a config overflowed its track
+    memory, or raises."""
     for name, minimum in (("budget", 2), ("batch", 1), ("folds", 2), ("seed", 0), ("refine_steps", 0)):
         _positive(name.replace("_", "-"), getattr(args, name), minimum)
     spec, settings = load_tune(args.file)

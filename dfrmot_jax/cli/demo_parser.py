@@ -1,0 +1,42 @@
+"""The ``dfrmot demo`` parser and the demo's grid, apart from the command (:mod:`dfrmot_jax.cli.demo`),
+which is imported when it runs (``errors.run_later``): ``dfrmot demo --help`` imports no sweep."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .args import seed_arg
+from .commands import HELP
+from .errors import run_later
+
+__all__ = ["add_parser", "GRID", "NAME", "grid_shape"]
+
+#: the demo's grid: the 2D score threshold and the fixed-gain filter's beta and gamma (27 settings)
+GRID = {"score_2d": [0.35, 0.45, 0.55], "gain_beta": [0.5, 0.7, 0.9], "gain_gamma": [0.02, 0.05, 0.1]}
+#: the demo sweep's name, and its work directory's under ``results/``
+NAME = "demo"
+
+
+def grid_shape() -> str:
+    """:data:`GRID`'s shape, e.g. ``3 x 3 x 3``."""
+    return " x ".join(str(len(v)) for v in GRID.values())
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    """Register ``demo`` on an argparse ``subparsers`` object; returns its parser."""
+    d = sub.add_parser("demo", help=HELP["demo"],
+                       description="Generate a synthetic KITTI-layout scene, sweep a grid of settings over it "
+                                   f"(the dfr2023 preset as baseline and a {grid_shape()} grid of {', '.join(GRID)}, "
+                                   "tracked in one vmapped call and scored), print the best configs "
+                                   "beside the baseline and write the HTML report next to the results; no data "
+                                   "needed.")
+    d.add_argument("--out", metavar="DIR", default=str(Path("results") / NAME),
+                   help="work directory, kept: DIR/scene, DIR/demo.toml, DIR/sweep (results and report.html) "
+                        "(default: results/demo)")
+    d.add_argument("--sequences", type=int, default=4, help="synthetic sequences (default 4)")
+    d.add_argument("--frames", type=int, default=120, help="frames per sequence (default 120)")
+    d.add_argument("--seed", type=seed_arg, default=0, help="scene seed, >= 0 (default 0)")
+    d.add_argument("--top", type=int, default=5, help="configs printed above the baseline (default 5)")
+    d.set_defaults(func=run_later("dfrmot_jax.cli.demo"))
+    return d
