@@ -2,7 +2,9 @@
 imports nothing heavy; ``dfrmot --help`` imports none of the commands' dependencies, ``dfrmot track
 --help`` only ``config``; ``dfrmot eval`` and ``dfrmot report`` (whose package, ``report/``, reaches
 no JAX: item 2) run in a process where JAX cannot be imported, with the same output as in-process.
-Each check runs a fresh interpreter (``sys.modules`` of this one holds everything)."""
+Issue 41, item 15: every ``dfrmot CMD --help`` (and ``dfrmot lidar ACTION --help``) imports none of
+the heavy packages, nor the command's own module (its parser module alone). Each check runs a fresh
+interpreter (``sys.modules`` of this one holds everything)."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from dfrmot_jax.cli.commands import HELP
 from dfrmot_jax.synthetic import make_scene
 from dfrmot_jax.testing.cli import run_cli
 
@@ -29,13 +32,18 @@ def _child(code: str, *args, timeout: float = 300) -> subprocess.CompletedProces
                           timeout=timeout, env=env, cwd=ROOT)
 
 
-def _heavy_after(code: str) -> list[str]:
-    """The heavy packages a fresh interpreter holds after running ``code`` (``SystemExit`` allowed)."""
+def _held_after(code: str, modules) -> list[str]:
+    """Those of ``modules`` a fresh interpreter holds after running ``code`` (``SystemExit`` allowed)."""
     probe = (f"import sys, json\ntry:\n    {code}\nexcept SystemExit:\n    pass\n"
-             f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))")
+             f"print(json.dumps(sorted(m for m in {tuple(modules)!r} if m in sys.modules)))")
     out = _child(probe)
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _heavy_after(code: str) -> list[str]:
+    """The heavy packages a fresh interpreter holds after running ``code`` (``SystemExit`` allowed)."""
+    return _held_after(code, HEAVY)
 
 
 def test_import_of_the_package_imports_nothing_heavy():
@@ -60,6 +68,19 @@ def test_help_imports_none_of_the_commands_dependencies():
 def test_track_help_needs_only_config():
     """``dfrmot track --help`` lists every parameter, option and preset (``config``: NumPy only)."""
     assert _heavy_after("from dfrmot_jax.cli import main; main(['track', '--help'])") == []
+
+
+#: every command's ``--help``, and each ``lidar`` action's
+HELPS = [[name, "--help"] for name in HELP] + [["lidar", action, "--help"] for action in ("simulate", "lift")]
+
+
+@pytest.mark.parametrize("argv", HELPS, ids=[" ".join(a[:-1]) for a in HELPS])
+def test_every_commands_help_imports_nothing_heavy_nor_the_command(argv):
+    """``dfrmot CMD --help`` builds the command's whole parser from its parser module (``CMD_parser``)
+    alone: none of :data:`HEAVY` is imported, nor the command's own module (imported when it runs)."""
+    parser, command = f"dfrmot_jax.cli.{argv[0]}_parser", f"dfrmot_jax.cli.{argv[0]}"
+    held = _held_after(f"from dfrmot_jax.cli import main; main({argv!r})", HEAVY + (parser, command))
+    assert held == [parser]
 
 
 @pytest.fixture(scope="module")
