@@ -10,7 +10,8 @@ back. ``--importtime`` also runs each command once under ``python -X importtime`
 heavy dependencies it imports (NumPy, JAX, pandas, pyarrow, SciPy's parts, ...: cumulative seconds
 where each was first imported).
 
-Commands: ``import dfrmot_jax``, ``dfrmot --help``, ``dfrmot track --help``, ``dfrmot eval DIR``
+Commands: ``import dfrmot_jax``, ``dfrmot --help``, ``dfrmot CMD --help`` for each command of
+``--help-of`` (default: every command), ``dfrmot eval DIR``
 (``--eval DIR``: a result folder of ``dfrmot track``, e.g. ``dfrmot track --preset dfr2023 --out DIR``)
 and ``dfrmot report DIR`` (``--report DIR``: a sweep folder), each only where its folder is given.
 
@@ -18,6 +19,7 @@ The LAST line is one JSON object: the median and every run's seconds per command
 package path, machine info and the load average before and after.
 
     python benchmarks/bench_startup.py [--path DIR] [--eval DIR] [--report DIR] [--runs 3] [--importtime]
+                                     [--help-of track,eval,...]
 """
 
 from __future__ import annotations
@@ -32,16 +34,18 @@ import time
 from importlib import metadata
 from pathlib import Path
 
+from dfrmot_jax.cli.commands import HELP
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 REPO = Path(__file__).resolve().parent.parent
 
 
-def commands(eval_dir: str | None, report_dir: str | None) -> dict[str, list[str]]:
-    """name -> the child's arguments after the interpreter."""
+def commands(eval_dir: str | None, report_dir: str | None, helps=tuple(HELP)) -> dict[str, list[str]]:
+    """name -> the child's arguments after the interpreter (``helps``: the commands whose ``--help`` runs)."""
     cli = ["-m", "dfrmot_jax.cli"]
-    out = {"import dfrmot_jax": ["-c", "import dfrmot_jax"], "dfrmot --help": cli + ["--help"],
-           "dfrmot track --help": cli + ["track", "--help"]}
+    out = {"import dfrmot_jax": ["-c", "import dfrmot_jax"], "dfrmot --help": cli + ["--help"]}
+    out |= {f"dfrmot {name} --help": cli + [name, "--help"] for name in helps}
     if eval_dir:
         out["dfrmot eval"] = cli + ["eval", str(Path(eval_dir).resolve())]
     if report_dir:
@@ -82,13 +86,16 @@ def main() -> None:
     ap.add_argument("--eval", help="a result folder for 'dfrmot eval'")
     ap.add_argument("--report", help="a sweep folder for 'dfrmot report'")
     ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--help-of", default=",".join(HELP), metavar="CMDS",
+                    help="comma-separated commands whose --help runs (default: every command)")
     ap.add_argument("--importtime", action="store_true", help="also list the heavy dependencies each command imports")
     args = ap.parse_args()
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([args.path, os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
     load_before = os.getloadavg()
     result = {}
-    for name, cmd in commands(args.eval, args.report).items():
+    helps = [h for h in args.help_of.split(",") if h]
+    for name, cmd in commands(args.eval, args.report, helps).items():
         runs = [timed(cmd, env, args.path) for _ in range(args.runs)]
         result[name] = {"median_s": round(statistics.median(runs), 3), "runs_s": [round(t, 3) for t in runs]}
         line = f"{name:22s} median {statistics.median(runs):6.2f} s  (runs {', '.join(f'{t:.2f}' for t in runs)})"
