@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import pickle
-import time
 from pathlib import Path
 
 import numpy as np
@@ -720,16 +719,16 @@ def test_real_reference_results(kitti_root, tmp_path):
     assert out.read_text().splitlines()[0] == (kitti_root / REF / "0000.txt").read_text().splitlines()[0]
 
 
-def test_real_data_loads_fast(kitti_root):
-    t0 = time.perf_counter()
+def test_real_data_loads(kitti_root):
+    """Every file of the split reads without an error (its speed: benchmarks/, never a timed test)."""
+    rows = 0
     for seq in SEQS:
         for cls in ("car", "pedestrian"):
-            read_detections_2d(kitti_root / "detections" / "rrc" / cls / f"{seq}.txt")
-            read_detections_3d(kitti_root / "detections" / "pointrcnn" / cls / f"{seq}.txt")
-        read_tracking_labels(kitti_root / "label_02" / f"{seq}.txt")
-        read_calib(kitti_root / "calib" / f"{seq}.txt")
-    elapsed = time.perf_counter() - t0
-    assert elapsed < 3.0, f"loading the training split took {elapsed:.2f} s"
+            rows += len(read_detections_2d(kitti_root / "detections" / "rrc" / cls / f"{seq}.txt").frame)
+            rows += len(read_detections_3d(kitti_root / "detections" / "pointrcnn" / cls / f"{seq}.txt").frame)
+        assert len(read_tracking_labels(kitti_root / "label_02" / f"{seq}.txt").frame) > 0, seq
+        assert read_calib(kitti_root / "calib" / f"{seq}.txt").P2.shape == (3, 4), seq
+    assert rows > 0
 
 
 def test_values_downstream_types_cannot_hold_are_refused_located(tmp_path):

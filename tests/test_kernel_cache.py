@@ -50,12 +50,14 @@ def _warnings(stderr: str) -> list[str]:
 def test_the_command_line_works_without_a_writable_cache_location(tmp_path):
     """``$NUMBA_CACHE_DIR``, the package's ``__pycache__`` and the home cache unwritable: ``dfrmot eval
     --help`` was a traceback (``cannot cache function ...: no locator available``, raised while the
-    metrics are imported). The kernels are kept in a folder of the temporary directory, one warning."""
-    r = _run(NO_LOCATION + CLI, tmp_path, "eval", "--help", **_no_location())
-    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    metrics are imported). The kernels are kept in a folder of the temporary directory, one warning
+    (``eval --help`` no longer imports the metrics: ``eval`` of a missing folder does, then refuses it)."""
+    r = _run(NO_LOCATION + CLI, tmp_path, "eval", str(tmp_path / "none"), **_no_location())
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     root = tmp_path / "tmp" / f"dfrmot_jax-numba-{os.getuid()}"
     assert r.stderr.splitlines() == [f"dfrmot eval: warning: no writable cache for the compiled scoring kernels "
-                                      f"($NUMBA_CACHE_DIR, the package's __pycache__, the home cache): kept in {root}"]
+                                      f"($NUMBA_CACHE_DIR, the package's __pycache__, the home cache): kept in {root}",
+                                      f"dfrmot eval: error: not a directory: {tmp_path / 'none'}"]
     (tmp_path / "kmod.py").write_text(KERNEL_MOD)
     first = _run(NO_LOCATION + "import kmod\n", tmp_path, **_no_location())
     again = _run(NO_LOCATION + "import kmod\n", tmp_path, **_no_location())
@@ -64,8 +66,8 @@ def test_the_command_line_works_without_a_writable_cache_location(tmp_path):
 
 
 def test_without_a_temporary_folder_the_kernels_compile_in_memory(tmp_path):
-    r = _run(NO_LOCATION + NO_TEMP + CLI, tmp_path, "eval", "--help", **_no_location())
-    assert r.returncode == 0 and len(r.stderr.splitlines()) == 1, r.stderr
+    r = _run(NO_LOCATION + NO_TEMP + CLI, tmp_path, "eval", str(tmp_path / "none"), **_no_location())
+    assert r.returncode == 2 and len(r.stderr.splitlines()) == 2, r.stderr
     assert r.stderr.startswith("dfrmot eval: warning: no writable cache for the compiled scoring kernels") and \
         "compiled in memory, for this run only" in r.stderr
     (tmp_path / "kmod.py").write_text(KERNEL_MOD)

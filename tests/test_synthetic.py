@@ -1,4 +1,3 @@
-import time
 from pathlib import Path
 
 import numpy as np
@@ -268,10 +267,8 @@ def test_noise_knobs(tmp_path):
         make_scene(tmp_path / "bad", det2d_mis_rate=0.1)
 
 
-def test_fast_and_scalable(tmp_path):
-    t0 = time.perf_counter()
-    make_scene(tmp_path / "default")
-    assert time.perf_counter() - t0 < 1.0
+def test_scales_to_long_and_to_empty_scenes(tmp_path):
+    """A long, crowded sequence and one with no car (its speed: benchmarks, never a timed test)."""
     root = make_scene(tmp_path / "big", n_sequences=1, n_frames=300, n_cars=12, seed=7)
     lab, _, _, _ = load(root, 0)
     assert lab["frame"].max() == 299

@@ -100,9 +100,15 @@ def guarded(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Name
 def run_later(module: str) -> Callable[[argparse.Namespace], int]:
     """The parser's ``func`` of a command whose parser is built without its module: imports
     ``module`` (e.g. ``"dfrmot_jax.cli.track"``) when the command runs and calls its ``run(args)``
-    behind :func:`guarded` (the module's ``run`` as it is then: a test may replace it)."""
+    behind :func:`guarded` (the module's ``run`` as it is then: a test may replace it), the import
+    behind it too (a warning the import raises, such as the metrics' kernel cache's, is one line)."""
+    def imported(args) -> int:
+        return importlib.import_module(module).run(args)
+
+    imported.__module__ = module      # guarded names the command by it
+
     def run(args) -> int:
-        return guarded(importlib.import_module(module).run)(args)
+        return guarded(imported)(args)     # the import too: its warnings one line each, its errors handled
 
     run.module = module
     return run
