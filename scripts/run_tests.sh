@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # The tests on three Python versions, run from the repository root (CI: .ci/run):
 #   1. the default interpreter (`python`, where `pip install -e ".[dev]"` installed the checkout):
-#      the full suite, `python -m pytest -q`;
+#      the full suite, `python -m pytest -q -n 2` (pytest-xdist: two worker processes, each test file
+#      on one of them, $DFRMOT_TEST_WORKERS to change the number);
 #   2. Python 3.12 and 3.13, each where pyenv has it (`pyenv prefix 3.12`, else the newest
 #      $PYENV_ROOT/versions/3.12.N; absent: one line saying it is skipped): a venv of its own,
 #      created once and reused, in ${DFRMOT_VENVS:-$HOME/.cache/dfrmot_jax/venvs}/py3.12 (outside
 #      the checkout), the checkout installed into it (`pip install -q -e ".[dev]"`), then
-#      `dfrmot demo` into a temporary folder and the fast tier, `pytest -m "not slow"`.
+#      `dfrmot demo` into a temporary folder and the fast tier, `pytest -m "not slow" -n 2`.
 # Every step runs even after another failed; one summary line per interpreter at the end, and the
 # exit status is 1 when any step failed (pytest's 5, no test collected, is a failure here too).
 set -euo pipefail
@@ -18,6 +19,8 @@ TMP="$(mktemp -d)"
 trap 'rm -rf "$TMP"' EXIT
 summary=()
 failed=0
+# the tests in worker processes, one test file per worker at a time (module fixtures built once)
+XDIST="-n ${DFRMOT_TEST_WORKERS:-2} --dist loadfile"
 
 # run NAME CMD...: runs one step, its time and outcome appended to $steps; returns CMD's status
 run() {
@@ -52,7 +55,7 @@ find_python() {
 # 1. the default interpreter: the full suite
 label="python $(python -c 'import platform; print(platform.python_version())')"
 steps=""
-run "full suite" python -m pytest -q || true
+run "full suite" python -m pytest -q $XDIST || true
 summary+=("$label (default): ${steps%; }")
 
 # 2. Python 3.12 and 3.13: install, demo, fast tier
@@ -74,7 +77,7 @@ for version in 3.12 3.13; do
     fi
     if run "install" "$venv/bin/python" -m pip install -q -e ".[dev]"; then
         run "demo" "$venv/bin/dfrmot" demo --out "$TMP/demo$version" || true
-        run "fast tier" "$venv/bin/python" -m pytest -q -m "not slow" -p no:cacheprovider || true
+        run "fast tier" "$venv/bin/python" -m pytest -q -m "not slow" -p no:cacheprovider $XDIST || true
     fi
     summary+=("$label ($venv): ${steps%; }")
 done

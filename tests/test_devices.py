@@ -178,6 +178,7 @@ def _read_only(folder):
     return None
 
 
+@pytest.mark.slow          # the fast tier's budget: one of its costliest tests
 def test_a_read_only_compile_cache_is_one_warning(tmp_path):
     """A compile cache folder that cannot be written (JAX also takes a lock file there to read) gave 8
     warning lines per run, one per program read and written: now one, and the run as without it."""

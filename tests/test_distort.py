@@ -157,6 +157,7 @@ def test_same_key_same_distortion_and_seeds_differ(synthetic):
     assert not np.array_equal(np.asarray(shifted.valid2)[0], out.valid2[0])
 
 
+@pytest.mark.slow          # the fast tier's budget: one of its costliest tests
 def test_jit_vmap_batch_equals_single_lanes(synthetic):
     frames, gid2, gid3, spec = synthetic
     dps = [D.level_params("drop", 0.2, seed=1), D.level_params("burst", 5, seed=2),
@@ -167,6 +168,7 @@ def test_jit_vmap_batch_equals_single_lanes(synthetic):
         assert_identical(lane(out, b), D.distort_split(frames, gid2, gid3, dp, spec))
 
 
+@pytest.mark.slow          # the fast tier's budget: one of its costliest tests
 def test_inside_scan_under_x64_matches(synthetic):
     """The tracker's pattern: lax.scan over frames (xs = frames, gid2, gid3, t), vmap over lanes,
     under jax.enable_x64: the same bits as distort_split; float32 stays float32."""

@@ -368,6 +368,7 @@ def test_report_prints_levels_and_contrast(dist_table, scene, tmp_path, capsys):
     assert last["contrast"]["high"] == [30] and last["contrast"]["low"] == [1]
 
 
+@pytest.mark.slow          # the fast tier's budget: one of its costliest tests
 def test_a_robustness_report_leads_with_its_robustness_tables(dist_table):
     """Issue 41, item 18: a robustness sweep's report led with the generic sections (the best of every
     lane vs the baseline, a distortion lane's seed as a sensitivity axis) before its robustness tables:

@@ -108,6 +108,7 @@ def test_every_sweep_row_equals_its_config_run_alone(scene, ground, tmp_path_fac
     assert_rows_equal_alone(table, split, gt, tmp_path_factory.mktemp("alone"))
 
 
+@pytest.mark.slow          # the fast tier's budget: one of its costliest tests
 def test_option_groups_with_the_same_ids_keep_their_own_scores(scene, ground, tmp_path):
     """The memo's bug, pinned: truncation changes the boxes (here not the ids); each group scores its own."""
     split, gt = ground
