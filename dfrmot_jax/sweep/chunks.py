@@ -36,7 +36,7 @@ from tqdm import tqdm
 from .. import distort
 from ..api import TrackResult, default_capacity, track
 from ..config import Options, keep_thresholds
-from ..core.devices import chosen_platform, default_lanes_per_call
+from ..devices import chosen_platform, default_lanes_per_call
 from ..data import Split, cached_split, compact_split, prepare_frames
 from ..lidar import LIDAR_PREFIX, lidar_dir, simulate_cached
 from ..metrics.ab3dmot.prep import cached_ab3dmot_gt
@@ -55,7 +55,7 @@ from .store import chunk_frame
 from .table import params_of
 
 #: lanes per compiled tracker call on the CPU (``track(lanes_per_call=...)``; the batch is split over the host
-#: devices); on a GPU ``core.devices.default_lanes_per_call()``; a quarter as many with AB3DMOT's figures, whose
+#: devices); on a GPU ``devices.default_lanes_per_call()``; a quarter as many with AB3DMOT's figures, whose
 #: 3D detail makes each call's output 2.5x larger (grid sweep with AB3DMOT: peak RSS 2.2-2.3 GB at 32 lanes per
 #: call, 1.8 GB at 16 (2.0 GB with the three small-frame sizes of 2026-11-27), 1.84 GB at 8, in the same time
 #: within noise)
