@@ -18,8 +18,8 @@ import numpy as np
 import pandas as pd
 
 from ..config import INT_PARAMS, PRESETS, Options, Params, as_arrays, preset
-from ..core.filters import fixed_gain_radius
 from ..checks import config_error
+from ..families import family_of
 from ..lidar import lidar_dir
 from .axes import AxisKind, cross_rows, hash_settings
 from .lidar_axes import tie_table_scores
@@ -237,50 +237,15 @@ def _column_dtype(default):
 
 
 def _check_configs(table: pd.DataFrame, src: str | None) -> None:
-    """The checks on a whole table: a config besides the baseline, filtered boxes with stable fixed
-    gains, ``keep_lost`` only with filtered output (a :class:`SweepConfigError` naming the key)."""
+    """The checks on a whole table: a config besides the baseline, and the tracker family's own
+    (``TrackerFamily.table_problem``; DFR-FastMOT: filtered boxes with stable fixed gains,
+    ``keep_lost`` only with filtered output), a :class:`SweepConfigError` naming the key."""
     if len(table) < 2:
         raise config_error("params", "the sweep has no config besides the baseline: add parameters or options to sweep",
                    src)
-    unstable = unstable_rows(table) & (table["output"] == "filtered").to_numpy()
-    if unstable.any():
-        r = table[unstable].iloc[0]
-        raise config_error("params.gain_beta", unstable_message(
-            f"{int(unstable.sum())} of {len(table)} configs", r["gain_alpha"], r["gain_beta"], r["gain_gamma"],
-            f"e.g. config {int(r['config'])}: ", " or use [[variants]]"), src)
-    for kl in ["keep_lost"] + [c for c in class_columns(table.columns) if c.endswith(".keep_lost")]:
-        bad = table[(table[kl] > 0) & (table["output"] == "detections")]
-        if not len(bad):
-            continue
-        r = bad.iloc[0]
-        raise config_error(f"params.{kl}", f"{kl} = {r[kl]} writes lost tracks' predicted boxes and needs "
-                                       f"output = \"filtered\" (variant {r['variant']!r} pairs it with output = "
-                                       f"\"detections\"); use [[variants]] to give keep_lost its own output", src)
-
-
-def unstable_gains(fixed, alpha, beta, gamma) -> np.ndarray:
-    """[C] bool: lanes with the fixed-gain filter (``fixed`` [C] bool) and gains ([C] each) it is
-    unstable with (spectral radius > 1, :func:`dfrmot_jax.core.filters.fixed_gain_radius`): their
-    predicted and filtered boxes grow without bound. The one test sweeps, tunes and ``dfrmot track`` use."""
-    return np.asarray(fixed, bool) & (fixed_gain_radius(alpha, beta, gamma) > 1.0 + 1e-9)
-
-
-def unstable_message(what: str, alpha, beta, gamma, example: str = "", more: str = "") -> str:
-    """Why ``what`` ("3 of 9 configs", "--class car") is refused: filtered boxes with unstable fixed gains."""
-    return (f"{what} write filtered boxes with fixed gains outside the filter's stability region ({example}gain_alpha "
-            f"{float(alpha):.4g}, gain_beta {float(beta):.4g}, gain_gamma {float(gamma):.4g}): their boxes grow "
-            f"without bound; keep gain_gamma small against gain_beta (e.g. gamma <= beta / 4){more}")
-
-
-def unstable_rows(table: pd.DataFrame) -> np.ndarray:
-    """[C] bool: rows with the fixed-gain filter and gains it is unstable with (:func:`unstable_gains`;
-    any class's gains)."""
-    out = np.zeros(len(table), bool)
-    fixed = (table["filter"] == "fixed_gain").to_numpy()
-    for pre in [""] + sorted({c.split(".")[0] + "." for c in class_columns(table.columns) if "gain" in c}):
-        cols = [pre + g if pre + g in table.columns else g for g in ("gain_alpha", "gain_beta", "gain_gamma")]
-        out |= unstable_gains(fixed, *(table[c].to_numpy() for c in cols))
-    return out
+    problem = family_of().table_problem(table)
+    if problem is not None:
+        raise config_error(problem[0], problem[1], src)
 
 
 def typed_table(table: pd.DataFrame) -> pd.DataFrame:
