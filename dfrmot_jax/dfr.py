@@ -80,8 +80,8 @@ def table_problem(table: pd.DataFrame) -> tuple[str, str] | None:
             continue
         r = bad.iloc[0]
         return (f"params.{kl}", f"{kl} = {r[kl]} writes lost tracks' predicted boxes and needs output = \"filtered\" "
-                                f"(variant {r['variant']!r} pairs it with output = \"detections\"); use [[variants]] to "
-                                f"give keep_lost its own output")
+                                f"(variant {r['variant']!r} pairs it with output = \"detections\"); use [[variants]] "
+                                f"to give keep_lost its own output")
     return None
 
 

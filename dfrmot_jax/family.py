@@ -160,7 +160,8 @@ def config_problems(fc: FamilyConfig) -> list[str]:
         out.append("param_ranges does not hold exactly the parameters")
     for what, names, among in (("int_params", fc.int_params, params), ("late_params", fc.late_params, params),
                                ("option_choices", fc.option_choices, options),
-                               ("option_ranges", fc.option_ranges, options), ("late_options", fc.late_options, options)):
+                               ("option_ranges", fc.option_ranges, options),
+                               ("late_options", fc.late_options, options)):
         if set(names) - among:
             out.append(f"{what} names {sorted(set(names) - among)}, not among its fields")
     if fc.default_preset not in fc.presets:

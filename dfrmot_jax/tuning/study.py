@@ -205,7 +205,7 @@ def _evaluate_batch(study, ev: Evaluator, space: SearchSpace, settings: TuneSett
     frozen = {t.number: t for t in study.get_trials(deepcopy=False)}
     trials = [frozen[n] for n in rec["trials"]]
     values = [t.params for t in trials]
-    bad = family_of().failing_rows(space.table([space.row(v) for v in values]))
+    bad = family_of(space.family).failing_rows(space.table([space.row(v) for v in values]))
     for t, u in zip(trials, bad):
         if u and t.state == TrialState.RUNNING:
             study.tell(t.number, state=TrialState.FAIL)
