@@ -3,9 +3,12 @@ result files), so that it names the protocol (:class:`dfrmot_jax.family.TrackerF
 one family's modules.
 
 ``FAMILIES``: name -> family; :func:`family_of` looks one up. DFR-FastMOT (``"dfr"``,
-:data:`dfrmot_jax.dfr.FAMILY`) is the first; a family joins by one more entry here (its settings are
-then :mod:`dfrmot_jax.family_configs`' too) or, at run time, :func:`register` (a Ray worker, a
-process of its own, knows only the families registered when the package is imported).
+:data:`dfrmot_jax.dfr.FAMILY`) is the first. A family joins by one more entry in each registry: its
+:class:`~dfrmot_jax.family.TrackerFamily` here and its ``FamilyConfig`` in
+:data:`dfrmot_jax.family_configs.CONFIGS`, from a module of its own that reaches no JAX (as DFR's
+``config.FAMILY_CONFIG``), so that the report and ``--help`` read its settings without the tracker;
+or, at run time, through :func:`register`, which records both (a Ray worker, a process of its own,
+knows only the families registered when the package is imported).
 """
 
 from __future__ import annotations
