@@ -33,7 +33,7 @@ dfrmot_jax.setup_host_devices()   # one XLA device per core, before any JAX oper
 
 from dfrmot_jax.core import run as tracker
 from dfrmot_jax.api import default_capacity, track
-from dfrmot_jax.core.devices import chosen_platform, default_lanes_per_call
+from dfrmot_jax.devices import chosen_platform, default_lanes_per_call
 from dfrmot_jax.data import compact_split, load_sequences, pack, prepare_frames
 from dfrmot_jax.config import Params, keep_thresholds, preset, stack_params
 from dfrmot_jax.paths import default_data_root
@@ -73,7 +73,7 @@ def main() -> int:
     ap.add_argument("--sizes", default="1,8,64,256,1024")
     ap.add_argument("--lanes-per-call", "--chunk", dest="lanes_per_call", type=int, default=None,
                     help="lanes per compiled call for large batches (--chunk: its old name; default 16 on the CPU, "
-                         "core.devices.LANES_PER_CALL on a GPU)")
+                         "devices.LANES_PER_CALL on a GPU)")
     ap.add_argument("--device", choices=("auto", "cpu", "gpu"), default=None,
                     help="the platform to track on ($DFRMOT_DEVICE; default auto: JAX's default backend)")
     ap.add_argument("--reference-seqs", type=int, default=21, help="sequences the reference runs (frames/s)")

@@ -26,7 +26,7 @@ def machine_info() -> dict:
 
     import dfrmot_jax
 
-    from dfrmot_jax.core.devices import batch_devices, chosen_platform
+    from dfrmot_jax.devices import batch_devices, chosen_platform
 
     dfrmot_jax.setup_host_devices()
     where = chosen_platform()

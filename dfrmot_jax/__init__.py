@@ -22,7 +22,7 @@ def __getattr__(name: str):
     if name in ("TrackResult", "default_capacity", "track"):
         from . import api as home
     elif name == "setup_host_devices":
-        from .core import devices as home
+        from . import devices as home
     elif name in ("Split", "load_split", "prepare_frames"):
         from . import data as home
     elif name == "default_data_root":

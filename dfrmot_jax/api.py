@@ -14,7 +14,7 @@ from collections import namedtuple
 import numpy as np
 
 from . import distort
-from .core.devices import default_lanes_per_call, setup_host_devices
+from .devices import default_lanes_per_call, setup_host_devices
 from .data import Frames, Split, compact_frames, object_slots, prepare_frames
 from .config import (MAX_CAPACITY, MIN_CAPACITY, OBJECT_PARAMS, Options, Params, as_arrays, batch_size, keep_thresholds,
                      validate_params)
@@ -107,7 +107,7 @@ def track(split: Split | Frames, params: Params, options: Options = Options(), *
     """Track every lane of ``params`` (leaves scalar or [B]) over the split.
 
     lanes_per_call: lanes per compiled call (memory: lanes_per_call x T x K int32 ids; default
-    ``core.devices.default_lanes_per_call()``: 64 on the CPU, 1024 on a GPU); progress: a
+    ``devices.default_lanes_per_call()``: 64 on the CPU, 1024 on a GPU); progress: a
     callable(n) told how many lanes finished, e.g. a tqdm bar's ``update``.
     distortion: ``DistortParams`` with leaves [B] (or scalars): lane b's detections are distorted by
     its own levels and seed inside the scan (``dfrmot_jax.distort``); needs a ``Split`` (ground truth).

@@ -1,8 +1,10 @@
-"""Tracker parameters: dynamic ``Params`` (arrays, vmappable) and static ``Options`` (compilations).
+"""DFR-FastMOT's settings: dynamic ``Params`` (arrays, vmappable) and static ``Options`` (compilations).
 
 Every field of ``Params`` is a number; a batch of settings is the same ``Params`` with a leading
 axis ``[B]`` on every leaf (see ``stack_params``). ``Options`` holds the choices that change the
-program: each distinct ``Options`` value is its own compilation.
+program: each distinct ``Options`` value is its own compilation. ``FAMILY_CONFIG`` says all of it
+as the family's :class:`dfrmot_jax.family.FamilyConfig` (the machinery around the tracker reads it
+there, through :mod:`dfrmot_jax.family_configs`).
 """
 
 from __future__ import annotations
@@ -10,6 +12,8 @@ from __future__ import annotations
 from typing import Any, NamedTuple
 
 import numpy as np
+
+from .family import FamilyConfig
 
 # The authors' C++ keeps ALPHA, BETA, GAMMA and DELTA_T = 1./FPS (FPS = 1000) as C++ ``float`` and
 # fills double matrices with them, gains diag(ALPHA, BETA / DELTA_T, GAMMA / (DELTA_T^2 / 2)) in
@@ -178,6 +182,8 @@ MIN_CAPACITY = 16
 OPTION_CHOICES: dict[str, tuple[str, ...]] = {"filter": FILTERS, "merge": MERGES, "centroid": CENTROIDS,
                                               "modality": MODALITIES, "output": OUTPUTS, "kalman_init": KALMAN_INITS,
                                               "assign": ASSIGNS}
+#: the options that take integers -> their range (inclusive)
+OPTION_RANGES: dict[str, tuple[int, int]] = {"capacity": (0, MAX_CAPACITY)}
 
 
 def option_problem(name: str, value) -> str | None:
@@ -355,3 +361,23 @@ def unstack_params(params: Params) -> list[Params]:
     b = batch_size(params)
     arrs = {k: np.broadcast_to(np.asarray(v), (b,)) for k, v in params._asdict().items()}
     return [Params(**{k: (int(a[i]) if k in INT_PARAMS else float(a[i])) for k, a in arrs.items()}) for i in range(b)]
+
+
+#: Options added after config hashes were first written -> their default. At its default such an
+#: option is left out of the hash (a row without its column has the default), so every earlier
+#: config keeps its hash and chunk ids; result rows written before it existed get the default.
+LATE_OPTIONS: dict[str, Any] = {"assign": Options._field_defaults["assign"]}
+#: Parameters added after config hashes were first written -> their default, kept likewise: the
+#: 3D corners' Kalman noise, whose default 0 means "as kf_q / kf_r" (``INHERITED_PARAMS``), and
+#: the weak detections' margins and gate (``weak_2d``, ``weak_3d``, ``a_weak``; 0: none).
+LATE_PARAMS: dict[str, Any] = {n: Params._field_defaults[n] for n in (*INHERITED_PARAMS, "weak_2d", "weak_3d", "a_weak")}
+
+
+#: DFR-FastMOT's settings as a family's (:class:`dfrmot_jax.family.FamilyConfig`): the first family,
+#: ``family = "dfr"``; its tracker is :data:`dfrmot_jax.dfr.FAMILY`
+FAMILY_CONFIG = FamilyConfig(
+    name="dfr", title="DFR-FastMOT", Params=Params, Options=Options, presets=PRESETS, default_preset="dfr2023",
+    classes=CLASSES, class_defaults=CLASS_DEFAULTS, preset=preset, param_ranges=PARAM_RANGES, int_params=INT_PARAMS,
+    option_choices=OPTION_CHOICES, option_ranges=OPTION_RANGES, param_problem=param_problem,
+    option_problem=option_problem, parse_assignment=parse_assignment, as_arrays=as_arrays, late_params=LATE_PARAMS,
+    late_options=LATE_OPTIONS, detections=("2d", "3d"))

@@ -12,7 +12,7 @@ import os
 from pathlib import Path
 
 ENV_VAR = "DFRMOT_DATA"
-#: the compile cache folder's variable (read by ``core.devices.setup_compile_cache``, which names it too)
+#: the compile cache folder's variable (read by ``devices.setup_compile_cache``, which names it too)
 COMPILE_CACHE_VAR = "DFRMOT_COMPILE_CACHE"
 RELATIVE = Path("..") / "shared" / "data" / "kitti" / "training"
 _CHECKOUT = Path(__file__).resolve().parent.parent

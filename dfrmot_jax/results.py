@@ -243,6 +243,12 @@ class ClassRun(NamedTuple):
     box3: np.ndarray | None = None
 
 
+def class_run(split: Split, res, lane: int = 0) -> ClassRun:
+    """Lane ``lane`` of a ``track(detail=True)`` result on ``split`` as ``write_runs`` takes it."""
+    return ClassRun(split, res.frames, res.options, res.ids[lane], res.lane_boxes(lane), res.src3[lane],
+                    res.own3[lane], None if res.box3 is None else res.box3[lane])
+
+
 def write_lane(out_dir, split: Split, frames: Frames, options: Options, ids: np.ndarray,
                boxes: np.ndarray | None = None, *, columns: str = "kitti", src3: np.ndarray | None = None,
                own3: np.ndarray | None = None, box3: np.ndarray | None = None) -> list[Path]:

@@ -292,7 +292,7 @@ def test_flags_are_named_not_the_data(argv, command, want, tmp_path, capsys):
 
 def test_host_devices_variable_is_named(scene, tmp_path, monkeypatch, capsys):
     """``DFRMOT_HOST_DEVICES=abc``: "invalid literal for int()" named nothing."""
-    from dfrmot_jax.core import devices
+    from dfrmot_jax import devices
 
     for bad in ("abc", "-2", "1.5"):
         monkeypatch.setenv("DFRMOT_HOST_DEVICES", bad)

@@ -60,7 +60,7 @@ def test_late_setup_warns_and_reports_the_devices_in_use():
 def test_the_platform_choice(monkeypatch):
     """$DFRMOT_DEVICE: auto follows JAX's default backend (the CPU here), cpu is the CPU devices, gpu
     where JAX sees none is a clear error naming the install command; lanes per call by platform."""
-    from dfrmot_jax.core import devices
+    from dfrmot_jax import devices
 
     monkeypatch.delenv("DFRMOT_DEVICE", raising=False)
     assert devices.chosen_platform() == "cpu" == devices.chosen_platform("auto") == devices.chosen_platform("CPU")
@@ -240,7 +240,7 @@ def test_compile_cache_entries_that_do_not_load_are_compiled_anew(damage, tmp_pa
 def test_no_compile_cache_unless_asked():
     """A library caller keeps nothing on disk unless ``$DFRMOT_COMPILE_CACHE`` names a folder; the
     variable's name is the one the command line sets."""
-    from dfrmot_jax.core import devices
+    from dfrmot_jax import devices
     from dfrmot_jax import paths
 
     assert devices.COMPILE_CACHE_VAR == paths.COMPILE_CACHE_VAR

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dfrmot_jax.core import run as tracker
-from dfrmot_jax.core.devices import batch_devices
+from dfrmot_jax.devices import batch_devices
 from dfrmot_jax.core.step import Frames
 from dfrmot_jax.api import default_capacity, track
 from dfrmot_jax.data import load_sequences, pack, prepare_frames

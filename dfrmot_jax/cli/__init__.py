@@ -91,7 +91,7 @@ def main(argv=None) -> int:
     returns a status (see the module docstring). Only the named command's parser module is imported
     (:func:`build_parser`); the command's own module when it runs."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    # compiled tracker programs kept between runs (core.devices.setup_compile_cache; "off": none)
+    # compiled tracker programs kept between runs (devices.setup_compile_cache; "off": none)
     os.environ.setdefault(COMPILE_CACHE_VAR, str(default_compile_cache()))
     command = command_of(argv) or ""
     # a warning raised while the command's parser module is imported (the metrics' kernel cache) is

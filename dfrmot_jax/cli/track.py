@@ -23,7 +23,7 @@ from ..io.lock import LOCK_NAME, folder_lock
 from ..lidar import LiftSettings, lidar_dir, lift_setting_name, tie_scores, with_setting
 from ..paths import default_data_root
 from ..results import ClassRun, result_files, write_runs
-from ..sweep.table import unstable_gains, unstable_message
+from ..dfr import unstable_gains, unstable_message
 from .args import parse_seqs
 from .track_parser import add_parser, config_help  # this command's parser (it needs only config)
 

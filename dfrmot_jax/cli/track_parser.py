@@ -1,7 +1,8 @@
 """The ``dfrmot track`` parser, apart from the command (:mod:`dfrmot_jax.cli.track`): its options and
-the epilog listing every parameter, option and preset with its meaning, generated from
-:mod:`dfrmot_jax.config` (``config_help``). It needs nothing else, so that ``dfrmot track --help``
-imports no tracker; the command's module is imported when it runs (``errors.run_later``)."""
+the epilog listing every parameter, option and preset with its meaning, generated from the tracker
+family's settings (``config_help``: its :class:`~dfrmot_jax.family.FamilyConfig`, through
+:mod:`dfrmot_jax.family_configs`). It needs nothing else, so that ``dfrmot track --help`` imports no
+tracker; the command's module is imported when it runs (``errors.run_later``)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ import re
 import shutil
 import textwrap
 
-from ..config import CLASS_DEFAULTS, INT_PARAMS, MAX_CAPACITY, OPTION_CHOICES, PARAM_RANGES, PRESETS, Options, Params
+from ..family import DEFAULT_FAMILY
+from ..family_configs import family_config
 from ..paths import ENV_VAR
 from .args import seqs_arg
 from .commands import HELP
@@ -20,7 +22,7 @@ from .errors import run_later
 __all__ = ["add_parser", "config_help", "docstring_fields"]
 
 
-# ---- help text generated from dfrmot_jax.config ----------------------------------------------------
+# ---- help text generated from the family's settings ------------------------------------------------
 
 #: a ``name: text`` / ``a, b: text`` line of a docstring cleaned by ``inspect.cleandoc`` (the entries at
 #: its left margin: Python >= 3.13 strips a docstring's common indentation when compiling, earlier
@@ -77,44 +79,44 @@ def _grouped(entries, fields):
     return list(entries) + [((n,), "") for n in fields if n not in seen]
 
 
-def config_help(width: int | None = None) -> str:
+def config_help(width: int | None = None, family: str = DEFAULT_FAMILY) -> str:
     """The ``track --help`` epilog: every parameter, option and preset with its meaning, generated
-    from :mod:`dfrmot_jax.config` (Params / Options docstrings, PARAM_RANGES, OPTION_CHOICES,
-    PRESETS, CLASS_DEFAULTS)."""
-
-
+    from the tracker ``family``'s settings (its ``FamilyConfig``: the Params / Options docstrings,
+    param_ranges, option_choices, option_ranges, presets, class_defaults)."""
+    fc = family_config(family)
+    Params, Options = fc.Params, fc.Options
     width = width or max(60, min(120, shutil.get_terminal_size().columns) - 2)
 
     def meaning(text):
         return textwrap.fill(text, width, initial_indent=" " * 6, subsequent_indent=" " * 6) if text else None
 
     base_p, base_o = Params(), Options()
-    out = ["parameters (--set NAME=VALUE; default = the dfr2023 value; ranges inclusive):"]
+    out = [f"parameters (--set NAME=VALUE; default = the {fc.default_preset} value; ranges inclusive):"]
     for names, text in _grouped(docstring_fields(Params.__doc__, Params._fields), Params._fields):
         for name in names:
-            lo, hi = PARAM_RANGES[name]
-            kind = "integer" if name in INT_PARAMS else "number"
+            lo, hi = fc.param_ranges[name]
+            kind = "integer" if name in fc.int_params else "number"
             out.append(f"  {name:<12} default {_fmt(getattr(base_p, name)):<6} {kind} in [{_fmt(lo)}, {_fmt(hi)}]")
         out += [meaning(text)] if text else []
     out += ["", "options (--set NAME=VALUE; each value compiles its own program):"]
     for names, text in _grouped(docstring_fields(Options.__doc__, Options._fields), Options._fields):
         for name in names:
-            if name in OPTION_CHOICES:
-                values = " | ".join(OPTION_CHOICES[name])
-            elif name == "truncate":
+            if name in fc.option_choices:
+                values = " | ".join(fc.option_choices[name])
+            elif isinstance(getattr(base_o, name), bool):
                 values = "true | false"
-            elif name == "capacity":
-                values = f"integer in [0, {MAX_CAPACITY}]"
+            elif name in fc.option_ranges:
+                values = f"integer in [{fc.option_ranges[name][0]}, {fc.option_ranges[name][1]}]"
             else:
                 values = ""
             out.append(f"  {name:<12} default {_fmt(getattr(base_o, name)):<12} {values}")
         out += [meaning(text)] if text else []
     out += ["", "presets (--preset NAME; what differs from the defaults above):"]
-    for name, (p, o) in PRESETS.items():
+    for name, (p, o) in fc.presets.items():
         diff = [f"{k}={_fmt(v)}" for k, v in p._asdict().items() if v != getattr(base_p, k)]
         diff += [f"{k}={_fmt(v)}" for k, v in o._asdict().items() if v != getattr(base_o, k)]
         out.append(f"  {name:<12} {' '.join(diff) or '(the defaults)'}")
-    for cls, changes in CLASS_DEFAULTS.items():
+    for cls, changes in fc.class_defaults.items():
         if changes:
             out.append(meaning(f"--class {cls}: every preset with "
                                + " ".join(f"{k}={_fmt(v)}" for k, v in changes.items())).replace(" " * 6, "  ", 1))
@@ -140,8 +142,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                         "per class), or lidar:DIR: the 2D detections lifted to 3D from the scans "
                         "DIR/velodyne/SSSS/FFFFFF.bin (settings --set shrink=0.2, leaf, crop_lo, crop_hi, tolerance, "
                         "min_cluster, score_cut; score_3d follows score_2d)")
-    t.add_argument("--preset", default="dfr2023",
-                   help="the settings to start from: " + " | ".join(PRESETS) + " (listed below)")
+    fc = family_config()
+    t.add_argument("--preset", default=fc.default_preset,
+                   help="the settings to start from: " + " | ".join(fc.presets) + " (listed below)")
     t.add_argument("--set", action="append", metavar="NAME=VALUE",
                    help="override a parameter or option (repeatable); CLASS.NAME=VALUE for one class only, "
                         "e.g. pedestrian.a_l=2 (checked like any setting; refused when CLASS is not in --class, "

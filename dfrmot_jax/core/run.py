@@ -23,7 +23,7 @@ from jax.sharding import Mesh
 from jax.sharding import PartitionSpec as P
 
 from ..config import Options, Params
-from .devices import batch_devices, call_compiled, chosen_platform, platform_of
+from ..devices import batch_devices, call_compiled, chosen_platform, platform_of
 from .step import Frames, Objects, init, objects, step
 
 
@@ -330,7 +330,7 @@ def run_batch(params: Params, frames: Frames, options: Options, capacity: int, n
     rows_only: a lane's own boxes and ``box3`` come back as their rows' values only, [R, 4] and
     [R, 6] at ``ids >= 0`` in (lane, frame, slot) order (read from the device without a dense copy).
     Returns BatchOutput (numpy). Lanes are padded to a multiple of the device count and trimmed.
-    The platform is ``core.devices.chosen_platform()`` (``$DFRMOT_DEVICE``): its devices run the batch.
+    The platform is ``devices.chosen_platform()`` (``$DFRMOT_DEVICE``): its devices run the batch.
     """
     b = max(np.atleast_1d(np.asarray(v)).shape[0] for v in params)
     platform = chosen_platform()

@@ -22,10 +22,11 @@ from ..checks import Table, config_error, is_scalar, type_name
 import numpy as np
 import pandas as pd
 
-from ..config import CLASSES, INHERITED_PARAMS, INT_PARAMS, Options, Params
+from ..family_configs import family_config
 from ..lidar_settings import LIFT_SETTINGS, LiftSettings, SimSettings
 
-__all__ = ["COMBINED", "RAW_COLUMN", "AVERAGE", "PARAM_NAMES", "OPTION_NAMES", "LATE_OPTIONS", "LATE_PARAMS",
+__all__ = ["COMBINED", "RAW_COLUMN", "AVERAGE", "TABLE_FAMILY", "PARAM_NAMES", "OPTION_NAMES", "CLASSES", "INT_PARAMS",
+           "LATE_OPTIONS", "LATE_PARAMS",
            "split_class_column", "class_columns", "SIM_INT", "CROP", "crop_text", "lift_value", "LIFT_COLUMNS",
            "SIM_COLUMNS", "LIDAR_AXES", "EXTRA_AXES", "DISTORTION_AXES", "extra_axes", "CONTRAST_KEYS", "Contrast",
            "parse_contrast", "contrast_doc", "param_key", "canonical_params"]
@@ -38,16 +39,22 @@ RAW_COLUMN = "_hota_alpha"
 #: ``sequence = COMBINED``) and the report's name for ranking on them.
 AVERAGE = "average"
 
-PARAM_NAMES: tuple[str, ...] = Params._fields
-OPTION_NAMES: tuple[str, ...] = Options._fields
-#: Options added after config hashes were first written -> their default. At its default such an
-#: option is left out of the hash (a row without its column has the default), so every earlier
-#: config keeps its hash and chunk ids; result rows written before it existed get the default.
-LATE_OPTIONS: dict[str, Any] = {"assign": Options._field_defaults["assign"]}
-#: Parameters added after config hashes were first written -> their default, kept likewise: the
-#: 3D corners' Kalman noise, whose default 0 means "as kf_q / kf_r" (``config.INHERITED_PARAMS``), and
-#: the weak detections' margins and gate (``weak_2d``, ``weak_3d``, ``a_weak``; 0: none).
-LATE_PARAMS: dict[str, Any] = {n: Params._field_defaults[n] for n in (*INHERITED_PARAMS, "weak_2d", "weak_3d", "a_weak")}
+#: the family of the stored tables' configs: every table is one family's, and every table written so far
+#: is DFR-FastMOT's (``family = "dfr"``, the default); its settings are the tables' parameter and option columns
+TABLE_FAMILY = family_config()
+PARAM_NAMES: tuple[str, ...] = TABLE_FAMILY.Params._fields
+OPTION_NAMES: tuple[str, ...] = TABLE_FAMILY.Options._fields
+#: the classes a table's per-class columns (``<class>.<parameter>``) may name
+CLASSES: tuple[str, ...] = TABLE_FAMILY.classes
+INT_PARAMS = TABLE_FAMILY.int_params
+#: Options added after config hashes were first written -> their default (the family's
+#: ``late_options``). At its default such an option is left out of the hash (a row without its column
+#: has the default), so every earlier config keeps its hash and chunk ids; result rows written before
+#: it existed get the default.
+LATE_OPTIONS: dict[str, Any] = dict(TABLE_FAMILY.late_options)
+#: Parameters added after config hashes were first written -> their default, kept likewise (the
+#: family's ``late_params``).
+LATE_PARAMS: dict[str, Any] = dict(TABLE_FAMILY.late_params)
 
 
 def split_class_column(name: str) -> tuple[str, str] | None:

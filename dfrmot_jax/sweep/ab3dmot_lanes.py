@@ -2,8 +2,8 @@
 an AB3DMOT objective in a sweep or tune).
 
 Each lane is scored on the values its ``--columns kitti`` result file would carry
-(:func:`dfrmot_jax.results.kitti_rows`: the row's own 3D detection, or the filtered box with
-``output = "filtered"``; rows without one count as unmatched in 3D; every value as the file reads
+(its tracker family's ``rows``, DFR-FastMOT's :func:`dfrmot_jax.results.kitti_rows`: the row's own
+3D detection, or the filtered box with ``output = "filtered"``; rows without one count as unmatched in 3D; every value as the file reads
 it back), against the class's
 ground truth over the split's sequences together (:func:`dfrmot_jax.metrics.ab3dmot.arrays.
 evaluate_ab3dmot_rows`): the same figures as ``dfrmot eval --metrics ab3dmot`` of the written
@@ -22,12 +22,12 @@ import pandas as pd
 
 from ..api import TrackResult
 from ..data import Split
+from ..families import family_of
 from ..metrics.ab3dmot.arrays import evaluate_ab3dmot_rows
 from ..metrics.ab3dmot.prep import Ab3dGT
 from ..metrics.ab3dmot.sums import DEFAULT_SUM
 from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, AB3DMOT_OTHER_COLUMNS, ab3dmot_columns
 from ..metrics.kitti2d.lane_scorer import LaneScorer
-from ..results import kitti_rows
 from ..rows import Rows, lane_values
 from ..report.columns import COMBINED
 
@@ -41,13 +41,16 @@ class Ab3dmotLanes:
     """AB3DMOT scoring of lanes on one split: ``gt`` its ground truth (the split's sequences, in
     order), ``iou`` ``"3d:0.25"`` / ``"2d:0.5"``, ``columns`` the result columns scored (``"kitti"``
     or ``"kitti-stale"``), ``sum_mode`` the evaluator's sum of track scores (the figures with the
-    other sum too, as :data:`~dfrmot_jax.metrics.ab3dmot.table.AB3DMOT_OTHER_COLUMNS`); :meth:`score`
-    gives each lane's columns."""
+    other sum too, as :data:`~dfrmot_jax.metrics.ab3dmot.table.AB3DMOT_OTHER_COLUMNS`), ``rows`` the
+    tracker family's rows of its output (``TrackerFamily.rows``; None: the default family's,
+    :func:`dfrmot_jax.results.kitti_rows`); :meth:`score` gives each lane's columns."""
 
-    def __init__(self, gt: Ab3dGT, split: Split, iou: str, columns: str = "kitti", sum_mode: str = DEFAULT_SUM):
+    def __init__(self, gt: Ab3dGT, split: Split, iou: str, columns: str = "kitti", sum_mode: str = DEFAULT_SUM,
+                 rows=None):
         if tuple(gt.sequences) != tuple(split.names):
             raise RuntimeError("AB3DMOT ground truth and detections disagree on the sequences")
         self.gt, self.split, self.iou, self.columns, self.sum_mode = gt, split, iou, columns, sum_mode
+        self.rows = family_of().rows if rows is None else rows
         self.memo: dict[bytes, dict] = {}
 
     def digests(self, res: TrackResult, base: Sequence[bytes] | None = None) -> list[bytes]:
@@ -83,7 +86,7 @@ class Ab3dmotLanes:
         new = [b for b, d in enumerate(digests) if d not in self.memo and d not in digests[:b]]
         for at in range(0, len(new), LANES_PER_PASS):     # (a few lanes' rows at a time: memory)
             part = new[at:at + LANES_PER_PASS]
-            rows = kitti_rows(self.split, res, self.columns, lanes=part)
+            rows = self.rows(self.split, res, self.columns, lanes=part)
             out = evaluate_ab3dmot_rows(self.gt, **rows._asdict(), seq_offsets=self.split.offsets, iou=self.iou,
                                         check_ids=False, sum_mode=self.sum_mode, other=True)
             for b, r in zip(part, out):

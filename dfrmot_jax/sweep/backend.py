@@ -20,7 +20,7 @@ import pandas as pd
 from . import ray_backend
 from ..checks import SweepConfigError
 from ..choices import BACKENDS
-from ..core.devices import chosen_platform
+from ..devices import chosen_platform
 from .chunks import ChunkRunner, Keep
 from .plan import Chunk, DataSettings
 from .spec import SweepSpec
@@ -36,7 +36,7 @@ class LocalBackend:
     name: str = "local"
 
     def check(self) -> None:
-        """The platform this process tracks on (``$DFRMOT_DEVICE``, :func:`~dfrmot_jax.core.devices.chosen_platform`):
+        """The platform this process tracks on (``$DFRMOT_DEVICE``, :func:`~dfrmot_jax.devices.chosen_platform`):
         ``gpu`` where JAX sees none is refused before anything is written."""
         chosen_platform()
 

@@ -6,9 +6,9 @@ The steps, each a method of its own:
 - :meth:`ChunkRunner.load`: the data step, once per class and run: the packed split (compacted to
   the table's loosest score thresholds) and its prepared ground truth, loaded here (:func:`load_data`)
   or given (a Ray worker's), AB3DMOT's ground truth, the scorer (:class:`~.scoring.ChunkScorer`);
-- :meth:`ChunkRunner.track_chunk`: :func:`dfrmot_jax.track` on one chunk's [B] batch (track capacity:
-  the tracker's own policy, ``api.default_capacity`` for the option group and ``track(grow=True)``;
-  the capacity a chunk grew to is kept for the group's later chunks);
+- :meth:`ChunkRunner.track_chunk`: the sweep's tracker family's ``track`` on one chunk's [B] batch
+  (track capacity: the family's own policy, its ``default_capacity`` for the option group and
+  ``track(grow=True)``; the capacity a chunk grew to is kept for the group's later chunks);
 - scoring (:mod:`dfrmot_jax.sweep.scoring`): the metrics (each distinct output of each sequence
   scored once, in-process or in a metric worker pool beside the tracker) and AB3DMOT's figures;
 - :meth:`ChunkRunner.chunk_table`: the chunk's table (:func:`dfrmot_jax.sweep.store.chunk_frame`),
@@ -34,10 +34,11 @@ import pandas as pd
 from tqdm import tqdm
 
 from .. import distort
-from ..api import TrackResult, default_capacity, track
-from ..config import Options, keep_thresholds
-from ..core.devices import chosen_platform, default_lanes_per_call
-from ..data import Split, cached_split, compact_split, prepare_frames
+from ..api import TrackResult
+from ..devices import chosen_platform, default_lanes_per_call
+from ..data import Split, cached_split
+from ..family import TrackerFamily
+from ..families import family_of
 from ..lidar import LIDAR_PREFIX, lidar_dir, simulate_cached
 from ..metrics.ab3dmot.prep import cached_ab3dmot_gt
 from ..metrics.kitti2d.evaluate import cached_gt
@@ -55,7 +56,7 @@ from .store import chunk_frame
 from .table import params_of
 
 #: lanes per compiled tracker call on the CPU (``track(lanes_per_call=...)``; the batch is split over the host
-#: devices); on a GPU ``core.devices.default_lanes_per_call()``; a quarter as many with AB3DMOT's figures, whose
+#: devices); on a GPU ``devices.default_lanes_per_call()``; a quarter as many with AB3DMOT's figures, whose
 #: 3D detail makes each call's output 2.5x larger (grid sweep with AB3DMOT: peak RSS 2.2-2.3 GB at 32 lanes per
 #: call, 1.8 GB at 16 (2.0 GB with the three small-frame sizes of 2026-11-27), 1.84 GB at 8, in the same time
 #: within noise)
@@ -124,7 +125,8 @@ class ChunkRunner:
     a distortion, whose draws are keyed by slot), ``gt`` its prepared ground truth; ``todo``: the
     chunks of this run; ``scoring``: their scorer (:class:`~.scoring.ChunkScorer`, sharing
     ``timing``); ``lanes_per_call``: lanes per compiled tracker call; ``groups``: with a distortion,
-    the table's option groups (every lane of a group, for its one ``DistortSpec``).
+    the table's option groups (every lane of a group, for its one ``DistortSpec``); ``family``: the
+    sweep's tracker family (``spec.family``), which tracks, sizes and compacts.
 
     State kept across chunks: per option group the track capacity (``caps``) and the distortion
     spec (``dspecs``); ``frames``: (options, the split prepared for them) of the last group tracked."""
@@ -139,6 +141,7 @@ class ChunkRunner:
     lanes_per_call: int
     groups: dict
     timing: Timing
+    family: TrackerFamily
     versions: tuple[str, str] = field(default_factory=versions)
     caps: dict = field(default_factory=dict)
     dspecs: dict = field(default_factory=dict)
@@ -152,23 +155,23 @@ class ChunkRunner:
         (``[metrics] ab3dmot``) and make the scorer; ``todo``: the chunks to run."""
         t0 = time.perf_counter()
         fixed_mmap_threshold()      # freed arrays given back to the system (sweep.malloc: ~300 MB less)
+        family = family_of(spec.family)
         if split is None:
             split, gt = load_data(data)
         if compact and spec.distortion is None:     # (distortion draws are keyed by slot)
-            every = params_of(table, range(len(table)), data.cls)
-            split = compact_split(split, *(float(np.min(s)) for s in keep_thresholds(every)))
+            split = family.compact_split(split, params_of(table, range(len(table)), data.cls, spec.family))
         ab3dmot = None
         if spec.ab3dmot is not None:
             gt3 = cached_ab3dmot_gt(data.root, data.cls, list(split.names))
-            ab3dmot = Ab3dmotLanes(gt3, split, spec.ab3dmot, spec.ab3dmot_columns, spec.ab3dmot_sum)
+            ab3dmot = Ab3dmotLanes(gt3, split, spec.ab3dmot, spec.ab3dmot_columns, spec.ab3dmot_sum, family.rows)
         timing = Timing()
         scorer = LaneScorer(gt, split.offsets, as_written=True)     # rows as the files carry them
         per_call = LANES_PER_CALL if chosen_platform() == "cpu" else default_lanes_per_call()
         if spec.ab3dmot is not None:        # the rows' 3D detail: each call's device output 2.5x larger
             per_call = max(1, per_call // 4)      # (8 lanes per call on the CPU)
-        groups = option_groups(table) if spec.distortion is not None else {}
+        groups = option_groups(table, spec.family) if spec.distortion is not None else {}
         runner = cls(spec, table, data, split, gt, tuple(todo), ChunkScorer(scorer, ab3dmot, timing),
-                     max(1, min(spec.chunk, per_call)), groups, timing)
+                     max(1, min(spec.chunk, per_call)), groups, timing, family)
         timing.setup = time.perf_counter() - t0
         return runner
 
@@ -197,17 +200,18 @@ class ChunkRunner:
             f"{tm.track:.1f} s, metrics {tm.metrics:.1f} s in-process + {tm.wait:.1f} s waiting "
             f"for workers, tables {tm.write:.1f} s; {len(self.scoring.scorer):,} distinct sequence outputs scored)")
 
-    def frames_of(self, options: Options):
+    def frames_of(self, options):
         """The split prepared for ``options`` (kept while consecutive chunks share them)."""
         if self.frames is None or self.frames[0] != options:
-            self.frames = (options, prepare_frames(self.split, options))
+            self.frames = (options, self.family.prepare_frames(self.split, options))
         return self.frames[1]
 
     def track_chunk(self, c: Chunk) -> tuple[Pending, TrackResult]:
         """Track chunk ``c``: its :class:`~.scoring.Pending` (scoring not started) and the whole
         :class:`~dfrmot_jax.api.TrackResult` (what the scoring's start reads)."""
         frames = self.frames_of(c.options)
-        params = params_of(self.table, c.configs, self.data.cls)
+        params = params_of(self.table, c.configs, self.data.cls, self.spec.family)
+        track = self.family.track
         dps = self.distortion_of(c, frames)
         opts = self.track_options(c, frames)
         tt = time.perf_counter()
@@ -237,7 +241,7 @@ class ChunkRunner:
                                                     dps=distort_of(self.table, self.groups[c.options], dist))
         return distort_of(self.table, c.configs, dist)
 
-    def track_options(self, c: Chunk, frames) -> Options:
+    def track_options(self, c: Chunk, frames):
         """Chunk ``c``'s options with its track slots: its own, or (capacity 0) the tracker's
         data-sized default for the whole option group (one compilation; room for a distortion's
         clutter) or the capacity an earlier chunk of the group grew to. Results never depend on it:
@@ -246,14 +250,14 @@ class ChunkRunner:
             return c.options
         if c.options not in self.caps:
             dist = self.spec.distortion
-            self.caps[c.options] = default_capacity(frames, self.group_params(c.options), c.options,
-                                                    clutter_slots=dist.clutter_slots if dist is not None else 0)
+            self.caps[c.options] = self.family.default_capacity(frames, self.group_params(c.options), c.options,
+                                                                clutter_slots=dist.clutter_slots if dist is not None else 0)
         return c.options._replace(capacity=self.caps[c.options])
 
-    def group_params(self, options: Options):
+    def group_params(self, options):
         """The parameters of every chunk left to run with these options."""
         return params_of(self.table, [i for c in self.todo if c.options == options for i in c.configs],
-                         self.data.cls)
+                         self.data.cls, self.spec.family)
 
     def chunk_table(self, p: Pending, scores: dict, ab3dmot: list | None) -> pd.DataFrame:
         """A tracked chunk's table from its scores (:meth:`~.scoring.ChunkScorer.finish`)."""

@@ -6,8 +6,9 @@ names one class), ``DIR:baseline`` or ``DIR:config=N`` names a config of the sto
 :func:`write_config_output` tracks that config alone, for every class the directory tracked, on the
 directory's data (its manifest: root, detectors, class, sequences) and writes one KITTI result file per
 sequence (the classes merged, as ``dfrmot track --class car,pedestrian`` writes them), which score what
-the rows say (a sweep row equals the config run alone). Distortion and LiDAR sweeps, whose rows also
-depend on lanes or simulated scans, are refused.
+the rows say (a sweep row equals the config run alone), all by the directory's tracker family (its
+manifest's ``family``; none: the default). Distortion and LiDAR sweeps, whose rows also depend on
+lanes or simulated scans, are refused.
 """
 
 from __future__ import annotations
@@ -17,14 +18,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..api import track
-from ..config import Options
 from ..data import load_split
+from ..family import DEFAULT_FAMILY, TrackerFamily
+from ..families import family_of
 from ..metrics.columns import canonical_objective
 from ..report.analysis import class_view, classes_of, rank_configs, report_class_of
 from ..report.columns import AVERAGE, COMBINED, OPTION_NAMES, extra_axes
 from ..report.stored import load_results, read_manifest
-from ..results import ClassRun, write_runs
 from .table import params_of
 
 __all__ = ["write_config_output", "sweep_classes", "class_data"]
@@ -62,8 +62,9 @@ def _config(directory: Path, which, manifest: dict, df: pd.DataFrame) -> tuple[i
     return int(which), ""
 
 
-def _class_run(directory: Path, df: pd.DataFrame, config: int, cls: str, data: dict) -> tuple[ClassRun, str]:
-    """Config ``config`` tracked alone for class ``cls`` on ``data``, and its hash."""
+def _class_run(directory: Path, df: pd.DataFrame, config: int, cls: str, data: dict, family: TrackerFamily):
+    """Config ``config`` tracked alone by ``family`` for class ``cls`` on ``data`` (the family's run of
+    one lane, as its ``write_runs`` takes it), and its hash."""
     rows = df[df["class"] == cls] if "class" in df.columns else df
     comb = rows[rows["sequence"] == COMBINED].drop_duplicates("config").reset_index(drop=True)
     pos = int(np.flatnonzero(comb["config"].to_numpy() == config)[0])
@@ -72,14 +73,17 @@ def _class_run(directory: Path, df: pd.DataFrame, config: int, cls: str, data: d
         if name in row.index and row[name] != default:
             raise ValueError(f"{directory}: config {config} has {name} = {row[name]!r}: a distortion or "
                              f"LiDAR sweep's rows are not one config's output; track it with dfrmot track")
-    params = params_of(comb, [pos], cls)
-    options = Options(**{n: (row[n].item() if hasattr(row[n], "item") else row[n]) for n in OPTION_NAMES
-                         if n in row.index}).validate()
+    fc = family.config
+    params = params_of(comb, [pos], cls, family.name)
+    options = fc.Options(**{n: (row[n].item() if hasattr(row[n], "item") else row[n]) for n in OPTION_NAMES
+                            if n in row.index})
+    for name, value in options._asdict().items():
+        problem = fc.option_problem(name, value)
+        if problem:
+            raise ValueError(f"option {name}={value!r}: {problem}")
     split = load_split(data["root"], data["det2d"], data["det3d"], cls, data["sequences"])
-    res = track(split, params, options, detail=True)
-    run = ClassRun(split, res.frames, res.options, res.ids[0], res.lane_boxes(0), res.src3[0], res.own3[0],
-                   None if res.box3 is None else res.box3[0])
-    return run, str(row["config_hash"])
+    res = family.track(split, params, options, detail=True)
+    return family.class_run(split, res, 0), str(row["config_hash"])
 
 
 def write_config_output(directory, which, out_dir) -> str:
@@ -90,10 +94,11 @@ def write_config_output(directory, which, out_dir) -> str:
     manifest = read_manifest(directory)
     df = load_results(directory)
     config, how = _config(directory, which, manifest, df)
+    family = family_of(manifest.get("family", DEFAULT_FAMILY))
     runs, hashes = [], []
     for cls in sweep_classes(manifest):
-        run, h = _class_run(directory, df, config, cls, class_data(manifest, cls))
+        run, h = _class_run(directory, df, config, cls, class_data(manifest, cls), family)
         runs.append(run)
         hashes.append(h)
-    write_runs(out_dir, runs)
+    family.write_runs(out_dir, runs)
     return f"{directory} config {config} (hash {hashes[0]}{', ' + how if how else ''})"

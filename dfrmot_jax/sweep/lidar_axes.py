@@ -22,11 +22,11 @@ from typing import Any, Mapping, NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..config import CLASSES, Params
 from ..lidar import LIFT_SETTINGS, LiftSettings, SimSettings, lidar_dir, tie_scores, with_setting
 from ..checks import Table, config_error, is_number
 from ..report.columns import CROP as _CROP, LIDAR_AXES, LIFT_COLUMNS, SIM_COLUMNS, SIM_INT as _SIM_INT
 from ..report.columns import lift_value as _lift_value
+from ..report.columns import CLASSES, TABLE_FAMILY
 
 __all__ = ["LIFT_COLUMNS", "SIM_COLUMNS", "LIDAR_AXES", "LidarAxes", "LidarKey", "parse_lidar", "lidar_key",
            "key_settings", "tie_table_scores", "describe_key"]
@@ -225,6 +225,6 @@ def tie_table_scores(table: pd.DataFrame, explicit: set[str]) -> pd.DataFrame:
     table = table.copy()
     for pre in [""] + [f"{c}." for c in CLASSES if f"{c}.score_2d" in table.columns or f"{c}.score_3d" in table.columns]:
         cols = {n: table[pre + n].to_numpy() if pre + n in table.columns else table[n].to_numpy()
-                for n in Params._fields}
-        table[pre + "score_3d"] = np.asarray(tie_scores(Params(**cols)).score_3d)
+                for n in TABLE_FAMILY.Params._fields}
+        table[pre + "score_3d"] = np.asarray(tie_scores(TABLE_FAMILY.Params(**cols)).score_3d)
     return table

@@ -2,7 +2,8 @@
 compilation each) and cut into chunks (the resume unit; chunk id = hash of the data settings, the
 chunk's config hashes and what the sweep's axis kinds add, ``AxisKind.chunk_identity``: with
 distortion, the distortion settings). An axis kind that needs data of its own (``AxisKind.split_key``:
-the LiDAR settings) gives each of its keys its own split per class."""
+the LiDAR settings) gives each of its keys its own split per class. The options are the sweep's
+tracker family's (``SweepSpec.family``): one group per family and ``Options`` value."""
 
 from __future__ import annotations
 
@@ -10,12 +11,14 @@ import hashlib
 import json
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Sequence
 
 import pandas as pd
 
-from ..config import MIN_CAPACITY, Options
 from ..data import detection_dir, sequences_with_class
+from ..family import DEFAULT_FAMILY
+from ..family_configs import family_config
+from ..families import family_of
 from ..io.kitti import KittiFormatError, sequence_lengths
 from ..lidar import lidar_dir
 from ..paths import default_data_root
@@ -85,7 +88,9 @@ def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
     if scans is not None and not simulated and not scans.is_dir():
         raise config_error("data.det3d", f"LiDAR scan folder {scans} not found (lidar:DIR expects "
                                          f"DIR/velodyne/SSSS/FFFFFF.bin; with [simulate] DIR is a cache folder)", src)
-    for key, det in (("data.det2d", spec.det2d),) + ((("data.det3d", spec.det3d),) if scans is None else ()):
+    reads = family_config(spec.family).detections       # (the detections its tracker family reads)
+    for key, det in ((("data.det2d", spec.det2d),) if "2d" in reads else ()) + \
+            ((("data.det3d", spec.det3d),) if scans is None and "3d" in reads else ()):
         try:
             detection_dir(root, det, spec.cls)
         except KittiFormatError as e:
@@ -109,7 +114,7 @@ def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
 class Chunk:
     id: str
     group: int
-    options: Options
+    options: tuple             # the tracker family's ``Options``
     configs: tuple[int, ...]
     cls: str = "car"
     lidar: tuple | None = None      # the split key of its split (DataSettings.lidar: a LiDAR setting)
@@ -119,21 +124,21 @@ class Chunk:
         return self.cls == data.cls and self.lidar == data.lidar
 
 
-def _row_options(row: Mapping) -> Options:
-    return Options(**{n: type(Options._field_defaults[n])(row[n]) for n in OPTION_NAMES})
-
-
-def option_groups(table: pd.DataFrame) -> dict[Options, list[int]]:
-    """Config rows by static options, in first-appearance order."""
-    groups: dict[Options, list[int]] = {}
+def option_groups(table: pd.DataFrame, family: str = DEFAULT_FAMILY) -> dict[tuple, list[int]]:
+    """Config rows by static options (the tracker ``family``'s ``Options``), in first-appearance order."""
+    options = family_config(family).Options
+    types = {n: type(options._field_defaults[n]) for n in OPTION_NAMES}
+    groups: dict[tuple, list[int]] = {}
     for row in table[["config"] + list(OPTION_NAMES)].to_dict("records"):
-        groups.setdefault(_row_options(row), []).append(int(row["config"]))
+        groups.setdefault(options(**{n: types[n](row[n]) for n in OPTION_NAMES}), []).append(int(row["config"]))
     return groups
 
 
 def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk: int,
-         axes: AxisKind | Sequence[AxisKind] | None = None, ab3dmot: str | None = None) -> list[Chunk]:
-    """Group the configs by static options (first appearance order), cut each group into chunks.
+         axes: AxisKind | Sequence[AxisKind] | None = None, ab3dmot: str | None = None,
+         family: str = DEFAULT_FAMILY) -> list[Chunk]:
+    """Group the configs by static options (first appearance order; the tracker ``family``'s
+    ``Options``), cut each group into chunks.
 
     ``axes``: the sweep's axis kinds (``SweepSpec.axes``; one kind, e.g. a ``DistortionAxes``, or
     None). A chunk's id hashes the data settings (its class's), its config hashes, what each axis
@@ -144,15 +149,15 @@ def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk
     split of an axis kind's key (``data.lidar``) gets the configs of that key only."""
     axes = () if axes is None else (axes,) if not isinstance(axes, Sequence) else tuple(axes)
     if not isinstance(data, DataSettings):
-        return [c for d in data for c in plan(table, d, chunk, axes, ab3dmot)]
+        return [c for d in data for c in plan(table, d, chunk, axes, ab3dmot, family)]
     if data.lidar is not None or split_keys(axes):      # the configs of this split's key only
         keys = [split_key(axes, r) for r in table.to_dict("records")]
         if data.lidar is not None and all(k is None for k in keys):
             raise ValueError(f"a split of key {data.lidar} but no axis kind gives the configs keys: pass the "
                              f"sweep's axis kinds (plan(..., spec.axes))")
-        groups = option_groups(table[[k == data.lidar for k in keys]])
+        groups = option_groups(table[[k == data.lidar for k in keys]], family)
     else:
-        groups = option_groups(table)
+        groups = option_groups(table, family)
     hashes = table["config_hash"].to_numpy()
     ident = data.identity()
     out = []
@@ -170,28 +175,29 @@ def plan(table: pd.DataFrame, data: DataSettings | Sequence[DataSettings], chunk
 
 
 def check_memory(chunks: Sequence[Chunk], datas: Sequence[DataSettings], distortion: DistortionAxes | None,
-                 max_memory: float | None = None, source: str | None = None) -> int:
-    """The largest tracker output of one chunk, bytes: configs x frames x track slots x (4 bytes of
-    ids, + 16 of boxes when each lane has its own: output "filtered" or a distortion). Capacity 0
-    (from the data) counts the fewest slots it can give (``config.MIN_CAPACITY``): a lower bound.
-    Above ``max_memory`` GB (default :data:`MAX_MEMORY_GB`) raises :class:`SweepConfigError` ("chunk")."""
+                 max_memory: float | None = None, source: str | None = None, family: str = DEFAULT_FAMILY) -> int:
+    """The largest tracker output of one chunk, bytes: configs x frames x track slots x bytes per slot
+    (the tracker ``family``'s ``output_slots``; DFR-FastMOT: 4 bytes of ids, + 16 of boxes when each
+    lane has its own: output "filtered" or a distortion). Capacity 0 (from the data) counts the fewest
+    slots it can give (``config.MIN_CAPACITY``): a lower bound. Above ``max_memory`` GB (default
+    :data:`MAX_MEMORY_GB`) raises :class:`SweepConfigError` ("chunk")."""
     frames = {d.cls: int(sum(d.lengths)) for d in datas}
+    output_slots = family_of(family).output_slots
 
-    def need(c: Chunk) -> tuple[int, int, int]:
-        slot = 4 + (16 if c.options.output == "filtered" or distortion is not None else 0)
-        k = c.options.capacity or MIN_CAPACITY
-        return len(c.configs) * frames[c.cls] * k * slot, k, slot
+    def need(c: Chunk) -> tuple[int, int, int, bool]:
+        k, slot, fixed = output_slots(c.options, distortion is not None)
+        return len(c.configs) * frames[c.cls] * k * slot, k, slot, fixed
 
     if not chunks:
         return 0
     worst = max(chunks, key=need)
-    n, k, slot = need(worst)
+    n, k, slot, fixed = need(worst)
     limit = MAX_MEMORY_GB if max_memory is None else float(max_memory)
     if n > limit * 1e9:
-        slots = f"{k} track slots" + (" (options.capacity)" if worst.options.capacity else
+        slots = f"{k} track slots" + (" (options.capacity)" if fixed else
                                       " (at least: options.capacity 0 sizes them from the data)")
         raise config_error("chunk", f"a chunk of {len(worst.configs):,} configs x {frames[worst.cls]:,} frames ({worst.cls}) x "
                             f"{slots} x {slot} bytes = {n / 1e9:.3g} GB of tracker output, above the limit of "
-                            f"{limit:g} GB: lower chunk (--chunk N){' or options.capacity' if worst.options.capacity else ''}"
+                            f"{limit:g} GB: lower chunk (--chunk N){' or options.capacity' if fixed else ''}"
                             f", or raise the limit with --max-memory GB (run_sweep(max_memory=GB))", source)
     return n

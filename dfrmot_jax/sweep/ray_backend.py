@@ -38,7 +38,7 @@ from typing import Any, Sequence
 import jax
 import pandas as pd
 
-from ..core.devices import setup_host_devices
+from ..devices import setup_host_devices
 from ..metrics.kitti2d.evaluate import worker_pool
 from ..checks import SweepConfigError
 from .chunks import ChunkRunner, Keep, load_data

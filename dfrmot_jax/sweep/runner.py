@@ -58,8 +58,8 @@ def prepare_sweep(spec, *, data_root=None, chunk: int | None = None, folds: int 
     if spec.folds is not None and not 2 <= spec.folds <= n_seq:
         raise SweepConfigError("folds", f"{spec.folds}: expected 2 .. {n_seq} (the sequences"
                                + (" of the class with the fewest)" if len(datas) > 1 else ")"), spec.source)
-    chunks = plan(table, datas, spec.chunk, spec.axes, spec.metrics_identity())
-    check_memory(chunks, datas, spec.distortion, max_memory, spec.source)
+    chunks = plan(table, datas, spec.chunk, spec.axes, spec.metrics_identity(), spec.family)
+    check_memory(chunks, datas, spec.distortion, max_memory, spec.source, spec.family)
     return PreparedSweep(spec, table, tuple(datas), tuple(chunks))
 
 

@@ -1,7 +1,8 @@
 """The sweep file: spec dataclasses, TOML parsing and validation (``load_spec``, ``parse_spec``).
 
-Every parameter and option value is checked by the one validator, :func:`dfrmot_jax.config.param_problem`
-/ :func:`dfrmot_jax.config.option_problem`; a bad file fails before any work with a
+Every parameter and option value is checked by the one validator of the sweep's tracker family
+(``[options] family``, default ``"dfr"``: its :class:`~dfrmot_jax.family.FamilyConfig`'s
+``param_problem`` / ``option_problem``, presets and classes); a bad file fails before any work with a
 :class:`SweepConfigError` naming the key. The format is documented in ``sweeps/README.md``.
 """
 
@@ -14,7 +15,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..config import CLASSES, INT_PARAMS, PRESETS, option_problem, param_problem
+from ..family import DEFAULT_FAMILY, FamilyConfig
+from ..family_configs import family_config, family_names
 from ..lidar import lidar_dir
 from ..choices import DEFAULT_AB3DMOT_IOU, parse_iou
 from ..metrics.ab3dmot.sums import DEFAULT_SUM, SUMS
@@ -33,7 +35,7 @@ from ..checks import (
 from .axes import AxisKind
 from .distortion import DistortionAxes, parse_distortion
 from .lidar_axes import LidarAxes, parse_lidar
-from ..report.columns import AVERAGE, OPTION_NAMES, PARAM_NAMES, Contrast, parse_contrast
+from ..report.columns import AVERAGE, OPTION_NAMES, PARAM_NAMES, TABLE_FAMILY, Contrast, parse_contrast
 
 RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
 
@@ -137,6 +139,7 @@ class SweepSpec:
     contrast: Contrast | None = None
     source: str | None = None
     raw: Mapping | None = field(default=None, compare=False, repr=False)
+    family: str = DEFAULT_FAMILY                # [options] family: the tracker family of every config
 
 
 def load_spec(path) -> SweepSpec:
@@ -158,14 +161,14 @@ def read_toml(path, what: str = "sweep file") -> dict:
         raise SweepConfigError("(file)", f"not valid TOML: {e}", str(path)) from None
 
 
-def _check_param_value(name: str, v, key: str, source) -> int | float:
-    problem = param_problem(name, v) if is_number(v) else f"not a number ({type_name(v)})"
+def _check_param_value(name: str, v, key: str, source, fc: FamilyConfig) -> int | float:
+    problem = fc.param_problem(name, v) if is_number(v) else f"not a number ({type_name(v)})"
     if problem:
         raise config_error(key, f"{v!r}: parameter {name}: {problem}", source)
-    return int(round(float(v))) if name in INT_PARAMS else float(v)
+    return int(round(float(v))) if name in fc.int_params else float(v)
 
 
-def _param_axis(name: str, spec, key: str, source) -> Axis:
+def _param_axis(name: str, spec, key: str, source, fc: FamilyConfig) -> Axis:
     if name not in PARAM_NAMES:
         hint = " (a static option: put it under [options])" if name in OPTION_NAMES else ""
         raise config_error(key, f"unknown parameter{hint}; parameters are {list(PARAM_NAMES)}", source)
@@ -182,7 +185,7 @@ def _param_axis(name: str, spec, key: str, source) -> Axis:
         if kind in ("grid", "choice"):
             if not arg:
                 raise config_error(k2, "empty list: nothing to sweep", source)
-            vals = tuple(_check_param_value(name, v, f"{k2}[{i}]", source) for i, v in enumerate(arg))
+            vals = tuple(_check_param_value(name, v, f"{k2}[{i}]", source, fc) for i, v in enumerate(arg))
             return Axis(name, "grid" if kind == "grid" else "choice", vals, key)
         if kind in ("linspace", "logspace"):
             if len(arg) != 3 or not all(is_number(a) for a in arg) or isinstance(arg[2], float) and \
@@ -192,20 +195,20 @@ def _param_axis(name: str, spec, key: str, source) -> Axis:
             if n < 1:
                 raise config_error(k2, f"count {n} < 1: empty grid", source)
             check_count(n, k2, source)
-            _check_param_value(name, lo, k2, source)
-            _check_param_value(name, hi, k2, source) if name not in INT_PARAMS else None
+            _check_param_value(name, lo, k2, source, fc)
+            _check_param_value(name, hi, k2, source, fc) if name not in fc.int_params else None
             if kind == "logspace":
                 if lo <= 0 or hi <= 0:
                     raise config_error(k2, f"logspace needs positive ends, got {arg!r}", source)
                 raw = np.geomspace(lo, hi, n)
             else:
                 raw = np.linspace(lo, hi, n)
-            if name in INT_PARAMS:
+            if name in fc.int_params:
                 rounded = np.round(raw)
                 if np.any(np.abs(raw - rounded) > 1e-9):
                     raise config_error(k2, f"gives non-integer values {raw.tolist()} for integer parameter {name}", source)
                 raw = rounded
-            vals = tuple(dict.fromkeys(_check_param_value(name, clean_float(v), k2, source) for v in raw))
+            vals = tuple(dict.fromkeys(_check_param_value(name, clean_float(v), k2, source, fc) for v in raw))
             return Axis(name, "grid", vals, key)
         # uniform / loguniform / randint: [low, high]
         if len(arg) != 2 or not all(is_number(a) for a in arg):
@@ -217,32 +220,32 @@ def _param_axis(name: str, spec, key: str, source) -> Axis:
             if not all(float(a).is_integer() for a in arg):
                 raise config_error(k2, f"randint takes integers, got {arg!r}", source)
             lo, hi = int(lo), int(hi)
-            _check_param_value(name, lo, k2, source)
-            _check_param_value(name, hi - 1, k2, source)
+            _check_param_value(name, lo, k2, source, fc)
+            _check_param_value(name, hi - 1, k2, source, fc)
             return Axis(name, kind, (lo, hi), key)
-        if name in INT_PARAMS:
+        if name in fc.int_params:
             raise config_error(k2, f"parameter {name} takes integers: use randint", source)
         if kind == "loguniform" and float(lo) <= 0:
             raise config_error(k2, f"loguniform needs low > 0, got {lo!r}", source)
-        _check_param_value(name, lo, k2, source)
-        _check_param_value(name, hi, k2, source)
+        _check_param_value(name, lo, k2, source, fc)
+        _check_param_value(name, hi, k2, source, fc)
         return Axis(name, kind, (float(lo), float(hi)), key)
     if isinstance(spec, list):
         if not spec:
             raise config_error(key, "empty list: nothing to sweep", source)
-        vals = tuple(_check_param_value(name, v, f"{key}[{i}]", source) for i, v in enumerate(spec))
+        vals = tuple(_check_param_value(name, v, f"{key}[{i}]", source, fc) for i, v in enumerate(spec))
         return Axis(name, "grid", vals, key)
-    return Axis(name, "grid", (_check_param_value(name, spec, key, source),), key)
+    return Axis(name, "grid", (_check_param_value(name, spec, key, source, fc),), key)
 
 
-def _check_option_value(name: str, v, key: str, source):
-    problem = option_problem(name, v)
+def _check_option_value(name: str, v, key: str, source, fc: FamilyConfig):
+    problem = fc.option_problem(name, v)
     if problem:
         raise config_error(key, f"{v!r}: {problem}", source)
     return v
 
 
-def _option_axis(name: str, spec, key: str, source) -> Axis:
+def _option_axis(name: str, spec, key: str, source, fc: FamilyConfig) -> Axis:
     if name not in OPTION_NAMES:
         hint = " (a dynamic parameter: put it under [params])" if name in PARAM_NAMES else ""
         raise config_error(key, f"unknown option{hint}; options are {list(OPTION_NAMES)}", source)
@@ -255,51 +258,53 @@ def _option_axis(name: str, spec, key: str, source) -> Axis:
     vals = spec if isinstance(spec, list) else [spec]
     if not vals:
         raise config_error(key, "empty list: nothing to sweep", source)
-    vals = tuple(dict.fromkeys(_check_option_value(name, v, f"{key}[{i}]" if isinstance(spec, list) else key, source)
+    vals = tuple(dict.fromkeys(_check_option_value(name, v, f"{key}[{i}]" if isinstance(spec, list) else key,
+                                                   source, fc)
                                for i, v in enumerate(vals)))
     return Axis(name, "grid", vals, key)
 
 
-def _class_axis(cls: str, name: str, spec, key: str, source, classes: Sequence[str]) -> Axis:
+def _class_axis(cls: str, name: str, spec, key: str, source, classes: Sequence[str], fc: FamilyConfig) -> Axis:
     """A per-class parameter axis ``<cls>.<name>`` (``key`` names it in errors)."""
-    if cls not in CLASSES:
+    if cls not in fc.classes:
         raise config_error(key.rsplit(".", 1)[0] if "." in key else key,
                    f"{cls!r} is neither a parameter nor a class; parameters are {list(PARAM_NAMES)}, "
-                   f"classes {list(CLASSES)} (per-class axes: <class>.<parameter>)", source)
+                   f"classes {list(fc.classes)} (per-class axes: <class>.<parameter>)", source)
     if cls not in classes:
         raise config_error(key, f"class {cls!r} is not swept (data.class = {list(classes)})", source)
     if name in OPTION_NAMES and name not in PARAM_NAMES:
         raise config_error(key, "static options apply to every class; per-class axes are for parameters", source)
-    axis = _param_axis(name, spec, key, source)
+    axis = _param_axis(name, spec, key, source, fc)
     return replace(axis, name=f"{cls}.{name}", cls=cls)
 
 
-def _axes(table, kind: str, prefix: str, source, classes: Sequence[str] = ("car",)) -> tuple[Axis, ...]:
+def _axes(table, kind: str, prefix: str, source, fc: FamilyConfig,
+          classes: Sequence[str] = ("car",)) -> tuple[Axis, ...]:
     if table is None:
         return ()
     if not isinstance(table, Mapping):
         raise config_error(prefix, f"expected a table, got {type(table).__name__}", source)
     if kind != "params":
         for k in table:
-            if k in CLASSES or "." in k:
+            if k in fc.classes or "." in k:
                 raise config_error(f"{prefix}.{k}", "static options apply to every class: per-class axes "
                                             "(<class>.<name>) are for [params]", source)
-        return tuple(_option_axis(k, v, f"{prefix}.{k}", source) for k, v in table.items())
+        return tuple(_option_axis(k, v, f"{prefix}.{k}", source, fc) for k, v in table.items() if k != FAMILY_KEY)
     out = []
     for k, v in table.items():
         if "." in k:                                   # a quoted key "pedestrian.a_l"
             cls, name = k.split(".", 1)
-            out.append(_class_axis(cls, name, v, f"{prefix}.{k}", source, classes))
+            out.append(_class_axis(cls, name, v, f"{prefix}.{k}", source, classes, fc))
         elif k not in PARAM_NAMES and k not in OPTION_NAMES and isinstance(v, Mapping) and \
                 not set(v) & set(GRID_KINDS + RANDOM_KINDS):      # pedestrian.a_l = ... / [params.pedestrian]
-            if k not in CLASSES:
+            if k not in fc.classes:
                 raise config_error(f"{prefix}.{k}", f"unknown parameter or class; parameters are {list(PARAM_NAMES)}, "
-                                            f"classes {list(CLASSES)} (per-class axes: <class>.<parameter>)",
+                                            f"classes {list(fc.classes)} (per-class axes: <class>.<parameter>)",
                            source)
             for name, spec in v.items():
-                out.append(_class_axis(k, name, spec, f"{prefix}.{k}.{name}", source, classes))
+                out.append(_class_axis(k, name, spec, f"{prefix}.{k}.{name}", source, classes, fc))
         else:
-            out.append(_param_axis(k, v, f"{prefix}.{k}", source))
+            out.append(_param_axis(k, v, f"{prefix}.{k}", source, fc))
     return tuple(out)
 
 
@@ -320,18 +325,18 @@ def _parse_sequences(v, key, source) -> tuple[str, ...] | None:
     return tuple(out)
 
 
-def _parse_classes(v, source) -> tuple[str, ...]:
+def _parse_classes(v, source, fc: FamilyConfig) -> tuple[str, ...]:
     """``data.class``: a class name or a non-empty list of distinct class names."""
     if isinstance(v, str):
         items = [("data.class", v)]
     elif isinstance(v, list) and v:
         items = [(f"data.class[{i}]", c) for i, c in enumerate(v)]
     else:
-        raise config_error("data.class", f"{v!r}: expected a class name or a non-empty list of classes {list(CLASSES)}",
-                   source)
+        raise config_error("data.class", f"{v!r}: expected a class name or a non-empty list of classes "
+                                         f"{list(fc.classes)}", source)
     for key, c in items:
-        if c not in CLASSES:
-            raise config_error(key, f"{c!r} is not one of {list(CLASSES)}", source)
+        if c not in fc.classes:
+            raise config_error(key, f"{c!r} is not one of {list(fc.classes)}", source)
     out = tuple(c for _, c in items)
     if len(set(out)) != len(out):
         raise config_error("data.class", "a class is listed twice", source)
@@ -347,9 +352,11 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     chunk = top.integer("chunk", 64)
     samples = top.integer("samples", 1)
     seed = top.integer("seed", 0, minimum=0)
-    data, classes, root, sequences = _parse_data(top, source)
-    base, base_cls = _parse_baseline(top)
-    variants = _parse_variants(doc, top, classes, source)
+    family = parse_family(doc, source)
+    fc = family_config(family)
+    data, classes, root, sequences = _parse_data(top, source, fc)
+    base, base_cls = _parse_baseline(top, fc)
+    variants = _parse_variants(doc, top, classes, source, fc)
     rep = top.table("report", REPORT_KEYS)
     try:
         objective = canonical_objective(rep.string("objective", "HOTA"))
@@ -379,7 +386,7 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
                      folds=folds, top=top_n, distortion=distortion, contrast=contrast, source=source,
                      raw=dict(doc), classes=classes, baseline_class=base_cls, report_class=report_class,
                      ab3dmot=ab3dmot, ab3dmot_columns=ab3dmot_columns, ab3dmot_sum=ab3dmot_sum,
-                     lidar=parse_lidar(doc, source))
+                     lidar=parse_lidar(doc, source), family=family)
     for v in spec.variants:
         if samples > 1 and all(a.is_grid for a in v.params):
             raise config_error("samples", f"samples = {samples} repeats the grid with random parameters redrawn, but "
@@ -388,7 +395,8 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     return spec
 
 
-def _parse_data(top: Table, source) -> tuple[Table, tuple[str, ...], str | None, tuple[str, ...] | None]:
+def _parse_data(top: Table, source,
+                fc: FamilyConfig) -> tuple[Table, tuple[str, ...], str | None, tuple[str, ...] | None]:
     """The [data] table: (the table, its classes, its root resolved against the file's folder, its sequences)."""
     data = top.table("data", DATA_KEYS)
     for k in ("root", "det2d", "det3d"):
@@ -397,30 +405,64 @@ def _parse_data(top: Table, source) -> tuple[Table, tuple[str, ...], str | None,
         lidar_dir(data.get("det3d", ""))                # "lidar:" without its folder
     except ValueError as e:
         raise data.error("det3d", str(e)) from None
-    classes = _parse_classes(data.get("class", "car"), source)
+    classes = _parse_classes(data.get("class", "car"), source, fc)
     root = data.get("root")
     if root is not None and source is not None and not Path(root).expanduser().is_absolute():
         root = str((Path(source).parent / Path(root).expanduser()).resolve())
     return data, classes, root, _parse_sequences(data.get("sequences"), "data.sequences", source)
 
 
-def _parse_baseline(top: Table) -> tuple[str, str | None]:
+def _parse_baseline(top: Table, fc: FamilyConfig) -> tuple[str, str | None]:
     """``baseline = "preset"`` or the [baseline] table: (the preset, its class or None)."""
-    base = top.get("baseline", "dfr2023")
+    base = top.get("baseline", fc.default_preset)
     if not isinstance(base, Mapping):
-        return top.choice("baseline", "dfr2023", sorted(PRESETS), "unknown preset"), None
+        return top.choice("baseline", fc.default_preset, sorted(fc.presets), "unknown preset"), None
     bt = top.table("baseline", BASELINE_KEYS)
     base_cls = bt.get("class")
-    if base_cls is not None and (not isinstance(base_cls, str) or base_cls not in CLASSES):
-        raise bt.error("class", f"{base_cls!r}: expected one of {list(CLASSES)} (every class's baseline is the "
+    if base_cls is not None and (not isinstance(base_cls, str) or base_cls not in fc.classes):
+        raise bt.error("class", f"{base_cls!r}: expected one of {list(fc.classes)} (every class's baseline is the "
                                 f"preset as tuned for this class)")
-    return bt.choice("preset", "dfr2023", sorted(PRESETS), "unknown preset"), base_cls
+    return bt.choice("preset", fc.default_preset, sorted(fc.presets), "unknown preset"), base_cls
 
 
-def _parse_variants(doc: Mapping, top: Table, classes: tuple[str, ...], source) -> tuple[Variant, ...]:
+#: the static option that names the sweep's tracker family (``[options] family``)
+FAMILY_KEY = "family"
+
+
+def parse_family(doc: Mapping, source: str | None = None) -> str:
+    """``[options] family`` (and each ``[[variants]]``' ``options.family``): the tracker family of every
+    config, one name of :mod:`dfrmot_jax.family_configs` (default ``"dfr"``). A sweep is of one family:
+    its tables hold one family's parameter and option columns, and those of DFR-FastMOT's, so a family
+    with other settings cannot be swept until the tables name each row's family."""
+    found = []
+    variants = doc.get("variants") if isinstance(doc.get("variants"), list) else []
+    for key, table in [("options", doc.get("options"))] + [(f"variants[{i}].options", v.get("options"))
+                                                           for i, v in enumerate(variants) if isinstance(v, Mapping)]:
+        if isinstance(table, Mapping) and FAMILY_KEY in table:
+            found.append((f"{key}.{FAMILY_KEY}", table[FAMILY_KEY]))
+    for key, v in found:
+        if not isinstance(v, str) or v not in family_names():
+            raise config_error(key, f"{v!r}: expected one tracker family of {list(family_names())} (a sweep is of "
+                                    f"one family)", source)
+    names = list(dict.fromkeys(v for _, v in found))
+    if len(names) > 1:
+        raise config_error(found[[v for _, v in found].index(names[1])][0],
+                           f"{names[1]!r}: a sweep is of one tracker family, and another entry names {names[0]!r}; "
+                           f"sweep each family in a file of its own", source)
+    family = names[0] if names else DEFAULT_FAMILY
+    fc = family_config(family)
+    if fc.Params._fields != PARAM_NAMES or fc.Options._fields != OPTION_NAMES:
+        raise config_error(found[0][0], f"{family!r}: its parameters and options are not the columns of a sweep's "
+                                        f"tables, which are {TABLE_FAMILY.title}'s until the tables name each "
+                                        f"row's family", source)
+    return family
+
+
+def _parse_variants(doc: Mapping, top: Table, classes: tuple[str, ...], source,
+                    fc: FamilyConfig) -> tuple[Variant, ...]:
     """[params] and [options], and each [[variants]] entry overriding them (one variant "grid" without any)."""
-    params = _axes(doc.get("params"), "params", "params", source, classes)
-    options = _axes(doc.get("options"), "options", "options", source)
+    params = _axes(doc.get("params"), "params", "params", source, fc, classes)
+    options = _axes(doc.get("options"), "options", "options", source, fc)
     variants_doc = doc.get("variants")
     if variants_doc is None:
         return (Variant("grid", params, options),)
@@ -430,8 +472,8 @@ def _parse_variants(doc: Mapping, top: Table, classes: tuple[str, ...], source) 
     for i, v in enumerate(variants_doc):
         vt = Table(v, f"variants[{i}]", source, VARIANT_KEYS)
         vname = vt.string("name", f"variant{i}")
-        vp = _axes(v.get("params"), "params", f"variants[{i}].params", source, classes)
-        vo = _axes(v.get("options"), "options", f"variants[{i}].options", source)
+        vp = _axes(v.get("params"), "params", f"variants[{i}].params", source, fc, classes)
+        vo = _axes(v.get("options"), "options", f"variants[{i}].options", source, fc)
         over_p = {a.name for a in vp}
         over_o = {a.name for a in vo}
         variants.append(Variant(vname,

@@ -27,6 +27,7 @@ from typing import Any, Sequence
 import numpy as np
 import pandas as pd
 
+from ..family import DEFAULT_FAMILY
 from ..io.atomic import TMP_NAME, naming, sha256, write_parquet_atomic, write_text_atomic
 from ..metrics.kitti2d.evaluate import RAW_FIELDS, summary_columns
 from .folder import SweepDirectoryError, claim
@@ -245,6 +246,8 @@ def write_manifest(outdir: Path, spec: SweepSpec, datas: Sequence[DataSettings],
         manifest["contrast"] = contrast_doc(spec.contrast)
     if spec.ab3dmot is not None:
         manifest["ab3dmot_sum"] = spec.ab3dmot_sum
+    if spec.family != DEFAULT_FAMILY:           # (a manifest without it is the default family's)
+        manifest["family"] = spec.family
     write_text_atomic(outdir / "manifest.json", json.dumps(manifest, indent=1), parents=False)
     write_parquet_atomic(outdir / "configs.parquet", table)
     return old is not None and "ledger" not in old

@@ -5,6 +5,11 @@
 is recorded in every sweep directory's manifest (``hash_version``; a directory without it is
 version 1, the scheme of every directory written before the version existed). A change that
 alters any hash or chunk id must bump it.
+
+The configs are of the sweep's tracker family (``SweepSpec.family``): its presets make the baseline,
+its types the columns' types, its checks refuse a table (``TrackerFamily.table_problem``); a config
+of another family than the default (``"dfr"``) hashes with its family's name, so that every config
+of the default family keeps the hash it had before families existed.
 """
 
 from __future__ import annotations
@@ -17,9 +22,10 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ..config import INT_PARAMS, PRESETS, Options, Params, as_arrays, preset
-from ..core.filters import fixed_gain_radius
 from ..checks import config_error
+from ..family import DEFAULT_FAMILY
+from ..family_configs import family_config
+from ..families import family_of
 from ..lidar import lidar_dir
 from .axes import AxisKind, cross_rows, hash_settings
 from .lidar_axes import tie_table_scores
@@ -62,13 +68,14 @@ def _class_extra(row: Mapping[str, Any]) -> dict:
     return out
 
 
-def config_hash(row: Mapping[str, Any], settings: Mapping[str, Any] | None = None) -> str:
+def config_hash(row: Mapping[str, Any], settings: Mapping[str, Any] | None = None,
+                family: str = DEFAULT_FAMILY) -> str:
     """Stable 16-hex-digit hash of a config: every parameter and option (+ extra axes off their
     default, such as the distortion axes; + ``settings``, sweep-wide values off their defaults that
     change this row, e.g. a distortion lane's burst start rate; + a sweep over several classes' per-class
     values, columns ``<class>.<parameter>``, where they differ from the plain column: a row without
     such a difference hashes exactly as before; an option of ``LATE_OPTIONS`` or a parameter of
-    ``LATE_PARAMS`` only off its default)."""
+    ``LATE_PARAMS`` only off its default; + the tracker ``family`` unless it is the default one)."""
     late = {n: canonical_value(n, row.get(n, d)) for n, d in LATE_OPTIONS.items()}
     key = {"params": {n: canonical_value(n, row[n]) for n in PARAM_NAMES
                       if n not in LATE_PARAMS or canonical_value(n, row.get(n, LATE_PARAMS[n])) != canonical_value(n, LATE_PARAMS[n])},
@@ -82,6 +89,8 @@ def config_hash(row: Mapping[str, Any], settings: Mapping[str, Any] | None = Non
         extra["classes"] = classes
     if extra:
         key["extra"] = extra
+    if family != DEFAULT_FAMILY:
+        key["family"] = family
     text = json.dumps(key, sort_keys=True, separators=(",", ":"))
     return hashlib.sha1(text.encode()).hexdigest()[:16]
 
@@ -145,9 +154,9 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     _check_size(spec, max_configs)
     table = settings_table(spec)
     for i, kind in enumerate(spec.axes):
-        table = cross(table, kind, spec.axes[:i + 1])
+        table = cross(table, kind, spec.axes[:i + 1], spec.family)
     table.insert(0, "config", np.arange(len(table), dtype=np.int64))
-    _check_configs(table, spec.source)
+    _check_configs(table, spec.source, spec.family)
     return table
 
 
@@ -183,7 +192,7 @@ def settings_table(spec: SweepSpec) -> pd.DataFrame:
             table = table.drop(columns=[c])
     if lidar_dir(spec.det3d) is not None:      # lifted boxes carry their 2D score (as dfrmot track)
         table = tie_table_scores(table, {a.name for v in spec.variants for a in v.params})
-    return typed_table(table).drop_duplicates("config_hash", keep="first").reset_index(drop=True)
+    return typed_table(table, spec.family).drop_duplicates("config_hash", keep="first").reset_index(drop=True)
 
 
 def _variant_rows(spec: SweepSpec, v: Variant, rng: np.random.Generator, base_row: dict,
@@ -213,10 +222,12 @@ def _variant_rows(spec: SweepSpec, v: Variant, rng: np.random.Generator, base_ro
     return rows
 
 
-def cross(table: pd.DataFrame, kind: AxisKind, kinds: Sequence[AxisKind]) -> pd.DataFrame:
+def cross(table: pd.DataFrame, kind: AxisKind, kinds: Sequence[AxisKind],
+          family: str = DEFAULT_FAMILY) -> pd.DataFrame:
     """Every config of ``table`` x an axis kind's values (:func:`~.axes.cross_rows`: its columns
     innermost, typed as their defaults; the baseline still first), hashes recomputed with the
-    settings of ``kinds`` (those crossed so far, ``kind`` last), configs that hash alike kept once."""
+    settings of ``kinds`` (those crossed so far, ``kind`` last) and the tracker ``family``, configs that
+    hash alike kept once."""
     unknown = [c for c in kind.columns if c not in extra_axes()]
     if unknown:             # (config_hash and the result rows know a kind's columns from that registry)
         raise ValueError(f"axis columns {unknown} are not registered in dfrmot_jax.report.columns.EXTRA_AXES")
@@ -226,7 +237,7 @@ def cross(table: pd.DataFrame, kind: AxisKind, kinds: Sequence[AxisKind]) -> pd.
         out[c] = out[c].astype(table[c].dtype)
     for c, d in kind.columns.items():
         out[c] = out[c].astype(_column_dtype(d))
-    out.insert(0, "config_hash", [config_hash(r, hash_settings(kinds, r)) for r in out.to_dict("records")])
+    out.insert(0, "config_hash", [config_hash(r, hash_settings(kinds, r), family) for r in out.to_dict("records")])
     return out.drop_duplicates("config_hash", keep="first").reset_index(drop=True)
 
 
@@ -236,70 +247,37 @@ def _column_dtype(default):
         "float64" if isinstance(default, float) else object
 
 
-def _check_configs(table: pd.DataFrame, src: str | None) -> None:
-    """The checks on a whole table: a config besides the baseline, filtered boxes with stable fixed
-    gains, ``keep_lost`` only with filtered output (a :class:`SweepConfigError` naming the key)."""
+def _check_configs(table: pd.DataFrame, src: str | None, family: str = DEFAULT_FAMILY) -> None:
+    """The checks on a whole table: a config besides the baseline, and the tracker family's own
+    (``TrackerFamily.table_problem``; DFR-FastMOT: filtered boxes with stable fixed gains,
+    ``keep_lost`` only with filtered output), a :class:`SweepConfigError` naming the key."""
     if len(table) < 2:
         raise config_error("params", "the sweep has no config besides the baseline: add parameters or options to sweep",
                    src)
-    unstable = unstable_rows(table) & (table["output"] == "filtered").to_numpy()
-    if unstable.any():
-        r = table[unstable].iloc[0]
-        raise config_error("params.gain_beta", unstable_message(
-            f"{int(unstable.sum())} of {len(table)} configs", r["gain_alpha"], r["gain_beta"], r["gain_gamma"],
-            f"e.g. config {int(r['config'])}: ", " or use [[variants]]"), src)
-    for kl in ["keep_lost"] + [c for c in class_columns(table.columns) if c.endswith(".keep_lost")]:
-        bad = table[(table[kl] > 0) & (table["output"] == "detections")]
-        if not len(bad):
-            continue
-        r = bad.iloc[0]
-        raise config_error(f"params.{kl}", f"{kl} = {r[kl]} writes lost tracks' predicted boxes and needs "
-                                       f"output = \"filtered\" (variant {r['variant']!r} pairs it with output = "
-                                       f"\"detections\"); use [[variants]] to give keep_lost its own output", src)
+    problem = family_of(family).table_problem(table)
+    if problem is not None:
+        raise config_error(problem[0], problem[1], src)
 
 
-def unstable_gains(fixed, alpha, beta, gamma) -> np.ndarray:
-    """[C] bool: lanes with the fixed-gain filter (``fixed`` [C] bool) and gains ([C] each) it is
-    unstable with (spectral radius > 1, :func:`dfrmot_jax.core.filters.fixed_gain_radius`): their
-    predicted and filtered boxes grow without bound. The one test sweeps, tunes and ``dfrmot track`` use."""
-    return np.asarray(fixed, bool) & (fixed_gain_radius(alpha, beta, gamma) > 1.0 + 1e-9)
-
-
-def unstable_message(what: str, alpha, beta, gamma, example: str = "", more: str = "") -> str:
-    """Why ``what`` ("3 of 9 configs", "--class car") is refused: filtered boxes with unstable fixed gains."""
-    return (f"{what} write filtered boxes with fixed gains outside the filter's stability region ({example}gain_alpha "
-            f"{float(alpha):.4g}, gain_beta {float(beta):.4g}, gain_gamma {float(gamma):.4g}): their boxes grow "
-            f"without bound; keep gain_gamma small against gain_beta (e.g. gamma <= beta / 4){more}")
-
-
-def unstable_rows(table: pd.DataFrame) -> np.ndarray:
-    """[C] bool: rows with the fixed-gain filter and gains it is unstable with (:func:`unstable_gains`;
-    any class's gains)."""
-    out = np.zeros(len(table), bool)
-    fixed = (table["filter"] == "fixed_gain").to_numpy()
-    for pre in [""] + sorted({c.split(".")[0] + "." for c in class_columns(table.columns) if "gain" in c}):
-        cols = [pre + g if pre + g in table.columns else g for g in ("gain_alpha", "gain_beta", "gain_gamma")]
-        out |= unstable_gains(fixed, *(table[c].to_numpy() for c in cols))
-    return out
-
-
-def typed_table(table: pd.DataFrame) -> pd.DataFrame:
+def typed_table(table: pd.DataFrame, family: str = DEFAULT_FAMILY) -> pd.DataFrame:
     """Config rows (``variant``, ``baseline``, every parameter, class column and option) with the
-    table's column types (integer parameters int64, the others float64, options as ``Options``
-    declares them) and ``config_hash`` inserted first. Duplicates are kept."""
+    table's column types (integer parameters int64, the others float64, options as the family's
+    ``Options`` declares them) and ``config_hash`` (of the tracker ``family``) inserted first.
+    Duplicates are kept."""
+    fc = family_config(family)
     table = table.copy()
     for n in list(PARAM_NAMES) + class_columns(table.columns):
         t = split_class_column(n)[1] if split_class_column(n) else n
-        table[n] = table[n].astype("int64" if t in INT_PARAMS else "float64")
+        table[n] = table[n].astype("int64" if t in fc.int_params else "float64")
     for n in OPTION_NAMES:
-        d = Options._field_defaults[n]
+        d = fc.Options._field_defaults[n]
         table[n] = table[n].astype(bool if isinstance(d, bool) else "int64" if isinstance(d, int) else object)
-    table.insert(0, "config_hash", [config_hash(r) for r in table.to_dict("records")])
+    table.insert(0, "config_hash", [config_hash(r, family=family) for r in table.to_dict("records")])
     return table
 
 
 def baseline_row(spec: SweepSpec) -> dict:
-    """The baseline's parameters and options of a one-class sweep (``preset(baseline, class)``)."""
+    """The baseline's parameters and options of a one-class sweep (its family's ``preset(baseline, class)``)."""
     return _baseline_rows(spec)[0]
 
 
@@ -307,14 +285,15 @@ def _baseline_rows(spec: SweepSpec) -> tuple[dict, dict[str, dict]]:
     """(the plain baseline row: parameters and options, {class: its baseline parameters}).
 
     One class: the plain row is ``preset(baseline, baseline_class or the class)`` and there are no
-    per-class values. Several: the plain row is the bare preset (``PRESETS[baseline]``; with
+    per-class values. Several: the plain row is the bare preset (``presets[baseline]``; with
     ``[baseline] class``, ``preset(baseline, that class)``), and class ``k``'s baseline is
-    ``preset(baseline, baseline_class or k)``."""
+    ``preset(baseline, baseline_class or k)``: the presets of the sweep's tracker family."""
+    fc = family_config(spec.family)
     if len(spec.classes) == 1:
-        p, o = preset(spec.baseline, spec.baseline_class or spec.classes[0])
+        p, o = fc.preset(spec.baseline, spec.baseline_class or spec.classes[0])
         return {**p._asdict(), **o._asdict()}, {}
-    p, o = preset(spec.baseline, spec.baseline_class) if spec.baseline_class else PRESETS[spec.baseline]
-    per = {k: preset(spec.baseline, spec.baseline_class or k)[0]._asdict() for k in spec.classes}
+    p, o = fc.preset(spec.baseline, spec.baseline_class) if spec.baseline_class else fc.presets[spec.baseline]
+    per = {k: fc.preset(spec.baseline, spec.baseline_class or k)[0]._asdict() for k in spec.classes}
     return {**p._asdict(), **o._asdict()}, per
 
 
@@ -323,10 +302,12 @@ def n_settings(table: pd.DataFrame) -> int:
     return int(len(table.drop_duplicates(list(PARAM_NAMES) + class_columns(table.columns) + list(OPTION_NAMES))))
 
 
-def params_of(table: pd.DataFrame, rows: Sequence[int], cls: str | None = None) -> Params:
-    """The parameters of table rows for class ``cls`` (its ``<cls>.<parameter>`` columns where the
-    table has them, else the plain ones; a parameter of ``LATE_PARAMS`` that a table written before
-    it existed lacks: its default, as the report reads such a table)."""
+def params_of(table: pd.DataFrame, rows: Sequence[int], cls: str | None = None, family: str = DEFAULT_FAMILY):
+    """The parameters (the tracker ``family``'s ``Params``) of table rows for class ``cls`` (its
+    ``<cls>.<parameter>`` columns where the table has them, else the plain ones; a parameter of
+    ``LATE_PARAMS`` that a table written before it existed lacks: its default, as the report reads
+    such a table)."""
+    fc = family_config(family)
     sub = table.iloc[list(rows)]
 
     def column(n: str) -> np.ndarray:
@@ -335,5 +316,5 @@ def params_of(table: pd.DataFrame, rows: Sequence[int], cls: str | None = None) 
             return np.full(len(sub), LATE_PARAMS[n])
         return sub[name].to_numpy()
 
-    return as_arrays(Params(**{n: column(n) for n in PARAM_NAMES}))
+    return fc.as_arrays(fc.Params(**{n: column(n) for n in PARAM_NAMES}))
 

@@ -20,24 +20,26 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
-from ..api import track
 from ..data import cached_split
+from ..family import DEFAULT_FAMILY
+from ..families import family_of
 from ..metrics.ab3dmot.arrays import evaluate_ab3dmot_arrays
 from ..metrics.ab3dmot.prep import cached_ab3dmot_gt
 from ..metrics.ab3dmot.sums import DEFAULT_SUM
 from ..metrics.ab3dmot.table import ab3dmot_columns
-from ..results import kitti_row_arrays
 from ..sweep.plan import DataSettings, option_groups
 from ..sweep.table import params_of
 
 
-def _lane_rows(split, table: pd.DataFrame, cls: str, columns: str) -> list[tuple]:
-    """(ids [T, K], boxes [T, K, 4], scores [T, K], box3d [T, K, 7]) of each config row of ``table``."""
+def _lane_rows(split, table: pd.DataFrame, cls: str, columns: str, family: str = DEFAULT_FAMILY) -> list[tuple]:
+    """(ids [T, K], boxes [T, K, 4], scores [T, K], box3d [T, K, 7]) of each config row of ``table``,
+    tracked by the tracker ``family`` (its rows as its result files carry them)."""
     out: list = [None] * len(table)
-    for options, rows in option_groups(table).items():
+    fam = family_of(family)
+    for options, rows in option_groups(table, family).items():
         pos = [int(np.flatnonzero(table["config"].to_numpy() == r)[0]) for r in rows]
-        res = track(split, params_of(table, pos, cls), options, detail=True)
-        boxes, scores, box3d = kitti_row_arrays(split, res, columns)
+        res = fam.track(split, params_of(table, pos, cls, family), options, detail=True)
+        boxes, scores, box3d = fam.row_arrays(split, res, columns)
         for j, p in enumerate(pos):
             out[p] = (res.ids[j], boxes[j], scores[j], box3d[j])
     return out
@@ -56,15 +58,16 @@ def _stack(parts: Sequence[tuple]) -> tuple:
 
 
 def ab3dmot_held_out(data: DataSettings, table: pd.DataFrame, folds: Sequence[Sequence[str]], iou: str,
-                     objective: str, columns: str = "kitti", sum_mode: str = DEFAULT_SUM) -> dict:
+                     objective: str, columns: str = "kitti", sum_mode: str = DEFAULT_SUM,
+                     family: str = DEFAULT_FAMILY) -> dict:
     """The nested cross-validation's held-out figures of an AB3DMOT ``objective`` (module docstring).
 
     ``table``: the config table of the k chosen configs (row f chosen without fold f) and, last, the
-    baseline; ``sum_mode`` the evaluator's sum of track scores. Returns ``cross_validated``, ``baseline``, ``mean_held_out`` and ``per_fold`` (each
+    baseline, configs of the tracker ``family``; ``sum_mode`` the evaluator's sum of track scores. Returns ``cross_validated``, ``baseline``, ``mean_held_out`` and ``per_fold`` (each
     ``held_out``, ``baseline_held_out``), as :func:`dfrmot_jax.tuning.nested.held_out_scores`."""
     split = cached_split(data.root, data.det2d, data.det3d, data.cls, data.sequences)
     names = list(split.names)
-    lanes = _lane_rows(split, table, data.cls, columns)
+    lanes = _lane_rows(split, table, data.cls, columns, family)
     k = len(folds)
 
     def score(rows_of_seq: Sequence[int], seqs: Sequence[str]) -> float:

@@ -51,7 +51,8 @@ def nested_cv(spec, settings, space: SearchSpace, data, outdir: Path | None, dat
     table = space.table([space.row(c) for c in configs], [False] * k + [True])
     hashes = list(table["config_hash"])
     if objective in AB3DMOT_COLUMNS:        # not a sum over sequences: scored on each set of rows at once
-        out = ab3dmot_held_out(data, table, folds, spec.ab3dmot, objective, spec.ab3dmot_columns, spec.ab3dmot_sum)
+        out = ab3dmot_held_out(data, table, folds, spec.ab3dmot, objective, spec.ab3dmot_columns, spec.ab3dmot_sum,
+                               spec.family)
     else:
         out = held_out_scores(ev.table(), folds, hashes[:k], hashes[k], objective)
     for p, q in zip(per_fold, out.pop("per_fold")):

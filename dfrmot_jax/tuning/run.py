@@ -9,6 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Mapping
 
+from ..family import DEFAULT_FAMILY
 from ..io.atomic import write_text_atomic
 from ..io.lock import folder_lock
 from ..choices import DEFAULT_AB3DMOT_IOU
@@ -46,6 +47,8 @@ def _write_manifest(outdir: Path, spec: SweepSpec, settings: TuneSettings, data,
          "directions": list(settings.directions), "folds": None, "top": spec.top,
          "tune": settings.identity(), "identity": identity, "chunks": [], "hash_version": HASH_VERSION,
          "environment": environment()}
+    if spec.family != DEFAULT_FAMILY:           # (a manifest without it is the default family's)
+        m["family"] = spec.family
     write_text_atomic(outdir / MANIFEST, json.dumps(m, indent=1, default=str), parents=False)
 
 

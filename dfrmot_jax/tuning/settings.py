@@ -23,12 +23,13 @@ from dataclasses import dataclass
 from typing import Mapping
 
 from ..choices import SAMPLERS
-from ..config import param_problem
+from ..family import FamilyConfig
+from ..family_configs import family_config
 from ..metrics.columns import canonical_objective
 from ..report.analysis import MINIMISE
 from ..report.columns import PARAM_NAMES
 from ..checks import Table, is_number, type_name
-from ..sweep.spec import SweepConfigError, SweepSpec, parse_spec, read_toml
+from ..sweep.spec import SweepConfigError, SweepSpec, parse_family, parse_spec, read_toml
 
 TUNE_KEYS = ("sampler", "budget", "batch", "objectives", "folds", "seed", "refine", "transfer")
 TRANSFER_KEYS = ("det2d", "det3d", "baseline")
@@ -88,7 +89,7 @@ def _float(t: Table, key: str, default) -> float:
     return float(v)
 
 
-def parse_tune(doc: Mapping | None, source: str | None = None) -> TuneSettings:
+def parse_tune(doc: Mapping | None, source: str | None = None, family: FamilyConfig | None = None) -> TuneSettings:
     """Validate a ``[tune]`` table; raises :class:`SweepConfigError` naming the full key."""
     t = Table({} if doc is None else doc, "tune", source, TUNE_KEYS)
     sampler = t.choice("sampler", "tpe", SAMPLERS)
@@ -123,10 +124,10 @@ def parse_tune(doc: Mapping | None, source: str | None = None) -> TuneSettings:
                                 learning_rate=_float(r, "learning_rate", d.learning_rate),
                                 patience=r.integer("patience", d.patience))
     return TuneSettings(sampler, budget, batch, objectives, folds, seed, refine,
-                        _parse_transfer(t.get("transfer"), source))
+                        _parse_transfer(t.get("transfer"), source, family or family_config()))
 
 
-def _parse_transfer(doc, source) -> TransferSettings | None:
+def _parse_transfer(doc, source, fc: FamilyConfig) -> TransferSettings | None:
     if doc is None:
         return None
     t = Table(doc, "tune.transfer", source, TRANSFER_KEYS)
@@ -137,7 +138,7 @@ def _parse_transfer(doc, source) -> TransferSettings | None:
     base = t.table("baseline")
     for k, v in base.doc.items():
         problem = "unknown parameter" if k not in PARAM_NAMES else \
-            param_problem(k, v) if is_number(v) else f"not a number ({type_name(v)})"
+            fc.param_problem(k, v) if is_number(v) else f"not a number ({type_name(v)})"
         if problem:
             raise base.error(k, f"{v!r}: {problem}")
     return TransferSettings(t.get("det2d"), t.get("det3d"), tuple(sorted(base.doc.items())))
@@ -147,8 +148,8 @@ def parse_tune_file(doc: Mapping, source: str | None = None) -> tuple[SweepSpec,
     """A tune document (the parsed TOML) -> (its sweep part, its ``[tune]`` settings)."""
     if not isinstance(doc, Mapping):
         raise SweepConfigError("(file)", "expected a table", source)
-    tune = parse_tune(doc.get("tune"), source)
     rest = {k: v for k, v in doc.items() if k != "tune"}
+    tune = parse_tune(doc.get("tune"), source, family_config(parse_family(rest, source)))
     if "distortion" in rest:
         raise SweepConfigError("distortion", "tuning under distortion is not supported: tune on clean data, "
                                              "then sweep the chosen setting with [distortion]", source)

@@ -21,7 +21,8 @@ import numpy as np
 import pandas as pd
 from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
 
-from ..config import INT_PARAMS
+from ..family import DEFAULT_FAMILY
+from ..family_configs import family_config
 from ..report.columns import OPTION_NAMES, PARAM_NAMES
 from ..sweep.spec import SweepConfigError, SweepSpec
 from ..sweep.table import baseline_row, canonical_value, config_hash, typed_table
@@ -47,10 +48,12 @@ class Dim:
 @dataclass(frozen=True)
 class SearchSpace:
     """The searched dims and the fixed values (the baseline overridden by one-valued axes);
-    ``variants``: {name: the values that variant fixes} of a tune over ``[[variants]]``."""
+    ``variants``: {name: the values that variant fixes} of a tune over ``[[variants]]``; ``family``: the
+    tracker family of its configs (the tune file's ``[options] family``)."""
     dims: tuple[Dim, ...]
     fixed: Mapping[str, Any]
     variants: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    family: str = DEFAULT_FAMILY
 
     def distributions(self) -> dict:
         out = {}
@@ -72,14 +75,15 @@ class SearchSpace:
         dim by the values its variant fixes)."""
         row = dict(self.fixed)
         row.update(self.variants.get(values.get(VARIANT), {}))
+        int_params = family_config(self.family).int_params
         for d in self.dims:
             v = values[d.name]
-            row[d.name] = int(v) if d.name in INT_PARAMS else float(v) if d.name in PARAM_NAMES else v
+            row[d.name] = int(v) if d.name in int_params else float(v) if d.name in PARAM_NAMES else v
         return row
 
     def config_hash(self, values: Mapping[str, Any]) -> str:
         """The ``config_hash`` of the config of ``values`` (as :meth:`table` computes it)."""
-        return config_hash(self.row(values))
+        return config_hash(self.row(values), family=self.family)
 
     def table(self, rows: Sequence[Mapping[str, Any]], baseline: Sequence[bool] | None = None) -> pd.DataFrame:
         """Config table (as :func:`dfrmot_jax.sweep.expand` makes: ``config``, ``config_hash``,
@@ -88,7 +92,7 @@ class SearchSpace:
         recs = [{**r, "variant": "baseline" if b else r.get(VARIANT, "tune"), "baseline": bool(b)}
                 for r, b in zip(rows, base)]
         df = pd.DataFrame(recs, columns=["variant", "baseline"] + list(PARAM_NAMES) + list(OPTION_NAMES))
-        df = typed_table(df)
+        df = typed_table(df, self.family)
         df.insert(0, "config", np.arange(len(df), dtype=np.int64))
         return df
 
@@ -127,7 +131,7 @@ def search_space(spec: SweepSpec) -> SearchSpace:
     variants = {v.name: {k: x for k, x in s.fixed.items() if canonical_value(k, x) != canonical_value(k, base[k])}
                 for v, s in zip(spec.variants, spaces)}
     dim = Dim(VARIANT, "categorical", tuple(variants), "variants")
-    return SearchSpace(first.dims + (dim,), base, variants)
+    return SearchSpace(first.dims + (dim,), base, variants, spec.family)
 
 
 def _variant_space(spec: SweepSpec, variant) -> SearchSpace:
@@ -148,7 +152,7 @@ def _variant_space(spec: SweepSpec, variant) -> SearchSpace:
             dims.append(Dim(a.name, "categorical", tuple(a.values), a.key))
     if not dims:
         raise SweepConfigError("params", "nothing to tune: give [params] distributions or lists", spec.source)
-    return SearchSpace(tuple(dims), fixed)
+    return SearchSpace(tuple(dims), fixed, family=spec.family)
 
 
 # ---------------------------------------------------------------------------------------------

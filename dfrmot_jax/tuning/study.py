@@ -47,7 +47,7 @@ from ..io.atomic import write_parquet_atomic, write_text_atomic
 from ..sweep.runner import run_sweep
 from ..sweep.spec import SweepSpec
 from ..report.columns import COMBINED
-from ..sweep.table import unstable_rows
+from ..families import family_of
 from .pairwise import pairwise_sampler
 from .settings import TuneSettings
 from .space import SearchSpace
@@ -196,15 +196,16 @@ def _read_record(outdir: Path | None, b: int) -> dict | None:
 
 
 def _evaluate_batch(study, ev: Evaluator, space: SearchSpace, settings: TuneSettings, b: int, rec: dict) -> None:
-    """Evaluate batch ``b``'s trials in one call and tell them; trials whose fixed gains make the
-    filter unstable (:func:`dfrmot_jax.sweep.table.unstable_rows`: boxes grow without bound) are
-    told FAIL without being run: they do not count towards the budget (the log says how many)."""
+    """Evaluate batch ``b``'s trials in one call and tell them; trials the tracker family knows to be
+    useless (``TrackerFamily.failing_rows``; DFR-FastMOT: fixed gains that make the filter unstable,
+    :func:`dfrmot_jax.dfr.unstable_rows`: boxes grow without bound) are told FAIL without being run:
+    they do not count towards the budget (the log says how many)."""
 
 
     frozen = {t.number: t for t in study.get_trials(deepcopy=False)}
     trials = [frozen[n] for n in rec["trials"]]
     values = [t.params for t in trials]
-    bad = unstable_rows(space.table([space.row(v) for v in values]))
+    bad = family_of(space.family).failing_rows(space.table([space.row(v) for v in values]))
     for t, u in zip(trials, bad):
         if u and t.state == TrialState.RUNNING:
             study.tell(t.number, state=TrialState.FAIL)

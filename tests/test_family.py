@@ -1,0 +1,256 @@
+"""The tracker family protocol (``dfrmot_jax.family``): DFR-FastMOT registered as the first family,
+the registries (``family_configs``, ``families``), and the machinery (sweep files, config tables,
+chunks, a stored config's result files, tunes) asking the registry for a sweep's family instead of
+naming DFR's modules: shown with a second family registered here, DFR's tracker behind counters
+under another name with a preset and a narrower range of its own, whose sweep must score exactly
+what DFR's does (real tracking and scoring on both sides)."""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dfrmot_jax import api, config, dfr, results
+from dfrmot_jax.core import run as core_run, step as core_step
+from dfrmot_jax.family import DEFAULT_FAMILY, TrackerFamily, config_problems, family_problems
+from dfrmot_jax.family_configs import CONFIGS, family_config, family_names
+from dfrmot_jax.families import FAMILIES, family_of, register, unregister
+from dfrmot_jax.sweep import SweepConfigError, config_hash, expand, load_spec, parse_spec, run_sweep
+from dfrmot_jax.sweep.config_output import write_config_output
+from dfrmot_jax.synthetic import make_scene
+from dfrmot_jax.tuning.space import search_space
+
+ROOT = Path(__file__).resolve().parent.parent
+SPY = "dfr_spy"
+#: the tracker fields the spy family counts calls of
+COUNTED = ("track", "prepare_frames", "compact_split", "default_capacity", "output_slots", "class_run", "write_runs",
+           "table_problem", "failing_rows")
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory) -> Path:
+    return make_scene(tmp_path_factory.mktemp("family_scene"), n_sequences=2, n_frames=60, n_cars=4, seed=5)
+
+
+@pytest.fixture
+def spy():
+    """A second family registered for one test: DFR-FastMOT's tracker under the name ``dfr_spy``,
+    each of its counted fields counting its calls, with a preset of its own (``spy_base``, its
+    default: a_l 4) and a narrower range (a_l <= 9)."""
+    base = config.FAMILY_CONFIG
+    calls = dict.fromkeys(COUNTED, 0)
+
+    def counted(name):
+        fn = getattr(dfr.FAMILY, name)
+
+        def call(*args, **kwargs):
+            calls[name] += 1
+            return fn(*args, **kwargs)
+        return call
+
+    def param_problem(name, value):
+        if name == "a_l" and not isinstance(value, str) and np.any(np.asarray(value, np.float64) > 9):
+            return "above 9, the spy family's largest a_l"
+        return base.param_problem(name, value)
+
+    presets = {**{k: v for k, v in base.presets.items() if v[0].a_l <= 9},      # (dfr_head's a_l is 10)
+               "spy_base": (config.Params(a_l=4.0), config.Options())}
+
+    def preset(name, cls="car"):
+        params, options = presets[name]
+        return params._replace(**base.class_defaults[cls]), options
+
+    fc = base._replace(name=SPY, title="DFR-FastMOT, counted", presets=presets, default_preset="spy_base",
+                       preset=preset, param_problem=param_problem)
+    family = register(dfr.FAMILY._replace(config=fc, **{n: counted(n) for n in COUNTED}))
+    try:
+        yield family, calls
+    finally:
+        unregister(SPY)
+    assert SPY not in FAMILIES and SPY not in CONFIGS
+
+
+# ---- the protocol and the registries ----------------------------------------------------------------
+
+
+def test_dfr_is_the_first_family_and_follows_the_protocol():
+    fam = family_of()
+    assert fam is family_of("dfr") is FAMILIES["dfr"] is dfr.FAMILY and fam.name == DEFAULT_FAMILY == "dfr"
+    assert fam.config is family_config() is config.FAMILY_CONFIG is CONFIGS["dfr"]
+    assert family_names() == ("dfr",) and family_problems(fam) == [] and config_problems(fam.config) == []
+    # the family wraps DFR's own code, it does not copy it
+    assert (fam.init, fam.step, fam.run_batch) == (core_step.init, core_step.step, core_run.run_batch)
+    assert (fam.track, fam.default_capacity) == (api.track, api.default_capacity)
+    assert (fam.rows, fam.row_arrays, fam.write_runs) == (results.kitti_rows, results.kitti_row_arrays,
+                                                          results.write_runs)
+    assert fam.config.Params is config.Params and fam.config.Options is config.Options
+    assert fam.config.preset("tuned_both", "pedestrian") == config.preset("tuned_both", "pedestrian")
+    assert fam.config.detections == ("2d", "3d")
+    assert importlib.import_module(fam.oracle).__name__ == "dfrmot_jax.testing.reference"
+    with pytest.raises(ValueError, match=r"unknown tracker family 'nope': expected one of \['dfr'\]"):
+        family_of("nope")
+
+
+def test_the_registry_refuses_a_family_that_breaks_the_protocol():
+    broken = dfr.FAMILY._replace(config=config.FAMILY_CONFIG._replace(name="broken", default_preset="nope",
+                                                                       int_params=frozenset({"nope"})), track=None)
+    problems = family_problems(broken)
+    assert any("default preset 'nope'" in p for p in problems) and any("int_params names ['nope']" in p
+                                                                         for p in problems)
+    assert "track is not callable" in problems
+    with pytest.raises(ValueError, match="does not follow the protocol"):
+        register(broken)
+    with pytest.raises(ValueError, match="registered already"):
+        register(dfr.FAMILY)
+    with pytest.raises(ValueError, match="stays registered"):
+        unregister("dfr")
+    assert "broken" not in FAMILIES and set(TrackerFamily._fields) >= {"config", "init", "step", "track", "oracle"}
+
+
+#: the machinery around the tracker: it names the protocol (``families`` / ``family_configs``), never
+#: one family's settings or code; but for what is DFR-FastMOT's own (its distortions act on its frames
+#: inside its scan; the Kalman noise fit is of its filter)
+MACHINERY = ("sweep", "tuning", "report")
+DFR_OWN = ("dfrmot_jax.sweep.distortion", "dfrmot_jax.tuning.kalman_noise")
+#: one family's modules: DFR-FastMOT's settings, tracker, family record and rows
+FAMILY_MODULES = ("dfrmot_jax.config", "dfrmot_jax.core", "dfrmot_jax.dfr", "dfrmot_jax.results")
+
+
+def _imports(path: Path, module: str) -> list[tuple[str, str | None]]:
+    """(module, name) of each import statement of a package module (relative ones resolved)."""
+    out = []
+    package = module.split(".")[:-1] if path.name != "__init__.py" else module.split(".")
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out += [(a.name, None) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = ".".join(package[:len(package) - node.level + 1] + ([node.module] if node.module else [])) \
+                if node.level else node.module
+            out += [(base, a.name) for a in node.names]
+    return out
+
+
+def test_the_machinery_names_the_protocol_not_one_family():
+    pkg = ROOT / "dfrmot_jax"
+    paths = [p for m in MACHINERY for p in sorted((pkg / m).rglob("*.py"))]
+    assert len(paths) > 40
+    bad = []
+    for path in paths:
+        module = "dfrmot_jax." + ".".join(path.relative_to(pkg).with_suffix("").parts)
+        module = module.removesuffix(".__init__")
+        if module in DFR_OWN:
+            continue
+        for target, name in _imports(path, module):
+            full = f"{target}.{name}" if name else target
+            if any(full == f or full.startswith(f + ".") or target == f for f in FAMILY_MODULES):
+                bad.append(f"{module} imports {full}")
+            elif target == "dfrmot_jax.api" and name != "TrackResult":
+                bad.append(f"{module} imports {full} (a family's batch entry point is TrackerFamily.track)")
+    assert not bad, "\n".join(bad)
+    asked = {"sweep.table": "family_of", "sweep.chunks": "family_of", "sweep.plan": "family_of",
+             "sweep.config_output": "family_of", "tuning.study": "family_of", "tuning.composite": "family_of",
+             "sweep.spec": "family_config", "report.columns": "family_config"}
+    for m, name in asked.items():
+        assert any(n == name for _, n in _imports(pkg / Path(*m.split(".")).with_suffix(".py"), "dfrmot_jax." + m)), m
+
+
+def test_config_hashes_of_dfr_configs_are_the_ones_they_always_had():
+    """The family enters a config's hash only when it is not the default: the grid sweep's config 848
+    keeps the hash ``grid_cv`` was chosen by (config.PRESETS), and every DFR row hashes as before."""
+    t = expand(load_spec(ROOT / "sweeps" / "kitti_dfr_grid.toml"))
+    assert t.loc[848, "config_hash"] == "1189d802072f6209" and t.loc[0, "config_hash"] == "2373fa0eace4e653"
+    row = t.drop(columns=["config", "config_hash"]).iloc[5].to_dict()
+    assert config_hash(row) == config_hash(row, family="dfr") == t.loc[5, "config_hash"]
+    assert config_hash(row, family=SPY) != config_hash(row)
+
+
+# ---- a second family through the machinery ------------------------------------------------------------
+
+
+def _spec(root, family=None, **extra) -> dict:
+    doc = {"name": "fam", "chunk": 4, "baseline": "dfr2023",
+           "data": {"root": str(root), "det2d": "synth2d", "det3d": "synth3d"},
+           "params": {"a_l": [4.0, 8.0], "score_2d": [0.3, 0.45]},
+           "options": {"output": ["detections", "filtered"], **({"family": family} if family else {})}}
+    doc.update(extra)
+    return doc
+
+
+def test_a_sweep_file_is_read_with_its_familys_settings(spy):
+    doc = {"params": {"a_l": [4.0, 8.0]}}
+    assert parse_spec(doc).family == "dfr" and parse_spec(doc).baseline == "dfr2023"
+    s = parse_spec({**doc, "options": {"family": SPY}})
+    assert s.family == SPY and s.baseline == "spy_base"                     # the family's default preset
+    assert expand(s).loc[0, "a_l"] == 4.0
+    parse_spec({"params": {"a_l": [4.0, 10.0]}})                            # DFR's range
+    with pytest.raises(SweepConfigError, match=r"params.a_l\[1\]: 10.0: parameter a_l: above 9"):
+        parse_spec({"params": {"a_l": [4.0, 10.0]}, "options": {"family": SPY}})
+    with pytest.raises(SweepConfigError, match="baseline: 'spy_base': unknown preset"):
+        parse_spec({**doc, "baseline": "spy_base"})
+    two = [{"name": "a"}, {"name": "b", "options": {"family": "dfr"}}]
+    with pytest.raises(SweepConfigError, match=r"variants\[1\].options.family: 'dfr': a sweep is of one tracker"):
+        parse_spec({**doc, "options": {"family": SPY}, "variants": two})
+    with pytest.raises(SweepConfigError, match=r"options.family: 'nope': expected one tracker family of \['dfr', "):
+        parse_spec({**doc, "options": {"family": "nope"}})
+
+
+def test_a_family_with_other_settings_is_refused_until_tables_name_each_rows_family(spy):
+    family, _ = spy
+    other = family.config._replace(name="other", Params=config.Options, Options=config.Params)
+    CONFIGS["other"] = other
+    try:
+        with pytest.raises(SweepConfigError, match="options.family: 'other': its parameters and options are not"):
+            parse_spec({"params": {"a_l": [4.0, 8.0]}, "options": {"family": "other"}})
+    finally:
+        del CONFIGS["other"]
+
+
+def test_a_sweep_tracks_with_its_family_and_scores_what_dfr_scores(spy, scene, tmp_path):
+    """The same configs swept as DFR-FastMOT and as the spy family: the spy's tracker fields were
+    the ones called (the table's check once, its compaction, sizing and tracking per chunk), every
+    metric of every row is DFR's, the configs hash apart (another family), the manifest names it,
+    and ``compare DIR:best``'s result files are written by its ``class_run`` / ``write_runs`` with
+    the same bytes."""
+    _, calls = spy
+    quiet = dict(progress=False, workers=0, log=lambda m: None)
+    plain = run_sweep(_spec(scene), out=tmp_path / "dfr", **quiet)
+    assert calls == dict.fromkeys(COUNTED, 0)
+    spied = run_sweep(_spec(scene, SPY), out=tmp_path / "spy", **quiet)
+    n_chunks = spied["chunk"].nunique()
+    assert calls["table_problem"] == 1 and calls["compact_split"] == 1 and calls["output_slots"] >= n_chunks
+    assert calls["track"] == n_chunks and calls["prepare_frames"] >= 2 and calls["default_capacity"] == 2
+    assert not set(plain["config_hash"]) & set(spied["config_hash"])
+    assert not set(plain["chunk"]) & set(spied["chunk"])
+    same = [c for c in plain.columns if c not in ("config_hash", "chunk")]
+    pd.testing.assert_frame_equal(plain[same], spied[same])
+    assert (plain["HOTA"] > 0).all()
+    manifest = json.loads((tmp_path / "spy" / "manifest.json").read_text())
+    assert manifest["family"] == SPY and "family" not in json.loads((tmp_path / "dfr" / "manifest.json").read_text())
+    before = dict(calls)
+    a = write_config_output(tmp_path / "dfr", "best", tmp_path / "out_dfr")
+    b = write_config_output(tmp_path / "spy", "best", tmp_path / "out_spy")
+    assert a.split(" config ")[1].split(" ")[0] == b.split(" config ")[1].split(" ")[0]      # the same best config
+    assert calls["track"] == before["track"] + 1 and calls["class_run"] == 1 and calls["write_runs"] == 1
+    files = sorted(p.name for p in (tmp_path / "out_dfr").iterdir())
+    assert files and files == sorted(p.name for p in (tmp_path / "out_spy").iterdir())
+    for f in files:
+        assert (tmp_path / "out_dfr" / f).read_bytes() == (tmp_path / "out_spy" / f).read_bytes()
+
+
+def test_a_tune_hashes_and_checks_its_familys_configs(spy, scene):
+    family, calls = spy
+    doc = {**_spec(scene), "params": {"a_l": {"uniform": [2.0, 8.0]}, "gain_gamma": [0.1, 1.9]},
+           "options": {"family": SPY}}
+    space = search_space(parse_spec(doc))
+    assert space.family == SPY
+    rows = [space.row({"a_l": 3.0, "gain_gamma": g}) for g in (0.1, 1.9)]
+    table = space.table(rows)
+    assert list(table["config_hash"]) == [config_hash(r, family=SPY) for r in rows]
+    assert space.config_hash({"a_l": 3.0, "gain_gamma": 0.1}) == table.loc[0, "config_hash"] != config_hash(rows[0])
+    assert list(family.failing_rows(table)) == [False, True] and calls["failing_rows"] == 1
