@@ -114,7 +114,8 @@ def _in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev
                             if p_tid[q] == p_tid[a + k]:
                                 vals[k] += 1000    # TrackEval: 1000 * continues + sim
                             break
-        status = solve_block(vals, 0, r, c, True, False, rows, cols, 0, ws)
+        status = solve_block(vals, np.int64(0), r, c, np.bool_(True), np.bool_(False), rows, cols, np.int64(0),
+                             ws)                        # (typed arguments: assignment's docstring)
         if status != 0:
             return status
         for k in range(min(r, c)):
@@ -176,7 +177,7 @@ def _clear_pass(ls_lf_start, ls_seq, pair_start, ng, nk, sim, p_gid, p_tid, gid_
     tp, idsw = np.zeros(n_ls, np.int64), np.zeros(n_ls, np.int64)
     mt, pt, frag = np.zeros(n_ls, np.int64), np.zeros(n_ls, np.int64), np.zeros(n_ls, np.int64)
     motp = np.zeros(n_ls)
-    n_g, side, block = 1, 1, 1
+    n_g, side, block = np.int64(1), np.int64(1), np.int64(1)   # (typed: assignment's docstring)
     for s in range(len(gid_start) - 1):
         n_g = max(n_g, gid_start[s + 1] - gid_start[s])
     for lf in range(ls_lf_start[n_ls]):

@@ -202,7 +202,8 @@ def _hota_pass(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_c
     hist = np.zeros((n_ls, NA + 1), np.int64)
     loc_hist = np.zeros((n_ls, NA + 1))
     ass = np.zeros((3, n_ls * NA))
-    n_table, n_pairs, side, block = 1, 1, 1, 1
+    one = np.int64(1)                                       # (typed, not literal: assignment's docstring)
+    n_table, n_pairs, side, block = one, one, one, one
     for ls in range(n_ls):
         sq = seq_of_ls[ls]
         n_table = max(n_table, (tid_start[ls + 1] - tid_start[ls]) * (gid_start[sq + 1] - gid_start[sq]))

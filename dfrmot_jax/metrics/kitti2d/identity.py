@@ -169,7 +169,7 @@ def _identity_pass(ls_lf_start, ls_seq, pair_start, sim, p_gid, p_tid, tid_start
         sq = ls_seq[ls]
         t0, g0, ng = tid_start[ls], gid_start[sq], gid_start[sq + 1] - gid_start[sq]
         nt = tid_start[ls + 1] - t0
-        C = 0
+        C = np.int64(0)                          # (typed: assignment's docstring)
         for q in range(pair_start[ls_lf_start[ls]], pair_start[ls_lf_start[ls + 1]]):
             if sim[q] >= thr:
                 key = (p_tid[q] - t0) * ng + (p_gid[q] - g0)
@@ -217,7 +217,7 @@ def _matching_value(C, c_key, c_n, comp_of, ng, local):
         if e - a == 1:
             total += c_n[order[a]]
         else:
-            nr = nc = 0
+            nr = nc = np.int64(0)                # (typed: assignment's docstring)
             for k in range(a, e):
                 g, t = c_key[order[k]] % ng, ng + c_key[order[k]] // ng
                 if local[g] < 0:
@@ -229,7 +229,8 @@ def _matching_value(C, c_key, c_n, comp_of, ng, local):
                 c = order[k]
                 vals[local[c_key[c] % ng] * nc + local[ng + c_key[c] // ng]] = c_n[c]
             rows, cols = np.empty(min(nr, nc), np.int64), np.empty(min(nr, nc), np.int64)
-            solve_block(vals, 0, nr, nc, True, False, rows, cols, 0, workspace(max(nr, nc), nr * nc))
+            solve_block(vals, np.int64(0), nr, nc, np.bool_(True), np.bool_(False), rows, cols, np.int64(0),
+                        workspace(max(nr, nc), nr * nc))
             for k in range(min(nr, nc)):
                 total += vals[rows[k] * nc + cols[k]]
             for k in range(a, e):

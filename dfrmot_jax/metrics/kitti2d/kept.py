@@ -54,7 +54,7 @@ def _kept_pass(d_start, g_of_lf, row_start, row_eval, value, cand_start, cand_ro
     to a distractor is removed, an unmatched fragile one too. Returns [M] bool kept."""
     M = len(fragile)
     keep = np.ones(M, np.bool_)
-    side, block = 1, 1
+    side, block = np.int64(1), np.int64(1)       # (typed: assignment's docstring)
     for lf in range(len(g_of_lf)):
         nc = d_start[lf + 1] - d_start[lf]
         if nc:
