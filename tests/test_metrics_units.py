@@ -557,34 +557,24 @@ def test_compiled_hota_counts_an_alpha_passed_at_exactly_alpha_minus_eps():
 
 
 KERNEL_DEP = "import numba\n\n\n@numba.njit(cache=False)\ndef helper(x):\n    return x + {k}.0\n"
-KERNEL_MOD = '''import numba
-import kdep
-from dfrmot_jax.metrics.common.kernel_cache import source_digest
+KERNEL_MOD = '''import kdep
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 
 
-@numba.njit(cache=False)
-def _body(x):
+@cached_njit(calls=("kdep",))
+def kernel(x):
     return kdep.helper(x) * 2.0
 
 
-def _entry(digest):
-    @numba.njit(cache=True)
-    def kernel(*args):
-        digest
-        return _body(*args)
-    return kernel
-
-
-kernel = _entry(source_digest("kdep"))
 print(kernel(1.0), kernel.stats.cache_hits.total(), kernel.stats.cache_misses.total())
 '''
 
 
 @pytest.mark.slow
 def test_a_cached_entry_point_is_compiled_anew_when_a_callees_module_changes(tmp_path):
-    """kernel_cache's pattern (hota's and clear's entry points): a second process loads the entry from
-    numba's disk cache; after the module of a kernel it calls changes, it is compiled anew with the new
-    callee (numba's own key names the entry's file only)."""
+    """kernel_cache's ``cached_njit(calls=...)`` (hota's, clear's, identity's and the kept boxes' kernels):
+    a second process loads the kernel from numba's disk cache; after the module of a kernel it calls
+    changes, it is compiled anew with the new callee (numba's own key names the kernel's file only)."""
     import os
     import subprocess
     import sys

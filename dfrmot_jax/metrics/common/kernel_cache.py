@@ -2,22 +2,19 @@
 
 Numba keys a cached function on its own source file (its size and time) and its bytecode, not on the
 functions it calls: a cached kernel that calls another module's kernel would keep the old callee
-after that module changed (a key short of what its value depends on). Such a kernel is compiled
-with ``cache=False`` and reached through a cached entry point, made in the kernel's own module by a
-factory like::
+after that module changed (a key short of what its value depends on). Such a kernel names the
+modules it calls::
 
-    def _entry(digest):
-        @numba.njit(cache=True, nogil=True)
-        def kernel(*args):
-            digest                    # (a closure: in numba's cache key)
-            return _kernel(*args)
-        return kernel
+    @cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment",))
+    def _kernel(...):
+        ... match_block(...) ...
 
-    kernel = _entry(source_digest("dfrmot_jax.metrics.common.assignment", ...))
-
-Numba's key includes a function's closure, so any change in the callees' modules compiles the entry
-anew, while an unchanged install loads it from disk (a closure over the kernel itself would not do:
-a pickled dispatcher carries a random id). ``tests/test_metrics_units.py`` checks both.
+and the digest of their source (:func:`source_digest`, taken when the kernel is defined) is part of
+its cache key: any change in the callees' modules compiles it anew, while an unchanged install
+loads it from disk. ``tests/test_metrics_units.py`` checks both. (The kernel itself is the cached
+entry point: a cached wrapper around an uncached kernel, keyed by a closure over the digest, cost a
+second LLVM optimisation and code generation of the whole call tree, about 1.2-1.6 s of CPU per
+kernel on its first run.)
 
 Every cached kernel is made by :func:`cached_njit` (``numba.njit(cache=True)``, with two faults of
 numba's cache handled, so that the command line works wherever it runs):
@@ -54,7 +51,7 @@ _warned: set[str] = set()
 
 def source_digest(*modules: str) -> str:
     """The SHA-1 of the source files of the named (imported) modules, in order: the part of a cached
-    entry point's key that names the kernels it calls."""
+    kernel's key that names the kernels it calls (:func:`cached_njit`'s ``calls``)."""
     h = hashlib.sha1()
     for name in modules:
         h.update(name.encode() + b"\0" + Path(sys.modules[name].__file__).read_bytes())
@@ -104,11 +101,17 @@ class _KernelCache(FunctionCache):
 
     _impl_class = _KernelCacheImpl
 
-    def __init__(self, py_func):
+    def __init__(self, py_func, calls_digest: str = ""):
+        self._calls_digest = calls_digest
         super().__init__(py_func)
         if isinstance(self._impl.locator, _TempCacheLocator):
             _warn_once("temp", f"no writable cache for the compiled scoring kernels ($NUMBA_CACHE_DIR, the "
                                f"package's __pycache__, the home cache): kept in {temp_cache_root()}")
+
+    def _index_key(self, sig, codegen):
+        """numba's key of an entry, with the digest of the modules the kernel calls (module docstring)."""
+        key = super()._index_key(sig, codegen)
+        return (*key, self._calls_digest) if self._calls_digest else key
 
     def load_overload(self, sig, target_context):
         try:
@@ -140,13 +143,14 @@ class _KernelCache(FunctionCache):
         return cache_file._index_path if name is None else cache_file._data_path(name)
 
 
-def cached_njit(**options):
+def cached_njit(*, calls: tuple[str, ...] = (), **options):
     """``numba.njit(cache=True, **options)`` with numba's cache faults handled (module docstring):
-    the decorator of every cached kernel of the metrics."""
+    the decorator of every cached kernel of the metrics. ``calls``: the (imported) modules whose
+    kernels it calls, their source part of its cache key."""
     def wrap(func):
         kernel = numba.njit(**options)(func)
-        try:
-            kernel._cache = _KernelCache(kernel.py_func)      # (what numba's Dispatcher.enable_caching sets)
+        try:                            # (what numba's Dispatcher.enable_caching sets)
+            kernel._cache = _KernelCache(kernel.py_func, source_digest(*calls) if calls else "")
         except RuntimeError:            # no location at all: compiled in memory
             _warn_once("memory", f"no writable cache for the compiled scoring kernels ($NUMBA_CACHE_DIR, the "
                                  f"package's __pycache__, the home cache, {temp_cache_root()}): compiled in memory, "

@@ -19,7 +19,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from dfrmot_jax.metrics.common.assignment import solve_block, solve_many, workspace
-from dfrmot_jax.metrics.common.kernel_cache import cached_njit, source_digest
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.common.pairs import segment_starts
 from dfrmot_jax.metrics.kitti2d.kitti import MAX_ID_TABLE, EvalBatch
 
@@ -143,8 +143,8 @@ def _fields(b: EvalBatch, idtp: np.ndarray) -> dict[str, np.ndarray]:
     return res
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _identity_kernel)
-def _identity_pass(ls_lf_start, ls_seq, pair_start, sim, p_gid, p_tid, tid_start, gid_start, thr):
+@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment",))
+def _identity_kernel(ls_lf_start, ls_seq, pair_start, sim, p_gid, p_tid, tid_start, gid_start, thr):
     """IDTP of every (config, sequence) ``ls`` (lane-frames ``ls_lf_start[ls]:ls_lf_start[ls + 1]``): the
     frames in which each (tracker id, GT id) pair overlaps with ``sim >= thr`` counted, then the
     maximum total count of a one-to-one id matching: per connected component of the id graph, its one
@@ -193,7 +193,7 @@ def _identity_pass(ls_lf_start, ls_seq, pair_start, sim, p_gid, p_tid, tid_start
     return out
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into _identity_kernel)
+@numba.njit(cache=False, nogil=True)     # (compiled into _identity_kernel, the cached one)
 def _root(parent, v):
     """The root of ``v`` in a union-find forest (paths halved)."""
     while parent[v] != v:
@@ -202,7 +202,7 @@ def _root(parent, v):
     return v
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into _identity_kernel)
+@numba.njit(cache=False, nogil=True)     # (compiled into _identity_kernel, the cached one)
 def _matching_value(C, c_key, c_n, comp_of, ng, local):
     """The maximum matching value of the ``C`` edges (``c_key`` = tracker id * ``ng`` + GT id, weights
     ``c_n``), component by component (``comp_of``): one edge its weight, else scipy's assignment of the
@@ -238,19 +238,6 @@ def _matching_value(C, c_key, c_n, comp_of, ng, local):
                 local[ng + c_key[order[k]] // ng] = -1
         a = e
     return total
-
-
-def _entry(digest: str):
-    """The cached entry point of :func:`_identity_pass`, keyed on the source of the module whose kernels
-    it calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
-    @cached_njit(nogil=True)
-    def identity_kernel(*args):
-        digest                                   # (a closure: in numba's cache key)
-        return _identity_pass(*args)
-    return identity_kernel
-
-
-_identity_kernel = _entry(source_digest("dfrmot_jax.metrics.common.assignment"))
 
 
 def identity_combine(res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
