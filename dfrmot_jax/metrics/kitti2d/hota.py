@@ -23,6 +23,7 @@ from dfrmot_jax.metrics.common.assignment import match_block, workspace
 from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.common.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
                                              pairwise_sum, segment_rows)
+from dfrmot_jax.metrics.common.sorting import argsort
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
 from dfrmot_jax.metrics.kitti2d.kitti import MAX_ID_TABLE, EvalBatch
 
@@ -184,7 +185,8 @@ def _fields(b: EvalBatch, hist: np.ndarray, loc_hist: np.ndarray, ass: np.ndarra
     return _final_fields(res)
 
 
-@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment", "dfrmot_jax.metrics.common.pairs"))
+@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment", "dfrmot_jax.metrics.common.pairs",
+                                "dfrmot_jax.metrics.common.sorting"))
 def _hota_kernel(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count, tid_start,
                  gid_start, thresholds, eps):
     """Steps (1)-(3) of every (config, sequence) ``ls`` (lane-frames ``lf_start[ls]:lf_start[ls + 1]``,
@@ -226,7 +228,7 @@ def _hota_kernel(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid
                           table, c_key, c_pm, c_gc, c_tc, c_hist, pos_q, pos_c, side)
         _match(lf0, lf1, pair_start, ng, nk, sim, pos_q[:n_pos], pos_c[:n_pos], c_pm, c_hist, thresholds, hist[ls],
                loc_hist[ls], score, out_rows, out_cols, ws)
-        for c in np.argsort(c_key[:C]):                               # the association sums
+        for c in argsort(c_key[:C]):                                  # the association sums
             m = 0.0
             gc, tc = c_gc[c], c_tc[c]
             for k in range(NA, 0, -1):

@@ -21,6 +21,7 @@ from scipy.sparse.csgraph import connected_components
 from dfrmot_jax.metrics.common.assignment import solve_block, solve_many, workspace
 from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.common.pairs import segment_starts
+from dfrmot_jax.metrics.common.sorting import argsort
 from dfrmot_jax.metrics.kitti2d.kitti import MAX_ID_TABLE, EvalBatch
 
 THRESHOLD = 0.5
@@ -143,7 +144,7 @@ def _fields(b: EvalBatch, idtp: np.ndarray) -> dict[str, np.ndarray]:
     return res
 
 
-@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment",))
+@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment", "dfrmot_jax.metrics.common.sorting"))
 def _identity_kernel(ls_lf_start, ls_seq, pair_start, sim, p_gid, p_tid, tid_start, gid_start, thr):
     """IDTP of every (config, sequence) ``ls`` (lane-frames ``ls_lf_start[ls]:ls_lf_start[ls + 1]``): the
     frames in which each (tracker id, GT id) pair overlaps with ``sim >= thr`` counted, then the
@@ -208,7 +209,7 @@ def _matching_value(C, c_key, c_n, comp_of, ng, local):
     ``c_n``), component by component (``comp_of``): one edge its weight, else scipy's assignment of the
     component's dense count matrix. ``local`` [ng + nt] is scratch (-1 on entry and on return)."""
     total = 0.0
-    order = np.argsort(comp_of[:C])
+    order = argsort(comp_of[:C])
     a = 0
     while a < C:
         e = a
