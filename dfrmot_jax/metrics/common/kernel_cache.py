@@ -27,6 +27,14 @@ numba's cache handled, so that the command line works wherever it runs):
 * a damaged entry (an index or data file truncated, emptied or garbled): numba raises while
   loading it (``UnpicklingError``, ``EOFError``, ``UnicodeDecodeError``, ...), and every later run
   the same. The entry is compiled anew and replaced, with one warning line naming the file.
+
+and one of numba's cost: processes that miss the same entry at once (a sweep's metric workers, two
+runs at once) each compiled it, racing to write it. A process
+that misses an entry now takes the kernel's lock (a file beside its index, ``filelock``: released
+by the OS if the process dies) while it compiles and saves it; another one waits for the lock and
+loads the saved entry (waiting at most :data:`COMPILE_WAIT_S`, then compiling it itself). Locks are
+taken from caller to callee only (a kernel's callees are compiled while its lock is held), so no two
+processes can each wait for the other.
 """
 
 from __future__ import annotations
@@ -40,6 +48,7 @@ import tempfile
 import warnings
 from pathlib import Path
 
+import filelock
 import numba
 from numba.core.caching import CompileResultCacheImpl, FunctionCache, UserWideCacheLocator
 
@@ -47,6 +56,8 @@ __all__ = ["source_digest", "cached_njit", "temp_cache_root"]
 
 #: the warnings given in this process (each once: the first kernel that meets a fault says it)
 _warned: set[str] = set()
+#: how long a process waits for another one compiling the same kernel before compiling it itself (s)
+COMPILE_WAIT_S = 600.0
 
 
 def source_digest(*modules: str) -> str:
@@ -103,6 +114,7 @@ class _KernelCache(FunctionCache):
 
     def __init__(self, py_func, calls_digest: str = ""):
         self._calls_digest = calls_digest
+        self._held: filelock.BaseFileLock | None = None     # this kernel's lock, while compiling it
         super().__init__(py_func)
         if isinstance(self._impl.locator, _TempCacheLocator):
             _warn_once("temp", f"no writable cache for the compiled scoring kernels ($NUMBA_CACHE_DIR, the "
@@ -114,6 +126,41 @@ class _KernelCache(FunctionCache):
         return (*key, self._calls_digest) if self._calls_digest else key
 
     def load_overload(self, sig, target_context):
+        """The cached entry of ``sig``, or None: then numba compiles it and :meth:`save_overload` saves
+        it. Where another process is compiling this kernel (it holds the kernel's lock), its entry is
+        waited for and loaded: one compilation per kernel, not one per process (module docstring)."""
+        self._release()                 # (a compilation of this kernel that raised since)
+        cres = self._load(sig, target_context)
+        if cres is not None or not self._enabled:
+            return cres
+        lock = self._lock()
+        if lock is None:
+            return None
+        try:
+            lock.acquire(timeout=COMPILE_WAIT_S)
+        except (filelock.Timeout, OSError):       # waited long enough, or no lock here: compiled here
+            return None
+        cres = self._load(sig, target_context)    # compiled meanwhile by the process that held the lock
+        if cres is not None:
+            lock.release()
+            return cres
+        self._held = lock               # held while this process compiles it, until saved
+        return None
+
+    def _lock(self) -> filelock.BaseFileLock | None:
+        """The lock of this kernel's entries (beside its index), or None where there is no folder for it."""
+        try:
+            self._impl.locator.ensure_cache_path()
+            return filelock.FileLock(self._cache_file._index_path + ".lock", thread_local=False)
+        except Exception:
+            return None
+
+    def _release(self) -> None:
+        lock, self._held = self._held, None
+        if lock is not None:
+            lock.release()
+
+    def _load(self, sig, target_context):
         try:
             return super().load_overload(sig, target_context)
         except Exception as e:          # any damage: pickle, EOF, decoding, numba's own rebuilding
@@ -132,6 +179,8 @@ class _KernelCache(FunctionCache):
         except Exception as e:          # a damaged index that could not be removed, a full disk: kept in memory
             path = self._cache_file._index_path
             _warn_once(f"save {path}", f"compiled kernel not kept in {path} ({type(e).__name__}: {e})")
+        finally:
+            self._release()
 
     def _damaged_file(self, sig, target_context) -> str:
         """The file of the entry of ``sig`` that does not load: the index, or its data file."""
