@@ -154,3 +154,30 @@ def test_processes_missing_a_kernel_at_once_compile_it_once(tmp_path):
     value = {o.split()[0] for o, _ in outs}
     assert len(value) == 1 and sorted(tuple(o.split()[1:]) for o, _ in outs) == [("0", "1"), ("1", "0")], outs
 
+
+
+DEMO_SIGNATURES = '''import sys
+from numba.core.registry import CPUDispatcher
+from dfrmot_jax.cli import main
+status = main(["demo", "--out", sys.argv[1], "--sequences", "2", "--frames", "30"])
+print("status", status)
+for name, mod in sorted(sys.modules.items()):
+    if name.startswith("dfrmot_jax.metrics"):
+        for k, v in vars(mod).items():
+            if isinstance(v, CPUDispatcher) and v.py_func.__module__ == name and v.signatures:
+                print("signatures", name + "." + k, len(v.signatures), any("Literal" in str(s) for s in v.signatures))
+'''
+
+
+@pytest.mark.slow
+def test_the_demo_compiles_each_kernel_once(tmp_path):
+    """A first demo run (no cache) compiles each kernel of its scoring for one signature, none for a
+    literal argument: numba compiles a kernel anew for each literal value a compiled caller passes
+    (solve_block was compiled three times, _align, _matching_value, workspace, _solve, ... twice)."""
+    r = _run(DEMO_SIGNATURES, tmp_path, str(tmp_path / "demo"), NUMBA_CACHE_DIR=str(tmp_path / "cache"),
+             DFRMOT_COMPILE_CACHE="off")
+    assert r.returncode == 0 and "status 0" in r.stdout.splitlines(), r.stderr
+    sigs = {w[1]: (int(w[2]), w[3]) for w in map(str.split, r.stdout.splitlines()) if w[:1] == ["signatures"]}
+    for name in ("common.assignment.solve_block", "kitti2d.hota._hota_kernel", "kitti2d.identity._identity_kernel"):
+        assert "dfrmot_jax.metrics." + name in sigs, sorted(sigs)
+    assert {n: s for n, s in sigs.items() if s != (1, "False")} == {}
