@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -106,3 +107,79 @@ def test_a_damaged_cache_entry_is_compiled_anew_and_replaced(which, damage, tmp_
     assert f"damaged compiled-kernel cache entry {path} (" in line and "compiled anew and replaced" in line
     again = _run("import kmod\n", tmp_path, **env)
     assert again.stdout.split() == ["2.0", "1", "0"] and not _warnings(again.stderr), again.stderr
+
+
+RACE_MOD = '''import os
+import sys
+import time
+
+import numpy as np
+
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
+
+
+@cached_njit(nogil=True)
+def kernel(x):
+    out = np.zeros((len(x), len(x)))
+    for i in range(len(x)):
+        for j in range(len(x)):
+            out[i, j] = np.sqrt(abs(x[i] - x[j])) + np.exp(-x[i] * x[j])
+    return out.sum()
+
+
+open(sys.argv[1], "w").close()                  # ready
+while not os.path.exists("go"):
+    time.sleep(0.01)
+print(round(kernel(np.arange(3.0)), 6), kernel.stats.cache_hits.total(), kernel.stats.cache_misses.total())
+'''
+
+
+def test_processes_missing_a_kernel_at_once_compile_it_once(tmp_path):
+    """Two processes that need a kernel missing from the cache at the same moment (a sweep's metric
+    workers, the demo's warm-up process and its scoring) compiled it both, racing to write it: now
+    the first takes the kernel's lock and compiles it, the second waits for the lock and loads it."""
+    (tmp_path / "kmod.py").write_text(RACE_MOD)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(REPO)]),
+               NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    procs = [subprocess.Popen([sys.executable, "-c", "import kmod", f"ready{k}"], env=env, cwd=tmp_path,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for k in range(2)]
+    try:
+        deadline = time.monotonic() + 300
+        while not all((tmp_path / f"ready{k}").exists() for k in range(2)):
+            assert time.monotonic() < deadline and all(p.poll() is None for p in procs), procs[0].stderr.read()
+            time.sleep(0.05)
+        (tmp_path / "go").touch()
+        outs = [p.communicate(timeout=300) for p in procs]
+    finally:
+        for p in procs:
+            p.kill()
+    value = {o.split()[0] for o, _ in outs}
+    assert len(value) == 1 and sorted(tuple(o.split()[1:]) for o, _ in outs) == [("0", "1"), ("1", "0")], outs
+
+
+
+DEMO_SIGNATURES = '''import sys
+from numba.core.registry import CPUDispatcher
+from dfrmot_jax.cli import main
+status = main(["demo", "--out", sys.argv[1], "--sequences", "2", "--frames", "30"])
+print("status", status)
+for name, mod in sorted(sys.modules.items()):
+    if name.startswith("dfrmot_jax.metrics"):
+        for k, v in vars(mod).items():
+            if isinstance(v, CPUDispatcher) and v.py_func.__module__ == name and v.signatures:
+                print("signatures", name + "." + k, len(v.signatures), any("Literal" in str(s) for s in v.signatures))
+'''
+
+
+@pytest.mark.slow
+def test_the_demo_compiles_each_kernel_once(tmp_path):
+    """A first demo run (no cache) compiles each kernel of its scoring for one signature, none for a
+    literal argument: numba compiles a kernel anew for each literal value a compiled caller passes
+    (solve_block was compiled three times, _align, _matching_value, workspace, _solve, ... twice)."""
+    r = _run(DEMO_SIGNATURES, tmp_path, str(tmp_path / "demo"), NUMBA_CACHE_DIR=str(tmp_path / "cache"),
+             DFRMOT_COMPILE_CACHE="off")
+    assert r.returncode == 0 and "status 0" in r.stdout.splitlines(), r.stderr
+    sigs = {w[1]: (int(w[2]), w[3]) for w in map(str.split, r.stdout.splitlines()) if w[:1] == ["signatures"]}
+    for name in ("common.assignment.solve_block", "kitti2d.hota._hota_kernel", "kitti2d.identity._identity_kernel"):
+        assert "dfrmot_jax.metrics." + name in sigs, sorted(sigs)
+    assert {n: s for n, s in sigs.items() if s != (1, "False")} == {}

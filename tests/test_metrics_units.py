@@ -557,34 +557,24 @@ def test_compiled_hota_counts_an_alpha_passed_at_exactly_alpha_minus_eps():
 
 
 KERNEL_DEP = "import numba\n\n\n@numba.njit(cache=False)\ndef helper(x):\n    return x + {k}.0\n"
-KERNEL_MOD = '''import numba
-import kdep
-from dfrmot_jax.metrics.common.kernel_cache import source_digest
+KERNEL_MOD = '''import kdep
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 
 
-@numba.njit(cache=False)
-def _body(x):
+@cached_njit(calls=("kdep",))
+def kernel(x):
     return kdep.helper(x) * 2.0
 
 
-def _entry(digest):
-    @numba.njit(cache=True)
-    def kernel(*args):
-        digest
-        return _body(*args)
-    return kernel
-
-
-kernel = _entry(source_digest("kdep"))
 print(kernel(1.0), kernel.stats.cache_hits.total(), kernel.stats.cache_misses.total())
 '''
 
 
 @pytest.mark.slow
 def test_a_cached_entry_point_is_compiled_anew_when_a_callees_module_changes(tmp_path):
-    """kernel_cache's pattern (hota's and clear's entry points): a second process loads the entry from
-    numba's disk cache; after the module of a kernel it calls changes, it is compiled anew with the new
-    callee (numba's own key names the entry's file only)."""
+    """kernel_cache's ``cached_njit(calls=...)`` (hota's, clear's, identity's and the kept boxes' kernels):
+    a second process loads the kernel from numba's disk cache; after the module of a kernel it calls
+    changes, it is compiled anew with the new callee (numba's own key names the kernel's file only)."""
     import os
     import subprocess
     import sys
@@ -682,6 +672,20 @@ def test_compiled_tracker_id_numbering_equals_hashing(tmp_path, monkeypatch):
         assert a.dtype == w.dtype and a.tobytes() == w.tobytes(), f
 
 
+def test_compiled_argsort_is_numpys_stable_argsort():
+    """metrics.common.sorting.argsort (the kernels' sort, cheaper to compile than numba's quicksort)
+    equals ``np.argsort(kind="stable")`` on integer keys: empty, one, runs of equal keys, any order."""
+    from dfrmot_jax.metrics.common.sorting import argsort
+
+    rng = np.random.default_rng(7)
+    cases = [np.zeros(0, np.int64), np.array([5]), np.arange(9)[::-1].copy(), np.zeros(17, np.int64),
+             np.array([2**62, -2**62, 0, 2**62])]
+    cases += [rng.integers(0, hi, n) for n in (2, 3, 31, 64, 65, 1000) for hi in (2, 10, 2**40)]
+    for keys in cases:
+        got = argsort(np.ascontiguousarray(keys, np.int64))
+        assert got.dtype == np.int64 and got.tolist() == np.argsort(keys, kind="stable").tolist(), keys
+
+
 def test_tracker_id_runs_ranked_by_table_or_by_sorting_alike():
     """kitti._ids_by_run ranks each run's ids by a table where their span is small and by sorting where
     it is not: both are the sorted ranks of (run, id), with a repeat within a lane-frame reported."""
@@ -693,6 +697,7 @@ def test_tracker_id_runs_ranked_by_table_or_by_sorting_alike():
     for span in (50, 10**12):                      # the table, then sorting
         runs = np.repeat(np.arange(6), rng.integers(1, 40, 6))
         tid = rng.integers(0, span, len(runs))
+        tid[rng.random(len(runs)) < 0.5] = span - 1    # ids repeated within a run (in other lane-frames)
         lf = np.arange(len(runs))                  # one row per lane-frame: no repeat
         det_gid, tid_grp, count, repeated = kitti._ids_by_run(runs, tid, lf)
         codes, uniq = pd.factorize(pd.MultiIndex.from_arrays([runs, tid]), sort=True)

@@ -189,16 +189,22 @@ class ChunkRunner:
                     self.complete(p, scores, ab3dmot, keep, bar)
             for p, scores, ab3dmot in scoring.drain():
                 self.complete(p, scores, ab3dmot, keep, bar)
-        self.log_run(n_configs, self.timing.setup + time.perf_counter() - t0, log)
+        self.log_run(n_configs, self.timing.setup + time.perf_counter() - t0, log, workers)
 
-    def log_run(self, n: int, dt: float, log) -> None:
-        """The run's line: ``n`` configs in ``dt`` seconds, and where the time went."""
+    def log_run(self, n: int, dt: float, log, workers: int = 0) -> None:
+        """The run's line: ``n`` configs in ``dt`` seconds, and where the time went. Without metric
+        workers the metrics run in the scoring thread beside the tracking, and the wait is for that
+        thread (the same seconds, in part: not a second cost); with them, the wait is for the workers."""
         label = self.spec.name if len(self.spec.classes) == 1 else f"{self.spec.name} [{self.data.cls}]"
         tm = self.timing
+        if workers:
+            metrics = f"metrics {tm.metrics:.1f} s in-process + {tm.wait:.1f} s waiting for {workers} worker(s)"
+        else:
+            metrics = f"metrics {tm.metrics:.1f} s in the scoring thread ({tm.wait:.1f} s waited for)"
         log(f"sweep {label}: {n:,} configs tracked and scored in {dt:.1f} s ({n / dt:.1f} configs/s, "
             f"{n * self.split.n_frames / dt / 1e3:.0f} k config-frames/s; setup {tm.setup:.1f} s, tracking "
-            f"{tm.track:.1f} s, metrics {tm.metrics:.1f} s in-process + {tm.wait:.1f} s waiting "
-            f"for workers, tables {tm.write:.1f} s; {len(self.scoring.scorer):,} distinct sequence outputs scored)")
+            f"{tm.track:.1f} s, {metrics}, tables {tm.write:.1f} s; {len(self.scoring.scorer):,} distinct "
+            f"sequence outputs scored)")
 
     def frames_of(self, options):
         """The split prepared for ``options`` (kept while consecutive chunks share them)."""

@@ -22,6 +22,12 @@ Every operation is the same float64 operation in the same order as in that descr
 choices are the same bit for bit; ``tests/test_assignment.py`` checks it against scipy on many random,
 tie-heavy (small integers, repeated rows and columns, constant) and rectangular matrices.
 :func:`solve_many` solves a whole list of blocks in one compiled call: no Python per block.
+
+Compiled callers pass :func:`solve_block` and :func:`workspace` typed arguments, never literal
+constants (``np.int64(0)``, ``np.bool_(True)``; a count that starts at a constant and grows in a loop
+starts at ``np.int64(...)``): numba compiles a kernel anew for every literal value it is called
+with (and for the literal type a loop's first typing pass sees), which tripled these kernels' share
+of the first run's compilation (``tests/test_kernel_cache.py`` checks each compiles once).
 ``+inf`` entries are forbidden pairs, as in scipy; NaN or ``-inf`` or an infeasible block raise.
 """
 
@@ -159,7 +165,7 @@ def workspace(side, size):
 @cached_njit(nogil=True)
 def workspace_for(n_rows, n_cols):
     """:func:`workspace` for every block of shapes ``n_rows`` x ``n_cols`` [G]."""
-    size, side = 1, 1
+    size, side = np.int64(1), np.int64(1)        # (typed, not literal: module docstring)
     for b in range(len(n_rows)):
         size = max(size, n_rows[b] * n_cols[b])
         side = max(side, n_rows[b], n_cols[b])
@@ -240,7 +246,7 @@ def match_block(vals, nr, nc, above, rows, cols, ws):
                     rows[n], cols[n] = i, j
                     n += 1
         return n
-    solve_block(vals, 0, nr, nc, True, True, rows, cols, 0, ws)
+    solve_block(vals, np.int64(0), nr, nc, np.bool_(True), np.bool_(True), rows, cols, np.int64(0), ws)  # (typed)
     for k in range(min(nr, nc)):
         i, j = rows[k], cols[k]
         if i >= 0 and vals[i * nc + j] > above:

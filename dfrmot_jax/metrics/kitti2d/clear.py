@@ -20,7 +20,7 @@ import numba
 import numpy as np
 
 from dfrmot_jax.metrics.common.assignment import match_block, solve_block, workspace, workspace_for
-from dfrmot_jax.metrics.common.kernel_cache import cached_njit, source_digest
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.common.pairs import crowded_segments, segment_pairs, segment_rows
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
 from dfrmot_jax.metrics.kitti2d.kitti import EvalBatch
@@ -69,7 +69,7 @@ def _prev_active(b: EvalBatch) -> np.ndarray:
 def _solve_sequential(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np.ndarray, p_tid: np.ndarray,
                       matched: np.ndarray) -> None:
     """Solve the listed lane-frames with TrackEval's continuation bonus (in place), in one compiled
-    pass in time order (:func:`_in_order`).
+    pass in time order (:func:`_solve_in_order`).
 
     ``matched`` holds the final matches of every other lane-frame on entry. The bonus of a frame
     needs the matches of the previous frame with both GT and tracker boxes (same lane and
@@ -86,8 +86,8 @@ def _solve_sequential(hard: np.ndarray, b: EvalBatch, sim: np.ndarray, p_gid: np
         raise RuntimeError(f"CLEAR's assignment failed (status {status})")
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _solve_in_order: _entries)
-def _in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev_of, thr, eps):
+@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment",))
+def _solve_in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev_of, thr, eps):
     """The hard lane-frames (sorted: time order within each lane) one after the other: each frame's
     matrix is TrackEval's ``1000 * continues + sim``, zero where ``sim < thr`` (= 0.5 - eps), where
     ``continues`` says the GT's match in the previous active frame (``prev_of``; final in ``matched``
@@ -114,7 +114,8 @@ def _in_order(hard, pair_start, n_rows, n_cols, sim, p_gid, p_tid, matched, prev
                             if p_tid[q] == p_tid[a + k]:
                                 vals[k] += 1000    # TrackEval: 1000 * continues + sim
                             break
-        status = solve_block(vals, 0, r, c, True, False, rows, cols, 0, ws)
+        status = solve_block(vals, np.int64(0), r, c, np.bool_(True), np.bool_(False), rows, cols, np.int64(0),
+                             ws)                        # (typed arguments: assignment's docstring)
         if status != 0:
             return status
         for k in range(min(r, c)):
@@ -161,8 +162,8 @@ def clear_sequences_numpy(b: EvalBatch) -> dict[str, np.ndarray]:
     return _early_sequences(b, res)
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _clear_kernel)
-def _clear_pass(ls_lf_start, ls_seq, pair_start, ng, nk, sim, p_gid, p_tid, gid_start, gid_count, thr, eps):
+@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment",))
+def _clear_kernel(ls_lf_start, ls_seq, pair_start, ng, nk, sim, p_gid, p_tid, gid_start, gid_count, thr, eps):
     """TrackEval's CLEAR over the frames of every (config, sequence) ``ls`` in time order: each frame
     with GT and tracker boxes (active) matched: its pairs of ``sim >= thr`` (= 0.5 - eps) where no row
     or column holds two, else those of scipy's assignment (:func:`~dfrmot_jax.metrics.common.assignment.
@@ -176,7 +177,7 @@ def _clear_pass(ls_lf_start, ls_seq, pair_start, ng, nk, sim, p_gid, p_tid, gid_
     tp, idsw = np.zeros(n_ls, np.int64), np.zeros(n_ls, np.int64)
     mt, pt, frag = np.zeros(n_ls, np.int64), np.zeros(n_ls, np.int64), np.zeros(n_ls, np.int64)
     motp = np.zeros(n_ls)
-    n_g, side, block = 1, 1, 1
+    n_g, side, block = np.int64(1), np.int64(1), np.int64(1)   # (typed: assignment's docstring)
     for s in range(len(gid_start) - 1):
         n_g = max(n_g, gid_start[s + 1] - gid_start[s])
     for lf in range(ls_lf_start[n_ls]):
@@ -217,13 +218,13 @@ def _clear_pass(ls_lf_start, ls_seq, pair_start, ng, nk, sim, p_gid, p_tid, gid_
     return tp, motp, idsw, mt, pt, frag
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into _clear_kernel)
+@numba.njit(cache=False, nogil=True)     # (compiled into _clear_kernel, the cached one)
 def _frame_matches(a, nr, nc, sim, p_gid, p_tid, g0, last_tid, last_rank, rank, thr, eps, vals, rows, cols, ws):
     """CLEAR's matches of one active frame (pairs ``a .. a + nr * nc``, its rank ``rank`` among its
     sequence's active frames; ``last_tid`` / ``last_rank`` each local GT id's last match): TrackEval's
     matrix ``1000 * continues + sim``, zero below ``thr``, matched by
     :func:`~dfrmot_jax.metrics.common.assignment.match_block` (pairs above ``0 + eps``); (row, column)
-    in ``rows``, ``cols`` in row order; returns their number (:func:`_clear_pass`)."""
+    in ``rows``, ``cols`` in row order; returns their number (:func:`_clear_kernel`)."""
     for k in range(nr * nc):
         x = sim[a + k]
         vals[k] = x if x >= thr else 0.0
@@ -232,24 +233,6 @@ def _frame_matches(a, nr, nc, sim, p_gid, p_tid, g0, last_tid, last_rank, rank, 
             if last_rank[g] == rank - 1 and last_tid[g] == p_tid[a + k]:
                 vals[k] += 1000                   # TrackEval: 1000 * continues + sim
     return match_block(vals, nr, nc, eps, rows, cols, ws)
-
-
-def _entries(digest: str):
-    """The cached entry points of :func:`_in_order` and :func:`_clear_pass`, keyed on the source of the
-    module whose kernels they call too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
-    @cached_njit(nogil=True)
-    def solve_in_order(*args):
-        digest                                   # (a closure: in numba's cache key)
-        return _in_order(*args)
-
-    @cached_njit(nogil=True)
-    def clear_kernel(*args):
-        digest
-        return _clear_pass(*args)
-    return solve_in_order, clear_kernel
-
-
-_solve_in_order, _clear_kernel = _entries(source_digest("dfrmot_jax.metrics.common.assignment"))
 
 
 def clear_matches(b: EvalBatch) -> dict[str, np.ndarray]:

@@ -20,9 +20,10 @@ import numpy as np
 import pandas as pd
 
 from dfrmot_jax.metrics.common.assignment import match_block, workspace
-from dfrmot_jax.metrics.common.kernel_cache import cached_njit, source_digest
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.common.pairs import (assign_frames, crowded_segments, numpy_col_sums, numpy_row_sums,
                                              pairwise_sum, segment_rows)
+from dfrmot_jax.metrics.common.sorting import argsort
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
 from dfrmot_jax.metrics.kitti2d.kitti import MAX_ID_TABLE, EvalBatch
 
@@ -184,8 +185,9 @@ def _fields(b: EvalBatch, hist: np.ndarray, loc_hist: np.ndarray, ass: np.ndarra
     return _final_fields(res)
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _hota_kernel)
-def _hota_pass(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count, tid_start,
+@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment", "dfrmot_jax.metrics.common.pairs",
+                                "dfrmot_jax.metrics.common.sorting"))
+def _hota_kernel(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count, tid_start,
                  gid_start, thresholds, eps):
     """Steps (1)-(3) of every (config, sequence) ``ls`` (lane-frames ``lf_start[ls]:lf_start[ls + 1]``,
     sequence ``seq_of_ls[ls]``): (1) the alignment score of each (tracker id, GT id) combo
@@ -202,7 +204,8 @@ def _hota_pass(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_c
     hist = np.zeros((n_ls, NA + 1), np.int64)
     loc_hist = np.zeros((n_ls, NA + 1))
     ass = np.zeros((3, n_ls * NA))
-    n_table, n_pairs, side, block = 1, 1, 1, 1
+    one = np.int64(1)                                       # (typed, not literal: assignment's docstring)
+    n_table, n_pairs, side, block = one, one, one, one
     for ls in range(n_ls):
         sq = seq_of_ls[ls]
         n_table = max(n_table, (tid_start[ls + 1] - tid_start[ls]) * (gid_start[sq + 1] - gid_start[sq]))
@@ -225,7 +228,7 @@ def _hota_pass(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_c
                           table, c_key, c_pm, c_gc, c_tc, c_hist, pos_q, pos_c, side)
         _match(lf0, lf1, pair_start, ng, nk, sim, pos_q[:n_pos], pos_c[:n_pos], c_pm, c_hist, thresholds, hist[ls],
                loc_hist[ls], score, out_rows, out_cols, ws)
-        for c in np.argsort(c_key[:C]):                               # the association sums
+        for c in argsort(c_key[:C]):                                  # the association sums
             m = 0.0
             gc, tc = c_gc[c], c_tc[c]
             for k in range(NA, 0, -1):
@@ -239,7 +242,7 @@ def _hota_pass(lf_start, seq_of_ls, pair_start, ng, nk, sim, p_gid, p_tid, gid_c
     return hist, loc_hist, ass
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into _hota_kernel)
+@numba.njit(cache=False, nogil=True)     # (compiled into _hota_kernel, the cached one)
 def _align(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count, t0, g0, n_g, eps, table, c_key,
            c_pm, c_gc, c_tc, c_hist, pos_q, pos_c, side):
     """Step (1) of one (config, sequence), lane-frames ``lf0:lf1``: each frame's ``sim / (rowsum + colsum
@@ -285,7 +288,7 @@ def _align(lf0, lf1, pair_start, ng, nk, sim, p_gid, p_tid, gid_count, tid_count
     return C, n_pos
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into _hota_kernel)
+@numba.njit(cache=False, nogil=True)     # (compiled into _hota_kernel, the cached one)
 def _match(lf0, lf1, pair_start, ng, nk, sim, pos_q, pos_c, gas, c_hist, thresholds, hist, loc_hist, score, rows,
            cols, ws):
     """Steps (2) and (3) of one (config, sequence), lane-frames ``lf0:lf1``, from its positive pairs
@@ -340,19 +343,6 @@ def _match(lf0, lf1, pair_start, ng, nk, sim, pos_q, pos_c, gas, c_hist, thresho
             hist[na] += 1
             loc_hist[na] += x
             c_hist[match_c[m], na] += 1
-
-
-def _entry(digest: str):
-    """The cached entry point of :func:`_hota_pass`, keyed on the source of the modules whose kernels
-    it calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
-    @cached_njit(nogil=True)
-    def hota_kernel(*args):
-        digest                                   # (a closure: in numba's cache key)
-        return _hota_pass(*args)
-    return hota_kernel
-
-
-_hota_kernel = _entry(source_digest("dfrmot_jax.metrics.common.assignment", "dfrmot_jax.metrics.common.pairs"))
 
 
 @cached_njit(nogil=True)

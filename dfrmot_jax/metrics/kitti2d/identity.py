@@ -19,8 +19,9 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from dfrmot_jax.metrics.common.assignment import solve_block, solve_many, workspace
-from dfrmot_jax.metrics.common.kernel_cache import cached_njit, source_digest
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.common.pairs import segment_starts
+from dfrmot_jax.metrics.common.sorting import argsort
 from dfrmot_jax.metrics.kitti2d.kitti import MAX_ID_TABLE, EvalBatch
 
 THRESHOLD = 0.5
@@ -143,8 +144,8 @@ def _fields(b: EvalBatch, idtp: np.ndarray) -> dict[str, np.ndarray]:
     return res
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _identity_kernel)
-def _identity_pass(ls_lf_start, ls_seq, pair_start, sim, p_gid, p_tid, tid_start, gid_start, thr):
+@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment", "dfrmot_jax.metrics.common.sorting"))
+def _identity_kernel(ls_lf_start, ls_seq, pair_start, sim, p_gid, p_tid, tid_start, gid_start, thr):
     """IDTP of every (config, sequence) ``ls`` (lane-frames ``ls_lf_start[ls]:ls_lf_start[ls + 1]``): the
     frames in which each (tracker id, GT id) pair overlaps with ``sim >= thr`` counted, then the
     maximum total count of a one-to-one id matching: per connected component of the id graph, its one
@@ -169,7 +170,7 @@ def _identity_pass(ls_lf_start, ls_seq, pair_start, sim, p_gid, p_tid, tid_start
         sq = ls_seq[ls]
         t0, g0, ng = tid_start[ls], gid_start[sq], gid_start[sq + 1] - gid_start[sq]
         nt = tid_start[ls + 1] - t0
-        C = 0
+        C = np.int64(0)                          # (typed: assignment's docstring)
         for q in range(pair_start[ls_lf_start[ls]], pair_start[ls_lf_start[ls + 1]]):
             if sim[q] >= thr:
                 key = (p_tid[q] - t0) * ng + (p_gid[q] - g0)
@@ -193,7 +194,7 @@ def _identity_pass(ls_lf_start, ls_seq, pair_start, sim, p_gid, p_tid, tid_start
     return out
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into _identity_kernel)
+@numba.njit(cache=False, nogil=True)     # (compiled into _identity_kernel, the cached one)
 def _root(parent, v):
     """The root of ``v`` in a union-find forest (paths halved)."""
     while parent[v] != v:
@@ -202,13 +203,13 @@ def _root(parent, v):
     return v
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into _identity_kernel)
+@numba.njit(cache=False, nogil=True)     # (compiled into _identity_kernel, the cached one)
 def _matching_value(C, c_key, c_n, comp_of, ng, local):
     """The maximum matching value of the ``C`` edges (``c_key`` = tracker id * ``ng`` + GT id, weights
     ``c_n``), component by component (``comp_of``): one edge its weight, else scipy's assignment of the
     component's dense count matrix. ``local`` [ng + nt] is scratch (-1 on entry and on return)."""
     total = 0.0
-    order = np.argsort(comp_of[:C])
+    order = argsort(comp_of[:C])
     a = 0
     while a < C:
         e = a
@@ -217,7 +218,7 @@ def _matching_value(C, c_key, c_n, comp_of, ng, local):
         if e - a == 1:
             total += c_n[order[a]]
         else:
-            nr = nc = 0
+            nr = nc = np.int64(0)                # (typed: assignment's docstring)
             for k in range(a, e):
                 g, t = c_key[order[k]] % ng, ng + c_key[order[k]] // ng
                 if local[g] < 0:
@@ -229,7 +230,8 @@ def _matching_value(C, c_key, c_n, comp_of, ng, local):
                 c = order[k]
                 vals[local[c_key[c] % ng] * nc + local[ng + c_key[c] // ng]] = c_n[c]
             rows, cols = np.empty(min(nr, nc), np.int64), np.empty(min(nr, nc), np.int64)
-            solve_block(vals, 0, nr, nc, True, False, rows, cols, 0, workspace(max(nr, nc), nr * nc))
+            solve_block(vals, np.int64(0), nr, nc, np.bool_(True), np.bool_(False), rows, cols, np.int64(0),
+                        workspace(max(nr, nc), nr * nc))
             for k in range(min(nr, nc)):
                 total += vals[rows[k] * nc + cols[k]]
             for k in range(a, e):
@@ -237,19 +239,6 @@ def _matching_value(C, c_key, c_n, comp_of, ng, local):
                 local[ng + c_key[order[k]] // ng] = -1
         a = e
     return total
-
-
-def _entry(digest: str):
-    """The cached entry point of :func:`_identity_pass`, keyed on the source of the module whose kernels
-    it calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
-    @cached_njit(nogil=True)
-    def identity_kernel(*args):
-        digest                                   # (a closure: in numba's cache key)
-        return _identity_pass(*args)
-    return identity_kernel
-
-
-_identity_kernel = _entry(source_digest("dfrmot_jax.metrics.common.assignment"))
 
 
 def identity_combine(res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

@@ -6,17 +6,16 @@ unmatched box ``y2 - y1 <= 25 + eps`` px tall or more than ``0.5 + eps`` inside 
 
 The answer matters only in frames where a distractor or such a fragile box is among the candidates
 (elsewhere every box with a candidate stays, matched or not). :func:`kept_boxes` decides every
-lane-frame in one compiled pass (:func:`_kept_pass`); :func:`kept_boxes_numpy`, the same rule
+lane-frame in one compiled pass (:func:`_kept_kernel`); :func:`kept_boxes_numpy`, the same rule
 vectorised over the candidate pairs, is the reference it is tested against.
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from dfrmot_jax.metrics.common.assignment import match_block, workspace
-from dfrmot_jax.metrics.common.kernel_cache import cached_njit, source_digest
+from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.common.pairs import match_entries, segment_starts
 from dfrmot_jax.metrics.kitti2d.box_table import BoxTable, candidate_pairs
 from dfrmot_jax.metrics.kitti2d.boxes import EPS
@@ -44,8 +43,8 @@ def kept_boxes(gt, dets, tab: BoxTable, box: np.ndarray, lf: np.ndarray, g_of_lf
                         tab.cand_start, tab.cand_row, tab.cand_iou, _fragile(tab, box), EPS)
 
 
-@numba.njit(cache=False, nogil=True)     # (compiled into its cached entry point, _kept_kernel)
-def _kept_pass(d_start, g_of_lf, row_start, row_eval, value, cand_start, cand_row, cand_iou, fragile, eps):
+@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.assignment",))
+def _kept_kernel(d_start, g_of_lf, row_start, row_eval, value, cand_start, cand_row, cand_iou, fragile, eps):
     """Every lane-frame (its boxes ``d_start[lf]:d_start[lf + 1]``, frame ``g_of_lf[lf]``'s class rows):
     each box's candidates (the box table's: its value ``value[box]``'s class rows ``cand_row`` of
     ``IoU >= 0.5 - eps``, ``cand_iou``, from ``cand_start``); where a distractor row or a ``fragile``
@@ -54,7 +53,7 @@ def _kept_pass(d_start, g_of_lf, row_start, row_eval, value, cand_start, cand_ro
     to a distractor is removed, an unmatched fragile one too. Returns [M] bool kept."""
     M = len(fragile)
     keep = np.ones(M, np.bool_)
-    side, block = 1, 1
+    side, block = np.int64(1), np.int64(1)       # (typed: assignment's docstring)
     for lf in range(len(g_of_lf)):
         nc = d_start[lf + 1] - d_start[lf]
         if nc:
@@ -95,19 +94,6 @@ def _kept_pass(d_start, g_of_lf, row_start, row_eval, value, cand_start, cand_ro
             if fragile[d0 + j] and not matched[j]:
                 keep[d0 + j] = False
     return keep
-
-
-def _entry(digest: str):
-    """The cached entry point of :func:`_kept_pass`, keyed on the source of the module whose kernels it
-    calls too (:mod:`~dfrmot_jax.metrics.common.kernel_cache`)."""
-    @cached_njit(nogil=True)
-    def kept_kernel(*args):
-        digest                                   # (a closure: in numba's cache key)
-        return _kept_pass(*args)
-    return kept_kernel
-
-
-_kept_kernel = _entry(source_digest("dfrmot_jax.metrics.common.assignment"))
 
 
 def kept_boxes_numpy(gt, dets, tab: BoxTable, box: np.ndarray, lf: np.ndarray, g_of_lf: np.ndarray) -> np.ndarray:

@@ -54,6 +54,7 @@ from dfrmot_jax.metrics.common.fields3d import box_rows
 from dfrmot_jax.metrics.common.kernel_cache import cached_njit
 from dfrmot_jax.metrics.common.pairs import enumerate_pairs, segment_starts
 from dfrmot_jax.metrics.common.sequences import CLASS_NAME_TO_ID, DISTRACTORS, distinct_types, seq_name
+from dfrmot_jax.metrics.common.sorting import argsort
 from dfrmot_jax.metrics.kitti2d.box_table import box_table, metric_pairs
 from dfrmot_jax.metrics.kitti2d.boxes import columns
 from dfrmot_jax.metrics.kitti2d.kept import kept_boxes
@@ -537,7 +538,7 @@ def _ids_numpy(gt: PreparedGT, dets: TrackerDets, kidx: np.ndarray, k_lf: np.nda
     return det_gid, tid_grp, tid_count
 
 
-@cached_njit(nogil=True)
+@cached_njit(nogil=True, calls=("dfrmot_jax.metrics.common.sorting",))
 def _ids_by_run(grp, tid, lf):
     """:func:`_tracker_ids`' numbering in one compiled pass where each (lane, sequence) ``grp`` is one
     run of rows: each run's distinct ids in sorted order, numbered on from the last run's; and
@@ -566,11 +567,15 @@ def _ids_by_run(grp, tid, lf):
             for i in range(a, e):
                 det_gid[i] = nt + rank[tid[i] - lo]
             rank[:hi - lo + 1] = -1
-        else:
-            u = np.unique(tid[a:e])
-            k = len(u)
-            for i in range(a, e):
-                det_gid[i] = nt + np.searchsorted(u, tid[i])
+        else:                                      # ranked by sorting
+            order = argsort(tid[a:e])
+            k = 0
+            for r in range(e - a):
+                i = a + order[r]
+                if r and tid[i] != tid[a + order[r - 1]]:
+                    k += 1
+                det_gid[i] = nt + k
+            k += 1
         tid_grp[nt:nt + k] = grp[a]
         nt += k
         a = e
