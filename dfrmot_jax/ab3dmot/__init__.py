@@ -13,14 +13,14 @@ Imports only NumPy and JAX (and its own modules).
 
 from .config import (ALGORITHMS, PARAM_RANGES, PRESETS, Options, Params, ab3dmot_car, ab3dmot_pedestrian,
                      as_arrays, compared_threshold, option_problem, param_problem, problems, stack_params, validate)
-from .affinity import DISTANCE_METRICS, METRICS, affinity
+from .affinity import DISTANCE_METRICS, METRICS
 from .data import ALL_SEQUENCES, TYPE_NAMES, Split, pack, parse_detections, read_split, sequence_length
 from .results import LINE_FORMAT, result_lines, write_results
-from .run import RunOutput, clear_programs, run, run_lane
-from .step import Frames, State, StepOutput, init, step
+from .batch import RunOutput, clear_programs, run, run_lane
+from .tracker import Frames, State, StepOutput, init, step
 
 __all__ = ["ALGORITHMS", "PARAM_RANGES", "PRESETS", "Options", "Params", "ab3dmot_car", "ab3dmot_pedestrian",
            "as_arrays", "compared_threshold", "option_problem", "param_problem", "problems", "stack_params",
-           "validate", "DISTANCE_METRICS", "METRICS", "affinity", "ALL_SEQUENCES", "TYPE_NAMES", "Split", "pack",
+           "validate", "DISTANCE_METRICS", "METRICS", "ALL_SEQUENCES", "TYPE_NAMES", "Split", "pack",
            "parse_detections", "read_split", "sequence_length", "LINE_FORMAT", "result_lines", "write_results",
            "RunOutput", "clear_programs", "run", "run_lane", "Frames", "State", "StepOutput", "init", "step"]

@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .step import Frames
+from .tracker import Frames
 
 __all__ = ["Split", "parse_detections", "sequence_length", "pack", "read_split", "CATEGORY_FOLDERS",
            "TYPE_NAMES", "ALL_SEQUENCES"]

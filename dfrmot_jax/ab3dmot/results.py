@@ -14,26 +14,28 @@ from pathlib import Path
 import numpy as np
 
 from .data import TYPE_NAMES, Split
-from .run import RunOutput
+from .batch import RunOutput
 
 __all__ = ["LINE_FORMAT", "result_lines", "write_results"]
 
 LINE_FORMAT = "%d %d %s 0 0 %f %f %f %f %f %f %f %f %f %f %f %f %f"
 
 
-def result_lines(split: Split, output: RunOutput, lane: int = 0, run_first_id: int = 1,
-                 first_id: int = 1) -> dict[str, list[str]]:
-    """{sequence name: lines (no newline)} of one lane of ``output`` (``run.run`` over ``split``'s
-    frames, ids from ``run_first_id``), renumbered as AB3DMOT's counter from ``first_id``."""
+def result_lines(split: Split, output: RunOutput, lane: int = 0, run_first_id: int = 1, first_id: int = 1,
+                 starts: dict[str, int] | None = None) -> dict[str, list[str]]:
+    """{sequence name: lines (no newline)} of one lane of ``output`` (``batch.run`` over ``split``'s
+    frames, ids from ``run_first_id``), renumbered as AB3DMOT's counter from ``first_id`` (or from
+    ``starts[name]`` at the start of a sequence named there)."""
     ids, src, boxes, next_id = (np.asarray(a[lane]) for a in (output.ids, output.src, output.boxes, output.next_id))
     if boxes.shape[-1] != 7:
         raise ValueError("the output holds no 3D boxes (run with Options(boxes=True))")
     info = split.info.reshape(-1, 7)
     out: dict[str, list[str]] = {name: [] for name in split.names}
-    starts = list(np.flatnonzero(split.frames.reset)) + [len(ids)]
+    bounds = list(np.flatnonzero(split.frames.reset)) + [len(ids)]
     counter = first_id
-    for t0, t1 in zip(starts[:-1], starts[1:]):
+    for t0, t1 in zip(bounds[:-1], bounds[1:]):
         start = int(next_id[t0 - 1]) if t0 > 0 else run_first_id     # the run's counter at the sequence's start
+        counter = (starts or {}).get(split.names[split.sequence[t0]], counter)
         shift = counter - start
         lines = out[split.names[split.sequence[t0]]]
         for t in range(t0, t1):

@@ -1,4 +1,4 @@
-"""AB3DMOT over a split for a batch of settings: ``lax.scan`` of ``step.step`` over the frames,
+"""AB3DMOT over a split for a batch of settings: ``lax.scan`` of ``tracker.step`` over the frames,
 ``vmap`` over a ``Params`` batch [B], jitted once per ``Options`` (and frame shape), under
 ``jax.enable_x64``.
 """
@@ -12,7 +12,7 @@ import numpy as np
 from jax import lax
 
 from .config import Options, Params, as_arrays, validate
-from .step import Frames, State, StepOutput, init, step
+from .tracker import Frames, State, StepOutput, init, step
 
 __all__ = ["RunOutput", "run", "run_lane", "clear_programs"]
 
@@ -21,7 +21,7 @@ class RunOutput(NamedTuple):
     """A batch's output (NumPy): ``ids`` [B, T, K] (-1: not written), ``src`` [B, T, K], ``boxes``
     [B, T, K, 7] (``StepOutput``'s fields per frame), ``next_id`` [B, T] (the id counter after
     each frame), and per lane [B]: ``overflow`` (births dropped), ``peak`` (most slots needed),
-    ``pairs_left``, ``degenerate``, ``fallback`` (see ``step.State``): a lane is AB3DMOT's exactly
+    ``pairs_left``, ``degenerate``, ``fallback`` (see ``tracker.State``): a lane is AB3DMOT's exactly
     when all of ``overflow``, ``pairs_left``, ``degenerate`` and ``fallback`` are 0."""
 
     ids: np.ndarray

@@ -23,7 +23,7 @@ One step, AB3DMOT's order:
    the frame is one of the sequence's first ``min_hits``, and its detection's score is
    ``>= score_threshold``; then tracks with ``time_since_update >= max_age`` are deleted.
 
-Runs under ``jax.enable_x64`` (float64 boxes and parameters; ``run.run`` sets it).
+Runs under ``jax.enable_x64`` (float64 boxes and parameters; ``batch.run`` sets it).
 """
 
 from __future__ import annotations
