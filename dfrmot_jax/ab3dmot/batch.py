@@ -1,6 +1,8 @@
-"""AB3DMOT over a split for a batch of settings: ``lax.scan`` of ``tracker.step`` over the frames,
-``vmap`` over a ``Params`` batch [B], jitted once per ``Options`` (and frame shape), under
-``jax.enable_x64``.
+"""AB3DMOT over a split for a batch of settings: ``lax.scan`` over the frames of ``tracker.step``
+vmapped over a ``Params`` batch [B], jitted once per ``Options`` (and frame shape), under
+``jax.enable_x64``. With ``Options.buckets`` > 1 each frame's association (the affinity matrix,
+where the time goes) runs on the smallest of a few slot counts that holds its detections and every
+lane's live tracks (``lax.switch`` on an index shared by the lanes).
 """
 
 from __future__ import annotations
@@ -12,9 +14,11 @@ import numpy as np
 from jax import lax
 
 from .config import Options, Params, as_arrays, validate
-from .tracker import Frames, State, StepOutput, init, step
+import jax.numpy as jnp
 
-__all__ = ["RunOutput", "run", "run_lane", "clear_programs"]
+from .tracker import Frames, State, StepOutput, decide, finish, init, predict, step
+
+__all__ = ["RunOutput", "run", "run_lane", "run_lanes", "affinity_sizes", "clear_programs"]
 
 
 class RunOutput(NamedTuple):
@@ -40,14 +44,52 @@ def run_lane(params: Params, frames: Frames, state: State, options: Options) -> 
     return lax.scan(lambda s, f: step(params, s, f, options), state, frames)
 
 
+def affinity_sizes(n_det: int, tracks: int, buckets: int) -> tuple[tuple[int, int], ...]:
+    """The (detection, track) slot counts a frame's association may run on, smallest first:
+    ``ceil(N / 2^s), ceil(K / 2^s)`` for s = buckets - 1 .. 0."""
+    out = []
+    for s in range(buckets - 1, -1, -1):
+        size = (max(1, -(-n_det // (1 << s))), max(1, -(-tracks // (1 << s))))
+        if size not in out:
+            out.append(size)
+    return tuple(out)
+
+
+def run_lanes(params: Params, frames: Frames, states: State, options: Options) -> tuple[State, StepOutput]:
+    """Every lane (``params``, ``states`` leaves [B]) over frames [T, ...]: the scan over frames of
+    the vmapped step, whose association runs on the smallest of ``affinity_sizes`` holding the
+    frame's valid detections and every lane's live tracks (the same result: slots beyond hold
+    nothing). Outputs [T, B, ...]. Traceable."""
+    n_det = frames.valid.shape[1]
+    sizes = affinity_sizes(n_det, options.tracks, options.buckets)
+
+    def body(s, f):
+        pred = jax.vmap(predict, in_axes=(0, None))(s, f)
+
+        def at(size):
+            return lambda p, pr: jax.vmap(lambda q, r: decide(q, r, f, options, size))(p, pr)
+
+        if len(sizes) == 1:
+            dec = at(None)(params, pred)
+        else:
+            need_n = jnp.max(jnp.where(f.valid, jnp.arange(n_det) + 1, 0))
+            need_k = jnp.max(pred.count)
+            fits = jnp.array([(need_n <= nb) & (need_k <= kb) for nb, kb in sizes])
+            dec = lax.switch(jnp.argmax(fits), [at(size) for size in sizes], params, pred)
+        return jax.vmap(finish, in_axes=(0, 0, None, None, 0, 0))(params, s, f, options, pred, dec)
+
+    return lax.scan(body, states, frames)
+
+
 _PROGRAMS: dict = {}
 
 
 def _program(options: Options):
     fn = _PROGRAMS.get(options)
     if fn is None:
-        def lanes(params, frames, state):
-            last, out = jax.vmap(run_lane, in_axes=(0, None, None, None))(params, frames, state, options)
+        def lanes(params, frames, states):
+            last, out = run_lanes(params, frames, states, options)
+            out = jax.tree.map(lambda v: jnp.swapaxes(v, 0, 1), out)
             return out, (last.overflow, last.peak, last.pairs_left, last.degenerate, last.fallback)
         fn = _PROGRAMS[options] = jax.jit(lanes)
     return fn
@@ -65,10 +107,11 @@ def run(params: Params, frames: Frames, options: Options, first_id: int = 1) -> 
     p = as_arrays(params)
     b = max([np.shape(v)[0] for v in p if np.ndim(v)] or [1])
     p = Params(*(np.broadcast_to(np.atleast_1d(v), (b,)) for v in p))
+    states = jax.tree.map(lambda v: np.repeat(np.asarray(v)[None], b, 0), init(options, first_id))
     with jax.enable_x64(True):
         f = Frames(np.asarray(frames.boxes, np.float64), np.asarray(frames.valid, bool),
                    np.asarray(frames.score, np.float64), np.asarray(frames.reset, bool))
-        out, counters = _program(options)(p, f, init(options, first_id))
+        out, counters = _program(options)(p, f, states)
         out = jax.tree.map(np.asarray, out)
         counters = [np.asarray(c) for c in counters]
     return RunOutput(out.ids, out.src, out.boxes, out.next_id, *counters)

@@ -56,6 +56,9 @@ class Options(NamedTuple):
                 overlap that are clipped (0: every pair, N K); pairs beyond it are counted
                 (``State.pairs_left``) and taken as not overlapping.
     boxes:      write the tracks' 3D boxes (``StepOutput.boxes`` [K, 7]); False: [K, 0].
+    buckets:    ``batch.run``: each frame's association runs on the smallest of ``buckets`` slot
+                counts (N, K halved buckets - 1 times) holding its detections and every lane's
+                tracks: the same result, less work on small frames, one compilation more each.
     """
 
     metric: str = "giou_3d"
@@ -63,6 +66,7 @@ class Options(NamedTuple):
     tracks: int = 64
     pairs: int = 0
     boxes: bool = True
+    buckets: int = 1
 
 
 PRESETS: dict[str, tuple[Params, Options]] = {
@@ -116,8 +120,8 @@ def option_problem(name: str, value) -> str | None:
     choices = {"metric": METRICS, "algorithm": ALGORITHMS}
     if name in choices:
         return None if value in choices[name] else f"{name}: {value!r} is not one of {list(choices[name])}"
-    if name in ("tracks", "pairs"):
-        lo = 1 if name == "tracks" else 0
+    if name in ("tracks", "pairs", "buckets"):
+        lo = 0 if name == "pairs" else 1
         ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool) and lo <= value <= 1 << 16
         return None if ok else f"{name}: expected an integer in [{lo}, {1 << 16}] ({value!r})"
     if name == "boxes":

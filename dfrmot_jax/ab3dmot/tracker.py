@@ -41,7 +41,7 @@ from .exact import runtime_zero
 from .greedy import greedy
 from .hungarian import assign
 
-__all__ = ["Frames", "State", "StepOutput", "init", "step"]
+__all__ = ["Frames", "State", "StepOutput", "Predicted", "Decision", "init", "step", "predict", "decide", "finish"]
 
 
 class Frames(NamedTuple):
@@ -159,21 +159,66 @@ def _births(state_ids, filt, hits, age, src, score, frame, det_track, kept, key,
     return (filt, ids, hits, age, src, score), count + jnp.sum(placed), jnp.sum(born)
 
 
+class Predicted(NamedTuple):
+    """A lane after the prediction of a frame (``predict``): live tracks, frame counter, filters
+    [K, ...] and ``time_since_update`` [K]."""
+
+    count: jnp.ndarray
+    frame_count: jnp.ndarray
+    filt: kalman.Gauss
+    age: jnp.ndarray
+
+
+class Decision(NamedTuple):
+    """The association of a frame (``decide``): per detection [N] its assigned track (-1: none),
+    whether the pair passed the threshold and its assignment order key; the greedy sort's
+    fallback, the degenerate pairs and the pairs beyond ``Options.pairs``."""
+
+    det_track: jnp.ndarray
+    kept: jnp.ndarray
+    key: jnp.ndarray
+    fallback: jnp.ndarray
+    degenerate: jnp.ndarray
+    pairs_left: jnp.ndarray
+
+
+def predict(state: State, frame: Frames) -> Predicted:
+    """Steps 1-2: a reset, then every track predicted."""
+    return Predicted(jnp.where(frame.reset, 0, state.count), jnp.where(frame.reset, 0, state.frame_count) + 1,
+                     kalman.predict(state.filt), state.age + 1)
+
+
+def decide(params: Params, pred: Predicted, frame: Frames, options: Options, size=None) -> Decision:
+    """Step 3 on the first ``size = (n, k)`` detection and track slots (default all; every valid
+    detection and live track must lie there): the decision, padded back to N detections."""
+    n_det = frame.valid.shape[0]
+    nb, kb = size or (n_det, pred.age.shape[0])
+    valid = frame.valid[:nb]
+    pairs = valid[:, None] & (jnp.arange(kb) < pred.count)[None]
+    filt = jax.tree.map(lambda v: v[:kb], pred.filt)
+    a32, bad, left = affinity(frame.boxes[:nb], filt.x[:, :7], options.metric, runtime_zero(pred.frame_count),
+                              kalman.innovation(filt), pairs, options.pairs or None)
+    n = jnp.sum(valid).astype(jnp.int32)
+    det_track, kept, key, fallback = _associate(a32, n, pred.count, params, options)
+    pad = lambda v, fill: jnp.concatenate([v, jnp.full((n_det - nb,), fill, v.dtype)])    # noqa: E731
+    return Decision(pad(det_track, -1), pad(kept, False), pad(key, 0), fallback,
+                    jnp.sum(bad & pairs).astype(jnp.int32), jnp.asarray(left, jnp.int32))
+
+
 def step(params: Params, state: State, frame: Frames, options: Options) -> tuple[State, StepOutput]:
     """One frame (see the module's docstring): (next state, output)."""
+    pred = predict(state, frame)
+    return finish(params, state, frame, options, pred, decide(params, pred, frame, options))
+
+
+def finish(params: Params, state: State, frame: Frames, options: Options, pred: Predicted,
+           dec: Decision) -> tuple[State, StepOutput]:
+    """Steps 4-6: updates, births, output, deletion."""
     n_det, k = frame.valid.shape[0], options.tracks
     slot = jnp.arange(k)
-    count = jnp.where(frame.reset, 0, state.count)
-    fc = jnp.where(frame.reset, 0, state.frame_count) + 1
+    count, fc, filt, age = pred
     zero = runtime_zero(fc)
-    live = slot < count
-    filt = kalman.predict(state.filt)
-    age = state.age + 1
-    n = jnp.sum(frame.valid).astype(jnp.int32)
-    pairs = frame.valid[:, None] & live[None]
-    a32, bad, left = affinity(frame.boxes, filt.x[:, :7], options.metric, zero, kalman.innovation(filt), pairs,
-                              options.pairs or None)
-    det_track, kept, key, fallback = _associate(a32, n, count, params, options)
+    det_track, kept, key = dec.det_track, dec.kept, dec.key
     match = (det_track[:, None] == slot[None]) & kept[:, None]                    # [N, K]
     has, d = jnp.any(match, 0), jnp.argmax(match, 0)
     z = frame.boxes[d]
@@ -199,6 +244,6 @@ def step(params: Params, state: State, frame: Frames, options: Options) -> tuple
     i32 = lambda v: jnp.asarray(v, jnp.int32)                                      # noqa: E731
     new = State(filt, ids, hits, age, src, score, i32(jnp.sum(alive)), i32(next_id), i32(fc), i32(state.t + 1),
                 i32(state.overflow + n_born - (total - count)), i32(jnp.maximum(state.peak, count + n_born)),
-                i32(state.pairs_left + left), i32(state.degenerate + jnp.sum(bad & pairs)),
-                i32(state.fallback + fallback))
+                i32(state.pairs_left + dec.pairs_left), i32(state.degenerate + dec.degenerate),
+                i32(state.fallback + dec.fallback))
     return new, out
