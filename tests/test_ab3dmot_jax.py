@@ -6,10 +6,12 @@ frame shape, and each test packs everything it checks (KITTI sequences, the fixt
 edge scenes made here) as sequences of one split, run once for a batch of lanes, one lane per
 setting; each lane's lines are read for the sequences that are its own.
 
-Fast tier: the car preset's program (giou_3d, Hungarian) on KITTI 0012 and 0017 (AB3DMOT's car
-runs giou_3d / noaffipro) and on the fixture's and this file's giou_3d Hungarian scenes. Slow tier:
-every metric with both assignments on the fixture's scenes and edge scenes, the seven reference
-runs on all 21 sequences, a batch against its lanes run alone, capacity overflow.
+Fast tier: one program, m_dis with Hungarian assignment (the quickest to compile: no footprint
+geometry), on KITTI 0012 and 0017 (AB3DMOT's car_mdis run) and on the fixture's and this file's m_dis
+Hungarian scenes; the validator and the writer. Slow tier: every metric with both assignments on the
+fixture's scenes and edge scenes (the car preset's giou_3d Hungarian program also on KITTI 0012 and
+0017), the seven reference runs on all 21 sequences, a batch against its lanes run alone, capacity
+overflow, the association's slot buckets.
 """
 
 from __future__ import annotations
@@ -167,22 +169,22 @@ def compare_reference(lines, ref_dir) -> Comparison:
 
 
 # ----------------------------------------------------------------------------------------------
-# fast tier: one program, the car preset's
+# fast tier: one program (m_dis, Hungarian: the quickest to compile)
 
-def test_car_preset_program_matches_reference_and_oracle(kitti_root):
-    """KITTI 0012 and 0017 give AB3DMOT's car_default (= car_noaffipro) lines, ids up to the counter's
-    start; the fixture's giou_3d Hungarian scenes give AB3DMOT's lines; edge scenes the oracle's."""
-    ref = kitti_root / REFERENCE / "head61f3bd7_car_default"
+def test_one_program_matches_reference_and_oracle(kitti_root):
+    """KITTI 0012 and 0017 give AB3DMOT's car_mdis lines (ids up to the counter's start); the
+    fixture's m_dis Hungarian scenes give AB3DMOT's lines; edge scenes the oracle's."""
+    ref = kitti_root / REFERENCE / "head61f3bd7_car_mdis"
     if not ref.is_dir():
         pytest.skip(f"AB3DMOT reference run not found at {ref}")
-    params, options = J.ab3dmot_car(tracks=TRACKS, pairs=24)
+    options = J.Options("m_dis", "hungarian", tracks=TRACKS)
     kitti = J.read_split(kitti_root, "car", ("0012", "0017"), N_DET)
-    scenes = fixture_scenes("giou_3d", "hungar") + own_scenes("giou_3d", "hungar", range(6))
-    split, out, lanes = run_scenes(scenes, options, kitti, params)
+    scenes = fixture_scenes("m_dis", "hungar") + own_scenes("m_dis", "hungar", range(6))
+    split, out, lanes = run_scenes(scenes, options, kitti, _params(ab.PRESETS["car_mdis"]))
     lines = J.result_lines(split, out, 0)
     total = compare_reference({k: lines[k] for k in kitti.names}, ref)
     assert (total.differing, total.close, total.length_mismatch) == (0, 0, False), total.diffs[:3]
-    assert total.exact == 340
+    assert total.exact == 460
     check_scenes(split, out, lanes, scenes)
 
 
@@ -238,6 +240,25 @@ def test_every_metric_and_algorithm_matches_on_edge_scenes(metric, algorithm):
 
 
 @pytest.mark.slow
+def test_car_preset_with_buckets_matches_reference_and_oracle(kitti_root):
+    """The car preset (giou_3d, Hungarian) with the association on 3 slot buckets: KITTI 0012 and
+    0017 give AB3DMOT's car_default (= car_noaffipro) lines; the fixture's giou_3d Hungarian scenes
+    AB3DMOT's; edge scenes the oracle's."""
+    ref = kitti_root / REFERENCE / "head61f3bd7_car_default"
+    if not ref.is_dir():
+        pytest.skip(f"AB3DMOT reference run not found at {ref}")
+    params, options = J.ab3dmot_car(tracks=TRACKS, pairs=24, buckets=3)
+    kitti = J.read_split(kitti_root, "car", ("0012", "0017"), N_DET)
+    scenes = fixture_scenes("giou_3d", "hungar") + own_scenes("giou_3d", "hungar", range(6))
+    split, out, lanes = run_scenes(scenes, options, kitti, params)
+    lines = J.result_lines(split, out, 0)
+    total = compare_reference({k: lines[k] for k in kitti.names}, ref)
+    assert (total.differing, total.close, total.length_mismatch) == (0, 0, False), total.diffs[:3]
+    assert total.exact == 340
+    check_scenes(split, out, lanes, scenes)
+
+
+@pytest.mark.slow
 def test_a_batch_equals_its_lanes_run_alone():
     """Four settings in one vmapped call give each lane's output of a call of its own."""
     scenes = own_scenes("dist_3d", "hungar", range(200, 204))
@@ -275,7 +296,7 @@ def test_all_sequences_match_reference(kitti_root, run):
         pytest.skip(f"AB3DMOT reference run not found at {ref}")
     st = ab.PRESETS[run]
     split = J.read_split(kitti_root, st.category)
-    out = J.run(_params(st), split.frames, J.Options(st.metric, ALGORITHMS[st.algorithm], tracks=40, pairs=64))
+    out = J.run(_params(st), split.frames, J.Options(st.metric, ALGORITHMS[st.algorithm], tracks=40, pairs=64, buckets=3))
     assert not (out.overflow.any() or out.pairs_left.any() or out.degenerate.any() or out.fallback.any())
     lines = J.result_lines(split, out)
     total = compare_reference(lines, ref)
