@@ -13,12 +13,12 @@ import jax
 import numpy as np
 from jax import lax
 
-from .config import Options, Params, as_arrays, validate
+from .config import AUTO_BUCKETS_MIN_T, Options, Params, as_arrays, validate
 import jax.numpy as jnp
 
 from .tracker import Frames, State, StepOutput, decide, finish, init, predict, step
 
-__all__ = ["RunOutput", "run", "run_lane", "run_lanes", "affinity_sizes", "clear_programs"]
+__all__ = ["RunOutput", "run", "run_lane", "run_lanes", "affinity_sizes", "clear_programs", "MAX_TRACKS"]
 
 
 class RunOutput(NamedTuple):
@@ -26,7 +26,8 @@ class RunOutput(NamedTuple):
     [B, T, K, 7] (``StepOutput``'s fields per frame), ``next_id`` [B, T] (the id counter after
     each frame), and per lane [B]: ``overflow`` (births dropped), ``peak`` (most slots needed),
     ``pairs_left``, ``degenerate``, ``fallback`` (see ``tracker.State``): a lane is AB3DMOT's exactly
-    when all of ``overflow``, ``pairs_left``, ``degenerate`` and ``fallback`` are 0."""
+    when all of ``overflow``, ``pairs_left``, ``degenerate`` and ``fallback`` are 0; ``options``:
+    the ``Options`` of the run (capacities grown, buckets chosen)."""
 
     ids: np.ndarray
     src: np.ndarray
@@ -37,6 +38,7 @@ class RunOutput(NamedTuple):
     pairs_left: np.ndarray
     degenerate: np.ndarray
     fallback: np.ndarray
+    options: Options | None = None
 
 
 def run_lane(params: Params, frames: Frames, state: State, options: Options) -> tuple[State, StepOutput]:
@@ -46,9 +48,9 @@ def run_lane(params: Params, frames: Frames, state: State, options: Options) -> 
 
 def affinity_sizes(n_det: int, tracks: int, buckets: int) -> tuple[tuple[int, int], ...]:
     """The (detection, track) slot counts a frame's association may run on, smallest first:
-    ``ceil(N / 2^s), ceil(K / 2^s)`` for s = buckets - 1 .. 0."""
+    ``ceil(N / 2^s), ceil(K / 2^s)`` for s = buckets - 1 .. 0 (0 buckets: one, the full size)."""
     out = []
-    for s in range(buckets - 1, -1, -1):
+    for s in range(max(buckets, 1) - 1, -1, -1):
         size = (max(1, -(-n_det // (1 << s))), max(1, -(-tracks // (1 << s))))
         if size not in out:
             out.append(size)
@@ -82,6 +84,8 @@ def run_lanes(params: Params, frames: Frames, states: State, options: Options) -
 
 
 _PROGRAMS: dict = {}
+#: the most track slots ``run`` grows to
+MAX_TRACKS = 4096
 
 
 def _program(options: Options):
@@ -100,18 +104,31 @@ def clear_programs() -> None:
     _PROGRAMS.clear()
 
 
-def run(params: Params, frames: Frames, options: Options, first_id: int = 1) -> RunOutput:
+def run(params: Params, frames: Frames, options: Options, first_id: int = 1, grow: bool = True) -> RunOutput:
     """Every lane of ``params`` (scalars: one lane; leaves [B]) over ``frames`` [T, N, ...], ids
-    from ``first_id``. Validates the setting first (ValueError with every problem)."""
+    from ``first_id``. Validates the setting first (ValueError with every problem). ``grow``: where
+    a lane ran out of track slots (``overflow``) or of clipped pairs (``pairs_left``), every lane
+    runs again with twice that capacity (tracks up to ``MAX_TRACKS``, pairs up to N K); the output
+    says which ``options`` it ran with."""
     validate(params, options)
     p = as_arrays(params)
     b = max([np.shape(v)[0] for v in p if np.ndim(v)] or [1])
     p = Params(*(np.broadcast_to(np.atleast_1d(v), (b,)) for v in p))
-    states = jax.tree.map(lambda v: np.repeat(np.asarray(v)[None], b, 0), init(options, first_id))
+    n_det, t = np.shape(frames.valid)[1], np.shape(frames.valid)[0]
+    if options.buckets == 0:
+        options = options._replace(buckets=3 if t >= AUTO_BUCKETS_MIN_T else 1)
     with jax.enable_x64(True):
         f = Frames(np.asarray(frames.boxes, np.float64), np.asarray(frames.valid, bool),
                    np.asarray(frames.score, np.float64), np.asarray(frames.reset, bool))
-        out, counters = _program(options)(p, f, states)
-        out = jax.tree.map(np.asarray, out)
-        counters = [np.asarray(c) for c in counters]
-    return RunOutput(out.ids, out.src, out.boxes, out.next_id, *counters)
+        while True:
+            states = jax.tree.map(lambda v: np.repeat(np.asarray(v)[None], b, 0), init(options, first_id))
+            out, counters = _program(options)(p, f, states)
+            out = RunOutput(*jax.tree.map(np.asarray, tuple(out)), *(np.asarray(c) for c in counters), options)
+            more = {}
+            if grow and out.overflow.any() and options.tracks < MAX_TRACKS:
+                more["tracks"] = min(2 * options.tracks, MAX_TRACKS)
+            if grow and out.pairs_left.any() and 0 < options.pairs < n_det * options.tracks:
+                more["pairs"] = min(2 * options.pairs, n_det * options.tracks)
+            if not more:
+                return out
+            options = options._replace(**more)
