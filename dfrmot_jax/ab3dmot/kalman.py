@@ -19,7 +19,8 @@ own, one nonzero term per sum but for the ones written):
   ``q = ((1 - kq) q)(1 - kq) + kq kq``.
 
 Headings: :func:`wrap` after every predict and update; :func:`orientation_correction` before an
-update. Every product goes through ``exact.mul`` (no fused multiply-add).
+update. Every product goes through ``exact.mul`` (no fused multiply-add), and no two constants
+meet in a sum XLA could fold (``exact.guard``).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from .exact import mul
+from .exact import guard, mul
 
 __all__ = ["Gauss", "birth", "predict", "innovation", "update", "wrap", "orientation_correction"]
 
@@ -62,13 +63,14 @@ def wrap(theta):
     return jnp.where(theta < -PI, theta + TWO_PI, theta)
 
 
-def orientation_correction(pre, obs):
+def orientation_correction(pre, obs, zero):
     """(pre, obs) both wrapped; pre turned by pi (and wrapped) when the two are more than 90 and
     less than 270 degrees apart; then moved by 2 pi towards obs (+ if obs > 0) when still at
-    least 270 degrees apart."""
+    least 270 degrees apart. (``pre + pi`` is guarded: XLA would fold ``(pre + pi) - 2 pi`` into
+    ``pre - pi``, another rounding.)"""
     pre, obs = wrap(pre), wrap(obs)
     gap = jnp.abs(obs - pre)
-    pre = jnp.where((gap > PI / 2.0) & (gap < PI * 3 / 2.0), wrap(pre + PI), pre)
+    pre = jnp.where((gap > PI / 2.0) & (gap < PI * 3 / 2.0), wrap(guard(pre + PI, zero)), pre)
     far = jnp.abs(obs - pre) >= PI * 3 / 2.0
     return jnp.where(far, jnp.where(obs > 0, pre + TWO_PI, pre - TWO_PI), pre), obs
 

@@ -222,7 +222,7 @@ def finish(params: Params, state: State, frame: Frames, options: Options, pred: 
     match = (det_track[:, None] == slot[None]) & kept[:, None]                    # [N, K]
     has, d = jnp.any(match, 0), jnp.argmax(match, 0)
     z = frame.boxes[d]
-    pre, obs = kalman.orientation_correction(filt.x[:, 3], z[:, 3])
+    pre, obs = kalman.orientation_correction(filt.x[:, 3], z[:, 3], zero)
     turned = filt._replace(x=filt.x.at[:, 3].set(pre))
     filt = _pick(has, kalman.update(turned, z.at[:, 3].set(obs), zero), filt)
     hits = state.hits + has
