@@ -95,12 +95,16 @@ class Scene:
     def __init__(self, name, text, settings, first_id=1, n_frames=SCENE_FRAMES, lines=None, next_id=None):
         self.name, self.text, self.settings, self.first_id = name, text, settings, first_id
         self.n_frames = n_frames
-        self.lines, self.next_id = lines, next_id
-        if lines is None:                                                # the oracle's answer
-            try:
-                self.lines, self.next_id = ab.track_sequence(ab.parse_detections(text), n_frames, settings, first_id)
-            except DegenerateGeometry:
-                self.lines = None                                        # AB3DMOT stops here
+        self.lines, self.next_id, self.states = lines, next_id, None
+        try:                                                             # the oracle's answer
+            tracker = ab.SequenceTracker(settings, first_id)
+            dets = ab.parse_detections(text)
+            rows = [(f, row) for f in range(n_frames) for row in tracker.step(dets.get(f, ab.EMPTY))]
+            self.states = np.array([row[2] for _, row in rows]).reshape(-1, 7)      # full precision
+            if lines is None:
+                self.lines, self.next_id = [ab.format_line(f, row) for f, row in rows], tracker.next_id
+        except DegenerateGeometry:
+            assert lines is None                                         # AB3DMOT stops here
 
 
 def _params(st: ab.Settings) -> J.Params:
@@ -131,8 +135,9 @@ def _concat(a: J.Split, b: J.Split) -> J.Split:
 
 
 def check_scenes(split, out, lanes, scenes):
-    """Each scene's lines from its lane equal the oracle's (AB3DMOT's), ids included; a scene where
-    AB3DMOT stops (degenerate geometry) is reported by its lane."""
+    """Each scene's lines from its lane equal the oracle's (AB3DMOT's), ids included, and its 3D
+    boxes the oracle's bit for bit; a scene where AB3DMOT stops (degenerate geometry) is reported
+    by its lane."""
     assert not out.overflow.any() and not out.pairs_left.any() and not out.fallback.any()
     for s in scenes:
         lane = lanes[s.name]
@@ -142,6 +147,10 @@ def check_scenes(split, out, lanes, scenes):
             continue
         assert out.degenerate[lane] == 0, s.name
         assert got == s.lines, (s.name, s.settings)
+        seq = np.flatnonzero(split.sequence == split.names.index(s.name))
+        ids = out.ids[lane, seq]
+        boxes = np.concatenate([out.boxes[lane, t][np.flatnonzero(ids[k] >= 0)[::-1]] for k, t in enumerate(seq)])
+        np.testing.assert_array_equal(boxes, s.states, err_msg=s.name)          # the 3D boxes bit for bit
         t0, t1 = np.flatnonzero(split.sequence == split.names.index(s.name))[[0, -1]]
         start = out.next_id[lane, t0 - 1] if t0 else 1
         assert out.next_id[lane, t1] - start + s.first_id == s.next_id
