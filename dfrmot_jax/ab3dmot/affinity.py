@@ -31,7 +31,8 @@ import numpy as np
 from . import polygon
 from .exact import fma, mul
 
-__all__ = ["affinity", "footprint", "METRICS", "DISTANCE_METRICS"]
+__all__ = ["affinity", "footprint", "pair_apart", "pair_intersection", "pair_hull", "combine", "distance",
+           "compact", "METRICS", "DISTANCE_METRICS"]
 
 METRICS = ("iou_2d", "iou_3d", "giou_2d", "giou_3d", "dist_2d", "dist_3d", "m_dis")
 #: metrics whose affinity is a negated distance (AB3DMOT's ``get_param`` negates their threshold)
@@ -55,68 +56,94 @@ def footprint(boxes, zero):
     return x[..., ::-1], z[..., ::-1]
 
 
-def _apart(ax, az, bx, bz, zero):
-    """Footprints surely apart: their centres farther than the sum of their circumradii + 1e-6."""
+def pair_apart(det, trk, zero):
+    """Footprints surely apart [...]: their centres farther than the sum of their circumradii +
+    1e-6 (then the clip is empty), for paired boxes det, trk [..., 7] (broadcast)."""
     def centre(px, pz):
         cx, cz = ((px[..., 0] + px[..., 1]) + px[..., 2]) + px[..., 3], ((pz[..., 0] + pz[..., 1]) + pz[..., 2]) + pz[..., 3]
         cx, cz = cx / 4, cz / 4
         dx, dz = px - cx[..., None], pz - cz[..., None]
         return cx, cz, jnp.max(jnp.sqrt(mul(dx, dx, zero) + mul(dz, dz, zero)), -1)
-    acx, acz, ra = centre(ax, az)
-    bcx, bcz, rb = centre(bx, bz)
+    acx, acz, ra = centre(*footprint(det, zero))
+    bcx, bcz, rb = centre(*footprint(trk, zero))
     dx, dz = acx - bcx, acz - bcz
     return jnp.sqrt(mul(dx, dx, zero) + mul(dz, dz, zero)) > (ra + rb) + 1e-6
 
 
-def _intersections(dx, dz, tx, tz, cand, capacity: int, zero):
-    """Footprint intersection areas [N, K] of the candidate pairs ``cand`` [N, K] (the rest 0),
-    computed for the first ``capacity`` candidates in (det, trk) order; (areas, degenerate [N, K],
-    candidates left out)."""
-    n_det, n_trk = cand.shape
-    flat = cand.reshape(-1)
-    incl = jnp.cumsum(flat.astype(jnp.int32))
-    sel = jnp.minimum(jnp.searchsorted(incl, jnp.arange(capacity) + 1, side="left"), flat.shape[0] - 1)
-    i, j = sel // n_trk, sel % n_trk
-    px, py, n, over = polygon.clip(dx[i], dz[i], tx[j], tz[j], zero)
-    area, bad = polygon.hull_area(px, py, n, zero)
-    bad = (bad & (n > 0)) | over
-    rank = (incl - 1).reshape(n_det, n_trk)
-    got = cand & (rank < capacity)
-    rank = jnp.clip(rank, 0, capacity - 1)
-    inter = jnp.where(got & (n[rank] > 0), area[rank], 0.0)
-    return inter, got & bad[rank], jnp.maximum(incl[-1] - capacity, 0)
-
-
-def _ious(det, trk, metric, valid, capacity, zero):
-    """IoU / GIoU [N, K] float64, the degenerate pairs and the candidates left out, for boxes
-    det [N, 7], trk [K, 7] and the valid pairs ``valid`` [N, K]."""
+def pair_intersection(det, trk, zero):
+    """(I [...], degenerate [...]) of paired boxes det, trk [..., 7]: the hull area of the
+    detection's footprint clipped by the track's, 0 where the clip is empty."""
     dx, dz = footprint(det, zero)
     tx, tz = footprint(trk, zero)
-    cand = valid & ~_apart(dx[:, None], dz[:, None], tx[None], tz[None], zero)
-    inter, bad, left = _intersections(dx, dz, tx, tz, cand, capacity, zero)
-    d, t = det[:, None], trk[None]
+    px, py, n, over = polygon.clip(dx, dz, tx, tz, zero)
+    area, bad = polygon.hull_area(px, py, n, zero)
+    return jnp.where(n > 0, area, 0.0), ((bad & (n > 0)) | over)
+
+
+def pair_hull(det, trk, zero):
+    """(C [...], degenerate [...]): the hull area of both footprints of paired boxes [..., 7]."""
+    dx, dz = footprint(det, zero)
+    tx, tz = footprint(trk, zero)
+    shape = jnp.broadcast_shapes(dx.shape, tx.shape)
+    hx = jnp.concatenate([jnp.broadcast_to(dx, shape), jnp.broadcast_to(tx, shape)], -1)
+    hz = jnp.concatenate([jnp.broadcast_to(dz, shape), jnp.broadcast_to(tz, shape)], -1)
+    return polygon.hull_area(hx, hz, jnp.full(shape[:-1], 8, jnp.int32), zero)
+
+
+def combine(det, trk, metric: str, inter, hull, zero):
+    """The IoU / GIoU value (float64 [...]) of paired boxes det, trk [..., 7] (broadcast) from
+    their intersection I and (GIoU) hull area C."""
+    d, t = det, trk
     area_d, area_t = mul(d[..., 5], d[..., 4], zero), mul(t[..., 5], t[..., 4], zero)
-    if metric.startswith("giou"):
-        shape = (det.shape[0], trk.shape[0], 4)
-        hx = jnp.concatenate([jnp.broadcast_to(dx[:, None], shape), jnp.broadcast_to(tx[None], shape)], -1)
-        hz = jnp.concatenate([jnp.broadcast_to(dz[:, None], shape), jnp.broadcast_to(tz[None], shape)], -1)
-        hull, hull_bad = polygon.hull_area(hx, hz, jnp.full(shape[:-1], 8, jnp.int32), zero)
-        bad = bad | (hull_bad & valid)
     if metric.endswith("2d"):
         union = (area_d + area_t) - inter
         if metric == "iou_2d":
-            return inter / union, bad, left
-        return inter / union - (hull - union) / hull, bad, left
+            return inter / union
+        return inter / union - (hull - union) / hull
     ya, yb = d[..., 1], t[..., 1]
     ta, tb = ya - d[..., 6], yb - t[..., 6]
     low = jnp.where(yb < ya, yb, ya) - jnp.where(tb > ta, tb, ta)
     inter3 = mul(inter, jnp.where(low > 0, low, 0.0), zero)
     union3 = (mul(area_d, d[..., 6], zero) + mul(area_t, t[..., 6], zero)) - inter3
     if metric == "iou_3d":
-        return inter3 / union3, bad, left
+        return inter3 / union3
     high = jnp.where(yb > ya, yb, ya) - jnp.where(tb < ta, tb, ta)
     hull3 = mul(hull, jnp.where(high > 0, high, 0.0), zero)
-    return inter3 / union3 - (hull3 - union3) / hull3, bad, left
+    return inter3 / union3 - (hull3 - union3) / hull3
+
+
+def compact(mask, capacity: int):
+    """The flat positions [capacity] of the first ``capacity`` True entries of ``mask`` (any
+    shape; the rest point past the end), and each entry's rank among them (mask's shape)."""
+    flat = mask.reshape(-1)
+    incl = jnp.cumsum(flat.astype(jnp.int32))
+    sel = jnp.searchsorted(incl, jnp.arange(capacity) + 1, side="left")
+    return sel, (incl - 1).reshape(mask.shape)
+
+
+def _intersections(det, trk, cand, capacity: int, zero):
+    """Footprint intersections [N, K] of the candidate pairs ``cand`` [N, K] (the rest 0), clipped
+    for the first ``capacity`` candidates in (det, trk) order: (I, degenerate, candidates left)."""
+    n_det, n_trk = cand.shape
+    sel, rank = compact(cand, capacity)
+    sel = jnp.minimum(sel, n_det * n_trk - 1)
+    area, bad = pair_intersection(det[sel // n_trk], trk[sel % n_trk], zero)
+    got = cand & (rank < capacity)
+    rank = jnp.clip(rank, 0, capacity - 1)
+    return jnp.where(got, area[rank], 0.0), got & bad[rank], jnp.maximum(jnp.sum(cand) - capacity, 0)
+
+
+def _ious(det, trk, metric, valid, capacity, zero):
+    """IoU / GIoU [N, K] float64, the degenerate pairs and the candidates left out, for boxes
+    det [N, 7], trk [K, 7] and the valid pairs ``valid`` [N, K]."""
+    d, t = det[:, None], trk[None]
+    cand = valid & ~pair_apart(d, t, zero)
+    inter, bad, left = _intersections(det, trk, cand, capacity, zero)
+    hull = None
+    if metric.startswith("giou"):
+        hull, hull_bad = pair_hull(d, t, zero)
+        bad = bad | (hull_bad & valid)
+    return combine(d, t, metric, inter, hull, zero), bad, left
 
 
 def _centres(boxes, zero):
@@ -143,6 +170,24 @@ def _yaw_difference(d):
     return jnp.where(d < -np.pi / 2, d + np.pi, d)
 
 
+def distance(det, trk, metric: str, zero, innovation=None):
+    """``dist_2d`` / ``dist_3d`` / ``m_dis`` affinity (float64 [...], the negated distance) of
+    paired boxes det, trk [..., 7] (broadcast); ``innovation`` [..., 7] the tracks' (``m_dis``)."""
+    if metric == "dist_2d":
+        d = det - trk
+        return -_norm(jnp.stack([d[..., 0], d[..., 2]], -1), zero)
+    if metric == "dist_3d":
+        return -_norm(_centres(det, zero) - _centres(trk, zero), zero)
+    d = det - trk
+    d = jnp.concatenate([d[..., :3], _yaw_difference(d[..., 3:4]), d[..., 4:]], -1)
+    inv = 1.0 / innovation
+    acc = None
+    for j in range(7):
+        term = mul(mul(d[..., j], inv[..., j], zero), d[..., j], zero)
+        acc = term if acc is None else acc + term
+    return -jnp.sqrt(acc)
+
+
 def affinity(det, trk, metric: str, zero, innovation=None, valid=None, capacity: int | None = None):
     """(A [N, K] float32, bad [N, K] bool, left int) of detection boxes det [N, 7] and predicted
     track boxes trk [K, 7] (states). innovation [K, 7]: the tracks' innovation diagonals (``m_dis``);
@@ -154,23 +199,10 @@ def affinity(det, trk, metric: str, zero, innovation=None, valid=None, capacity:
         raise ValueError(f"unknown metric {metric!r}; one of {METRICS}")
     shape = (det.shape[0], trk.shape[0])
     valid = jnp.ones(shape, bool) if valid is None else valid
-    no = jnp.zeros(shape, bool)
     if "iou" in metric:
         cap = max(1, min(shape[0] * shape[1], capacity or shape[0] * shape[1]))
         value, bad, left = _ious(det, trk, metric, valid, cap, zero)
         return value.astype(jnp.float32), bad, left
-    left = jnp.zeros((), jnp.int32)
-    if metric == "dist_2d":
-        d = det[:, None, :] - trk[None, :, :]
-        return (-_norm(d[..., ::2][..., :2], zero)).astype(jnp.float32), no, left
-    if metric == "dist_3d":
-        d = _centres(det, zero)[:, None] - _centres(trk, zero)[None]
-        return (-_norm(d, zero)).astype(jnp.float32), no, left
-    d = det[:, None, :] - trk[None, :, :]
-    d = jnp.concatenate([d[..., :3], _yaw_difference(d[..., 3:4]), d[..., 4:]], -1)
-    inv = 1.0 / innovation                                                       # [K, 7]
-    acc = None
-    for j in range(7):
-        term = mul(mul(d[..., j], inv[None, :, j], zero), d[..., j], zero)
-        acc = term if acc is None else acc + term
-    return (-jnp.sqrt(acc)).astype(jnp.float32), no, left
+    inn = None if innovation is None else innovation[None]
+    value = distance(det[:, None], trk[None], metric, zero, inn)
+    return value.astype(jnp.float32), jnp.zeros(shape, bool), jnp.zeros((), jnp.int32)

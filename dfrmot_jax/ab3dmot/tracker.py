@@ -188,16 +188,21 @@ def predict(state: State, frame: Frames) -> Predicted:
                      kalman.predict(state.filt), state.age + 1)
 
 
-def decide(params: Params, pred: Predicted, frame: Frames, options: Options, size=None) -> Decision:
+def decide(params: Params, pred: Predicted, frame: Frames, options: Options, size=None, matrix=None) -> Decision:
     """Step 3 on the first ``size = (n, k)`` detection and track slots (default all; every valid
-    detection and live track must lie there): the decision, padded back to N detections."""
+    detection and live track must lie there): the decision, padded back to N detections.
+    ``matrix``: (A [N, K] float32, degenerate [N, K], pairs left) computed elsewhere (``batch``);
+    default: ``affinity`` here."""
     n_det = frame.valid.shape[0]
     nb, kb = size or (n_det, pred.age.shape[0])
     valid = frame.valid[:nb]
     pairs = valid[:, None] & (jnp.arange(kb) < pred.count)[None]
-    filt = jax.tree.map(lambda v: v[:kb], pred.filt)
-    a32, bad, left = affinity(frame.boxes[:nb], filt.x[:, :7], options.metric, runtime_zero(pred.frame_count),
-                              kalman.innovation(filt), pairs, options.pairs or None)
+    if matrix is None:
+        filt = jax.tree.map(lambda v: v[:kb], pred.filt)
+        a32, bad, left = affinity(frame.boxes[:nb], filt.x[:, :7], options.metric, runtime_zero(pred.frame_count),
+                                  kalman.innovation(filt), pairs, options.pairs or None)
+    else:
+        a32, bad, left = matrix[0][:nb, :kb], matrix[1][:nb, :kb], matrix[2]
     n = jnp.sum(valid).astype(jnp.int32)
     det_track, kept, key, fallback = _associate(a32, n, pred.count, params, options)
     pad = lambda v, fill: jnp.concatenate([v, jnp.full((n_det - nb,), fill, v.dtype)])    # noqa: E731
