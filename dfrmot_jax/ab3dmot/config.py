@@ -52,15 +52,16 @@ class Options(NamedTuple):
     algorithm:  ``hungarian`` (scipy's linear sum assignment) or ``greedy``.
     tracks:     track capacity K: live tracks plus the frame's births; births beyond it are
                 dropped and counted (``State.overflow``).
-    pairs:      IoU metrics: the most (detection, track) pairs per frame whose footprints may
-                overlap that are clipped (0: every pair, N K); pairs beyond it are counted
-                (``State.pairs_left``) and taken as not overlapping (``batch.run`` then runs again
-                with twice the capacity).
+    pairs:      IoU metrics, ``tracker.step`` (one lane): the most (detection, track) pairs per
+                frame whose footprints may overlap that are clipped (0: every pair, N K); pairs
+                beyond it are counted (``State.pairs_left``) and taken as not overlapping.
+                ``batch.run`` clips every such pair (its lists of pairs grow with the frame).
     boxes:      write the tracks' 3D boxes (``StepOutput.boxes`` [K, 7]); False: [K, 0].
-    buckets:    ``batch.run``: each frame's association runs on the smallest of ``buckets`` slot
-                counts (N, K halved buckets - 1 times) holding its detections and every lane's
-                tracks: the same result, less work on small frames, one compilation more each;
-                0: 3 on splits of at least ``AUTO_BUCKETS_MIN_T`` frames, else 1.
+    buckets:    ``batch.run``: the sizes a frame's work is chosen from, smallest holding it (the
+                same result, less work on small frames, more compilations): the lists of pairs of
+                all lanes (``buckets`` sizes, x4 apart; the clipped pairs one more) and the
+                assignment's slots (N, K halved ``buckets`` - 1 times); 0: 3 on splits of at
+                least ``AUTO_BUCKETS_MIN_T`` frames, else 1.
     """
 
     metric: str = "giou_3d"
