@@ -83,7 +83,8 @@ def edge_scene(seed: int, n_frames: int = SCENE_FRAMES, most: int = N_DET) -> st
                 off = rng.uniform(0.3, 1.5)
                 frame += [[*box[:3], box[3] + off, *box[4:]], [*box[:3], box[3] - off, *box[4:]]]
         for _ in range(int(rng.poisson(0.3))):
-            frame.append([*np.round(rng.uniform([1.3, 1.4, 3], [1.8, 2, 5]), 4), *np.round(rng.uniform([-15, 1, 5], [15, 2, 50]), 4),
+            frame.append([*np.round(rng.uniform([1.3, 1.4, 3], [1.8, 2, 5]), 4),
+                          *np.round(rng.uniform([-15, 1, 5], [15, 2, 50]), 4),
                           round(float(rng.uniform(-3.9, 3.9)), 4)])
         for i in rng.permutation(len(frame))[:most]:
             rows.append(_row(f, 2, frame[i], rng))
@@ -126,7 +127,8 @@ def run_scenes(scenes: list[Scene], options: J.Options, kitti: J.Split | None = 
 
 
 def _concat(a: J.Split, b: J.Split) -> J.Split:
-    pad = lambda x, n: np.concatenate([x, np.zeros(x.shape[:1] + (n - x.shape[1],) + x.shape[2:], x.dtype)], 1)  # noqa: E731
+    def pad(x, n):
+        return np.concatenate([x, np.zeros(x.shape[:1] + (n - x.shape[1],) + x.shape[2:], x.dtype)], 1)
     n = max(a.info.shape[1], b.info.shape[1])
     frames = J.Frames(*(np.concatenate([pad(x, n) if x.ndim > 1 else x, pad(y, n) if y.ndim > 1 else y])
                         for x, y in zip(a.frames, b.frames)))
@@ -207,7 +209,8 @@ def test_settings_are_validated_readably():
                      J.Options(metric="iou", algorithm="hungar", tracks=0))
     assert bad == ["threshold: not finite", "min_hits: expected an integer (1.5)",
                    "max_age: outside the valid range [1, 1e+06] (0)",
-                   "metric: 'iou' is not one of ['iou_2d', 'iou_3d', 'giou_2d', 'giou_3d', 'dist_2d', 'dist_3d', 'm_dis']",
+                   "metric: 'iou' is not one of "
+                   "['iou_2d', 'iou_3d', 'giou_2d', 'giou_3d', 'dist_2d', 'dist_3d', 'm_dis']",
                    "algorithm: 'hungar' is not one of ['hungarian', 'greedy']",
                    "tracks: expected an integer in [1, 65536] (0)"]
     with pytest.raises(ValueError, match="invalid AB3DMOT setting"):
@@ -313,7 +316,7 @@ def test_all_sequences_match_reference(kitti_root, run):
         pytest.skip(f"AB3DMOT reference run not found at {ref}")
     st = ab.PRESETS[run]
     split = J.read_split(kitti_root, st.category)
-    out = J.run(_params(st), split.frames, J.Options(st.metric, ALGORITHMS[st.algorithm], tracks=40, pairs=64, buckets=3))
+    out = J.run(_params(st), split.frames, J.Options(st.metric, ALGORITHMS[st.algorithm], tracks=40, buckets=3))
     assert not (out.overflow.any() or out.pairs_left.any() or out.degenerate.any() or out.fallback.any())
     lines = J.result_lines(split, out)
     total = compare_reference(lines, ref)

@@ -52,7 +52,8 @@ def test_kalman_closed_form_is_the_oracles_filter_bit_for_bit():
     rng = np.random.default_rng(1)
     n = 64
     boxes = np.column_stack([rng.uniform(-20, 20, n), rng.uniform(0, 3, n), rng.uniform(5, 60, n),
-                             rng.uniform(-3.9, 3.9, n), rng.uniform(3, 5, n), rng.uniform(1.4, 2, n), rng.uniform(1.3, 1.8, n)])
+                             rng.uniform(-3.9, 3.9, n), rng.uniform(3, 5, n), rng.uniform(1.4, 2, n),
+                             rng.uniform(1.3, 1.8, n)])
     tracks = [ab.Track(b, np.zeros(7), 1) for b in boxes]
 
     def cycle(g, z, t):
@@ -106,7 +107,8 @@ def test_affinity_is_ab3dmots_float32_value(metric):
     rng = np.random.default_rng(7)
 
     def rbox(n):
-        return np.column_stack([rng.uniform(-8, 8, n), rng.uniform(0, 3, n), rng.uniform(5, 25, n), rng.uniform(-3.9, 3.9, n),
+        return np.column_stack([rng.uniform(-8, 8, n), rng.uniform(0, 3, n), rng.uniform(5, 25, n),
+                                rng.uniform(-3.9, 3.9, n),
                                 rng.uniform(3, 5, n), rng.uniform(1.4, 2, n), rng.uniform(1.3, 1.8, n)]).round(4)
     det = rbox(40)
     trk = np.concatenate([rbox(18), det[:6] + rng.normal(0, 0.2, (6, 7)) * [1, .1, 1, .2, .1, .05, .05], det[6:12]])
@@ -128,7 +130,8 @@ def test_hungarian_is_scipys_on_tied_matrices():
     scipy's pairs exactly (its tie choices)."""
     rng = np.random.default_rng(0)
     n_det, n_trk, count = 10, 12, 800
-    mats, ns, ms = np.zeros((count, n_det, n_trk), np.float32), rng.integers(0, n_det + 1, count), rng.integers(0, n_trk + 1, count)
+    mats = np.zeros((count, n_det, n_trk), np.float32)
+    ns, ms = rng.integers(0, n_det + 1, count), rng.integers(0, n_trk + 1, count)
     for k in range(count):
         n, m = ns[k], ms[k]
         mats[k, :n, :m] = [rng.normal(size=(n, m)), rng.integers(0, 3, (n, m)) * 0.5,
@@ -161,7 +164,8 @@ def test_introsort_order_and_greedy_are_numpys():
     ns, ms = rng.integers(0, 15, count), rng.integers(0, 21, count)
     for k in range(count):
         n, m = ns[k], ms[k]
-        mats[k, :n, :m] = [np.where(rng.random((n, m)) < 0.8, 0.0, rng.random((n, m))), rng.integers(0, 3, (n, m)) * 0.5,
+        mats[k, :n, :m] = [np.where(rng.random((n, m)) < 0.8, 0.0, rng.random((n, m))),
+                           rng.integers(0, 3, (n, m)) * 0.5,
                            rng.normal(size=(n, m))][k % 3]
     det_track, key, _ = x64(jax.vmap(greedy.greedy))(mats, ns.astype(np.int32), ms.astype(np.int32))
     for k in range(count):

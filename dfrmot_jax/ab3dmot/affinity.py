@@ -60,8 +60,8 @@ def pair_apart(det, trk, zero):
     """Footprints surely apart [...]: their centres farther than the sum of their circumradii +
     1e-6 (then the clip is empty), for paired boxes det, trk [..., 7] (broadcast)."""
     def centre(px, pz):
-        cx, cz = ((px[..., 0] + px[..., 1]) + px[..., 2]) + px[..., 3], ((pz[..., 0] + pz[..., 1]) + pz[..., 2]) + pz[..., 3]
-        cx, cz = cx / 4, cz / 4
+        cx = (((px[..., 0] + px[..., 1]) + px[..., 2]) + px[..., 3]) / 4
+        cz = (((pz[..., 0] + pz[..., 1]) + pz[..., 2]) + pz[..., 3]) / 4
         dx, dz = px - cx[..., None], pz - cz[..., None]
         return cx, cz, jnp.max(jnp.sqrt(mul(dx, dx, zero) + mul(dz, dz, zero)), -1)
     acx, acz, ra = centre(*footprint(det, zero))
@@ -153,7 +153,8 @@ def _centres(boxes, zero):
     ys = jnp.concatenate([jnp.broadcast_to(y, x.shape), jnp.broadcast_to(y - boxes[..., 6:7], x.shape)], -1)
 
     def mean8(v):
-        return (((v[..., 0] + v[..., 1]) + (v[..., 2] + v[..., 3])) + ((v[..., 4] + v[..., 5]) + (v[..., 6] + v[..., 7]))) / 8
+        low, high = (v[..., 0] + v[..., 1]) + (v[..., 2] + v[..., 3]), (v[..., 4] + v[..., 5]) + (v[..., 6] + v[..., 7])
+        return (low + high) / 8
     return jnp.stack([mean8(jnp.concatenate([x, x], -1)), mean8(ys), mean8(jnp.concatenate([z, z], -1))], -1)
 
 

@@ -147,8 +147,9 @@ def run_lanes(params: Params, frames: Frames, states: State, options: Options) -
         none = jnp.zeros(a32.shape[0], jnp.int32)
 
         def at(size):
-            return lambda p, pr, a, bd, lf: jax.vmap(lambda q, r, a, bd, lf: decide(q, r, f, options, size, (a, bd, lf)))(
-                p, pr, a, bd, lf)
+            def lanes(p, pr, a, bd, lf):
+                return jax.vmap(lambda q, r, a, bd, lf: decide(q, r, f, options, size, (a, bd, lf)))(p, pr, a, bd, lf)
+            return lanes
 
         need_n = jnp.max(jnp.where(f.valid, jnp.arange(n_det) + 1, 0))
         need_k = jnp.max(pred.count)
