@@ -140,7 +140,7 @@ def _concat(a: J.Split, b: J.Split) -> J.Split:
 def check_scenes(split, out, lanes, scenes):
     """Each scene's lines from its lane equal the oracle's (AB3DMOT's), ids included, and its 3D
     boxes the oracle's bit for bit; a scene where AB3DMOT stops (degenerate geometry) is reported
-    by its lane."""
+    by its lane (the counters cover a lane's whole split: every lane runs every scene's frames)."""
     assert not out.overflow.any() and not out.pairs_left.any() and not out.fallback.any()
     for s in scenes:
         lane = lanes[s.name]
@@ -304,6 +304,19 @@ def test_capacity_overflow_is_reported():
     lane = jax.jit(lambda f, st: J.run_lane(J.Params(0.1, 1, 2), f, st, few)[0].pairs_left)
     with jax.enable_x64(True):
         assert int(lane(split.frames, J.init(few))) > 0                   # left unclipped: counted
+
+
+@pytest.mark.slow
+def test_where_ab3dmot_stops_the_lane_says_so():
+    """A zero-width detection on a track: AB3DMOT's qhull raises (the oracle's DegenerateGeometry)
+    and its run stops; the lane reports it (``degenerate``: counted over the lane's whole split)."""
+    row = "{f},2,1,2,3,4,0.5,1.5,{w},4.0,{x},1.5,20.0,0.3,0.1\n"
+    text = "".join(row.format(f=f, w=1.6 if f != 2 else 0.0, x=1.0 + 0.1 * f) for f in range(4))
+    scene = Scene("stop", text, ab.Settings("Car", "hungar", "iou_2d", 0.1, 1, 2))
+    assert scene.lines is None
+    split, out, lanes = run_scenes([scene], J.Options("iou_2d", "hungarian", tracks=TRACKS))
+    check_scenes(split, out, lanes, [scene])
+    assert out.degenerate.tolist() == [1]
 
 
 @pytest.mark.slow

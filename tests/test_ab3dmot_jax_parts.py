@@ -173,3 +173,22 @@ def test_introsort_order_and_greedy_are_numpys():
         want = ab.greedy_assignment(-mats[k, :n, :m]) if n and m else np.zeros((0, 2), int)
         taken = sorted(np.flatnonzero(det_track[k] >= 0), key=lambda d: key[k][d])
         assert [(d, det_track[k][d]) for d in taken] == [tuple(p) for p in want], k
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("metric", ["iou_3d", "giou_3d"])
+def test_degenerate_pairs_are_reported_where_ab3dmot_raises(metric):
+    """A zero-width or zero-size box makes AB3DMOT's qhull raise (the oracle's DegenerateGeometry):
+    the pair is reported (``bad``); a NaN box far from everything gives 0 for iou_3d in both (the
+    footprints count as apart) and raises for giou_3d (its hull)."""
+    cases = [([1.0, 1.5, 20.0, 0.3, 4.0, 0.0, 1.5], [1.2, 1.5, 20.1, 0.3, 4.0, 1.6, 1.5]),
+             ([1.0, 1.5, 20.0, 0.3, 0.0, 0.0, 1.5], [1.0, 1.5, 20.0, 0.3, 4.0, 1.6, 1.5]),
+             ([np.nan, 1.5, 20.0, 0.3, 4.0, 1.6, 1.5], [1.0, 1.5, 20.0, 0.3, 4.0, 1.6, 1.5])]
+    det, trk = np.array([c[0] for c in cases]), np.array([c[1] for c in cases])
+    got, bad, _ = x64(lambda d, t, c: affinity(d, t, metric, exact.runtime_zero(c)))(det, trk, 3)
+    for i in range(len(cases)):
+        try:
+            want = ab.affinity_matrix(det[i:i + 1], trk[i:i + 1], metric, None)[0, 0]
+            assert (got[i, i], bad[i, i]) == (want, False), i
+        except geo.DegenerateGeometry:
+            assert bad[i, i], i
