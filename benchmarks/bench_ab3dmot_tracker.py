@@ -1,0 +1,101 @@
+"""Benchmark: AB3DMOT's tracker in JAX (dfrmot_jax.ab3dmot) against the NumPy oracle
+(dfrmot_jax.testing.ab3dmot_oracle), KITTI PointRCNN car, the car preset (giou_3d, Hungarian).
+
+- the oracle: ``--oracle-sequences`` (default all 21, 8008 frames), frames/s;
+- JAX, one lane (B = 1) over ``--sequences`` (default all 21, 8008 frames): compile + first run, then
+  the warm run, frames/s; its lines checked against the reference run (``car_default``);
+- JAX, ``--batch`` lanes (default 64: thresholds -0.4 .. 0.1 x min_hits 1..4 x max_age 1..4, the
+  car preset's program) over ``--batch-sequences`` (default 0000-0003, 978 frames): config-frames/s,
+  warm (the second call, with the capacities the first one grew to).
+
+Times are wall seconds and this process's CPU seconds; the machine is shared, so the load average
+goes with them. The LAST line is one JSON object.
+
+    python benchmarks/bench_ab3dmot_tracker.py [--data ROOT] [--buckets 3] [--batch 64]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from machine import cpu_model  # noqa: E402
+
+from dfrmot_jax import ab3dmot as J  # noqa: E402
+from dfrmot_jax.paths import default_data_root  # noqa: E402
+from dfrmot_jax.testing import ab3dmot_oracle as ab  # noqa: E402
+from dfrmot_jax.testing.ab3dmot_compare import Comparison, compare_folder  # noqa: E402
+
+
+def timed(fn):
+    w, c = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - w, time.process_time() - c
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", default=str(default_data_root()))
+    ap.add_argument("--sequences", default=",".join(J.ALL_SEQUENCES))
+    ap.add_argument("--oracle-sequences", default=",".join(J.ALL_SEQUENCES))
+    ap.add_argument("--batch-sequences", default="0000,0001,0002,0003")
+    ap.add_argument("--batch", type=int, default=64)
+    ap.add_argument("--buckets", type=int, default=3)
+    ap.add_argument("--tracks", type=int, default=48)
+    ap.add_argument("--skip-oracle", action="store_true")
+    args = ap.parse_args(argv)
+    root = Path(args.data)
+    res = {"load_start": os.getloadavg()}
+    params, options = J.ab3dmot_car(tracks=args.tracks, pairs=32, buckets=args.buckets)
+
+    if not args.skip_oracle:
+        seqs = args.oracle_sequences.split(",")
+        lines, wall, cpu = timed(lambda: ab.track_sequences(root, ab.PRESETS["car_default"], seqs))
+        frames = sum(ab.sequence_length(root / "label_02" / f"{s}.txt") for s in seqs)
+        res.update(oracle_frames=frames, oracle_wall_s=wall, oracle_cpu_s=cpu, oracle_fps=frames / wall,
+                   oracle_fps_cpu=frames / cpu)
+        print(f"oracle: {frames} frames in {wall:.1f} s ({cpu:.1f} s CPU): {frames / wall:.1f} frames/s", flush=True)
+
+    split = J.read_split(root, "car", args.sequences.split(","))
+    t = len(split.frames.reset)
+    out, wall, cpu = timed(lambda: J.run(params, split.frames, options))
+    res.update(b1_frames=t, b1_first_s=wall)
+    out, wall, cpu = timed(lambda: J.run(params, split.frames, out.options))
+    res.update(b1_warm_s=wall, b1_cpu_s=cpu, b1_fps=t / wall, b1_fps_cpu=t / cpu)
+    lines = J.result_lines(split, out)
+    total = Comparison(diffs=[])
+    for c in compare_folder(lines, root / "reference" / "ab3dmot_tracker" / "head61f3bd7_car_default").values():
+        total += c
+    res.update(b1_lines_exact=total.exact, b1_lines_differing=total.differing + total.close)
+    print(f"JAX B=1: {t} frames, first call {res['b1_first_s']:.1f} s, warm {wall:.2f} s ({cpu:.2f} s CPU): "
+          f"{t / wall:.0f} frames/s; lines exact {total.exact}, differing {total.differing + total.close}", flush=True)
+
+    grid = list(itertools.product((-0.4, -0.3, -0.2, 0.1), (1, 2, 3, 4), (1, 2, 3, 4)))[:args.batch]
+    batch = J.stack_params([J.Params(th, mh, ma) for th, mh, ma in grid])
+    split = J.read_split(root, "car", args.batch_sequences.split(","))
+    t = len(split.frames.reset)
+    out, wall, cpu = timed(lambda: J.run(batch, split.frames, options))
+    res.update(batch=len(grid), batch_frames=t, batch_first_s=wall, batch_peak=int(out.peak.max()),
+               batch_tracks=out.options.tracks)
+    grown = out.options
+    out, wall, cpu = timed(lambda: J.run(batch, split.frames, grown))
+    res.update(batch_warm_s=wall, batch_cpu_s=cpu, batch_config_fps=len(grid) * t / wall,
+               batch_config_fps_cpu=len(grid) * t / cpu)
+    print(f"JAX B={len(grid)}: {t} frames, first call {res['batch_first_s']:.1f} s, warm {wall:.2f} s "
+          f"({cpu:.2f} s CPU): {len(grid) * t / wall:.0f} config-frames/s; peak {res['batch_peak']} tracks, "
+          f"ran with {grown.tracks}", flush=True)
+    res.update(load_end=os.getloadavg(), cpu_model=cpu_model(), cpus=os.cpu_count(), buckets=args.buckets,
+               tracks=args.tracks)
+    print(json.dumps(res))
+
+
+if __name__ == "__main__":
+    main()

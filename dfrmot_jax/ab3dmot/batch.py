@@ -1,0 +1,212 @@
+"""AB3DMOT over a split for a batch of settings: ``lax.scan`` over the frames of ``tracker.step``
+vmapped over a ``Params`` batch [B], jitted once per ``Options`` (and frame shape), under
+``jax.enable_x64``. With ``Options.buckets`` > 1 each frame's association (the affinity matrix,
+where the time goes) runs on the smallest of a few slot counts that holds its detections and every
+lane's live tracks (``lax.switch`` on an index shared by the lanes).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import numpy as np
+from jax import lax
+
+from .config import AUTO_BUCKETS_MIN_T, Options, Params, as_arrays, validate
+import jax.numpy as jnp
+
+from . import kalman
+from .affinity import combine, compact, distance, pair_apart, pair_hull, pair_intersection
+from .exact import runtime_zero
+from .tracker import Frames, State, StepOutput, decide, finish, init, predict, step
+
+__all__ = ["RunOutput", "run", "run_lane", "run_lanes", "pooled_affinity", "affinity_sizes", "ladder", "clear_programs",
+           "MAX_TRACKS"]
+
+
+class RunOutput(NamedTuple):
+    """A batch's output (NumPy): ``ids`` [B, T, K] (-1: not written), ``src`` [B, T, K], ``boxes``
+    [B, T, K, 7] (``StepOutput``'s fields per frame), ``next_id`` [B, T] (the id counter after
+    each frame), and per lane [B]: ``overflow`` (births dropped), ``peak`` (most slots needed),
+    ``pairs_left``, ``degenerate``, ``fallback`` (see ``tracker.State``): a lane is AB3DMOT's exactly
+    when all of ``overflow``, ``pairs_left``, ``degenerate`` and ``fallback`` are 0; ``options``:
+    the ``Options`` of the run (capacities grown, buckets chosen)."""
+
+    ids: np.ndarray
+    src: np.ndarray
+    boxes: np.ndarray
+    next_id: np.ndarray
+    overflow: np.ndarray
+    peak: np.ndarray
+    pairs_left: np.ndarray
+    degenerate: np.ndarray
+    fallback: np.ndarray
+    options: Options | None = None
+
+
+def run_lane(params: Params, frames: Frames, state: State, options: Options) -> tuple[State, StepOutput]:
+    """One lane over frames [T, ...] from ``state``: (final state, outputs [T, ...]). Traceable."""
+    return lax.scan(lambda s, f: step(params, s, f, options), state, frames)
+
+
+def affinity_sizes(n_det: int, tracks: int, buckets: int) -> tuple[tuple[int, int], ...]:
+    """The (detection, track) slot counts a frame's assignment may run on, smallest first:
+    ``ceil(N / 2^s), ceil(K / 2^s)`` for s = buckets - 1 .. 0 (0 buckets: one, the full size)."""
+    out = []
+    for s in range(max(buckets, 1) - 1, -1, -1):
+        size = (max(1, -(-n_det // (1 << s))), max(1, -(-tracks // (1 << s))))
+        if size not in out:
+            out.append(size)
+    return tuple(out)
+
+
+def ladder(total: int, levels: int) -> tuple[int, ...]:
+    """Capacities ``ceil(total / 4^s)`` for s = levels - 1 .. 0, smallest first (distinct)."""
+    return tuple(sorted({max(1, -(-total // (4 ** s))) for s in range(max(levels, 1))}))
+
+
+def _switch(count, sizes, branch, *args):
+    """``branch(size)(*args)`` for the smallest of ``sizes`` >= count (the last holds every case)."""
+    if len(sizes) == 1:
+        return branch(sizes[0])(*args)
+    index = jnp.argmax(jnp.array([count <= c for c in sizes]))
+    return lax.switch(index, [branch(c) for c in sizes], *args)
+
+
+def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
+    """Every lane's affinity matrix (A [B, N, K] float32, degenerate [B, N, K]) from the pairs
+    that exist (valid detection, live track) of all lanes, packed into one list: each per-pair
+    value is computed once, on the smallest of a ladder of list sizes that holds them (``lax.switch``
+    on their number); IoU metrics clip only the pairs whose footprints may overlap, packed again.
+    The same values as ``affinity.affinity`` lane by lane (the same elementwise functions)."""
+    metric = options.metric
+    b, k = pred.count.shape[0], pred.age.shape[1]
+    n = frame.valid.shape[0]
+    full = b * n * k
+    trk = pred.filt.x[..., :7]                                                  # [B, K, 7]
+    det = frame.boxes                                                           # [N, 7]
+    zero = runtime_zero(jnp.max(pred.frame_count))
+    mask = frame.valid[None, :, None] & (jnp.arange(k)[None, None, :] < pred.count[:, None, None])
+
+    def boxes(sel):
+        sel = jnp.minimum(sel, full - 1)
+        lane, i, j = sel // (n * k), (sel // k) % n, sel % k
+        return det[i], trk[lane, j], (lane, j)
+
+    def scatter(sel, values, fill):
+        return jnp.full(full, fill, values.dtype).at[sel].set(values, mode="drop").reshape(b, n, k)
+
+    def stage_pairs(cap):
+        def run(mask):
+            sel, _ = compact(mask, cap)
+            d, t, (lane, j) = boxes(sel)
+            if "iou" not in metric:
+                inn = kalman.innovation(jax.tree.map(lambda v: v[lane, j], pred.filt)) if metric == "m_dis" else None
+                return scatter(sel, distance(d, t, metric, zero, inn), 0.0), scatter(sel, sel < 0, False)
+            apart = scatter(sel, pair_apart(d, t, zero), True)
+            if not metric.startswith("giou"):
+                return apart, scatter(sel, sel < 0, False), jnp.zeros((b, n, k))
+            hull, bad = pair_hull(d, t, zero)
+            return apart, scatter(sel, bad, False), scatter(sel, hull, 0.0)
+        return run
+
+    sizes = ladder(full, levels)
+    if "iou" not in metric:
+        value, bad = _switch(jnp.sum(mask), sizes, stage_pairs, mask)
+        return value.astype(jnp.float32), bad & mask
+    apart, bad, hull = _switch(jnp.sum(mask), sizes, stage_pairs, mask)
+    cand = mask & ~apart
+
+    def stage_clip(cap):
+        def run(cand):
+            sel, _ = compact(cand, cap)
+            d, t, _ = boxes(sel)
+            inter, bad = pair_intersection(d, t, zero)
+            return scatter(sel, inter, 0.0), scatter(sel, bad, False)
+        return run
+
+    inter, clip_bad = _switch(jnp.sum(cand), ladder(full, levels + 1 if levels > 1 else 1), stage_clip, cand)
+    value = combine(det[None, :, None], trk[:, None, :], metric, inter, hull, zero)
+    return value.astype(jnp.float32), (bad | clip_bad) & mask
+
+
+def run_lanes(params: Params, frames: Frames, states: State, options: Options) -> tuple[State, StepOutput]:
+    """Every lane (``params``, ``states`` leaves [B]) over frames [T, ...]: a scan over frames of
+    the step vmapped over the lanes, its affinity matrices from ``pooled_affinity`` (no pair left
+    out: ``Options.pairs`` does not apply) and its assignment on the smallest of
+    ``affinity_sizes`` holding the frame's valid detections and every lane's live tracks (the same
+    result: slots beyond hold nothing). Outputs [T, B, ...]. Traceable."""
+    n_det = frames.valid.shape[1]
+    sizes = affinity_sizes(n_det, options.tracks, options.buckets)
+    levels = max(options.buckets, 1)
+
+    def body(s, f):
+        pred = jax.vmap(predict, in_axes=(0, None))(s, f)
+        a32, bad = pooled_affinity(f, pred, options, levels)
+        none = jnp.zeros(a32.shape[0], jnp.int32)
+
+        def at(size):
+            def lanes(p, pr, a, bd, lf):
+                return jax.vmap(lambda q, r, a, bd, lf: decide(q, r, f, options, size, (a, bd, lf)))(p, pr, a, bd, lf)
+            return lanes
+
+        need_n = jnp.max(jnp.where(f.valid, jnp.arange(n_det) + 1, 0))
+        need_k = jnp.max(pred.count)
+        if len(sizes) == 1:
+            dec = at(sizes[0])(params, pred, a32, bad, none)
+        else:
+            fits = jnp.array([(need_n <= nb) & (need_k <= kb) for nb, kb in sizes])
+            dec = lax.switch(jnp.argmax(fits), [at(size) for size in sizes], params, pred, a32, bad, none)
+        return jax.vmap(finish, in_axes=(0, 0, None, None, 0, 0))(params, s, f, options, pred, dec)
+
+    return lax.scan(body, states, frames)
+
+
+_PROGRAMS: dict = {}
+#: the most track slots ``run`` grows to
+MAX_TRACKS = 4096
+
+
+def _program(options: Options):
+    fn = _PROGRAMS.get(options)
+    if fn is None:
+        def lanes(params, frames, states):
+            last, out = run_lanes(params, frames, states, options)
+            out = jax.tree.map(lambda v: jnp.swapaxes(v, 0, 1), out)
+            return out, (last.overflow, last.peak, last.pairs_left, last.degenerate, last.fallback)
+        fn = _PROGRAMS[options] = jax.jit(lanes)
+    return fn
+
+
+def clear_programs() -> None:
+    """Forget the compiled programs."""
+    _PROGRAMS.clear()
+
+
+def run(params: Params, frames: Frames, options: Options, first_id: int = 1, grow: bool = True) -> RunOutput:
+    """Every lane of ``params`` (scalars: one lane; leaves [B]) over ``frames`` [T, N, ...], ids
+    from ``first_id``. Validates the setting first (ValueError with every problem). ``grow``: where
+    a lane ran out of track slots (``overflow``), every lane runs again with twice as many (up to
+    ``MAX_TRACKS``); the output says which ``options`` it ran with. Every pair is clipped
+    (``pooled_affinity``): ``pairs_left`` is 0."""
+    validate(params, options)
+    p = as_arrays(params)
+    b = max([np.shape(v)[0] for v in p if np.ndim(v)] or [1])
+    p = Params(*(np.broadcast_to(np.atleast_1d(v), (b,)) for v in p))
+    t = np.shape(frames.valid)[0]
+    if options.buckets == 0:
+        options = options._replace(buckets=3 if t >= AUTO_BUCKETS_MIN_T else 1)
+    with jax.enable_x64(True):
+        f = Frames(np.asarray(frames.boxes, np.float64), np.asarray(frames.valid, bool),
+                   np.asarray(frames.score, np.float64), np.asarray(frames.reset, bool))
+        while True:
+            states = jax.tree.map(lambda v: np.repeat(np.asarray(v)[None], b, 0), init(options, first_id))
+            out, counters = _program(options)(p, f, states)
+            out = RunOutput(*jax.tree.map(np.asarray, tuple(out)), *(np.asarray(c) for c in counters), options)
+            more = {}
+            if grow and out.overflow.any() and options.tracks < MAX_TRACKS:
+                more["tracks"] = min(2 * options.tracks, MAX_TRACKS)
+            if not more:
+                return out
+            options = options._replace(**more)
