@@ -155,3 +155,21 @@ def test_the_readme_shows_the_current_report_help():
     text = subprocess.run([sys.executable, "-m", "dfrmot_jax.cli", "report", "--help"], env=env, capture_output=True,
                           text=True, timeout=120, check=True).stdout
     assert f"```text\n{text}```" in (repo / "README.md").read_text()
+
+
+def test_a_global_matplotlib_style_does_not_change_the_report_figures():
+    """Optuna's plots (a tune's history.png) set the ggplot style for the whole process: a report
+    page drawn after them in the same process differed from one drawn in a fresh one (ids, grid
+    lines). The figures start from Matplotlib's defaults, whatever was set before."""
+    import matplotlib
+    import pandas as pd
+
+    from dfrmot_jax.report.figures import heatmap_figure
+
+    values = pd.DataFrame([[1.0, 2.0], [3.0, 4.5]], index=pd.Index([0.1, 0.2], name="a_f"),
+                          columns=pd.Index([2.0, 4.0], name="a_l"))
+    before = heatmap_figure(values, "HOTA")
+    with matplotlib.rc_context():
+        matplotlib.style.use("ggplot")
+        during = heatmap_figure(values, "HOTA")
+    assert during == before and "<svg" in before

@@ -10,6 +10,7 @@ each SVG are prefixed per figure, so that several can share one page.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import hashlib
 import itertools
@@ -28,6 +29,18 @@ _RC = {"svg.fonttype": "path", "svg.hashsalt": "dfrmot", "font.size": 9, "axes.t
        "axes.spines.top": False, "axes.spines.right": False, "legend.fontsize": 8, "legend.frameon": False}
 
 
+@contextlib.contextmanager
+def _rc():
+    """Matplotlib's default settings and :data:`_RC`, whatever the process set before (Optuna's plots
+    set the ggplot style globally): a page is a function of its report alone."""
+    import matplotlib
+
+    with matplotlib.rc_context():
+        matplotlib.rcdefaults()
+        matplotlib.rcParams.update(_RC)
+        yield
+
+
 def _figure(width: float, height: float):
     from matplotlib.figure import Figure
 
@@ -39,10 +52,9 @@ def to_svg(fig) -> str:
     is a digest of the figure's own SVG, so a page is a function of its report alone (a counter made
     it depend on the figures the process had drawn before; figures drawn alike share their ids and
     their content)."""
-    import matplotlib
 
     buf = io.StringIO()
-    with matplotlib.rc_context(_RC):
+    with _rc():
         fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": None})
     text = buf.getvalue()
     text = re.sub(r"<metadata>.*?</metadata>\s*", "", text[text.index("<svg"):], flags=re.S)
@@ -53,9 +65,7 @@ def to_svg(fig) -> str:
 
 
 def _draw(width: float, height: float, nrows: int = 1, ncols: int = 1, **kw):
-    import matplotlib
-
-    with matplotlib.rc_context(_RC):
+    with _rc():
         fig = _figure(width, height)
         axes = fig.subplots(nrows, ncols, squeeze=False, **kw)
     return fig, axes
@@ -65,12 +75,11 @@ def sensitivity_figure(profiles: Mapping[str, pd.DataFrame], objective: str, bas
     """One panel per axis: the objective of the best config with each value (line) and the mean
     over the configs with it (dashed); the baseline as a grey line. ``profiles``:
     :func:`~.analysis.axis_profiles`."""
-    import matplotlib
 
     n = len(profiles)
     cols = min(3, n)
     rows = math.ceil(n / cols)
-    with matplotlib.rc_context(_RC):
+    with _rc():
         fig, axes = _draw(3.1 * cols, 2.3 * rows, rows, cols)
         for ax, (name, p) in zip(axes.flat, profiles.items()):
             numeric = pd.api.types.is_numeric_dtype(p["value"]) and not pd.api.types.is_bool_dtype(p["value"])
@@ -91,10 +100,9 @@ def sensitivity_figure(profiles: Mapping[str, pd.DataFrame], objective: str, bas
 
 def heatmap_figure(values: pd.DataFrame, objective: str) -> str:
     """``values``: [configs, sequences] of the objective (row labels: config; columns: sequence)."""
-    import matplotlib
 
     r, c = values.shape
-    with matplotlib.rc_context(_RC):
+    with _rc():
         fig, axes = _draw(min(12.0, 2.2 + 0.55 * c), 1.3 + 0.32 * r)
         ax = axes[0, 0]
         im = ax.imshow(values.to_numpy(np.float64), aspect="auto", cmap="viridis")
@@ -117,12 +125,11 @@ def folds_figure(cv: Mapping, objective: str, in_sample: float | None = None) ->
     """Per fold: the chosen config's objective on the training folds and on the held-out fold, and
     the baseline's on the held-out fold; lines: the cross-validated figure, the in-sample best and
     the baseline. ``cv``: :func:`~.analysis.cross_validate`'s dict (or a tune's ``nested.json``)."""
-    import matplotlib
 
     folds = list(cv["per_fold"])
     x = np.arange(len(folds))
     w = 0.27
-    with matplotlib.rc_context(_RC):
+    with _rc():
         fig, axes = _draw(max(4.5, 1.2 * len(folds) + 2.5), 3.0)
         ax = axes[0, 0]
         bars = [("train (chosen)", "train", COLOURS[4]), ("held out (chosen)", "held_out", COLOURS[0]),
@@ -148,10 +155,9 @@ def curves_figure(curves: pd.DataFrame, objective: str, settings: Mapping[str, S
     """The objective against the distortion level (mean ± SE over seeds), one panel per kind, a
     line per setting (``settings``: kind -> the settings to draw, best first). ``curves``:
     :func:`~.robustness.robustness_curves`."""
-    import matplotlib
 
     kinds = list(settings)
-    with matplotlib.rc_context(_RC):
+    with _rc():
         fig, axes = _draw(4.2 * len(kinds), 3.6, 1, len(kinds))
         for ax, kind in zip(axes.flat, kinds):
             ck = curves[curves["kind"] == kind]
@@ -171,11 +177,10 @@ def contrast_figure(con: pd.DataFrame, objective: str, high: str, low: str) -> s
     """A contrast of two groups of an axis (:func:`~.robustness.robustness_contrast` rows of one
     metric): per kind (and ``by`` value), the two groups' means against the level (top) and their
     gap ± SE over seeds (bottom; filled markers: significantly better)."""
-    import matplotlib
 
     by = [c for c in con.attrs.get("by", [])]
     keys = list(con.groupby(by + ["kind"], sort=False).groups) if by else list(pd.unique(con["kind"]))
-    with matplotlib.rc_context(_RC):
+    with _rc():
         fig, axes = _draw(max(4.0, 3.3 * len(keys)), 5.0, 2, len(keys), sharex="col")
         for j, key in enumerate(keys):
             key = key if isinstance(key, tuple) else (key,)
@@ -203,12 +208,11 @@ def contrast_figure(con: pd.DataFrame, objective: str, high: str, low: str) -> s
 
 def history_figure(trials: pd.DataFrame, objective: str, minimise: bool) -> str:
     """A tune's trials in order: the objective of each (grey: refinement steps) and the best so far."""
-    import matplotlib
 
     t = trials.sort_values("trial")
     y = t[objective].to_numpy(np.float64)
     best = np.fmin.accumulate(y) if minimise else np.fmax.accumulate(y)
-    with matplotlib.rc_context(_RC):
+    with _rc():
         fig, axes = _draw(6.5, 3.0)
         ax = axes[0, 0]
         search = (t["phase"] == "search").to_numpy() if "phase" in t.columns else np.ones(len(t), bool)
@@ -227,10 +231,9 @@ def history_figure(trials: pd.DataFrame, objective: str, minimise: bool) -> str:
 
 def pareto_figure(trials: pd.DataFrame, front: pd.DataFrame, objectives: Sequence[str]) -> str:
     """Every trial of a two-objective tune, its Pareto front joined (``front``: :func:`~.analysis.pareto_front`)."""
-    import matplotlib
 
     a, b = objectives
-    with matplotlib.rc_context(_RC):
+    with _rc():
         fig, axes = _draw(5.0, 3.6)
         ax = axes[0, 0]
         ax.plot(trials[a], trials[b], "o", ms=4, color="0.65", label="trial")

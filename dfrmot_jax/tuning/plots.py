@@ -38,14 +38,16 @@ def save_plots(result, folder: Path) -> list[Path]:
 
     for name, draw in jobs.items():
         try:
-            with warnings.catch_warnings():
+            # Optuna's plots call plt.style.use("ggplot"), a global setting: kept inside this context,
+            # so that the process's later figures (the HTML report's) are drawn as without a tune
+            with warnings.catch_warnings(), matplotlib.rc_context():
                 warnings.simplefilter("ignore")
                 ax = draw()
-            fig = ax.figure if hasattr(ax, "figure") else np.ravel(ax)[0].figure
-            fig.set_size_inches(8, 5)
-            fig.tight_layout()
-            fig.savefig(folder / name, dpi=100)
-            plt.close(fig)
+                fig = ax.figure if hasattr(ax, "figure") else np.ravel(ax)[0].figure
+                fig.set_size_inches(8, 5)
+                fig.tight_layout()
+                fig.savefig(folder / name, dpi=100)
+                plt.close(fig)
             written.append(folder / name)
         except (ValueError, RuntimeError, ZeroDivisionError):
             continue
