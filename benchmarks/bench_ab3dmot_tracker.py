@@ -30,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import cpu_model  # noqa: E402
 
 from dfrmot_jax import ab3dmot as J  # noqa: E402
+from dfrmot_jax.io.kitti import sequence_lengths  # noqa: E402
 from dfrmot_jax.paths import default_data_root  # noqa: E402
 from dfrmot_jax.testing import ab3dmot_oracle as ab  # noqa: E402
 from dfrmot_jax.testing.ab3dmot_compare import Comparison, compare_folder  # noqa: E402
@@ -59,7 +60,7 @@ def main(argv=None):
     if not args.skip_oracle:
         seqs = args.oracle_sequences.split(",")
         lines, wall, cpu = timed(lambda: ab.track_sequences(root, ab.PRESETS["car_default"], seqs))
-        frames = sum(ab.sequence_length(root / "label_02" / f"{s}.txt") for s in seqs)
+        frames = sum(sequence_lengths(root, seqs).values())
         res.update(oracle_frames=frames, oracle_wall_s=wall, oracle_cpu_s=cpu, oracle_fps=frames / wall,
                    oracle_fps_cpu=frames / cpu)
         print(f"oracle: {frames} frames in {wall:.1f} s ({cpu:.1f} s CPU): {frames / wall:.1f} frames/s", flush=True)

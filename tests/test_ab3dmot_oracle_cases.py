@@ -189,7 +189,8 @@ def test_sequences_share_one_id_counter_and_empty_files_are_skipped(tmp_path):
     (det_dir / "0001.txt").write_text("")
     (det_dir / "0002.txt").write_text(row.format(f=1, x=1.0))
     for seq, last in (("0000", 2), ("0001", 3), ("0002", 1)):
-        (tmp_path / "label_02" / f"{seq}.txt").write_text(f"{last} -1 DontCare\n")
+        (tmp_path / "label_02" / f"{seq}.txt").write_text(   # one full KITTI label row (read by io.kitti)
+            f"{last} -1 DontCare -1 -1 -10 1 2 3 4 -1000 -1000 -1000 -10 -1 -1 -1\n")
     out = ab.track_sequences(tmp_path, ab.PRESETS["car_default"], ["0000", "0001", "0002"], out_dir=tmp_path / "out")
     assert sorted(out) == ["0000", "0002"]
     assert [s.split()[:2] for s in out["0000"]] == [["0", "2"], ["0", "1"], ["1", "2"], ["1", "1"]]

@@ -8,13 +8,13 @@ at once (``vmap`` over a ``Params`` batch, ``lax.scan`` over frames).
     out = ab3dmot.run(params, split.frames, options)
     lines = ab3dmot.result_lines(split, out)          # {sequence: AB3DMOT's lines}
 
-Imports only NumPy and JAX (and its own modules).
+Imports only NumPy, JAX, its own modules and ``io.kitti.sequence_lengths`` (a sequence runs to its last label frame).
 """
 
 from .config import (ALGORITHMS, PARAM_RANGES, PRESETS, Options, Params, ab3dmot_car, ab3dmot_pedestrian,
                      as_arrays, compared_threshold, option_problem, param_problem, problems, stack_params, validate)
 from .affinity import DISTANCE_METRICS, METRICS
-from .data import ALL_SEQUENCES, TYPE_NAMES, Split, pack, parse_detections, read_split, sequence_length
+from .data import ALL_SEQUENCES, TYPE_NAMES, Split, pack, parse_detections, read_split
 from .results import LINE_FORMAT, result_lines, write_results
 from .batch import RunOutput, clear_programs, run, run_lane
 from .tracker import Frames, State, StepOutput, init, step
@@ -22,5 +22,5 @@ from .tracker import Frames, State, StepOutput, init, step
 __all__ = ["ALGORITHMS", "PARAM_RANGES", "PRESETS", "Options", "Params", "ab3dmot_car", "ab3dmot_pedestrian",
            "as_arrays", "compared_threshold", "option_problem", "param_problem", "problems", "stack_params",
            "validate", "DISTANCE_METRICS", "METRICS", "ALL_SEQUENCES", "TYPE_NAMES", "Split", "pack",
-           "parse_detections", "read_split", "sequence_length", "LINE_FORMAT", "result_lines", "write_results",
+           "parse_detections", "read_split", "LINE_FORMAT", "result_lines", "write_results",
            "RunOutput", "clear_programs", "run", "run_lane", "Frames", "State", "StepOutput", "init", "step"]

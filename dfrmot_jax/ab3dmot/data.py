@@ -13,9 +13,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..io.kitti import sequence_lengths
 from .tracker import Frames
 
-__all__ = ["Split", "parse_detections", "sequence_length", "pack", "read_split", "CATEGORY_FOLDERS",
+__all__ = ["Split", "parse_detections", "pack", "read_split", "CATEGORY_FOLDERS",
            "TYPE_NAMES", "ALL_SEQUENCES"]
 
 #: category -> detection folder under ``detections/pointrcnn``
@@ -54,15 +55,6 @@ def parse_detections(text: str) -> dict[int, np.ndarray]:
     return {int(f): rows[frames == f] for f in np.unique(frames)}
 
 
-def sequence_length(label_path) -> int:
-    """Frames of a sequence: the last frame in its ``label_02`` file plus one."""
-    last = 0
-    for line in Path(label_path).read_text().splitlines():
-        if line.strip():
-            last = max(last, int(line.split(" ", 1)[0]))
-    return last + 1
-
-
 def pack(sequences: list[tuple[str, dict[int, np.ndarray], int]], capacity: int | None = None) -> Split:
     """Split of ``(name, {frame: rows [n, 15]}, n_frames)`` sequences (empty ones skipped), N =
     ``capacity`` or the most detections of a frame (at least 1)."""
@@ -95,8 +87,9 @@ def read_split(root, category: str = "car", sequences=ALL_SEQUENCES, capacity: i
     ``root/detections/pointrcnn/<category>/SSSS.txt``, frames from ``root/label_02/SSSS.txt``."""
     root = Path(root)
     folder = root / "detections" / "pointrcnn" / CATEGORY_FOLDERS[category.lower()]
+    lengths = sequence_lengths(root, sequences)          # the last label frame + 1
     out = []
     for name in sequences:
         dets = parse_detections((folder / f"{name}.txt").read_text())
-        out.append((name, dets, sequence_length(root / "label_02" / f"{name}.txt")))
+        out.append((name, dets, max(lengths[name], 1)))   # a label file without rows: one frame, as before
     return pack(out, capacity)

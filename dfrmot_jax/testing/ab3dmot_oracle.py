@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from ..io.kitti import sequence_lengths
 from .ab3dmot_geometry import bottom_polygon, box_corners, box_dict, iou_pair
 
 PI = np.pi
@@ -116,15 +117,6 @@ def parse_detections(text: str) -> dict[int, FrameDets]:
         out[frame] = FrameDets(raw=a[:, 7:14].copy(),
                                info=np.concatenate([a[:, 14:15], a[:, 1:7]], axis=1))
     return out
-
-
-def sequence_length(label_path) -> int:
-    """Frames of a sequence: the last frame in its ``label_02`` file plus one."""
-    last = 0
-    for line in Path(label_path).read_text().splitlines():
-        if line.strip():
-            last = max(last, int(line.split(" ", 1)[0]))
-    return last + 1
 
 
 EMPTY = FrameDets(raw=np.zeros((0, 7)), info=np.zeros((0, 7)))
@@ -513,7 +505,7 @@ def track_sequences(kitti_root, settings: Settings, sequences=None, first_id: in
         dets = read_detections(folder / f"{seq}.txt")
         if not dets:
             continue
-        lines, next_id = track_sequence(dets, sequence_length(root / "label_02" / f"{seq}.txt"), settings, next_id)
+        lines, next_id = track_sequence(dets, max(sequence_lengths(root, [seq])[seq], 1), settings, next_id)
         out[seq] = lines
         if out_dir is not None:
             Path(out_dir).mkdir(parents=True, exist_ok=True)
