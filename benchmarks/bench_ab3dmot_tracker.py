@@ -55,7 +55,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     root = Path(args.data)
     res = {"load_start": os.getloadavg()}
-    params, options = J.ab3dmot_car(tracks=args.tracks, pairs=32, buckets=args.buckets)
+    params, options = J.ab3dmot_car(capacity=args.tracks, pairs=32, buckets=args.buckets)
 
     if not args.skip_oracle:
         seqs = args.oracle_sequences.split(",")
@@ -85,16 +85,16 @@ def main(argv=None):
     t = len(split.frames.reset)
     out, wall, cpu = timed(lambda: J.run(batch, split.frames, options))
     res.update(batch=len(grid), batch_frames=t, batch_first_s=wall, batch_peak=int(out.peak.max()),
-               batch_tracks=out.options.tracks)
+               batch_tracks=out.options.capacity)
     grown = out.options
     out, wall, cpu = timed(lambda: J.run(batch, split.frames, grown))
     res.update(batch_warm_s=wall, batch_cpu_s=cpu, batch_config_fps=len(grid) * t / wall,
                batch_config_fps_cpu=len(grid) * t / cpu)
     print(f"JAX B={len(grid)}: {t} frames, first call {res['batch_first_s']:.1f} s, warm {wall:.2f} s "
           f"({cpu:.2f} s CPU): {len(grid) * t / wall:.0f} config-frames/s; peak {res['batch_peak']} tracks, "
-          f"ran with {grown.tracks}", flush=True)
+          f"ran with {grown.capacity}", flush=True)
     res.update(load_end=os.getloadavg(), cpu_model=cpu_model(), cpus=os.cpu_count(), buckets=args.buckets,
-               tracks=args.tracks)
+               capacity=args.tracks)
     print(json.dumps(res))
 
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from .geometry import KITTI_IMAGE_SIZE, box3d_extent, project_box3d_to_image
 from .io.kitti import (
+    Detections2D,
     Detections3D,
     KittiFormatError,
     line_of_row,
@@ -154,6 +155,7 @@ def class_rows_3d(det: Detections3D, cls: str, path=None) -> np.ndarray:
 def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
                    image_size=DEFAULT_IMAGE_SIZE, lift: LiftSettings | None = None) -> list[SequenceDets]:
     """Read detections and calib of each sequence (default: those whose ground truth has the class).
+    ``det2d=None``: no 2D detections (every sequence's are empty), for a tracker that reads 3D ones only.
 
     A root without ``label_02/`` raises ValueError (the KITTI root is wrong), a missing detection or
     calib file :class:`KittiFormatError` (``file not found``); an empty file is a sequence without
@@ -169,19 +171,24 @@ def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
         raise ValueError(f"class {cls!r}: expected one of {sorted(CLASS_NAMES)}")
     if not (root / "label_02").is_dir():
         raise ValueError(missing_data_message(root))
-    d2 = detection_dir(root, det2d, cls)
+    d2 = None if det2d is None else detection_dir(root, det2d, cls)
     scans = lidar_dir(det3d)
+    if d2 is None and scans is not None:
+        raise ValueError(f"det3d={det3d!r} lifts the 2D detections: give det2d")
     d3 = None if scans is not None else detection_dir(root, det3d, cls)
     if sequences is None:
         sequences = sequences_with_class(root, cls)
     lengths = sequence_lengths(root, sequences)
     out = []
     for name in sequences:
-        p2 = d2 / f"{name}.txt"
-        det2 = read_detections_2d(p2)
+        if d2 is None:          # (a tracker that reads 3D detections only)
+            p2, det2 = None, Detections2D(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros(0))
+        else:
+            p2 = d2 / f"{name}.txt"
+            det2 = read_detections_2d(p2)
         calib_path = root / "calib" / f"{name}.txt"
         calib = read_calib(calib_path)
-        checks = [("2D", det2, p2)]
+        checks = [("2D", det2, p2)] if p2 is not None else []
         if scans is None:
             p3 = d3 / f"{name}.txt"
             det3 = read_detections_3d(p3)
@@ -288,7 +295,7 @@ def cached_split(root, det2d, det3d, cls: str, sequences, lift: LiftSettings | N
     sequences = tuple(sequences)
     files = [root / sub / f"{s}.txt" for sub in ("label_02", "calib") for s in sequences]
     scans = lidar_dir(det3d)
-    for det in (det2d,) if scans is not None else (det2d, det3d):
+    for det in [d for d in ((det2d,) if scans is not None else (det2d, det3d)) if d is not None]:
         folder = detection_dir(root, det, cls)
         files += [folder / f"{s}.txt" for s in sequences]
     stamp = file_stamps(files)

@@ -10,6 +10,8 @@ changes what any of them does; :data:`FAMILY` names them for the machinery
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 import pandas as pd
 
@@ -20,8 +22,9 @@ from .core.filters import fixed_gain_radius
 from .data import Split
 from .family import TrackerFamily
 from .report.columns import class_columns
+from .rows import lane_values
 
-__all__ = ["FAMILY", "compact_split", "output_slots", "table_problem", "unstable_gains", "unstable_message",
+__all__ = ["FAMILY", "compact_split", "lane_keys", "setting_problem", "output_slots", "table_problem", "unstable_gains", "unstable_message",
            "unstable_rows"]
 
 
@@ -85,10 +88,42 @@ def table_problem(table: pd.DataFrame) -> tuple[str, str] | None:
     return None
 
 
+def setting_problem(what: str, params: Params, options: Options) -> str | None:
+    """Why one setting is refused (``TrackerFamily.setting_problem``): filtered boxes with unstable
+    fixed gains (:func:`unstable_gains`); None when it runs."""
+    p = params
+    if options.output == "filtered" and unstable_gains([options.filter == "fixed_gain"], p.gain_alpha, p.gain_beta,
+                                                       p.gain_gamma)[0]:
+        return unstable_message(what, p.gain_alpha, p.gain_beta, p.gain_gamma, more=", or output=detections")
+    return None
+
+
+def lane_keys(res, base) -> list[bytes]:
+    """One digest per lane of what its rows carry (``TrackerFamily.lane_keys``): the options, ``base``
+    (the lane's digest of its ids and own image boxes) and, per row, the 3D source (``src3``,
+    ``own3``); with output "filtered" also the lane's own 3D boxes. (With output "detections" a
+    row's score and 3D box follow from the options, its slot and its 3D source, on the one split.)"""
+    ids = np.asarray(res.ids)
+    rows = ids >= 0
+    filtered = res.options.output == "filtered"
+    src, own = np.asarray(res.src3), np.asarray(res.own3)
+    out = []
+    for b in range(ids.shape[0]):
+        r = rows[b]
+        h = hashlib.sha1(repr(res.options).encode())
+        h.update(base[b])
+        h.update(src[b][r].astype(np.int32).tobytes())
+        h.update(np.packbits(own[b][r]).tobytes())
+        if filtered:
+            h.update(np.ascontiguousarray(lane_values(res.box3, ids, b)).tobytes())
+        out.append(h.digest())
+    return out
+
+
 #: DFR-FastMOT, the family ``"dfr"``
 FAMILY = TrackerFamily(
     config=FAMILY_CONFIG, init=step.init, step=step.step, run_batch=run.run_batch, track=api.track,
     prepare_frames=data.prepare_frames, compact_split=compact_split, default_capacity=api.default_capacity,
     output_slots=output_slots, rows=results.kitti_rows, row_arrays=results.kitti_row_arrays,
     class_run=results.class_run, write_runs=results.write_runs, table_problem=table_problem,
-    failing_rows=unstable_rows, oracle="dfrmot_jax.testing.reference")
+    failing_rows=unstable_rows, setting_problem=setting_problem, lane_keys=lane_keys, box_format="g6", oracle="dfrmot_jax.testing.reference")

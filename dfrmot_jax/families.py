@@ -3,7 +3,8 @@ result files), so that it names the protocol (:class:`dfrmot_jax.family.TrackerF
 one family's modules.
 
 ``FAMILIES``: name -> family; :func:`family_of` looks one up. DFR-FastMOT (``"dfr"``,
-:data:`dfrmot_jax.dfr.FAMILY`) is the first. A family joins by one more entry in each registry: its
+:data:`dfrmot_jax.dfr.FAMILY`) is the first, AB3DMOT (``"ab3dmot"``,
+:data:`dfrmot_jax.ab3dmot.family.FAMILY`) the second. A family joins by one more entry in each registry: its
 :class:`~dfrmot_jax.family.TrackerFamily` here and its ``FamilyConfig`` in
 :data:`dfrmot_jax.family_configs.CONFIGS`, from a module of its own that reaches no JAX (as DFR's
 ``config.FAMILY_CONFIG``), so that the report and ``--help`` read its settings without the tracker;
@@ -14,13 +15,14 @@ knows only the families registered when the package is imported).
 from __future__ import annotations
 
 from . import dfr
+from .ab3dmot import family as ab3dmot
 from .family import DEFAULT_FAMILY, TrackerFamily, family_problems
 from .family_configs import CONFIGS, family_config, family_names
 
 __all__ = ["FAMILIES", "DEFAULT_FAMILY", "family_of", "register", "unregister", "family_names"]
 
 #: family name -> family (:func:`register` adds one)
-FAMILIES: dict[str, TrackerFamily] = {dfr.FAMILY.name: dfr.FAMILY}
+FAMILIES: dict[str, TrackerFamily] = {f.name: f for f in (dfr.FAMILY, ab3dmot.FAMILY)}
 
 
 def family_of(name: str = DEFAULT_FAMILY) -> TrackerFamily:

@@ -27,10 +27,12 @@ from __future__ import annotations
 
 from typing import Any, Callable, Mapping, NamedTuple
 
-__all__ = ["DEFAULT_FAMILY", "FamilyConfig", "TrackerFamily", "config_problems", "family_problems"]
+__all__ = ["BOX_FORMATS", "DEFAULT_FAMILY", "FamilyConfig", "TrackerFamily", "config_problems", "family_problems"]
 
 #: the family of a sweep or a stored table that names none (every table written before families existed)
 DEFAULT_FAMILY = "dfr"
+#: how result files print a row's image box (``TrackerFamily.box_format``): 6 significant digits, or ``%f``
+BOX_FORMATS = ("g6", "f6")
 
 
 class FamilyConfig(NamedTuple):
@@ -118,6 +120,13 @@ class TrackerFamily(NamedTuple):
                       with the sweep file's key to name; None when it runs every one.
     failing_rows:     ``(table) -> bool [C]``: configs whose output is known to be useless without a
                       run (a tune fails them without tracking).
+    setting_problem:  ``(what, params, options) -> str | None``: why one setting (scalars; ``what``
+                      names it, e.g. "the car settings") is refused, or None (``dfrmot track``).
+    lane_keys:        ``(res, base) -> [B] bytes``: per lane of a result, a digest of everything its
+                      rows carry beyond its ids and image boxes (``base``: their digests, extended),
+                      the key of the 3D metrics' memo of lanes.
+    box_format:       how a result file prints a row's image box: ``"g6"`` (6 significant digits,
+                      ``%g``) or ``"f6"`` (``%f``); a sweep scores the boxes as the files read back.
     oracle:           the module of its independent NumPy implementation, the oracle its parity tests
                       compare with (under ``dfrmot_jax.testing``, which nothing in the package imports).
     """
@@ -137,6 +146,9 @@ class TrackerFamily(NamedTuple):
     write_runs: Callable
     table_problem: Callable
     failing_rows: Callable
+    setting_problem: Callable
+    lane_keys: Callable
+    box_format: str
     oracle: str
 
     @property
@@ -184,7 +196,10 @@ def family_problems(family: TrackerFamily) -> list[str]:
     """What keeps ``family`` from being a family (empty: nothing): its config's problems, and every
     field of the tracker present."""
     out = config_problems(family.config)
-    out += [f"{name} is not callable" for name in TrackerFamily._fields[1:-1] if not callable(getattr(family, name))]
+    out += [f"{name} is not callable" for name in TrackerFamily._fields if name not in ("config", "box_format", "oracle")
+            and not callable(getattr(family, name))]
+    if family.box_format not in BOX_FORMATS:
+        out.append(f"box_format {family.box_format!r}: expected one of {BOX_FORMATS}")
     if not isinstance(family.oracle, str) or not family.oracle.startswith("dfrmot_jax.testing."):
         out.append(f"oracle {family.oracle!r}: expected a module of dfrmot_jax.testing")
     return out

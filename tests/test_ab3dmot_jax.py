@@ -190,7 +190,7 @@ def test_one_program_matches_reference_and_oracle(kitti_root):
     ref = kitti_root / REFERENCE / "head61f3bd7_car_mdis"
     if not ref.is_dir():
         pytest.skip(f"AB3DMOT reference run not found at {ref}")
-    options = J.Options("m_dis", "hungarian", tracks=TRACKS)
+    options = J.Options("m_dis", "hungarian", capacity=TRACKS)
     kitti = J.read_split(kitti_root, "car", ("0012", "0017"), N_DET)
     scenes = fixture_scenes("m_dis", "hungar") + own_scenes("m_dis", "hungar", range(6))
     split, out, lanes = run_scenes(scenes, options, kitti, _params(ab.PRESETS["car_mdis"]))
@@ -206,13 +206,13 @@ def test_settings_are_validated_readably():
     assert (params, options.metric, options.algorithm) == (J.Params(-0.4, 1, 4), "giou_3d", "greedy")
     assert J.problems(params, options) == []
     bad = J.problems(J.Params(threshold=np.nan, min_hits=1.5, max_age=0),
-                     J.Options(metric="iou", algorithm="hungar", tracks=0))
-    assert bad == ["threshold: not finite", "min_hits: expected an integer (1.5)",
+                     J.Options(metric="iou", algorithm="hungar", capacity=-1))
+    assert bad == ["threshold: not finite (nan)", "min_hits: expected an integer (1.5)",
                    "max_age: outside the valid range [1, 1e+06] (0)",
-                   "metric: 'iou' is not one of "
-                   "['iou_2d', 'iou_3d', 'giou_2d', 'giou_3d', 'dist_2d', 'dist_3d', 'm_dis']",
-                   "algorithm: 'hungar' is not one of ['hungarian', 'greedy']",
-                   "tracks: expected an integer in [1, 65536] (0)"]
+                   "metric: expected one of "
+                   "('iou_2d', 'iou_3d', 'giou_2d', 'giou_3d', 'dist_2d', 'dist_3d', 'm_dis') ('iou')",
+                   "algorithm: expected one of ('hungarian', 'greedy') ('hungar')",
+                   "capacity: expected an integer from 0 to 4096 (-1)"]
     with pytest.raises(ValueError, match="invalid AB3DMOT setting"):
         J.validate(J.Params(min_hits=[1, 2], max_age=[1, 2, 3]), J.Options())
     assert J.compared_threshold(6.0, "m_dis") == -6.0 and J.compared_threshold(-0.2, "giou_3d") == -0.2
@@ -229,7 +229,7 @@ def test_writer_numbers_ids_as_the_counter_and_writes_newest_first():
     src = np.zeros((1, t, k), int)
     src[0, 0, :2], src[0, 2, :2] = [0, 1], [4, 5]           # t * N + slot
     boxes = np.zeros((1, t, k, 7))
-    out = J.RunOutput(ids, src, boxes, np.array([[9, 9, 11]]), *np.zeros((5, 1), int))
+    out = J.RunOutput(ids, src, boxes, np.array([[9, 9, 11]]), np.zeros((1, t), int), *np.zeros((5, 1), int))
     lines = J.result_lines(split, out, run_first_id=7)
     assert [s.split()[:2] for s in lines["0000"]] == [["0", "2"], ["0", "1"]]      # newest first, from 1
     assert [s.split()[:2] for s in lines["0002"]] == [["0", "4"], ["0", "3"]]      # the counter runs on
@@ -248,7 +248,7 @@ def test_every_metric_and_algorithm_matches_on_edge_scenes(metric, algorithm):
     """The fixture's scenes for this setting (AB3DMOT's own lines) and 8 edge scenes (the oracle's
     lines, or AB3DMOT's stop reported as degenerate), one program, one lane each."""
     scenes = fixture_scenes(metric, algorithm) + own_scenes(metric, algorithm, range(100, 108))
-    options = J.Options(metric, ALGORITHMS[algorithm], tracks=TRACKS, pairs=48)
+    options = J.Options(metric, ALGORITHMS[algorithm], capacity=TRACKS, pairs=48)
     split, out, lanes = run_scenes(scenes, options)
     check_scenes(split, out, lanes, scenes)
 
@@ -261,7 +261,7 @@ def test_car_preset_with_buckets_matches_reference_and_oracle(kitti_root):
     ref = kitti_root / REFERENCE / "head61f3bd7_car_default"
     if not ref.is_dir():
         pytest.skip(f"AB3DMOT reference run not found at {ref}")
-    params, options = J.ab3dmot_car(tracks=TRACKS, pairs=24, buckets=3)
+    params, options = J.ab3dmot_car(capacity=TRACKS, pairs=24, buckets=3)
     kitti = J.read_split(kitti_root, "car", ("0012", "0017"), N_DET)
     scenes = fixture_scenes("giou_3d", "hungar") + own_scenes("giou_3d", "hungar", range(6))
     split, out, lanes = run_scenes(scenes, options, kitti, params)
@@ -277,7 +277,7 @@ def test_a_batch_equals_its_lanes_run_alone():
     """Four settings in one vmapped call give each lane's output of a call of its own."""
     scenes = own_scenes("dist_3d", "hungar", range(200, 204))
     split = J.pack([(s.name, J.parse_detections(s.text), s.n_frames) for s in scenes], N_DET)
-    options = J.Options("dist_3d", "hungarian", tracks=TRACKS)
+    options = J.Options("dist_3d", "hungarian", capacity=TRACKS)
     params = J.stack_params([J.Params(3.0, 1, 1), J.Params(1.0, 3, 2), J.Params(6.0, 2, 4), J.Params(0.5, 1, 3)])
     batch = J.run(params, split.frames, options)
     for b in range(4):
@@ -292,14 +292,14 @@ def test_capacity_overflow_is_reported():
     """Births beyond the track capacity are counted, never silently dropped; ``run`` grows the
     capacity until no lane overflows, and then the scenes give the oracle's lines."""
     scenes = own_scenes("dist_2d", "hungar", range(300, 304))
-    small = J.Options("dist_2d", "hungarian", tracks=8)              # these scenes need 9-10 slots
+    small = J.Options("dist_2d", "hungarian", capacity=8)              # these scenes need 9-10 slots
     split, out, lanes = run_scenes(scenes, small, grow=False)
     assert (out.overflow > 0).any() and (out.peak[out.overflow > 0] > 8).all()
     split, out, lanes = run_scenes(scenes, small)                    # grown until no lane overflows
-    assert out.options.tracks == 16 and (out.peak <= 16).all()
+    assert out.options.capacity == 16 and (out.peak <= 16).all()
     check_scenes(split, out, lanes, scenes)
     scenes = own_scenes("iou_2d", "hungar", range(300, 304))            # the step alone clips at most
-    few = J.Options("iou_2d", "hungarian", tracks=TRACKS, pairs=8)      # Options.pairs; these need 9-16
+    few = J.Options("iou_2d", "hungarian", capacity=TRACKS, pairs=8)      # Options.pairs; these need 9-16
     split = J.pack([(s.name, J.parse_detections(s.text), s.n_frames) for s in scenes], N_DET)
     lane = jax.jit(lambda f, st: J.run_lane(J.Params(0.1, 1, 2), f, st, few)[0].pairs_left)
     with jax.enable_x64(True):
@@ -314,7 +314,7 @@ def test_where_ab3dmot_stops_the_lane_says_so():
     text = "".join(row.format(f=f, w=1.6 if f != 2 else 0.0, x=1.0 + 0.1 * f) for f in range(4))
     scene = Scene("stop", text, ab.Settings("Car", "hungar", "iou_2d", 0.1, 1, 2))
     assert scene.lines is None
-    split, out, lanes = run_scenes([scene], J.Options("iou_2d", "hungarian", tracks=TRACKS))
+    split, out, lanes = run_scenes([scene], J.Options("iou_2d", "hungarian", capacity=TRACKS))
     check_scenes(split, out, lanes, [scene])
     assert out.degenerate.tolist() == [1]
 
@@ -329,7 +329,7 @@ def test_all_sequences_match_reference(kitti_root, run):
         pytest.skip(f"AB3DMOT reference run not found at {ref}")
     st = ab.PRESETS[run]
     split = J.read_split(kitti_root, st.category)
-    out = J.run(_params(st), split.frames, J.Options(st.metric, ALGORITHMS[st.algorithm], tracks=40, buckets=3))
+    out = J.run(_params(st), split.frames, J.Options(st.metric, ALGORITHMS[st.algorithm], capacity=40, buckets=3))
     assert not (out.overflow.any() or out.pairs_left.any() or out.degenerate.any() or out.fallback.any())
     lines = J.result_lines(split, out)
     total = compare_reference(lines, ref)

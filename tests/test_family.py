@@ -10,6 +10,8 @@ from __future__ import annotations
 import ast
 import importlib
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +21,7 @@ import pytest
 from dfrmot_jax import api, config, dfr, results
 from dfrmot_jax.core import run as core_run, step as core_step
 from dfrmot_jax.family import DEFAULT_FAMILY, TrackerFamily, config_problems, family_problems
-from dfrmot_jax.family_configs import CONFIGS, family_config, family_names
+from dfrmot_jax.family_configs import CONFIGS, all_presets, family_config, family_names, preset_family
 from dfrmot_jax.families import FAMILIES, family_of, register, unregister
 from dfrmot_jax.sweep import SweepConfigError, config_hash, expand, load_spec, parse_spec, run_sweep
 from dfrmot_jax.sweep.config_output import write_config_output
@@ -83,7 +85,7 @@ def test_dfr_is_the_first_family_and_follows_the_protocol():
     fam = family_of()
     assert fam is family_of("dfr") is FAMILIES["dfr"] is dfr.FAMILY and fam.name == DEFAULT_FAMILY == "dfr"
     assert fam.config is family_config() is config.FAMILY_CONFIG is CONFIGS["dfr"]
-    assert family_names() == ("dfr",) and family_problems(fam) == [] and config_problems(fam.config) == []
+    assert family_names() == ("dfr", "ab3dmot") and family_problems(fam) == [] and config_problems(fam.config) == []
     # the family wraps DFR's own code, it does not copy it
     assert (fam.init, fam.step, fam.run_batch) == (core_step.init, core_step.step, core_run.run_batch)
     assert (fam.track, fam.default_capacity) == (api.track, api.default_capacity)
@@ -93,8 +95,36 @@ def test_dfr_is_the_first_family_and_follows_the_protocol():
     assert fam.config.preset("tuned_both", "pedestrian") == config.preset("tuned_both", "pedestrian")
     assert fam.config.detections == ("2d", "3d")
     assert importlib.import_module(fam.oracle).__name__ == "dfrmot_jax.testing.reference"
-    with pytest.raises(ValueError, match=r"unknown tracker family 'nope': expected one of \['dfr'\]"):
+    with pytest.raises(ValueError, match=r"unknown tracker family 'nope': expected one of \['dfr', 'ab3dmot'\]"):
         family_of("nope")
+
+
+def test_ab3dmot_is_the_second_family_and_follows_the_protocol():
+    """AB3DMOT's family wraps its tracker package (``dfrmot_jax.ab3dmot``); its settings are read
+    without JAX (a fresh interpreter) and the preset names its family."""
+    from dfrmot_jax.ab3dmot import batch as ab_batch, config as ab_config, family as ab_family, tracker as ab_tracker
+    fam = family_of("ab3dmot")
+    assert fam is FAMILIES["ab3dmot"] is ab_family.FAMILY and family_problems(fam) == []
+    assert fam.config is CONFIGS["ab3dmot"] is ab_config.FAMILY_CONFIG and fam.config.detections == ("3d",)
+    assert (fam.init, fam.step, fam.run_batch) == (ab_tracker.init, ab_tracker.step, ab_batch.run)
+    assert fam.box_format == "f6" and family_of().box_format == "g6"
+    assert preset_family("ab3dmot_pedestrian") is fam.config and preset_family("tuned_both") is config.FAMILY_CONFIG
+    assert all_presets()[:1] == ("dfr2023",) and all_presets()[-2:] == ("ab3dmot_car", "ab3dmot_pedestrian")
+    with pytest.raises(ValueError, match="unknown preset 'nope': expected one of .*'ab3dmot_car'"):
+        preset_family("nope")
+    assert importlib.import_module(fam.oracle).__name__ == "dfrmot_jax.testing.ab3dmot_oracle"
+    code = ("import sys; from dfrmot_jax.family_configs import family_config; fc = family_config('ab3dmot'); "
+            "print(fc.preset('ab3dmot_pedestrian', 'car'), 'jax' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().endswith("False") and "threshold=-0.4" in out and "algorithm='greedy'" in out
+    p, o = fam.config.parse_assignment("metric=m_dis", *fam.config.preset("ab3dmot_car"))
+    p, o = fam.config.parse_assignment("max_age=5", p, o)
+    assert (o.metric, p.max_age, type(p.max_age)) == ("m_dis", 5, int)
+    for bad, why in (("max_age=0", "outside the valid range"), ("min_hits=1.5", "expected an integer"),
+                     ("algorithm=hungar", "expected one of"), ("capacity=-1", "from 0 to 4096"),
+                     ("nope=1", "unknown; parameters are")):
+        with pytest.raises(ValueError, match=why):
+            fam.config.parse_assignment(bad, p, o)
 
 
 def test_the_registry_refuses_a_family_that_breaks_the_protocol():

@@ -313,6 +313,9 @@ def test_no_underscore_name_is_imported_across_modules():
 
 #: the functions that may import a module of the package by name when they run (``importlib``): the
 #: command line's per-command lazy import (ARCHITECTURE.md, "Lazy imports")
+#: packages whose public API is imported on first use, in their ``__getattr__`` (PEP 562): the root, and
+#: AB3DMOT's tracker, whose settings (``ab3dmot.config``) are read without JAX
+LAZY_PACKAGES = ("dfrmot_jax", "dfrmot_jax.ab3dmot")
 LAZY_COMMANDS = {"dfrmot_jax.cli": {"build_parser"}, "dfrmot_jax.cli.errors": {"run_later"}}
 
 
@@ -326,7 +329,7 @@ def test_imports_sit_at_module_top_unless_an_optional_dependency_needs_them_lazy
         for fn in ast.walk(ast.parse(path.read_text())):
             if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 continue
-            if name == "dfrmot_jax" and fn.name == "__getattr__":
+            if name in LAZY_PACKAGES and fn.name == "__getattr__":
                 continue
             for node in ast.walk(fn):
                 mods = [a.name for a in node.names] if isinstance(node, ast.Import) else \

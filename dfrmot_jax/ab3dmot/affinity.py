@@ -29,14 +29,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import polygon
+from .config import DISTANCE_METRICS, METRICS
 from .exact import fma, mul
 
 __all__ = ["affinity", "footprint", "pair_apart", "pair_intersection", "pair_hull", "combine", "distance",
            "compact", "METRICS", "DISTANCE_METRICS"]
 
-METRICS = ("iou_2d", "iou_3d", "giou_2d", "giou_3d", "dist_2d", "dist_3d", "m_dis")
-#: metrics whose affinity is a negated distance (AB3DMOT's ``get_param`` negates their threshold)
-DISTANCE_METRICS = ("dist_2d", "dist_3d", "m_dis")
 
 _SX = np.array([1.0, 1.0, -1.0, -1.0])                # the 4 corners' signs of l/2 and w/2
 _SZ = np.array([1.0, -1.0, -1.0, 1.0])

@@ -13,7 +13,7 @@ import jax
 import numpy as np
 from jax import lax
 
-from .config import AUTO_BUCKETS_MIN_T, Options, Params, as_arrays, validate
+from .config import AUTO_BUCKETS_MIN_T, MAX_CAPACITY, Options, Params, as_arrays, validate
 import jax.numpy as jnp
 
 from . import kalman
@@ -22,13 +22,13 @@ from .exact import runtime_zero
 from .tracker import Frames, State, StepOutput, decide, finish, init, predict, step
 
 __all__ = ["RunOutput", "run", "run_lane", "run_lanes", "pooled_affinity", "affinity_sizes", "ladder", "clear_programs",
-           "MAX_TRACKS"]
+           "MAX_TRACKS", "data_capacity"]
 
 
 class RunOutput(NamedTuple):
     """A batch's output (NumPy): ``ids`` [B, T, K] (-1: not written), ``src`` [B, T, K], ``boxes``
     [B, T, K, 7] (``StepOutput``'s fields per frame), ``next_id`` [B, T] (the id counter after
-    each frame), and per lane [B]: ``overflow`` (births dropped), ``peak`` (most slots needed),
+    each frame), ``dropped`` [B, T] (births dropped per frame), and per lane [B]: ``overflow`` (births dropped), ``peak`` (most slots needed),
     ``pairs_left``, ``degenerate``, ``fallback`` (see ``tracker.State``): a lane is AB3DMOT's exactly
     when all of ``overflow``, ``pairs_left``, ``degenerate`` and ``fallback`` are 0; ``options``:
     the ``Options`` of the run (capacities grown, buckets chosen)."""
@@ -37,6 +37,7 @@ class RunOutput(NamedTuple):
     src: np.ndarray
     boxes: np.ndarray
     next_id: np.ndarray
+    dropped: np.ndarray
     overflow: np.ndarray
     peak: np.ndarray
     pairs_left: np.ndarray
@@ -138,7 +139,7 @@ def run_lanes(params: Params, frames: Frames, states: State, options: Options) -
     ``affinity_sizes`` holding the frame's valid detections and every lane's live tracks (the same
     result: slots beyond hold nothing). Outputs [T, B, ...]. Traceable."""
     n_det = frames.valid.shape[1]
-    sizes = affinity_sizes(n_det, options.tracks, options.buckets)
+    sizes = affinity_sizes(n_det, options.capacity, options.buckets)
     levels = max(options.buckets, 1)
 
     def body(s, f):
@@ -165,7 +166,14 @@ def run_lanes(params: Params, frames: Frames, states: State, options: Options) -
 
 _PROGRAMS: dict = {}
 #: the most track slots ``run`` grows to
-MAX_TRACKS = 4096
+MAX_TRACKS = MAX_CAPACITY
+
+
+def data_capacity(frames: Frames) -> int:
+    """Track slots for ``Options.capacity = 0``: four per detection slot of the fullest frame,
+    a multiple of 8, at least 16 (``run`` grows them where a lane needs more)."""
+    most = int(np.max(np.sum(np.asarray(frames.valid), axis=-1), initial=0))
+    return int(min(MAX_CAPACITY, max(16, -(-4 * most // 8) * 8)))
 
 
 def _program(options: Options):
@@ -197,6 +205,8 @@ def run(params: Params, frames: Frames, options: Options, first_id: int = 1, gro
     t = np.shape(frames.valid)[0]
     if options.buckets == 0:
         options = options._replace(buckets=3 if t >= AUTO_BUCKETS_MIN_T else 1)
+    if options.capacity == 0:
+        options = options._replace(capacity=data_capacity(frames))
     with jax.enable_x64(True):
         f = Frames(np.asarray(frames.boxes, np.float64), np.asarray(frames.valid, bool),
                    np.asarray(frames.score, np.float64), np.asarray(frames.reset, bool))
@@ -205,8 +215,8 @@ def run(params: Params, frames: Frames, options: Options, first_id: int = 1, gro
             out, counters = _program(options)(p, f, states)
             out = RunOutput(*jax.tree.map(np.asarray, tuple(out)), *(np.asarray(c) for c in counters), options)
             more = {}
-            if grow and out.overflow.any() and options.tracks < MAX_TRACKS:
-                more["tracks"] = min(2 * options.tracks, MAX_TRACKS)
+            if grow and out.overflow.any() and options.capacity < MAX_TRACKS:
+                more["capacity"] = min(2 * options.capacity, MAX_TRACKS)
             if not more:
                 return out
             options = options._replace(**more)

@@ -1,6 +1,7 @@
-"""AB3DMOT's settings: dynamic ``Params`` (numbers: a batch of them shares one compiled program
-under ``vmap``), static ``Options`` (each value its own compilation), the presets of AB3DMOT's
-``get_param`` for PointRCNN on KITTI, and the validator.
+"""AB3DMOT's settings, without its tracker (NumPy only: nothing here reaches JAX): dynamic
+``Params`` (numbers: a batch of them shares one compiled program under ``vmap``), static ``Options``
+(each value its own compilation), the presets of AB3DMOT's ``get_param`` for PointRCNN on KITTI, the
+validators, and the family's settings record :data:`FAMILY_CONFIG` (family ``"ab3dmot"``).
 """
 
 from __future__ import annotations
@@ -9,27 +10,35 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .affinity import DISTANCE_METRICS, METRICS
+from ..family import FamilyConfig
 
-__all__ = ["Params", "Options", "ALGORITHMS", "PARAM_RANGES", "PRESETS", "ab3dmot_car", "ab3dmot_pedestrian",
-           "param_problem", "option_problem", "problems", "validate", "as_arrays", "stack_params",
-           "compared_threshold", "AUTO_BUCKETS_MIN_T"]
+__all__ = ["Params", "Options", "ALGORITHMS", "METRICS", "DISTANCE_METRICS", "PARAM_RANGES", "INT_PARAMS",
+           "OPTION_CHOICES", "OPTION_RANGES", "PRESETS", "CLASSES", "MAX_CAPACITY", "ab3dmot_car",
+           "ab3dmot_pedestrian", "preset", "param_problem", "option_problem", "problems", "validate",
+           "parse_assignment", "as_arrays", "stack_params", "compared_threshold", "AUTO_BUCKETS_MIN_T",
+           "FAMILY_CONFIG"]
 
 ALGORITHMS = ("hungarian", "greedy")
+#: the affinity metrics of AB3DMOT's matching (``dist_metrics``)
+METRICS = ("iou_2d", "iou_3d", "giou_2d", "giou_3d", "dist_2d", "dist_3d", "m_dis")
+#: metrics whose affinity is a negated distance (AB3DMOT's ``get_param`` negates their threshold)
+DISTANCE_METRICS = ("dist_2d", "dist_3d", "m_dis")
 
 
 class Params(NamedTuple):
     """Dynamic settings (scalars, or leaves [B] for a batch). Defaults: AB3DMOT's car preset.
 
-    threshold:        ``get_param``'s ``thres`` as written there: an assigned pair is rejected when
-                      its affinity (float32, compared in float64) is below it, or, for the distance
-                      metrics (``dist_2d``, ``dist_3d``, ``m_dis``), below ``-threshold`` (the
-                      affinity is the negated distance, and ``get_param`` negates the value).
-    min_hits:         a track is written once it has been matched (its birth included) min_hits
-                      times, or in the sequence's first min_hits frames.
-    max_age:          a track unmatched for max_age frames is deleted (and not written).
+    threshold:        the affinity an assigned (detection, track) pair needs, AB3DMOT's ``thres``
+                      as written in ``get_param`` (a pair below it is rejected and its detection
+                      starts a track; for the distance metrics dist_2d, dist_3d and m_dis the
+                      distance it may not exceed: the affinity is the negated distance and
+                      ``get_param`` negates the value). Float32 affinities, compared in float64.
+    min_hits:         matches a track needs before it is written, AB3DMOT's ``min_hits`` (its birth
+                      counts as one; every track is written in a sequence's first min_hits frames).
+    max_age:          frames a track may go unmatched, AB3DMOT's ``max_age`` (it is deleted, and
+                      no longer written, once unmatched for max_age frames).
     score_threshold:  a written track's line goes to the result file only when its last
-                      detection's score is >= score_threshold (``save_results``; -10000 keeps all).
+                      detection's score is at least this (AB3DMOT's ``save_results``; -10000 keeps all).
     """
 
     threshold: Any = -0.2
@@ -38,25 +47,31 @@ class Params(NamedTuple):
     score_threshold: Any = -10000.0
 
 
-INT_PARAMS = ("min_hits", "max_age")
+INT_PARAMS = frozenset({"min_hits", "max_age"})
 #: the valid range of each parameter (inclusive)
 PARAM_RANGES = {"threshold": (-1e6, 1e6), "min_hits": (0, 1_000_000), "max_age": (1, 1_000_000),
                 "score_threshold": (-1e12, 1e12)}
+#: the most track slots a lane grows to (``batch.run``)
+MAX_CAPACITY = 4096
 
 
 class Options(NamedTuple):
     """Static settings: one compiled program per distinct value (and frame shape).
 
-    metric:     one of ``METRICS`` (``iou_2d``, ``iou_3d``, ``giou_2d``, ``giou_3d``, ``dist_2d``,
-                ``dist_3d``, ``m_dis``).
-    algorithm:  ``hungarian`` (scipy's linear sum assignment) or ``greedy``.
-    tracks:     track capacity K: live tracks plus the frame's births; births beyond it are
-                dropped and counted (``State.overflow``).
-    pairs:      IoU metrics, ``tracker.step`` (one lane): the most (detection, track) pairs per
-                frame whose footprints may overlap that are clipped (0: every pair, N K); pairs
-                beyond it are counted (``State.pairs_left``) and taken as not overlapping.
-                ``batch.run`` clips every such pair (its lists of pairs grow with the frame).
-    boxes:      write the tracks' 3D boxes (``StepOutput.boxes`` [K, 7]); False: [K, 0].
+    metric:     the affinity of a (detection, track) pair, AB3DMOT's ``metric`` (iou_2d, iou_3d,
+                giou_2d, giou_3d: overlap of the boxes' ground footprints or 3D volumes; dist_2d,
+                dist_3d: centre distance; m_dis: Mahalanobis distance under the track's Kalman
+                innovation covariance).
+    algorithm:  the assignment, AB3DMOT's ``algm`` (hungarian: scipy's linear sum assignment;
+                greedy: the largest affinities first).
+    capacity:   track slots per lane (live tracks plus the frame's births; 0: from the data); a
+                lane that runs out runs again with twice as many, so results never depend on it.
+    pairs:      the single-lane step's (``tracker.step``) limit, unused by dfrmot's runs (which
+                clip every pair, ``batch.run``): with IoU metrics, the most (detection, track)
+                pairs per frame whose footprints may overlap that are clipped (0: every pair,
+                N K); pairs beyond it are counted (``State.pairs_left``) and taken as apart.
+    boxes:      the steps write the tracks' 3D boxes (``StepOutput.boxes`` [K, 7]; False: [K, 0],
+                which dfrmot's runs refuse: the result files carry the boxes).
     buckets:    ``batch.run``: the sizes a frame's work is chosen from, smallest holding it (the
                 same result, less work on small frames, more compilations): the lists of pairs of
                 all lanes (``buckets`` sizes, x4 apart; the clipped pairs one more) and the
@@ -66,11 +81,15 @@ class Options(NamedTuple):
 
     metric: str = "giou_3d"
     algorithm: str = "hungarian"
-    tracks: int = 64
+    capacity: int = 0
     pairs: int = 64
     boxes: bool = True
     buckets: int = 0
 
+
+OPTION_CHOICES: dict[str, tuple[str, ...]] = {"metric": METRICS, "algorithm": ALGORITHMS}
+#: the options that take integers -> their range (inclusive)
+OPTION_RANGES: dict[str, tuple[int, int]] = {"capacity": (0, MAX_CAPACITY), "pairs": (0, 1 << 16), "buckets": (0, 4)}
 
 #: ``Options.buckets = 0`` takes 3 buckets from this many frames on (their two compilations more,
 #: ~10-20 s for the IoU metrics on 2 cores, pay on long splits: KITTI car, 670 frames, B = 1, 3.4x)
@@ -82,6 +101,8 @@ PRESETS: dict[str, tuple[Params, Options]] = {
     "ab3dmot_car": (Params(-0.2, 3, 2), Options("giou_3d", "hungarian")),
     "ab3dmot_pedestrian": (Params(-0.4, 1, 4), Options("giou_3d", "greedy")),
 }
+#: the classes AB3DMOT's presets are for (each preset runs on either; no per-class changes)
+CLASSES = ("car", "pedestrian")
 
 
 def ab3dmot_car(**options) -> tuple[Params, Options]:
@@ -98,49 +119,59 @@ def ab3dmot_pedestrian(**options) -> tuple[Params, Options]:
     return params, opts._replace(**options)
 
 
+def preset(name: str, cls: str = "car") -> tuple[Params, Options]:
+    """A preset's (Params, Options); every preset is the same for each class of ``CLASSES``."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}: expected one of {sorted(PRESETS)}")
+    if cls not in CLASSES:
+        raise ValueError(f"unknown class {cls!r}: expected one of {list(CLASSES)}")
+    return PRESETS[name]
+
+
 def compared_threshold(threshold, metric: str):
     """The value affinities are compared with: ``-threshold`` for the distance metrics."""
     return -threshold if metric in DISTANCE_METRICS else threshold
 
 
 def param_problem(name: str, value) -> str | None:
-    """What is wrong with ``value`` (a number or an array of them) for parameter ``name``, or None."""
+    """What is wrong with ``value`` (a number or an array of them) for parameter ``name`` (None:
+    nothing): the one check of parameters."""
     if name not in PARAM_RANGES:
-        return f"unknown parameter {name!r}; parameters are {list(Params._fields)}"
+        return f"unknown parameter; parameters are {list(Params._fields)}"
     if isinstance(value, (str, bytes, bool, np.bool_)):
-        return f"{name}: not a number ({value!r})"
+        return "not a number"
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        return f"{name}: not a number ({value!r})"
+        return "not a number"
     lo, hi = PARAM_RANGES[name]
     if not np.all(np.isfinite(arr)):
-        return f"{name}: not finite"
+        return "not finite"
     if np.any(arr < lo) or np.any(arr > hi):
-        return f"{name}: outside the valid range [{lo:g}, {hi:g}] ({value!r})"
+        return f"outside the valid range [{lo:g}, {hi:g}]"
     if name in INT_PARAMS and np.any(arr != np.round(arr)):
-        return f"{name}: expected an integer ({value!r})"
+        return "expected an integer"
     return None
 
 
 def option_problem(name: str, value) -> str | None:
-    """What is wrong with ``value`` for option ``name``, or None."""
-    choices = {"metric": METRICS, "algorithm": ALGORITHMS}
-    if name in choices:
-        return None if value in choices[name] else f"{name}: {value!r} is not one of {list(choices[name])}"
-    if name in ("tracks", "pairs", "buckets"):
-        lo, hi = (1, 1 << 16) if name == "tracks" else (0, 1 << 16) if name == "pairs" else (0, 4)
-        ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool) and lo <= value <= hi
-        return None if ok else f"{name}: expected an integer in [{lo}, {hi}] ({value!r})"
+    """What is wrong with ``value`` for option ``name`` (None: nothing): the one check of options."""
+    if name in OPTION_CHOICES:
+        return None if isinstance(value, str) and value in OPTION_CHOICES[name] else \
+            f"expected one of {OPTION_CHOICES[name]}"
+    if name in OPTION_RANGES:
+        lo, hi = OPTION_RANGES[name]
+        ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and lo <= value <= hi
+        return None if ok else f"expected an integer from {lo} to {hi}"
     if name == "boxes":
-        return None if isinstance(value, (bool, np.bool_)) else f"boxes: expected True or False ({value!r})"
-    return f"unknown option {name!r}; options are {list(Options._fields)}"
+        return None if isinstance(value, (bool, np.bool_)) else "expected true or false"
+    return f"unknown option; options are {list(Options._fields)}"
 
 
 def problems(params: Params, options: Options) -> list[str]:
     """Every problem of a setting, readable (empty: valid). Batched leaves must share one length."""
-    out = [p for name, v in zip(Params._fields, params) if (p := param_problem(name, v))]
-    out += [p for name, v in zip(Options._fields, options) if (p := option_problem(name, v))]
+    out = [f"{name}: {p} ({v!r})" for name, v in zip(Params._fields, params) if (p := param_problem(name, v))]
+    out += [f"{name}: {p} ({v!r})" for name, v in zip(Options._fields, options) if (p := option_problem(name, v))]
     sizes = {np.shape(v)[0] for v in params if np.ndim(v) == 1}
     if len(sizes) > 1 or any(np.ndim(v) > 1 for v in params):
         out.append(f"parameters: leaves must be scalars or share one length [B] (lengths {sorted(sizes)})")
@@ -155,6 +186,38 @@ def validate(params: Params, options: Options) -> tuple[Params, Options]:
     return params, options
 
 
+def parse_assignment(text: str, params: Params, options: Options) -> tuple[Params, Options]:
+    """Apply one ``name=value`` (``dfrmot track --set``) to params or options; ValueError naming
+    ``--set name`` and what is wrong."""
+    if "=" not in text:
+        raise ValueError(f"--set {text!r}: expected name=value")
+    name, raw = (s.strip() for s in text.split("=", 1))
+    if name in Params._fields or name in OPTION_RANGES:
+        try:
+            value = float(raw)
+        except ValueError:
+            raise ValueError(f"--set {name}: {raw!r} is not a number") from None
+        if (name in INT_PARAMS or name in OPTION_RANGES) and np.isfinite(value) and value == int(value):
+            value = int(value)
+        problem = param_problem(name, value) if name in Params._fields else option_problem(name, value)
+        if problem:
+            raise ValueError(f"--set {name}={raw}: {problem}")
+        if name in Params._fields:
+            return params._replace(**{name: value}), options
+        return params, options._replace(**{name: value})
+    if name in Options._fields:
+        value = raw
+        if name == "boxes":
+            if raw.lower() not in ("true", "false", "1", "0"):
+                raise ValueError(f"--set boxes: {raw!r} is not true/false")
+            value = raw.lower() in ("true", "1")
+        problem = option_problem(name, value)
+        if problem:
+            raise ValueError(f"--set {name}={raw}: {problem}")
+        return params, options._replace(**{name: value})
+    raise ValueError(f"--set {name}: unknown; parameters are {list(Params._fields)}, options {list(Options._fields)}")
+
+
 def as_arrays(params: Params) -> Params:
     """Leaves as NumPy arrays: the float leaves float64, the integer ones int32."""
     return Params(*(np.asarray(v, np.int32 if name in INT_PARAMS else np.float64)
@@ -164,3 +227,13 @@ def as_arrays(params: Params) -> Params:
 def stack_params(settings: list[Params]) -> Params:
     """A batch [B] of settings."""
     return as_arrays(Params(*(np.array([getattr(p, f) for p in settings]) for f in Params._fields)))
+
+
+#: AB3DMOT's settings as a family's (:class:`dfrmot_jax.family.FamilyConfig`): ``family = "ab3dmot"``;
+#: its tracker is :data:`dfrmot_jax.ab3dmot.family.FAMILY`. It reads 3D detections only.
+FAMILY_CONFIG = FamilyConfig(
+    name="ab3dmot", title="AB3DMOT", Params=Params, Options=Options, presets=PRESETS, default_preset="ab3dmot_car",
+    classes=CLASSES, class_defaults={c: {} for c in CLASSES}, preset=preset, param_ranges=PARAM_RANGES,
+    int_params=INT_PARAMS, option_choices=OPTION_CHOICES, option_ranges=OPTION_RANGES, param_problem=param_problem,
+    option_problem=option_problem, parse_assignment=parse_assignment, as_arrays=as_arrays, late_params={},
+    late_options={}, detections=("3d",))

@@ -61,7 +61,7 @@ class Frames(NamedTuple):
 
 
 class State(NamedTuple):
-    """The tracker between frames (per lane; K = ``Options.tracks``).
+    """The tracker between frames (per lane; K = ``Options.capacity``).
 
     filt:        the tracks' Kalman filters (``kalman.Gauss``, [K, ...]).
     ids, hits, age:  [K] int32 track id, matches (birth included), frames since the last match.
@@ -102,17 +102,21 @@ class StepOutput(NamedTuple):
     boxes:    [K, 7] float64 their 3D boxes, the Kalman state ``[x, y, z, theta, l, w, h]``
               ([K, 0] without ``Options.boxes``).
     next_id:  the id counter after the frame.
+    dropped:  births dropped for want of a slot in the frame (``State.overflow``'s increment).
     """
 
     ids: np.ndarray
     src: np.ndarray
     boxes: np.ndarray
     next_id: np.ndarray
+    dropped: np.ndarray
 
 
 def init(options: Options, first_id: int = 1) -> State:
     """The empty state (NumPy arrays: float64 whatever JAX's x64 setting); ids start at first_id."""
-    k = options.tracks
+    k = options.capacity
+    if k < 1:
+        raise ValueError(f"Options.capacity {k}: a lane's state needs track slots (batch.run chooses them for 0)")
     i32 = lambda v=0: np.int32(v)                                          # noqa: E731
     filt = kalman.Gauss(np.zeros((k, 10)), np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3)),
                         np.zeros((k, 3)), np.zeros((k, 4)))
@@ -219,7 +223,7 @@ def step(params: Params, state: State, frame: Frames, options: Options) -> tuple
 def finish(params: Params, state: State, frame: Frames, options: Options, pred: Predicted,
            dec: Decision) -> tuple[State, StepOutput]:
     """Steps 4-6: updates, births, output, deletion."""
-    n_det, k = frame.valid.shape[0], options.tracks
+    n_det, k = frame.valid.shape[0], options.capacity
     slot = jnp.arange(k)
     count, fc, filt, age = pred
     zero = runtime_zero(fc)
@@ -241,14 +245,16 @@ def finish(params: Params, state: State, frame: Frames, options: Options, pred: 
     written = exists & (age < params.max_age) & ((hits >= params.min_hits) | (fc <= params.min_hits)) \
         & (score >= params.score_threshold)
     next_id = state.next_id + n_born
-    out = StepOutput(jnp.where(written, ids, -1), src, filt.x[:, :7] if options.boxes else filt.x[:, :0], next_id)
+    dropped = jnp.asarray(n_born - (total - count), jnp.int32)
+    out = StepOutput(jnp.where(written, ids, -1), src, filt.x[:, :7] if options.boxes else filt.x[:, :0], next_id,
+                     dropped)
     alive = exists & (age < params.max_age)
     onto = alive[None, :] & ((jnp.cumsum(alive) - 1)[None, :] == slot[:, None])  # [new slot, old slot]
     take = jnp.argmax(onto, 1)
     filt, ids, hits, age, src, score = jax.tree.map(lambda v: v[take], (filt, ids, hits, age, src, score))
     i32 = lambda v: jnp.asarray(v, jnp.int32)                                      # noqa: E731
     new = State(filt, ids, hits, age, src, score, i32(jnp.sum(alive)), i32(next_id), i32(fc), i32(state.t + 1),
-                i32(state.overflow + n_born - (total - count)), i32(jnp.maximum(state.peak, count + n_born)),
+                i32(state.overflow + dropped), i32(jnp.maximum(state.peak, count + n_born)),
                 i32(state.pairs_left + dec.pairs_left), i32(state.degenerate + dec.degenerate),
                 i32(state.fallback + dec.fallback))
     return new, out

@@ -7,6 +7,10 @@ locked while the run writes it (:func:`dfrmot_jax.io.lock.folder_lock`): a secon
 once, naming the folder and the process writing it. ``--set CLASS.NAME=VALUE`` for a class not in
 ``--class`` is checked as if that class were tracked, then refused (exit 2) rather than ignored.
 
+The preset names the tracker family (``--preset dfr2023``: DFR-FastMOT; ``--preset ab3dmot_car``:
+AB3DMOT), whose settings ``--set`` changes and whose tracker runs (through the family protocol,
+:mod:`dfrmot_jax.families`); a family that reads 3D detections only reads no ``--det2d``.
+
 The command's parser and ``--help`` (every parameter, option and preset) are
 :mod:`dfrmot_jax.cli.track_parser`'s, which imports nothing of the tracker.
 """
@@ -16,25 +20,25 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from ..api import track
-from ..config import CLASSES, parse_assignment, preset
 from ..data import load_split
+from ..families import family_of
+from ..family_configs import preset_family
 from ..io.lock import LOCK_NAME, folder_lock
 from ..lidar import LiftSettings, lidar_dir, lift_setting_name, tie_scores, with_setting
 from ..paths import default_data_root
-from ..results import ClassRun, result_files, write_runs
-from ..dfr import unstable_gains, unstable_message
+from ..results import result_files
 from .args import parse_seqs
 from .track_parser import add_parser, config_help  # this command's parser (it needs only config)
 
 __all__ = ["add_parser", "run", "config_help", "parse_seqs", "class_settings"]
 
 
-def _classes(text: str) -> list[str]:
+def _classes(text: str, classes_of=None) -> list[str]:
+    known = classes_of or preset_family("dfr2023").classes
     classes = [c.strip() for c in text.split(",") if c.strip()]
-    bad = [c for c in classes if c not in CLASSES]
+    bad = [c for c in classes if c not in known]
     if bad or not classes or len(set(classes)) != len(classes):
-        raise ValueError(f"--class {text!r}: expected one or more of {list(CLASSES)}, comma-separated, each once")
+        raise ValueError(f"--class {text!r}: expected one or more of {list(known)}, comma-separated, each once")
     return classes
 
 
@@ -54,7 +58,9 @@ def class_settings(args, cls: str = "car"):
     (a lifted box carries its 2D detection's score) unless set. A bad ``CLASS.NAME=VALUE`` is a
     ValueError naming ``CLASS.NAME``; a lifting setting under a class prefix is refused (one lifting
     for every class)."""
-    params, options = preset(args.preset, cls)
+    fc = preset_family(args.preset)
+    known, parse_assignment = fc.classes, fc.parse_assignment
+    params, options = fc.preset(args.preset, cls)
     lifted = lidar_dir(getattr(args, "det3d", "")) is not None
     set_3d = False
     for item in args.set or []:
@@ -65,9 +71,9 @@ def class_settings(args, cls: str = "car"):
             continue
         prefix, dot, name = lhs.strip().partition(".")
         if dot:
-            if prefix not in CLASSES:
+            if prefix not in known:
                 raise ValueError(f"--set {item}: {prefix!r} is not a class; per-class settings are CLASS.NAME=VALUE "
-                                 f"with CLASS one of {list(CLASSES)}")
+                                 f"with CLASS one of {list(known)}")
             if prefix != cls:
                 continue
             name = name.strip()
@@ -87,16 +93,17 @@ def class_settings(args, cls: str = "car"):
             continue
         set_3d = set_3d or lhs.strip() == "score_3d"
         params, options = parse_assignment(item, params, options)
-    return (tie_scores(params) if lifted and not set_3d else params), options
+    return (tie_scores(params) if lifted and not set_3d and "score_2d" in params._fields else params), options
 
 
 def untracked_settings(args, classes) -> None:
     """Refuse ``--set CLASS.NAME=VALUE`` for a class not in ``classes`` (it would be ignored): each is
     first checked as if its class were tracked (an unknown name or a bad value is that error), then
     a valid one is refused too, naming the class and how to track it."""
+    known = preset_family(args.preset).classes
     prefixes = [lhs.partition(".")[0] if "." in lhs else None
                 for lhs in (item.partition("=")[0].strip() for item in args.set or [])]
-    untracked = [c for c in dict.fromkeys(prefixes) if c in CLASSES and c not in classes]
+    untracked = [c for c in dict.fromkeys(prefixes) if c in known and c not in classes]
     for cls in untracked:
         class_settings(args, cls)
     for item, prefix in zip(args.set or [], prefixes):
@@ -126,39 +133,40 @@ def _old_results(out: Path, overwrite: bool) -> list[Path]:
 
 def run(args) -> int:
     _old_results(Path(args.out), args.overwrite)           # (a bad --out fails before anything else)
-    classes = _classes(args.cls)
+    fc = preset_family(args.preset)
+    family = family_of(fc.name)
+    classes = _classes(args.cls, fc.classes)
     settings = {cls: class_settings(args, cls) for cls in classes}
     untracked_settings(args, classes)
     for cls, (p, o) in settings.items():
-        if o.output == "filtered" and unstable_gains([o.filter == "fixed_gain"], p.gain_alpha, p.gain_beta,
-                                                     p.gain_gamma)[0]:
-            raise ValueError(unstable_message(f"the {cls} settings (--preset {args.preset} and --set)", p.gain_alpha,
-                                              p.gain_beta, p.gain_gamma, more=", or output=detections"))
+        problem = family.setting_problem(f"the {cls} settings (--preset {args.preset} and --set)", p, o)
+        if problem:
+            raise ValueError(problem)
     with folder_lock(args.out, "track"):
-        return _track(args, classes, settings)
+        family.write_runs(args.out, [], columns=args.columns)       # (columns the family cannot write: refused now)
+        return _track(args, classes, settings, family)
 
 
-def _track(args, classes, settings) -> int:
+def _track(args, classes, settings, family) -> int:
     """Track and write, holding the lock of ``--out``."""
     old = _old_results(Path(args.out), args.overwrite)
     root = Path(args.data) if args.data else default_data_root()
     lift = lift_of(args)
+    det2d = args.det2d if "2d" in family.config.detections or lidar_dir(args.det3d) is not None else None
     t0 = time.perf_counter()
     runs, status = [], 0
     for cls in classes:
         params, options = settings[cls]
-        split = load_split(root, args.det2d, args.det3d, cls, parse_seqs(args.seqs), lift=lift)
-        res = track(split, params, options, detail=True)
-        runs.append(ClassRun(split, res.frames, options, res.ids[0],
-                             None if options.output == "detections" else res.lane_boxes(0),
-                             res.src3[0], res.own3[0], None if res.box3 is None else res.box3[0]))
+        split = load_split(root, det2d, args.det3d, cls, parse_seqs(args.seqs), lift=lift)
+        res = family.track(split, params, options, detail=True)
+        runs.append(family.class_run(split, res, 0))
         n = int((res.ids[0] >= 0).sum())
         print(f"{cls}: tracked {len(split.names)} sequences, {split.n_frames} frames, {n} lines; capacity "
               f"{int(res.capacity[0])}, peak {int(res.peak[0])} live tracks, overflow {int(res.overflow[0])}")
         status = status or (0 if res.overflow[0] == 0 else 3)
     for p in old:
         p.unlink(missing_ok=True)
-    paths = write_runs(args.out, runs, columns=args.columns)
+    paths = family.write_runs(args.out, runs, columns=args.columns)
     print(f"wrote {len(paths)} files to {Path(args.out)} in {time.perf_counter() - t0:.1f} s"
           + (" (classes " + " + ".join(classes) + " merged per sequence, ids unique per file)" if len(classes) > 1 else ""))
     return status

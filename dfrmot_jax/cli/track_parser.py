@@ -13,13 +13,13 @@ import shutil
 import textwrap
 
 from ..family import DEFAULT_FAMILY
-from ..family_configs import family_config
+from ..family_configs import all_presets, family_config, family_names
 from ..paths import ENV_VAR
 from .args import seqs_arg
 from .commands import HELP
 from .errors import run_later
 
-__all__ = ["add_parser", "config_help", "docstring_fields"]
+__all__ = ["add_parser", "config_help", "families_help", "docstring_fields"]
 
 
 # ---- help text generated from the family's settings ------------------------------------------------
@@ -123,6 +123,19 @@ def config_help(width: int | None = None, family: str = DEFAULT_FAMILY) -> str:
     return "\n".join(out)
 
 
+def families_help(width: int | None = None) -> str:
+    """The ``track --help`` epilog: :func:`config_help` of every registered family, each under a
+    heading naming it, its presets and the detections it reads."""
+    width = width or max(60, min(120, shutil.get_terminal_size().columns) - 2)
+    out = []
+    for name in family_names():
+        fc = family_config(name)
+        reads = " and ".join({"2d": "2D", "3d": "3D"}[d] for d in fc.detections)
+        head = (f"{fc.title} (family {name!r}; --preset {' | '.join(fc.presets)}; reads {reads} detections)")
+        out += [head, "=" * min(len(head), width), config_help(width, name), ""]
+    return "\n".join(out).rstrip()
+
+
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``track`` on an argparse ``subparsers`` object; returns its parser."""
 
@@ -132,7 +145,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
                        description=textwrap.fill(
                            "Track a KITTI split with a preset and --set overrides and write one result file per "
                            "sequence. Exit status 3 when a lane overflowed its track memory.", width),
-                       epilog=config_help(width), formatter_class=argparse.RawDescriptionHelpFormatter)
+                       epilog=families_help(width), formatter_class=argparse.RawDescriptionHelpFormatter)
     t.add_argument("--data", help=f"KITTI tracking training root (default ${ENV_VAR} or ../shared/data/kitti/training)")
     t.add_argument("--det2d", default="rrc",
                    help="2D detector: name under ROOT/detections, or a directory (of SSSS.txt files, or of a folder "
@@ -144,7 +157,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
                         "min_cluster, score_cut; score_3d follows score_2d)")
     fc = family_config()
     t.add_argument("--preset", default=fc.default_preset,
-                   help="the settings to start from: " + " | ".join(fc.presets) + " (listed below)")
+                   help="the settings to start from, and the tracker family they are of: " + " | ".join(all_presets())
+                        + " (listed below, by family; a family reading 3D detections only reads no --det2d)")
     t.add_argument("--set", action="append", metavar="NAME=VALUE",
                    help="override a parameter or option (repeatable); CLASS.NAME=VALUE for one class only, "
                         "e.g. pedestrian.a_l=2 (checked like any setting; refused when CLASS is not in --class, "

@@ -149,6 +149,27 @@ def as_written(v: np.ndarray, digits: int) -> np.ndarray:
     return out
 
 
+def as_written_fixed(v: np.ndarray, decimals: int = 6) -> np.ndarray:
+    """``float(f"{x:.{decimals}f}")`` of every finite x, vectorised: what a number printed with
+    ``decimals`` places (``%f``: AB3DMOT's result files) reads back as. x scaled by ``10**decimals``
+    is rounded half to even and divided back (the double nearest to the printed decimal, as
+    :func:`as_written`); where the scaled value lies within 1e-9 of a tie, or beyond 2**52, Python
+    formats it instead: the result equals the text's for every input."""
+    v = np.asarray(v, np.float64)
+    out = v.copy()
+    ok = np.isfinite(v)
+    x = v[ok]
+    scale = 10.0 ** decimals
+    r = x * scale
+    m = np.round(r)
+    got = m / scale
+    unsure = (np.abs(np.abs(r - np.trunc(r)) - 0.5) < 1e-9) | (np.abs(r) >= 2.0 ** 52)
+    if unsure.any():
+        got[unsure] = [float(f"{y:.{decimals}f}") for y in x[unsure].tolist()]
+    out[ok] = got
+    return out
+
+
 def fmt_estimate(v: np.ndarray) -> list[str]:
     """Filtered 3D values (the tracker's float32 estimates): 7 significant digits, their precision."""
     return _int_or(np.asarray(v, np.float64), lambda x: f"{x:.7g}")

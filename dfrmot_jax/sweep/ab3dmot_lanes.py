@@ -14,7 +14,6 @@ output "filtered" the same boxes too) are scored once, and only their rows are b
 
 from __future__ import annotations
 
-import hashlib
 from typing import Sequence
 
 import numpy as np
@@ -23,12 +22,13 @@ import pandas as pd
 from ..api import TrackResult
 from ..data import Split
 from ..families import family_of
+from ..family import TrackerFamily
 from ..metrics.ab3dmot.arrays import evaluate_ab3dmot_rows
 from ..metrics.ab3dmot.prep import Ab3dGT
 from ..metrics.ab3dmot.sums import DEFAULT_SUM
 from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, AB3DMOT_OTHER_COLUMNS, ab3dmot_columns
 from ..metrics.kitti2d.lane_scorer import LaneScorer
-from ..rows import Rows, lane_values
+from ..rows import Rows
 from ..report.columns import COMBINED
 
 
@@ -41,43 +41,29 @@ class Ab3dmotLanes:
     """AB3DMOT scoring of lanes on one split: ``gt`` its ground truth (the split's sequences, in
     order), ``iou`` ``"3d:0.25"`` / ``"2d:0.5"``, ``columns`` the result columns scored (``"kitti"``
     or ``"kitti-stale"``), ``sum_mode`` the evaluator's sum of track scores (the figures with the
-    other sum too, as :data:`~dfrmot_jax.metrics.ab3dmot.table.AB3DMOT_OTHER_COLUMNS`), ``rows`` the
-    tracker family's rows of its output (``TrackerFamily.rows``; None: the default family's,
-    :func:`dfrmot_jax.results.kitti_rows`); :meth:`score` gives each lane's columns."""
+    other sum too, as :data:`~dfrmot_jax.metrics.ab3dmot.table.AB3DMOT_OTHER_COLUMNS`), ``family``
+    the tracker family whose output it scores (its ``rows`` and ``lane_keys``; None: the default
+    family); :meth:`score` gives each lane's columns."""
 
     def __init__(self, gt: Ab3dGT, split: Split, iou: str, columns: str = "kitti", sum_mode: str = DEFAULT_SUM,
-                 rows=None):
+                 family: TrackerFamily | None = None):
         if tuple(gt.sequences) != tuple(split.names):
             raise RuntimeError("AB3DMOT ground truth and detections disagree on the sequences")
         self.gt, self.split, self.iou, self.columns, self.sum_mode = gt, split, iou, columns, sum_mode
-        self.rows = family_of().rows if rows is None else rows
+        self.family = family_of() if family is None else family
+        self.rows = self.family.rows
         self.memo: dict[bytes, dict] = {}
 
     def digests(self, res: TrackResult, base: Sequence[bytes] | None = None) -> list[bytes]:
-        """One digest per lane of what its rows carry, the key of :attr:`memo`: the options, ids, the
-        image boxes (the lane's own, or the ones the lanes share, whole) and, per row, the 3D source
-        (``src3``, ``own3``); with output "filtered" also the lane's own 3D boxes. (With output
-        "detections" a row's score and 3D box follow from the options, its slot and its 3D source,
-        on the one split; the split, ground truth, IoU, columns and sum are the instance's own.) ``base``: the lanes' digests of ids and own image boxes
-        (:meth:`dfrmot_jax.metrics.kitti2d.lane_scorer.LaneScorer.digests` or ``lane_digests``, made here
-        when not given), extended here instead of hashing them again."""
-        ids = np.asarray(res.ids)
+        """One digest per lane of what its rows carry, the key of :attr:`memo`: the tracker family's
+        :attr:`~dfrmot_jax.family.TrackerFamily.lane_keys` (ids, image boxes and all the rows carry
+        beyond; the split, ground truth, IoU, columns and sum are the instance's own). ``base``: the
+        lanes' digests of ids and own image boxes (:meth:`dfrmot_jax.metrics.kitti2d.lane_scorer.LaneScorer.digests`
+        or ``lane_digests``, made here when not given), extended instead of hashing them again."""
         if base is None:
+            ids = np.asarray(res.ids)
             base = LaneScorer.digests(ids, res.boxes if isinstance(res.boxes, Rows) else np.asarray(res.boxes))
-        rows = ids >= 0
-        filtered = res.options.output == "filtered"
-        src, own = np.asarray(res.src3), np.asarray(res.own3)
-        out = []
-        for b in range(ids.shape[0]):
-            r = rows[b]
-            h = hashlib.sha1(repr(res.options).encode())
-            h.update(base[b])
-            h.update(src[b][r].astype(np.int32).tobytes())
-            h.update(np.packbits(own[b][r]).tobytes())
-            if filtered:
-                h.update(np.ascontiguousarray(lane_values(res.box3, ids, b)).tobytes())
-            out.append(h.digest())
-        return out
+        return self.family.lane_keys(res, base)
 
     def score(self, res: TrackResult, base: Sequence[bytes] | None = None) -> list[dict]:
         """{column: value} of AB3DMOT's figures for each lane of ``res`` (``track(detail=True)``);

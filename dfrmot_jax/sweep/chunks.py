@@ -163,9 +163,9 @@ class ChunkRunner:
         ab3dmot = None
         if spec.ab3dmot is not None:
             gt3 = cached_ab3dmot_gt(data.root, data.cls, list(split.names))
-            ab3dmot = Ab3dmotLanes(gt3, split, spec.ab3dmot, spec.ab3dmot_columns, spec.ab3dmot_sum, family.rows)
+            ab3dmot = Ab3dmotLanes(gt3, split, spec.ab3dmot, spec.ab3dmot_columns, spec.ab3dmot_sum, family)
         timing = Timing()
-        scorer = LaneScorer(gt, split.offsets, as_written=True)     # rows as the files carry them
+        scorer = LaneScorer(gt, split.offsets, as_written=family.box_format)     # rows as the files carry them
         per_call = LANES_PER_CALL if chosen_platform() == "cpu" else default_lanes_per_call()
         if spec.ab3dmot is not None:        # the rows' 3D detail: each call's device output 2.5x larger
             per_call = max(1, per_call // 4)      # (8 lanes per call on the CPU)

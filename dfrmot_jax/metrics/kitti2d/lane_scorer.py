@@ -11,7 +11,7 @@ from typing import Sequence
 
 import numpy as np
 
-from dfrmot_jax.io.columns import as_written
+from dfrmot_jax.io.columns import as_written, as_written_fixed
 from dfrmot_jax.metrics.common.pairs import segment_starts
 from dfrmot_jax.metrics.kitti2d.evaluate import (PoolParts, combine_sequences, evaluate_lanes, lane_slice, result_dicts,
                                                  run_in_worker, worker_pool)
@@ -70,13 +70,17 @@ class LaneScorer:
     combined. In a grid sweep of KITTI car, 1,024 configs give 832 distinct lanes but 2.4x fewer
     distinct sequence-frames to score. similarity: ``'2d'`` (default), ``'3d'`` or ``'bev'`` (then
     :meth:`seq_digests` and :meth:`dets` take ``box3d``, [B, T, K, 7] or [T, K, 7] shared by the
-    lanes). as_written: score each box as a result file prints it (6 significant digits,
-    :func:`dfrmot_jax.io.columns.as_written`), so that a sweep's row is what its files score.
+    lanes). as_written: score each box as a result file prints it, so that a sweep's row is what
+    its files score: True or ``"g6"`` 6 significant digits (:func:`dfrmot_jax.io.columns.as_written`),
+    ``"f6"`` ``%f`` (:func:`~dfrmot_jax.io.columns.as_written_fixed`, AB3DMOT's files); False as given.
     :meth:`digests` (one per whole lane) is what other memos of lanes build on."""
     def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16, similarity: str = "2d",
-                 as_written: bool = False):
+                 as_written: bool | str = False):
         self.gt = gt
-        self.as_written = bool(as_written)
+        self.as_written = {False: None, True: "g6"}.get(as_written, as_written) if not isinstance(as_written, str) \
+            else as_written
+        if self.as_written not in (None, "g6", "f6"):
+            raise ValueError(f"as_written={as_written!r}: expected False, True (\"g6\") or \"f6\"")
         self.offsets = np.asarray(offsets, np.int64)
         self.lanes_per_batch = lanes_per_batch
         self.similarity = parse_similarity(similarity)
@@ -180,8 +184,10 @@ class LaneScorer:
         size, start = size.reshape(-1), start.reshape(-1)
         idx = np.arange(int(size.sum()), dtype=np.int64) - np.repeat(segment_starts(size)[:-1] - start, size)
         box = flat.box[idx]
-        if self.as_written:         # what the lanes' result files carry (their 2D box printed with %g)
+        if self.as_written == "g6":     # what the lanes' result files carry (their 2D box printed with %g)
             box = as_written(np.asarray(box, np.float64), 6)
+        elif self.as_written == "f6":   # (printed with %f: AB3DMOT's files)
+            box = as_written_fixed(np.asarray(box, np.float64), 6)
         return flat._replace(n_lanes=V, lane=np.repeat(np.arange(V, dtype=np.int64), size.reshape(V, S).sum(1)),
                              frame=flat.frame[idx], track_id=flat.track_id[idx], box=box,
                              source=flat.source[idx], box3d=None if flat.box3d is None else flat.box3d[idx],

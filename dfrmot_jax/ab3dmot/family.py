@@ -1,0 +1,276 @@
+"""AB3DMOT as a tracker family (:class:`dfrmot_jax.family.TrackerFamily`), the family ``"ab3dmot"``:
+its settings (:mod:`.config`), its tracker (:mod:`.tracker`, the compiled batch :mod:`.batch`), and
+what the machinery around a tracker needs of it, on the splits every family reads
+(:class:`dfrmot_jax.data.Split`; AB3DMOT reads its 3D detections only):
+
+- :func:`prepare_frames`: a split's 3D detections as the tracker's ``Frames`` (with their image
+  boxes, :class:`Prepared`);
+- :func:`track`: a batch of settings over a split, in calls of ``lanes_per_call`` lanes, as a
+  :class:`dfrmot_jax.api.TrackResult` whose track slots are in the order AB3DMOT writes its lines
+  (newest track first): ``ids`` [B, T, K] (AB3DMOT's id counter, from 1 at the split's first
+  frame), ``boxes`` the rows' image boxes (their last detection's), ``src3`` that detection's index
+  ``t * M3 + slot``, ``box3`` [B, T, K, 7] the Kalman state ``x y z theta l w h``;
+- :func:`rows`, :func:`write_runs`: the rows as AB3DMOT's result files carry them (``%f``) and the
+  files, one per sequence, line for line those of AB3DMOT's ``save_results``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import warnings
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from ..api import TrackResult
+from ..data import CLASS_NAMES, Split
+from ..family import TrackerFamily
+from ..io.atomic import write_text_atomic
+from ..io.columns import as_written_fixed
+from ..results import KittiRows
+from ..rows import Rows, lane_values
+from . import batch, tracker
+from .config import FAMILY_CONFIG, Options, Params, as_arrays, validate
+from .results import LINE_FORMAT
+
+__all__ = ["FAMILY", "Prepared", "Ab3dmotRun", "prepare_frames", "track", "rows", "row_arrays", "class_run",
+           "write_runs", "default_capacity", "setting_problem", "output_slots", "lane_keys", "BYTES_PER_SLOT"]
+
+#: a lane's output bytes per track slot and frame: ids, the detection index (int32 each), the image
+#: box (4 float64), the 3D box (7 float64), whether a row (bool)
+BYTES_PER_SLOT = 4 + 4 + 32 + 56 + 1
+
+
+class Prepared(NamedTuple):
+    """A split's detections as AB3DMOT's tracker takes them: ``frames`` (:class:`.tracker.Frames`
+    [T, M3, ...], the 3D detections in file order, padding zeroed) and ``image`` [T, M3, 4] their
+    image boxes (the 3D detector's own ``x1 y1 x2 y2``)."""
+
+    frames: tracker.Frames
+    image: np.ndarray
+
+
+def prepare_frames(split: Split, options: Options | None = None) -> Prepared:
+    """``split``'s 3D detections as the tracker's frames (the same for every ``Options``)."""
+    valid = np.asarray(split.valid3d, bool)
+    boxes = np.concatenate([split.loc3d, split.rot_y3d[..., None], split.dims3d[..., ::-1]], axis=-1)  # x y z th l w h
+    boxes = np.where(valid[..., None], boxes, 0.0).astype(np.float64)
+    score = np.where(valid, split.score3d, 0.0).astype(np.float64)
+    return Prepared(tracker.Frames(boxes, valid, score, np.asarray(split.reset, bool)),
+                    np.asarray(split.box3d, np.float64))
+
+
+def default_capacity(frames: Prepared, params: Params, options: Options, clutter_slots: int = 0) -> int:
+    """Track slots from the data (:func:`.batch.data_capacity`; ``clutter_slots`` more)."""
+    return min(batch.MAX_TRACKS, batch.data_capacity(frames.frames) + 4 * int(clutter_slots))
+
+
+def output_slots(options: Options, per_lane: bool) -> tuple[int, int, bool]:
+    """(track slots, bytes per slot, whether the slots are the options' own) of a lane's output:
+    ``options.capacity``, or with capacity 0 (from the data) 16, a lower bound."""
+    return options.capacity or 16, BYTES_PER_SLOT, bool(options.capacity)
+
+
+def compact_split(split: Split, params: Params) -> Split:
+    """``split`` as it is: every detection is tracked whatever the settings (``score_threshold``
+    selects written lines only)."""
+    return split
+
+
+def _widen(a: np.ndarray, k: int, fill) -> np.ndarray:
+    """``a`` [B, T, K', ...] padded with ``fill`` to K slots."""
+    if a.shape[2] == k:
+        return a
+    pad = np.full(a.shape[:2] + (k - a.shape[2],) + a.shape[3:], fill, a.dtype)
+    return np.concatenate([a, pad], axis=2)
+
+
+def track(split: Split | Prepared, params: Params, options: Options = Options(), *, lanes_per_call: int | None = None,
+          grow: bool = True, detail: bool = True, rows_only: bool = False, distortion=None, spec=None) -> TrackResult:
+    """Every lane of ``params`` (scalars: one lane; leaves [B]) over ``split`` (or its
+    :class:`Prepared` frames): a :class:`dfrmot_jax.api.TrackResult` (see the module's docstring;
+    ``own3`` marks the rows, ``capacity`` [B] the slots each lane ran with). ``lanes_per_call``:
+    lanes per compiled call (default all); ``grow``: a call whose lanes run out of track slots runs
+    again with twice as many (:func:`.batch.run`); ``rows_only``: ``boxes`` and ``box3`` as
+    :class:`dfrmot_jax.rows.Rows`. ``detail`` is always on (the rows' detections come with the ids).
+    A lane where AB3DMOT's own run would have stopped (degenerate geometry) or whose greedy sort
+    AB3DMOT breaks differently is named in a warning."""
+    if distortion is not None:
+        raise ValueError("AB3DMOT (family 'ab3dmot') takes no distortion of its detections yet")
+    validate(params, options)
+    if not options.boxes:
+        raise ValueError("AB3DMOT: boxes = false writes no 3D boxes, which the result rows carry; keep boxes = true")
+    prep = split if isinstance(split, Prepared) else prepare_frames(split, options)
+    p = as_arrays(params)
+    b = max([np.shape(v)[0] for v in p if np.ndim(v)] or [1])
+    p = Params(*(np.broadcast_to(np.atleast_1d(v), (b,)) for v in p))
+    per = max(1, int(lanes_per_call or b))
+    outs = []
+    for at in range(0, b, per):
+        part = Params(*(v[at:at + per] for v in p))
+        outs.append(batch.run(part, prep.frames, options, grow=grow))
+    k = max(o.ids.shape[2] for o in outs)
+    ids = np.concatenate([_widen(o.ids, k, -1) for o in outs])[:, :, ::-1]
+    src = np.concatenate([_widen(o.src, k, -1) for o in outs])[:, :, ::-1]
+    box3 = np.concatenate([_widen(o.boxes, k, 0.0) for o in outs])[:, :, ::-1]
+    ids, box3 = np.ascontiguousarray(ids, np.int32), np.ascontiguousarray(box3)
+    src = np.where(ids >= 0, src, -1).astype(np.int32)
+    image = prep.image.reshape(-1, 4)[np.maximum(src, 0)]
+    image[ids < 0] = np.nan
+    counters = {n: np.concatenate([getattr(o, n) for o in outs]) for n in ("dropped", "overflow", "peak",
+                                                                          "degenerate", "fallback")}
+    bad = np.flatnonzero((counters["degenerate"] > 0) | (counters["fallback"] > 0))
+    if bad.size:
+        warnings.warn(f"AB3DMOT: lanes {bad[:8].tolist()} met a pair whose geometry AB3DMOT cannot compute or a "
+                      f"greedy tie its sort breaks differently: their tracks are this package's, not AB3DMOT's",
+                      UserWarning, stacklevel=2)
+    capacity = np.concatenate([np.full(len(o.ids), o.options.capacity, np.int64) for o in outs])
+    boxes = Rows.of(ids, image) if rows_only else image
+    box3_out = Rows.of(ids, box3) if rows_only else box3
+    ran = outs[-1].options._replace(capacity=int(capacity.max(initial=0)))
+    return TrackResult(ids, boxes, counters["dropped"].astype(np.int32), counters["overflow"].astype(np.int32),
+                       counters["peak"].astype(np.int32), src, ids >= 0, box3_out, capacity, prep, ran)
+
+
+def rows(split: Split, res: TrackResult, columns: str = "kitti", lanes=None) -> KittiRows:
+    """The rows of ``res``' lanes (``lanes``: only these, renumbered 0..len-1; default all) as
+    AB3DMOT's result files carry them (:class:`dfrmot_jax.results.KittiRows`): the last matched
+    detection's image box and score, the Kalman state's 3D box ``h w l x y z rot_y``, every value
+    as ``%f`` reads back. ``columns`` ("kitti" or "kitti-stale") changes nothing: each row carries
+    its own 3D box."""
+    ids = np.asarray(res.ids)
+    _, T, K = ids.shape
+    chosen = np.arange(ids.shape[0]) if lanes is None else np.asarray(lanes, np.int64)
+    flat = np.flatnonzero((ids if lanes is None else ids[chosen]) >= 0)
+    b, tk = np.divmod(flat, T * K)
+    t, k = np.divmod(tk, K)
+    at = flat if lanes is None else chosen[b] * (T * K) + tk
+
+    def rows_of(a) -> np.ndarray:
+        if isinstance(a, Rows):
+            return a.values if lanes is None else a.lanes(chosen)
+        a = np.asarray(a)
+        return a.reshape((-1,) + a.shape[3:])[at]
+
+    src = rows_of(res.src3).astype(np.int64)
+    box = as_written_fixed(np.asarray(split.box3d, np.float64).reshape(-1, 4)[src])
+    score = as_written_fixed(np.asarray(split.score3d, np.float64).reshape(-1)[src])
+    state = rows_of(res.box3).astype(np.float64)
+    box3d = as_written_fixed(state[:, [6, 5, 4, 0, 1, 2, 3]])
+    return KittiRows(b, t, k, rows_of(ids).astype(np.int64), box, score, box3d, len(chosen), T)
+
+
+def row_arrays(split: Split, res: TrackResult, columns: str = "kitti") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`rows` as padded arrays: boxes [B, T, K, 4], scores [B, T, K] and box3d [B, T, K, 7],
+    float64, NaN where there is no row."""
+    r = rows(split, res, columns)
+    shape = np.asarray(res.ids).shape
+    out = [np.full(shape + tail, np.nan) for tail in ((4,), (), (7,))]
+    for a, v in zip(out, (r.box, r.score, r.box3d)):
+        a[r.lane, r.t, r.slot] = v
+    return tuple(out)
+
+
+class Ab3dmotRun(NamedTuple):
+    """One class's lane to write (:func:`write_runs`): its split, ids [T, K], the rows' detections
+    src3 [T, K] and 3D boxes box3 [T, K, 7] (the Kalman state), slots in writing order."""
+
+    split: Split
+    ids: np.ndarray
+    src3: np.ndarray
+    box3: np.ndarray
+
+
+def class_run(split: Split, res: TrackResult, lane: int = 0) -> Ab3dmotRun:
+    """Lane ``lane`` of a :func:`track` result on ``split`` as :func:`write_runs` takes it."""
+    ids = np.asarray(res.ids)
+    box3 = res.box3.lane_dense(lane, ids[lane], 0.0) if isinstance(res.box3, Rows) else np.asarray(res.box3)[lane]
+    return Ab3dmotRun(split, ids[lane], np.asarray(res.src3)[lane], box3)
+
+
+def _sequence_lines(run: Ab3dmotRun, s: int, offset: int) -> tuple[list[str], int]:
+    """Sequence ``s`` of a run as AB3DMOT's lines (ids + ``offset``), and its largest id written."""
+    split = run.split
+    sl = split.sequence_slice(s)
+    ids = np.asarray(run.ids)[sl]
+    t, k = np.nonzero(ids >= 0)
+    src = np.asarray(run.src3)[sl][t, k].astype(np.int64)
+    image = np.asarray(split.box3d, np.float64).reshape(-1, 4)[src]
+    alpha = np.asarray(split.alpha3d, np.float64).reshape(-1)[src]
+    score = np.asarray(split.score3d, np.float64).reshape(-1)[src]
+    x, y, z, th, l, w, h = np.asarray(run.box3, np.float64)[sl][t, k].T
+    name = CLASS_NAMES[split.cls]
+    frame = np.asarray(split.frame)[sl][t]
+    tid = ids[t, k].astype(np.int64) + offset
+    lines = [LINE_FORMAT % (frame[i], tid[i], name, alpha[i], *image[i], h[i], w[i], l[i], x[i], y[i], z[i], th[i],
+                            score[i]) for i in range(len(t))]
+    return lines, int(tid.max(initial=offset))
+
+
+def write_runs(out_dir, runs: list[Ab3dmotRun], *, columns: str = "kitti") -> list[Path]:
+    """One result file per sequence of any run, AB3DMOT's lines (``frame id type 0 0 alpha x1 y1 x2
+    y2 h w l x y z rot_y score``, ``%f``; a frame's newest track first). Several classes (one run
+    each) share a sequence's file, frame by frame in the order of ``runs``, each later class's ids
+    offset past the largest id written before it in that sequence. ``columns``: "kitti" (the only
+    layout AB3DMOT writes; "kitti-stale" is the same). Returns the paths, sorted by sequence."""
+    if columns not in ("kitti", "kitti-stale"):
+        raise ValueError(f"columns={columns!r}: AB3DMOT writes its own KITTI lines only (kitti)")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    per_seq: dict[str, list[tuple[np.ndarray, list[str]]]] = {}
+    top: dict[str, int] = {}
+    for run in runs:
+        for s, name in enumerate(run.split.names):
+            lines, most = _sequence_lines(run, s, top.get(name, 0) if name in per_seq else 0)
+            frames = np.array([int(line.split(" ", 1)[0]) for line in lines], np.int64)
+            per_seq.setdefault(name, []).append((frames, lines))
+            top[name] = max(top.get(name, 0), most)
+    paths = []
+    for name, parts in sorted(per_seq.items()):
+        frames = np.concatenate([f for f, _ in parts])
+        lines = [line for _, ls in parts for line in ls]
+        order = np.argsort(frames, kind="stable")
+        path = out_dir / f"{name}.txt"
+        write_text_atomic(path, "".join(lines[i] + "\n" for i in order))
+        paths.append(path)
+    return paths
+
+
+def table_problem(table) -> tuple[str, str] | None:
+    """None: AB3DMOT runs every valid setting."""
+    return None
+
+
+def failing_rows(table) -> np.ndarray:
+    """[C] False: no AB3DMOT setting is known to fail without a run."""
+    return np.zeros(len(table), bool)
+
+
+def setting_problem(what: str, params: Params, options: Options) -> str | None:
+    """None: every valid AB3DMOT setting runs (``TrackerFamily.setting_problem``)."""
+    return None
+
+
+def lane_keys(res: TrackResult, base) -> list[bytes]:
+    """One digest per lane of what its rows carry (``TrackerFamily.lane_keys``): ``base`` (its ids
+    and image boxes) and, per row, its detection (``src3``) and its 3D box."""
+    ids = np.asarray(res.ids)
+    src = np.asarray(res.src3)
+    out = []
+    for b in range(ids.shape[0]):
+        h = hashlib.sha1(b"ab3dmot")
+        h.update(base[b])
+        h.update(src[b][ids[b] >= 0].astype(np.int32).tobytes())
+        h.update(np.ascontiguousarray(lane_values(res.box3, ids, b)).tobytes())
+        out.append(h.digest())
+    return out
+
+
+#: AB3DMOT, the family ``"ab3dmot"``
+FAMILY = TrackerFamily(
+    config=FAMILY_CONFIG, init=tracker.init, step=tracker.step, run_batch=batch.run, track=track,
+    prepare_frames=prepare_frames, compact_split=compact_split, default_capacity=default_capacity,
+    output_slots=output_slots, rows=rows, row_arrays=row_arrays, class_run=class_run, write_runs=write_runs,
+    table_problem=table_problem, failing_rows=failing_rows, setting_problem=setting_problem, lane_keys=lane_keys, box_format="f6",
+    oracle="dfrmot_jax.testing.ab3dmot_oracle")
