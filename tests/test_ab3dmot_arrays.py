@@ -44,6 +44,7 @@ def _pack(folders, gt):
     return ids, boxes, scores, box3d
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("iou", ["3d:0.25", "2d:0.5"])
 def test_arrays_equal_files(kitti_root, iou):
     if not FIXTURES.is_dir():

@@ -184,6 +184,7 @@ def compare_reference(lines, ref_dir) -> Comparison:
 # ----------------------------------------------------------------------------------------------
 # fast tier: one program (m_dis, Hungarian: the quickest to compile)
 
+@pytest.mark.slow
 def test_one_program_matches_reference_and_oracle(kitti_root):
     """KITTI 0012 and 0017 give AB3DMOT's car_mdis lines (ids up to the counter's start); the
     fixture's m_dis Hungarian scenes give AB3DMOT's lines; edge scenes the oracle's."""

@@ -76,6 +76,7 @@ def test_greedy_max_equals_row_major_scan(problem):
     np.testing.assert_array_equal(got, _row_major_max(score, valid, 0.25))
 
 
+@pytest.mark.slow
 def test_empty_problems():
     for shape in [(0, 3), (3, 0), (0, 0)]:
         got = associate.greedy_min(jnp.zeros(shape), jnp.ones(shape, bool), jnp.arange(shape[1], dtype=jnp.int32), 1.0)

@@ -49,6 +49,7 @@ def test_console_script_is_installed():
     assert out.returncode == 0 and "track" in out.stdout and "eval" in out.stdout
 
 
+@pytest.mark.slow
 def test_eval_zero_pads_sequence_names_as_track_does(tmp_path, capsys):
     root = make_scene(tmp_path / "scene", n_sequences=3, n_frames=40, seed=6)
     base = ["--data", str(root)]

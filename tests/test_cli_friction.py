@@ -77,6 +77,7 @@ def test_unreadable_input_of_track_is_exit_2_naming_the_file(which, scene, tmp_p
     assert status == 2 and which in line and "Permission denied" in line
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["results", "label_02/0001.txt"])
 def test_unreadable_input_of_eval_is_exit_2_naming_the_file(which, copy_of, tmp_path, monkeypatch, capsys):
     assert main(_track(copy_of, tmp_path / "results")) == 0           # a fresh root: no cached ground truth
@@ -199,6 +200,7 @@ def test_report_lines_fit_120_columns(capsys):
     assert last.startswith("{") and "sensitivity of HOTA per axis" in "\n".join(lines)
 
 
+@pytest.mark.slow
 def test_report_of_a_wide_sweep_wraps_its_tables(scene, tmp_path, capsys):
     """Eight random axes: the top-configs table is wider than 120 columns unless wrapped."""
     names = ("score_2d", "merge_iou", "a_c", "a_l", "alpha_c", "a_f", "gain_beta", "gain_gamma")

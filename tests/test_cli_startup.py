@@ -98,6 +98,7 @@ def folders(tmp_path_factory):
     return root, d
 
 
+@pytest.mark.slow
 def test_eval_runs_where_jax_cannot_be_imported(folders, capsys):
     root, d = folders
     _, want, _ = run_cli(capsys, ["eval", d / "out", "--data", root])
@@ -107,6 +108,7 @@ def test_eval_runs_where_jax_cannot_be_imported(folders, capsys):
     assert out.stdout == want and "COMBINED" in want
 
 
+@pytest.mark.slow
 def test_report_runs_where_jax_cannot_be_imported(folders, tmp_path, capsys):
     """``dfrmot report DIR --html PAGE`` in a process without JAX: the same text, the same page (but
     its time stamp) as in this process."""

@@ -163,6 +163,7 @@ def written(dfr2023, tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_authors_columns_reproduce_the_published_files_byte_for_byte(dfr2023, written, kitti_root):
     seqs, split, options, ref, lane, frames = dfr2023
     lines = files = 0
@@ -182,6 +183,7 @@ def test_authors_columns_reproduce_the_published_files_byte_for_byte(dfr2023, wr
     assert (files, lines) == (20, 28812)
 
 
+@pytest.mark.slow
 def test_kitti_columns_carry_each_objects_own_3d_detection(dfr2023, written):
     seqs, split, options, ref, lane, frames = dfr2023
     n_own = n_2d = 0
@@ -209,6 +211,7 @@ def test_kitti_columns_carry_each_objects_own_3d_detection(dfr2023, written):
     assert n_own + n_2d == 28812 and n_2d == 2033 + 2687   # stale 3D + no 3D at all
 
 
+@pytest.mark.slow
 def test_both_column_sets_score_identically(dfr2023, written, kitti_root, tmp_path):
     from test_metrics_parity import assert_same
 
@@ -232,6 +235,7 @@ def test_both_column_sets_score_identically(dfr2023, written, kitti_root, tmp_pa
     assert_same(te["kitti"], evaluate_files(written / "kitti", kitti_root, "car", few), tag="TrackEval vs ours")
 
 
+@pytest.mark.slow
 def test_readers_accept_both_column_sets(dfr2023, written, kitti_root):
     from dfrmot_jax.metrics import prepare_gt
     from dfrmot_jax.testing.metric_edits import load_results
@@ -258,6 +262,7 @@ def test_readers_accept_both_column_sets(dfr2023, written, kitti_root):
         np.testing.assert_array_equal(la[s].track_id, lk[s].track_id)
 
 
+@pytest.mark.slow
 def test_write_lane_without_3d_sources_writes_placeholders_and_detection_scores(dfr2023, tmp_path):
     seqs, split, options, ref, lane, frames = dfr2023
     sub = [0, 3]  # two sequences are enough here

@@ -34,6 +34,7 @@ def _stored(sweep):
     return comb.loc[comb["sequence"] == COMBINED, ["config", "HOTA"]]
 
 
+@pytest.mark.slow
 def test_the_demo_sweeps_its_scene_and_writes_its_report(tmp_path, capsys):
     out = tmp_path / "demo"
     status, text, err = run_cli(capsys, ["demo", "--out", out, *SMALL])

@@ -213,6 +213,7 @@ def _within_3se(fracs, p):
     assert abs(fracs.mean() - p) <= 3 * se, (fracs.mean(), p, se)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("p", [0.05, 0.3, 0.7])
 def test_drop_fraction_within_3se_synthetic(synthetic, p):
     frames, gid2, gid3, spec = synthetic

@@ -196,6 +196,7 @@ def test_track_refuses_a_non_empty_out(scene, tmp_path, capsys):
     assert sorted(p.name for p in out.iterdir()) == ["0005.txt"]
 
 
+@pytest.mark.slow
 def test_track_overwrite_removes_old_result_files_only(scene, tmp_path, capsys):
     out = tmp_path / "o"
     out.mkdir()                                               # empty: fine without --overwrite

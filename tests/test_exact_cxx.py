@@ -177,6 +177,7 @@ def _seq_3d(name, zs, m) -> SequenceDets:
     return SequenceDets(name, m + 2, d2, d3, _CALIB)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["dfr2023", "dfr_head"])
 def test_3d_corners_of_lost_tracks_decide_as_the_cxx(name):
     params, options = preset(name)

@@ -71,6 +71,7 @@ def test_all_gated_matches_nothing():
     assert reference.hungarian_match(cost, 0.0) == []
 
 
+@pytest.mark.slow
 def test_hungarian_takes_the_best_total_where_greedy_does_not():
     # greedy takes 0.9 first and leaves (1, 1) below the gate; the optimum pairs 0.8 + 0.7
     m_f = np.array([[0.9, 0.8], [0.7, 0.0]])
@@ -95,6 +96,7 @@ def test_ties_still_give_an_optimal_total():
             assert sum(0.9 - cost[p] for p in got) == pytest.approx(sum(0.9 - cost[p] for p in want), abs=1e-12)
 
 
+@pytest.mark.slow
 def test_hungarian_min_under_vmap_matches_each_lane():
     rng = np.random.default_rng(3)
     probs = [_padded_problem(rng, int(rng.integers(0, 9)), int(rng.integers(0, 11))) for _ in range(5)]
@@ -184,6 +186,7 @@ def test_option_defaults_to_greedy_and_is_validated():
         Options(assign="optimal").validate()
 
 
+@pytest.mark.slow
 def test_cli_track_with_hungarian(tmp_path, capsys):
     root = make_scene(tmp_path / "scene", n_sequences=1, n_frames=60, seed=4)
     base = ["track", "--data", str(root), "--det2d", "synth2d", "--det3d", "synth3d"]

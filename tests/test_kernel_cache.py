@@ -48,6 +48,7 @@ def _warnings(stderr: str) -> list[str]:
     return [line for line in stderr.splitlines() if "Warning" in line or ": warning: " in line]
 
 
+@pytest.mark.slow
 def test_the_command_line_works_without_a_writable_cache_location(tmp_path):
     """``$NUMBA_CACHE_DIR``, the package's ``__pycache__`` and the home cache unwritable: ``dfrmot eval
     --help`` was a traceback (``cannot cache function ...: no locator available``, raised while the
@@ -66,6 +67,7 @@ def test_the_command_line_works_without_a_writable_cache_location(tmp_path):
     assert len(_warnings(first.stderr)) == 1 and str(root) in first.stderr
 
 
+@pytest.mark.slow
 def test_without_a_temporary_folder_the_kernels_compile_in_memory(tmp_path):
     r = _run(NO_LOCATION + NO_TEMP + CLI, tmp_path, "eval", str(tmp_path / "none"), **_no_location())
     assert r.returncode == 2 and len(r.stderr.splitlines()) == 2, r.stderr
@@ -91,6 +93,7 @@ def _garble(p: Path) -> None:
 @pytest.mark.parametrize("damage", [_truncate, pytest.param(lambda p: p.write_bytes(b""), marks=pytest.mark.slow),
                                     pytest.param(_garble, marks=pytest.mark.slow)],
                          ids=["truncated", "emptied", "garbled"])
+@pytest.mark.slow
 def test_a_damaged_cache_entry_is_compiled_anew_and_replaced(which, damage, tmp_path):
     """A truncated, emptied or garbled index (.nbi) or data file (.nbc) was exit 1 (UnpicklingError,
     EOFError) or a UTF-8 message naming no file, in every later run until deleted by hand: now one
@@ -134,6 +137,7 @@ print(round(kernel(np.arange(3.0)), 6), kernel.stats.cache_hits.total(), kernel.
 '''
 
 
+@pytest.mark.slow
 def test_processes_missing_a_kernel_at_once_compile_it_once(tmp_path):
     """Two processes that need a kernel missing from the cache at the same moment (a sweep's metric
     workers, the demo's warm-up process and its scoring) compiled it both, racing to write it: now

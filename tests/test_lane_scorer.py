@@ -57,6 +57,7 @@ def _same(got, want, gt):
                 np.testing.assert_array_equal(got[lane][name][f], v, err_msg=f"lane {lane} {name} {f}")
 
 
+@pytest.mark.slow
 def test_every_lane_equals_scoring_it_alone(outputs):
     gt, split, ids, boxes = outputs
     want = _alone(gt, ids, boxes, split.offsets)
@@ -78,6 +79,7 @@ def test_every_lane_equals_scoring_it_alone(outputs):
                 np.testing.assert_array_equal(got["seq"][f][lane, s], v, err_msg=f"lane {lane} {name} {f}")
 
 
+@pytest.mark.slow
 def test_virtual_lanes_hold_each_sequences_new_outputs(outputs):
     gt, split, ids, boxes = outputs
     sc = LaneScorer(gt, split.offsets)
@@ -92,6 +94,7 @@ def test_virtual_lanes_hold_each_sequences_new_outputs(outputs):
     assert sc.new_items(per, busy)[0] == [] and sc.new_items(per, busy)[1:] == items[1:]
 
 
+@pytest.mark.slow
 def test_errors_name_the_lane_not_the_virtual_lane(outputs):
     """A problem in a lane's rows is named by the lane's own index, whichever virtual lane holds them."""
     from dfrmot_jax.metrics import DuplicateIdError
@@ -116,6 +119,7 @@ def test_errors_name_the_lane_not_the_virtual_lane(outputs):
         sc.dets(ids, boxes, sc.new_items(sc.seq_digests(ids, boxes)))
 
 
+@pytest.mark.slow
 def test_evaluate_arrays_scores_repeated_outputs_once(outputs, monkeypatch):
     """evaluate_arrays packs repeated (config, sequence) outputs into virtual lanes: the same dicts as
     scoring every lane as it is, with fewer lanes scored."""

@@ -16,6 +16,7 @@ def root(tmp_path_factory):
     return make_scene(tmp_path_factory.mktemp("scene"), n_sequences=2, n_frames=25, n_cars=4, seed=5)
 
 
+@pytest.mark.slow
 def test_simulate_lift_and_track(root, tmp_path, capsys):
     scans = tmp_path / "scans"
     status, out, err = run_cli(capsys, ["lidar", "simulate", "--data", root, "--seqs", "1", "--out", scans,

@@ -30,6 +30,7 @@ def box_frame(points):
     return points[:, :3] - np.array([DIST, 0.0, -1.73 + H / 2]), np.array([L / 2, W / 2, H / 2])
 
 
+@pytest.mark.slow
 def test_a_box_at_known_range_returns_points_on_its_faces_and_none_behind():
     s = SimSettings(range_noise=0.0, fov=30)
     (_, pts), = simulate_sequence(labels([AHEAD]), simple_calib(), 1, "0000", s)

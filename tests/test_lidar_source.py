@@ -40,7 +40,8 @@ def test_lifted_rows_carry_their_2d_box_as_both_image_boxes(scene):
     assert np.all(split.score3d[split.valid3d] >= 0.45) and rows.min() >= 0
 
 
-@pytest.mark.parametrize("merge", ["detector_box", pytest.param("calib_projection", marks=pytest.mark.slow)])
+@pytest.mark.slow
+@pytest.mark.parametrize("merge", ["detector_box", "calib_projection"])
 def test_every_lifted_box_fuses_with_its_own_2d_detection(scene, merge):
     root, scans = scene
     split = load_split(root, "synth2d", f"lidar:{scans}", "car")

@@ -88,6 +88,7 @@ def test_parse_classes():
             parse_classes(bad)
 
 
+@pytest.mark.slow
 def test_both_classes_in_one_file_equal_single_class_runs(two_class, kitti_root):
     both = two_class["both"]
     texts = "".join(p.read_text() for p in both.glob("*.txt"))
@@ -111,6 +112,7 @@ def test_both_classes_in_one_file_equal_single_class_runs(two_class, kitti_root)
     assert list(evaluate_files_classes(both, kitti_root, "car")) == ["car"]
 
 
+@pytest.mark.slow
 def test_class_average_is_mean_of_ratios_and_sum_of_counts(two_class, kitti_root):
     res = evaluate_files_classes(two_class["both"], kitti_root)
     car, ped, avg = res["car"]["COMBINED"], res["pedestrian"]["COMBINED"], res["average"]["COMBINED"]
@@ -157,6 +159,7 @@ def test_classes_table_single_class_has_class_column(kitti_root):
     assert set(df["class"]) == {"car"}
 
 
+@pytest.mark.slow
 def test_cli_eval_two_classes(two_class, kitti_root, tmp_path, capsys):
     from dfrmot_jax.cli import main
 
@@ -190,6 +193,7 @@ def test_cli_eval_two_classes(two_class, kitti_root, tmp_path, capsys):
     assert "0017" in text and text.index("pedestrian") < text.index(" car ")
 
 
+@pytest.mark.slow
 def test_cli_eval_single_class_csv_has_class_column(two_class, kitti_root, tmp_path, capsys):
     from dfrmot_jax.cli import main
 
@@ -217,6 +221,7 @@ def test_cli_eval_rejects_unknown_class(kitti_root, tmp_path, capsys):
     assert e.value.code == 2 and "cyclist" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_two_classes_vs_trackeval(two_class, kitti_root):
     """TrackEval's Kitti2DBox with CLASSES_TO_EVAL = [car, pedestrian] on the merged files (one seqmap)."""
     pytest.importorskip("trackeval")

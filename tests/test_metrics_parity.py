@@ -62,6 +62,7 @@ def reference_run(kitti_root, tmp_path_factory):
     return gt, refdir, te
 
 
+@pytest.mark.slow
 def test_reference_parity(reference_run):
     gt, refdir, te = reference_run
     ours = evaluate_files(refdir, gt)
@@ -69,6 +70,7 @@ def test_reference_parity(reference_run):
     assert_same(te, ours, tag="reference")
 
 
+@pytest.mark.slow
 def test_reference_published_figures(reference_run, kitti_root):
     _, refdir, te = reference_run
     # default: every label_02 sequence (0017 has no cars and no result file -> contributes nothing)
@@ -114,6 +116,7 @@ def stress_run(kitti_root, tmp_path_factory):
     return gt, lanes, dirs, te
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["mixed", "heavy", "ties", "rules", "nothing"])
 def test_stress_parity(stress_run, name):
     gt, _, dirs, te = stress_run
@@ -121,6 +124,7 @@ def test_stress_parity(stress_run, name):
     assert_same(te[name], ours, tag=name)
 
 
+@pytest.mark.slow
 def test_stress_cases_are_exercised(stress_run):
     """The edits really hit the rules: distractor matches, DontCare / tiny removals, empty sequences."""
     gt, lanes, dirs, te = stress_run
@@ -162,6 +166,7 @@ def pedestrian_run(kitti_root, tmp_path_factory):
     return gt, lanes, dirs, te
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["naive", "own_ids", "edited"])
 def test_pedestrian_parity(pedestrian_run, name):
     gt, _, dirs, te = pedestrian_run
@@ -170,6 +175,7 @@ def test_pedestrian_parity(pedestrian_run, name):
     assert te[name]["COMBINED"]["HOTA_TP"][0] > 0
 
 
+@pytest.mark.slow
 def test_stress_parity_clear_frames_in_order(stress_run):
     """CLEAR's frames that need the solver, solved one by one in time order in compiled code (the
     continuation bonus from the previous frame's matches): equal to TrackEval on the tie-heavy edits
@@ -183,6 +189,7 @@ def test_stress_parity_clear_frames_in_order(stress_run):
 
 # ----------------------------------------------------------------------------------------- (d)
 
+@pytest.mark.slow
 def test_arrays_equal_files_car(stress_run):
     gt, lanes, dirs, _ = stress_run
     names = ["mixed", "heavy", "ties", "rules"]
@@ -194,6 +201,7 @@ def test_arrays_equal_files_car(stress_run):
         assert_same(evaluate_files(dirs[name], gt), res, exact=True, tag=name)
 
 
+@pytest.mark.slow
 def test_arrays_layout_with_gaps_and_padding(stress_run):
     """Sequences placed anywhere along T (gaps ignored) and extra empty K slots change nothing."""
     gt, lanes, dirs, _ = stress_run
@@ -216,6 +224,7 @@ def test_arrays_layout_with_gaps_and_padding(stress_run):
         assert_same(evaluate_files(dirs[name], gt), y, exact=True, tag=name)
 
 
+@pytest.mark.slow
 def test_arrays_equal_files_pedestrian(pedestrian_run):
     gt, lanes, dirs, _ = pedestrian_run
     names = ["naive", "edited"]

@@ -326,6 +326,7 @@ def test_identity_matching_value_equals_trackeval_formulation():
         assert max_matching_value(g * 7 + 3, t, pm[g, t].astype(float)).sum() == idtp_te
 
 
+@pytest.mark.slow
 def test_evaluate_arrays_in_worker_processes(kitti_root):
     from dfrmot_jax.testing.metric_edits import load_results
 

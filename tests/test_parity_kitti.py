@@ -21,6 +21,7 @@ def _lines(path):
     return list(zip(t.frame.tolist(), t.track_id.tolist(), *(t.box[:, k].tolist() for k in range(4))))
 
 
+@pytest.mark.slow
 def test_dfr2023_reproduces_the_published_output_line_for_line(kitti_root, tmp_path):
     assert main(["track", "--data", str(kitti_root), "--det2d", "rrc", "--det3d", "pointrcnn",
                  "--preset", "dfr2023", "--class", "car", "--out", str(tmp_path)]) == 0

@@ -77,6 +77,7 @@ def _agree(monkeypatch, reader, path) -> None:
         assert _same(fast, slow), path.read_bytes()[:300]
 
 
+@pytest.mark.slow
 def test_every_data_file_reads_the_same_both_ways(kitti_root, monkeypatch):
     labels = sorted((kitti_root / "label_02").glob("*.txt"))
     results = sorted((kitti_root / "reference").rglob("*.txt"))

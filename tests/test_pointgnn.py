@@ -89,6 +89,7 @@ def test_3d_rows_of_another_type_are_dropped(pgnn_dir, kitti_root, tmp_path):
         load_sequences(kitti_root, "rrc", det, "car", ["0000"])
 
 
+@pytest.mark.slow
 def test_track_and_eval_two_sequences_cli(pgnn_dir, kitti_root, tmp_path, capsys):
     from dfrmot_jax.cli import main
 

@@ -283,6 +283,7 @@ def test_a_tune_runs_its_batches_on_the_cluster(cluster, scene, tmp_path, monkey
     assert len(on_ray.table["config"].unique()) == 8
 
 
+@pytest.mark.slow
 def test_an_unreachable_address_is_exit_2_before_anything_is_written(scene, tmp_path):
     toml = tmp_path / "s.toml"
     toml.write_text(f'name = "x"\n[data]\nroot = "{scene}"\ndet2d = "synth2d"\ndet3d = "synth3d"\n'

@@ -31,6 +31,7 @@ def _assert_parity(split, seqs, params, options):
     assert (mm["missing"], mm["extra"], mm["id"], mm["box"]) == (0, 0, 0, 0), (options, params, mm)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["dfr2023", "dfr_head"])
 def test_presets_match_reference(scene, name):
     from dfrmot_jax.config import preset
@@ -206,6 +207,7 @@ def _frame_ids(ids: np.ndarray) -> list[tuple[int, int]]:
     return sorted(zip(t.tolist(), ids[t, k].tolist()))
 
 
+@pytest.mark.slow
 def test_ids_restart_at_each_sequence(scene):
     """The id rule (``core.memory``): each birth takes the next id, in slot order, and the counter
     restarts at 0 on a sequence's first frame. With every birth output (min_hits 1) each sequence's
@@ -236,6 +238,7 @@ def test_keep_lost_needs_filtered_output(scene):
         track(split, stack_params([Params(keep_lost=2)]), Options())
 
 
+@pytest.mark.slow
 def test_more_than_64_objects_in_a_frame_track_like_the_oracle(tmp_path):
     """100 detections in one frame (2D + 3D rows past the old 64-row limit): tracker == oracle."""
     from dfrmot_jax.io.kitti import Calib, Detections2D, Detections3D
@@ -307,6 +310,7 @@ def test_lanes_sharing_merge_settings_share_objects_made_outside_the_scan(scene,
 
 @pytest.mark.parametrize("options", [Options()] + [pytest.param(o, marks=pytest.mark.slow) for o in (
     Options(output="filtered"), Options(modality="3d"), Options(modality="2d"))])
+@pytest.mark.slow
 def test_track_compacts_the_split_and_gives_the_output_back_in_its_own_layout(scene, options):
     """``track(split)`` runs on the split compacted to the batch's loosest thresholds and moves the
     output back to the split's own slots: every array equal to tracking the split as it is."""
