@@ -190,7 +190,7 @@ def test_the_machinery_names_the_protocol_not_one_family():
         assert any(n == name for _, n in _imports(pkg / Path(*m.split(".")).with_suffix(".py"), "dfrmot_jax." + m)), m
 
 
-def test_config_hashes_of_dfr_configs_are_the_ones_they_always_had():
+def test_config_hashes_of_dfr_configs_are_the_ones_they_always_had(spy):
     """The family enters a config's hash only when it is not the default: the grid sweep's config 848
     keeps the hash ``grid_cv`` was chosen by (config.PRESETS), and every DFR row hashes as before."""
     t = expand(load_spec(ROOT / "sweeps" / "kitti_dfr_grid.toml"))
@@ -230,15 +230,43 @@ def test_a_sweep_file_is_read_with_its_familys_settings(spy):
         parse_spec({**doc, "options": {"family": "nope"}})
 
 
-def test_a_family_with_other_settings_is_refused_until_tables_name_each_rows_family(spy):
-    family, _ = spy
-    other = family.config._replace(name="other", Params=config.Options, Options=config.Params)
-    CONFIGS["other"] = other
-    try:
-        with pytest.raises(SweepConfigError, match="options.family: 'other': its parameters and options are not"):
-            parse_spec({"params": {"a_l": [4.0, 8.0]}, "options": {"family": "other"}})
-    finally:
-        del CONFIGS["other"]
+def _ab3dmot_spec(root, **extra) -> dict:
+    doc = {"name": "ab", "chunk": 4, "baseline": "ab3dmot_car", "data": {"root": str(root), "det3d": "synth3d"},
+           "params": {"threshold": [-0.2, 0.1], "max_age": [2, 3]},
+           "options": {"family": "ab3dmot", "metric": ["giou_3d", "dist_3d"]}}
+    doc.update(extra)
+    return doc
+
+
+def test_an_ab3dmot_sweeps_table_holds_its_columns_and_no_dfr_ones(scene):
+    """Every table is one family's: an AB3DMOT sweep's config table has AB3DMOT's parameter and option
+    columns (none of DFR-FastMOT's), hashed with its family, planned in groups of its Options, its
+    data read without 2D detections; DFR's names are refused in its file, and so is a distortion."""
+    from dfrmot_jax.report.columns import option_names, param_names, table_family
+    from dfrmot_jax.sweep.plan import option_groups, resolve_data
+
+    ab = family_config("ab3dmot")
+    spec = parse_spec(_ab3dmot_spec(scene))
+    t = expand(spec)
+    assert list(t.columns) == ["config", "config_hash", "variant", "baseline", *ab.Params._fields, *ab.Options._fields]
+    assert param_names("ab3dmot") == ab.Params._fields and option_names("ab3dmot") == ab.Options._fields
+    dfr_only = set(config.Params._fields + config.Options._fields) - set(ab.Params._fields + ab.Options._fields)
+    assert dfr_only and not dfr_only & set(t.columns)
+    assert len(t) == 2 * 2 * 2 and t.loc[0, "variant"] == "baseline"       # (the baseline is one of the grid)
+    assert t.loc[0, "threshold"] == -0.2 and t.loc[0, "metric"] == "giou_3d"
+    assert t["min_hits"].dtype == np.int64 and t["threshold"].dtype == np.float64 and t["boxes"].dtype == bool
+    rows = t.drop(columns=["config", "config_hash"]).to_dict("records")
+    assert list(t["config_hash"]) == [config_hash(r, family="ab3dmot") for r in rows]
+    assert table_family(t.columns) is ab and table_family(expand(parse_spec(_spec(scene))).columns) is config.FAMILY_CONFIG
+    groups = option_groups(t, "ab3dmot")
+    assert list(groups) == [ab.Options(), ab.Options(metric="dist_3d")] and sum(map(len, groups.values())) == len(t)
+    assert resolve_data(spec).det2d is None and resolve_data(parse_spec(_spec(scene))).det2d == "synth2d"
+    with pytest.raises(SweepConfigError, match=r"params.a_l: unknown parameter; parameters are \['threshold'"):
+        parse_spec(_ab3dmot_spec(scene, params={"a_l": [4.0, 8.0]}))
+    with pytest.raises(SweepConfigError, match=r"options.output: unknown option; options are \['metric'"):
+        parse_spec(_ab3dmot_spec(scene, options={"family": "ab3dmot", "output": "filtered"}))
+    with pytest.raises(SweepConfigError, match=r"distortion: the distortions .* DFR-FastMOT's for now, not AB3DMOT's"):
+        parse_spec(_ab3dmot_spec(scene, distortion={"kinds": {"drop": [0.1]}}))
 
 
 def test_a_sweep_tracks_with_its_family_and_scores_what_dfr_scores(spy, scene, tmp_path):

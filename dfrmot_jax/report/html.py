@@ -193,7 +193,7 @@ def _tune(d: Path, m: dict, rep, objective: str) -> str:
         out.append(_figure(figures.pareto_figure(trials, front, objs),
                            f"Every trial's {objs[0]} and {objs[1]}, and the Pareto front: the trials no other beats "
                            f"on both."))
-        out.append(_table(front[["trial"] + objs + [a for a in varied_axes(rep.data) if a in front.columns]]))
+        out.append(_table(front[["trial"] + objs + [a for a in varied_axes(rep.data, rep.family) if a in front.columns]]))
     tr = (rep.summary.get("tune") or {}).get("transfer")
     if tr:
         out.append(f"<p>Transfer: the chosen config unchanged on {escape(tr['det2d'])} + {escape(tr['det3d'])}, "
@@ -240,7 +240,7 @@ def render_html(rep: SweepReport) -> str:
     if rob:             # a robustness study's answer first, as in the text report
         body += ["<h2>Robustness</h2>", rob]
     body += [f"<h2>Top configs by {escape(objective)}</h2>", _top(rep, objective)]
-    profiles = axis_profiles(rep.view, objective)
+    profiles = axis_profiles(rep.view, objective, family=rep.family)
     if profiles:
         body += ["<h2>Sensitivity per axis</h2>",
                  _figure(figures.sensitivity_figure(profiles, objective, None if baseline is None else
