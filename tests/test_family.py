@@ -312,3 +312,72 @@ def test_a_tune_hashes_and_checks_its_familys_configs(spy, scene):
     assert list(table["config_hash"]) == [config_hash(r, family=SPY) for r in rows]
     assert space.config_hash({"a_l": 3.0, "gain_gamma": 0.1}) == table.loc[0, "config_hash"] != config_hash(rows[0])
     assert list(family.failing_rows(table)) == [False, True] and calls["failing_rows"] == 1
+
+
+@pytest.mark.slow
+def test_an_ab3dmot_sweep_is_stored_resumed_reported_written_alone_and_tuned(scene, tmp_path, capsys):
+    """An AB3DMOT sweep end to end (real tracking and scoring): its directory's manifest names the
+    family and no 2D detections, its stored rows hold its columns, a rerun resumes every chunk, the
+    report (text, ``--html``) reads its axes, ``compare DIR:best``'s files are its config tracked
+    alone by the family and written by its ``write_runs`` (and score what its row says), and a tune
+    file of the family searches its parameters."""
+    from dfrmot_jax.metrics import evaluate_files, metrics_table, prepare_gt
+    from dfrmot_jax.report import load_results, sweep_report
+    from dfrmot_jax.report.html import write_html
+    from dfrmot_jax.data import load_split
+    from dfrmot_jax.testing.cli import run_cli
+    from dfrmot_jax.tuning import run_tune
+
+    fam = family_of("ab3dmot")
+    ab = fam.config
+    dfr_only = set(config.Params._fields + config.Options._fields) - set(ab.Params._fields + ab.Options._fields)
+    spec = _ab3dmot_spec(scene, chunk=2, metrics={"ab3dmot": True},
+                         options={"family": "ab3dmot", "metric": "giou_3d"})       # 4 configs, one option group
+    out = tmp_path / "ab"
+    logs: list[str] = []
+    df = run_sweep(spec, out, progress=False, workers=0, log=logs.append)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["family"] == "ab3dmot" and manifest["data"]["det2d"] is None
+    stored = load_results(out)
+    pd.testing.assert_frame_equal(stored, df)
+    assert set(ab.Params._fields + ab.Options._fields) <= set(stored.columns) and not dfr_only & set(stored.columns)
+    assert df["config"].nunique() == 4 and (df.loc[df["sequence"] == "COMBINED", "sAMOTA"] > 0).all()
+    assert df.loc[df["sequence"] == "COMBINED", "HOTA"].nunique() > 1          # the settings change the figure
+    again: list[str] = []
+    pd.testing.assert_frame_equal(run_sweep(spec, out, progress=False, workers=0, log=again.append), df)
+    assert any("2 chunks of <= 2; 2 done" in line for line in again), again
+
+    rep = sweep_report(out)
+    assert rep.family == "ab3dmot" and "threshold" in rep.text and "max_age" in rep.text
+    assert set(rep.sensitivity["axis"]) == {"threshold", "max_age"}
+    assert not dfr_only & set(rep.top.columns)
+    page = write_html(rep, tmp_path / "report.html").read_text()
+    assert "threshold" in page and "a_l" not in page
+    status, text, err = run_cli(capsys, ["report", out, "--html", tmp_path / "cli.html"])
+    assert status == 0 and "threshold" in text and (tmp_path / "cli.html").is_file(), err
+
+    said = write_config_output(out, "best", tmp_path / "best")
+    best = int(said.split(" config ")[1].split(" ")[0])
+    row = df[(df["config"] == best) & (df["sequence"] == "COMBINED")].iloc[0]
+    split = load_split(scene, None, "synth3d", "car")
+    params = ab.Params(**{n: row[n] for n in ab.Params._fields})
+    options = ab.Options(**{n: type(ab.Options._field_defaults[n])(row[n]) for n in ab.Options._fields})
+    fam.write_runs(tmp_path / "alone", [fam.class_run(split, fam.track(split, params, options), 0)])
+    files = sorted(p.name for p in (tmp_path / "best").iterdir())
+    assert files == sorted(p.name for p in (tmp_path / "alone").iterdir()) and files
+    for f in files:
+        assert (tmp_path / "best" / f).read_bytes() == (tmp_path / "alone" / f).read_bytes()
+    scored = metrics_table(evaluate_files(tmp_path / "best", prepare_gt(scene, "car", split.names)))
+    assert scored.loc["COMBINED", "HOTA"] == row["HOTA"] and scored.loc["COMBINED", "IDSW"] == row["IDSW"]
+
+    tune = {**_ab3dmot_spec(scene), "params": {"threshold": {"uniform": [-0.4, 0.2]}, "max_age": [2, 3]},
+            "options": {"family": "ab3dmot"},
+            "tune": {"sampler": "random", "budget": 4, "batch": 4, "seed": 1, "objectives": ["HOTA"]}}
+    space = search_space(parse_spec({k: v for k, v in tune.items() if k != "tune"}))
+    assert space.family == "ab3dmot" and {d.name for d in space.dims} == {"threshold", "max_age"}
+    res = run_tune(tune, tmp_path / "tune", progress=False, workers=0, log=lambda m: None, refine_steps=0,
+                   plots=False)
+    assert json.loads((tmp_path / "tune" / "manifest.json").read_text())["family"] == "ab3dmot"
+    assert res.table["config_hash"].nunique() == 4 and not dfr_only & set(res.table.columns)
+    assert res.table["threshold"].between(-0.4, 0.2).all()
+    assert "threshold" in sweep_report(tmp_path / "tune").text
