@@ -30,6 +30,8 @@ from . import figures
 from .analysis import MINIMISE, axis_profiles, fmt_value, pareto_front, varied_axes
 from .report import SweepReport, held_out_gain, report_folds, sweep_report
 from .robustness import robustness_contrast
+from ..family import DEFAULT_FAMILY
+from ..family_configs import family_config
 from .columns import AVERAGE, COMBINED
 from .stored import read_manifest
 
@@ -82,7 +84,11 @@ def _identity(d: Path, m: dict, rep) -> str:
                 if c in df.columns}
     rows = {"directory": str(d.resolve()), "kind": m.get("kind", "sweep"), "description": m.get("description"),
             "sweep file": m.get("source") or "(given as a table, not a file)",
-            "data": f"{data.get('root')} — {data.get('det2d')} + {data.get('det3d')}, class "
+            "tracker family": None if rep.family in (None, DEFAULT_FAMILY) else
+            f"{family_config(rep.family).title} ({rep.family})",
+            "data": f"{data.get('root')} — "
+                    + (f"{data.get('det2d')} + " if data.get("det2d") is not None else "")
+                    + f"{data.get('det3d')}, class "
                     f"{', '.join(m.get('classes') or [data.get('class', '?')])}",
             "sequences": f"{len(seqs)} ({', '.join(seqs)}), {sum(m.get('lengths') or []):,} frames",
             "configs": f"{m.get('configs', df['config'].nunique()):,}" if not m.get("tune") else

@@ -14,6 +14,8 @@ import numpy as np
 import pandas as pd
 
 from ..metrics.ab3dmot.sums import other_sum, python_of
+from ..family import DEFAULT_FAMILY
+from ..family_configs import family_config
 from ..metrics.columns import canonical_objective
 from .analysis import (
     check_objective,
@@ -162,7 +164,8 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     rep = SweepReport("", {}, topdf, pd.DataFrame(), data=full, view=df, manifest=src.manifest,
                       directory=src.directory, baseline=baseline, folds_note=folds_note, family=fam)
     kind = "tune" if src.manifest is not None and src.manifest.get("kind") == "tune" else "sweep"
-    head, seqs = _headline(full, df, comb, classes, cls, objective, src.n_expected, kind)
+    title = None if fam == DEFAULT_FAMILY else family_config(fam).title      # (another tracker family: named)
+    head, seqs = _headline(full, df, comb, classes, cls, objective, src.n_expected, kind, title)
     rob_lines, rob_summary = [], None
     if "distortion.kind" in df.columns and (df["distortion.kind"] != "none").any():
         # a robustness study's answer first: its tables, then the generic sections (ranked over every lane)
@@ -220,10 +223,11 @@ def ab3dmot_sum_line(comb: pd.DataFrame, best, baseline, manifest: Mapping | Non
 
 
 def _headline(full: pd.DataFrame, df: pd.DataFrame, comb: pd.DataFrame, classes: list, cls, objective: str,
-              n_expected: int | None, kind: str = "sweep") -> tuple[str, int]:
-    """The report's first paragraph (what was swept or tuned (``kind``), on what, ranked how) and the
-    sequences counted."""
+              n_expected: int | None, kind: str = "sweep", title: str | None = None) -> tuple[str, int]:
+    """The report's first paragraph (what was swept or tuned (``kind``; ``title``: its tracker family's,
+    said when not the default's), on what, ranked how) and the sequences counted."""
     name = df["sweep"].iloc[0] if "sweep" in df.columns else kind
+    name = name if title is None else f"{name} ({title})"
     n_cfg = int(full["config"].nunique())
     partial = f" (partial: {n_cfg} of {n_expected} configs)" if n_expected and n_expected != n_cfg else ""
     better = "lower" if objective_direction(objective) < 0 else "higher"
