@@ -139,9 +139,8 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     :func:`class_view`) or ``"average"`` (default; for a directory: the file's ``report.class``):
     the class average (ratios averaged over the classes, counts summed), cross-validated with each
     class's sequences folded on their own (:func:`cross_validate`). ``folds_note``: how ``folds``
-    was chosen (:func:`report_folds`), said beside the cross-validation. ``family``: the tracker
-    family of the table's configs (its parameter and option columns; default: a directory's manifest's,
-    a table's read from its columns: ``columns.table_family``)."""
+    was chosen (:func:`report_folds`), said beside the cross-validation. ``family``: the tracker family of
+    its configs (its columns; default: a directory's manifest's, else read from them: ``table_family``)."""
     src = _source(results, folds, contrast, cls, family)
     fam = src.family
     objective = canonical_objective(objective)
