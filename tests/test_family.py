@@ -314,6 +314,25 @@ def test_a_tune_hashes_and_checks_its_familys_configs(spy, scene):
     assert list(family.failing_rows(table)) == [False, True] and calls["failing_rows"] == 1
 
 
+def test_an_ab3dmot_sweep_file_through_the_command_line(scene, tmp_path, capsys):
+    """``dfrmot sweep FILE --dry-run`` of an AB3DMOT file plans its option groups (its Options'
+    columns); with a ``[distortion]`` table the file is refused: exit 2, the key named, no traceback."""
+    from dfrmot_jax.testing.cli import error_line, run_cli
+
+    text = (f'name = "abcli"\nchunk = 3\n[data]\nroot = "{scene}"\ndet3d = "synth3d"\n[params]\n'
+            f'threshold = [-0.2, 0.1]\nmax_age = [2, 3]\n[options]\nfamily = "ab3dmot"\n'
+            f'algorithm = ["hungarian", "greedy"]\n')
+    f = tmp_path / "ab.toml"
+    f.write_text(text)
+    status, out, err = run_cli(capsys, ["sweep", f, "--dry-run", "--out", tmp_path / "never"])
+    assert status == 0, err
+    assert "sweep abcli of tracker family 'ab3dmot': 8 configs, 2 option group(s), 4 chunks" in out
+    assert "metric   algorithm" in out and "a_l" not in out and not (tmp_path / "never").exists()
+    f.write_text(text + "[distortion]\nkinds = {drop = [0.1]}\n")
+    status, out, err = run_cli(capsys, ["sweep", f, "--dry-run"])
+    assert status == 2 and "distortion: the distortions act on DFR-FastMOT's frames" in error_line(err, "sweep")
+
+
 @pytest.mark.slow
 def test_an_ab3dmot_sweep_is_stored_resumed_reported_written_alone_and_tuned(scene, tmp_path, capsys):
     """An AB3DMOT sweep end to end (real tracking and scoring): its directory's manifest names the
