@@ -190,7 +190,7 @@ def test_the_machinery_names_the_protocol_not_one_family():
         assert any(n == name for _, n in _imports(pkg / Path(*m.split(".")).with_suffix(".py"), "dfrmot_jax." + m)), m
 
 
-def test_config_hashes_of_dfr_configs_are_the_ones_they_always_had():
+def test_config_hashes_of_dfr_configs_are_the_ones_they_always_had(spy):
     """The family enters a config's hash only when it is not the default: the grid sweep's config 848
     keeps the hash ``grid_cv`` was chosen by (config.PRESETS), and every DFR row hashes as before."""
     t = expand(load_spec(ROOT / "sweeps" / "kitti_dfr_grid.toml"))
@@ -230,15 +230,43 @@ def test_a_sweep_file_is_read_with_its_familys_settings(spy):
         parse_spec({**doc, "options": {"family": "nope"}})
 
 
-def test_a_family_with_other_settings_is_refused_until_tables_name_each_rows_family(spy):
-    family, _ = spy
-    other = family.config._replace(name="other", Params=config.Options, Options=config.Params)
-    CONFIGS["other"] = other
-    try:
-        with pytest.raises(SweepConfigError, match="options.family: 'other': its parameters and options are not"):
-            parse_spec({"params": {"a_l": [4.0, 8.0]}, "options": {"family": "other"}})
-    finally:
-        del CONFIGS["other"]
+def _ab3dmot_spec(root, **extra) -> dict:
+    doc = {"name": "ab", "chunk": 4, "baseline": "ab3dmot_car", "data": {"root": str(root), "det3d": "synth3d"},
+           "params": {"threshold": [-0.2, 0.1], "max_age": [2, 3]},
+           "options": {"family": "ab3dmot", "metric": ["giou_3d", "dist_3d"]}}
+    doc.update(extra)
+    return doc
+
+
+def test_an_ab3dmot_sweeps_table_holds_its_columns_and_no_dfr_ones(scene):
+    """Every table is one family's: an AB3DMOT sweep's config table has AB3DMOT's parameter and option
+    columns (none of DFR-FastMOT's), hashed with its family, planned in groups of its Options, its
+    data read without 2D detections; DFR's names are refused in its file, and so is a distortion."""
+    from dfrmot_jax.report.columns import option_names, param_names, table_family
+    from dfrmot_jax.sweep.plan import option_groups, resolve_data
+
+    ab = family_config("ab3dmot")
+    spec = parse_spec(_ab3dmot_spec(scene))
+    t = expand(spec)
+    assert list(t.columns) == ["config", "config_hash", "variant", "baseline", *ab.Params._fields, *ab.Options._fields]
+    assert param_names("ab3dmot") == ab.Params._fields and option_names("ab3dmot") == ab.Options._fields
+    dfr_only = set(config.Params._fields + config.Options._fields) - set(ab.Params._fields + ab.Options._fields)
+    assert dfr_only and not dfr_only & set(t.columns)
+    assert len(t) == 2 * 2 * 2 and t.loc[0, "variant"] == "baseline"       # (the baseline is one of the grid)
+    assert t.loc[0, "threshold"] == -0.2 and t.loc[0, "metric"] == "giou_3d"
+    assert t["min_hits"].dtype == np.int64 and t["threshold"].dtype == np.float64 and t["boxes"].dtype == bool
+    rows = t.drop(columns=["config", "config_hash"]).to_dict("records")
+    assert list(t["config_hash"]) == [config_hash(r, family="ab3dmot") for r in rows]
+    assert table_family(t.columns) is ab and table_family(expand(parse_spec(_spec(scene))).columns) is config.FAMILY_CONFIG
+    groups = option_groups(t, "ab3dmot")
+    assert list(groups) == [ab.Options(), ab.Options(metric="dist_3d")] and sum(map(len, groups.values())) == len(t)
+    assert resolve_data(spec).det2d is None and resolve_data(parse_spec(_spec(scene))).det2d == "synth2d"
+    with pytest.raises(SweepConfigError, match=r"params.a_l: unknown parameter; parameters are \['threshold'"):
+        parse_spec(_ab3dmot_spec(scene, params={"a_l": [4.0, 8.0]}))
+    with pytest.raises(SweepConfigError, match=r"options.output: unknown option; options are \['metric'"):
+        parse_spec(_ab3dmot_spec(scene, options={"family": "ab3dmot", "output": "filtered"}))
+    with pytest.raises(SweepConfigError, match=r"distortion: the distortions .* DFR-FastMOT's for now, not AB3DMOT's"):
+        parse_spec(_ab3dmot_spec(scene, distortion={"kinds": {"drop": [0.1]}}))
 
 
 def test_a_sweep_tracks_with_its_family_and_scores_what_dfr_scores(spy, scene, tmp_path):
@@ -284,3 +312,91 @@ def test_a_tune_hashes_and_checks_its_familys_configs(spy, scene):
     assert list(table["config_hash"]) == [config_hash(r, family=SPY) for r in rows]
     assert space.config_hash({"a_l": 3.0, "gain_gamma": 0.1}) == table.loc[0, "config_hash"] != config_hash(rows[0])
     assert list(family.failing_rows(table)) == [False, True] and calls["failing_rows"] == 1
+
+
+def test_an_ab3dmot_sweep_file_through_the_command_line(scene, tmp_path, capsys):
+    """``dfrmot sweep FILE --dry-run`` of an AB3DMOT file plans its option groups (its Options'
+    columns); with a ``[distortion]`` table the file is refused: exit 2, the key named, no traceback."""
+    from dfrmot_jax.testing.cli import error_line, run_cli
+
+    text = (f'name = "abcli"\nchunk = 3\n[data]\nroot = "{scene}"\ndet3d = "synth3d"\n[params]\n'
+            f'threshold = [-0.2, 0.1]\nmax_age = [2, 3]\n[options]\nfamily = "ab3dmot"\n'
+            f'algorithm = ["hungarian", "greedy"]\n')
+    f = tmp_path / "ab.toml"
+    f.write_text(text)
+    status, out, err = run_cli(capsys, ["sweep", f, "--dry-run", "--out", tmp_path / "never"])
+    assert status == 0, err
+    assert "sweep abcli of tracker family 'ab3dmot': 8 configs, 2 option group(s), 4 chunks" in out
+    assert "metric   algorithm" in out and "a_l" not in out and not (tmp_path / "never").exists()
+    f.write_text(text + "[distortion]\nkinds = {drop = [0.1]}\n")
+    status, out, err = run_cli(capsys, ["sweep", f, "--dry-run"])
+    assert status == 2 and "distortion: the distortions act on DFR-FastMOT's frames" in error_line(err, "sweep")
+
+
+@pytest.mark.slow
+def test_an_ab3dmot_sweep_is_stored_resumed_reported_written_alone_and_tuned(scene, tmp_path, capsys):
+    """An AB3DMOT sweep end to end (real tracking and scoring): its directory's manifest names the
+    family and no 2D detections, its stored rows hold its columns, a rerun resumes every chunk, the
+    report (text, ``--html``) reads its axes, ``compare DIR:best``'s files are its config tracked
+    alone by the family and written by its ``write_runs`` (and score what its row says), and a tune
+    file of the family searches its parameters."""
+    from dfrmot_jax.metrics import evaluate_files, metrics_table, prepare_gt
+    from dfrmot_jax.report import load_results, sweep_report
+    from dfrmot_jax.report.html import write_html
+    from dfrmot_jax.data import load_split
+    from dfrmot_jax.testing.cli import run_cli
+    from dfrmot_jax.tuning import run_tune
+
+    fam = family_of("ab3dmot")
+    ab = fam.config
+    dfr_only = set(config.Params._fields + config.Options._fields) - set(ab.Params._fields + ab.Options._fields)
+    spec = _ab3dmot_spec(scene, chunk=2, metrics={"ab3dmot": True},
+                         options={"family": "ab3dmot", "metric": "giou_3d"})       # 4 configs, one option group
+    out = tmp_path / "ab"
+    logs: list[str] = []
+    df = run_sweep(spec, out, progress=False, workers=0, log=logs.append)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["family"] == "ab3dmot" and manifest["data"]["det2d"] is None
+    stored = load_results(out)
+    pd.testing.assert_frame_equal(stored, df)
+    assert set(ab.Params._fields + ab.Options._fields) <= set(stored.columns) and not dfr_only & set(stored.columns)
+    assert df["config"].nunique() == 4 and (df.loc[df["sequence"] == "COMBINED", "sAMOTA"] > 0).all()
+    assert df.loc[df["sequence"] == "COMBINED", "HOTA"].nunique() > 1          # the settings change the figure
+    again: list[str] = []
+    pd.testing.assert_frame_equal(run_sweep(spec, out, progress=False, workers=0, log=again.append), df)
+    assert any("2 chunks of <= 2; 2 done" in line for line in again), again
+
+    rep = sweep_report(out)
+    assert rep.family == "ab3dmot" and "threshold" in rep.text and "max_age" in rep.text
+    assert set(rep.sensitivity["axis"]) == {"threshold", "max_age"}
+    assert not dfr_only & set(rep.top.columns)
+    page = write_html(rep, tmp_path / "report.html").read_text()
+    assert "threshold" in page and "a_l" not in page
+    status, text, err = run_cli(capsys, ["report", out, "--html", tmp_path / "cli.html"])
+    assert status == 0 and "threshold" in text and (tmp_path / "cli.html").is_file(), err
+
+    said = write_config_output(out, "best", tmp_path / "best")
+    best = int(said.split(" config ")[1].split(" ")[0])
+    row = df[(df["config"] == best) & (df["sequence"] == "COMBINED")].iloc[0]
+    split = load_split(scene, None, "synth3d", "car")
+    params = ab.Params(**{n: row[n] for n in ab.Params._fields})
+    options = ab.Options(**{n: type(ab.Options._field_defaults[n])(row[n]) for n in ab.Options._fields})
+    fam.write_runs(tmp_path / "alone", [fam.class_run(split, fam.track(split, params, options), 0)])
+    files = sorted(p.name for p in (tmp_path / "best").iterdir())
+    assert files == sorted(p.name for p in (tmp_path / "alone").iterdir()) and files
+    for f in files:
+        assert (tmp_path / "best" / f).read_bytes() == (tmp_path / "alone" / f).read_bytes()
+    scored = metrics_table(evaluate_files(tmp_path / "best", prepare_gt(scene, "car", split.names)))
+    assert scored.loc["COMBINED", "HOTA"] == row["HOTA"] and scored.loc["COMBINED", "IDSW"] == row["IDSW"]
+
+    tune = {**_ab3dmot_spec(scene), "params": {"threshold": {"uniform": [-0.4, 0.2]}, "max_age": [2, 3]},
+            "options": {"family": "ab3dmot"},
+            "tune": {"sampler": "random", "budget": 4, "batch": 4, "seed": 1, "objectives": ["HOTA"]}}
+    space = search_space(parse_spec({k: v for k, v in tune.items() if k != "tune"}))
+    assert space.family == "ab3dmot" and {d.name for d in space.dims} == {"threshold", "max_age"}
+    res = run_tune(tune, tmp_path / "tune", progress=False, workers=0, log=lambda m: None, refine_steps=0,
+                   plots=False)
+    assert json.loads((tmp_path / "tune" / "manifest.json").read_text())["family"] == "ab3dmot"
+    assert res.table["config_hash"].nunique() == 4 and not dfr_only & set(res.table.columns)
+    assert res.table["threshold"].between(-0.4, 0.2).all()
+    assert "threshold" in sweep_report(tmp_path / "tune").text

@@ -259,6 +259,22 @@ def test_a_sweep_started_on_one_backend_is_finished_on_the_other(cluster, scene,
 
 @pytest.mark.ray
 @pytest.mark.slow
+def test_an_ab3dmot_sweep_on_the_cluster_equals_the_local_table(cluster, scene, tmp_path):
+    """A sweep of the second tracker family (``[options] family = "ab3dmot"``, its figures too) on the
+    cluster's workers: the same table, its columns, as in this process."""
+    spec = {"name": "rayab", "chunk": 2, "data": {"root": str(scene), "det3d": "synth3d"},
+            "params": {"threshold": [-0.2, 0.1], "max_age": [2, 3]}, "options": {"family": "ab3dmot"},
+            "metrics": {"ab3dmot": True}}
+    local = run_sweep(spec, tmp_path / "local", progress=False, workers=0, log=lambda s: None)
+    logs: list[str] = []
+    remote = run_sweep(spec, tmp_path / "ray", progress=False, backend="ray", address=cluster.address, log=logs.append)
+    assert any("by 2 worker(s)" in line for line in logs), logs
+    assert {"threshold", "max_age", "metric", "sAMOTA"} <= set(remote.columns) and "a_l" not in remote.columns
+    pd.testing.assert_frame_equal(remote, local)
+
+
+@pytest.mark.ray
+@pytest.mark.slow
 def test_a_tune_runs_its_batches_on_the_cluster(cluster, scene, tmp_path, monkeypatch):
     from dfrmot_jax.tuning import run_tune
 

@@ -211,6 +211,9 @@ def test_shipped_sweep_files_parse():
             assert len(t) >= 1024
             assert t["baseline"].sum() == 1
             assert t["output"].nunique() == 2
+        if f.name == "kitti_ab3dmot_grid.toml":       # the second tracker family's grid, its own columns
+            assert load_spec(f).family == "ab3dmot" and len(t) == 1024 and t["baseline"].sum() == 1
+            assert t.groupby(["metric", "algorithm"]).size().tolist() == [128] * 8 and "a_l" not in t.columns
 
 
 # ---- running ---------------------------------------------------------------------------------------

@@ -3,7 +3,10 @@ static option, run as users run them (chunks, the scores' memo, scoring overlapp
 each row checked field by field (exact) against ``track`` + ``write_lane`` + ``evaluate_files`` of
 that config by itself. The memo once keyed a sequence's output on its ids and only the per-lane
 boxes: option groups sharing ids but not boxes (``truncate``, ``merge``, ``modality``) got each
-other's scores. The same for a tune's trials and for ``evaluate_arrays`` on mixed option groups."""
+other's scores. The same for a tune's trials and for ``evaluate_arrays`` on mixed option groups, and
+for sweeps of the second tracker family, AB3DMOT (``[options] family = "ab3dmot"``): a row is its config
+tracked alone by the family's ``track``, written by its ``write_runs`` and scored from the files (and
+its AB3DMOT figures, ``[metrics] ab3dmot``, those of ``dfrmot eval --metrics ab3dmot`` of the files)."""
 
 from __future__ import annotations
 
@@ -17,7 +20,10 @@ from hypothesis import strategies as st
 
 import dfrmot_jax as dm
 from dfrmot_jax.config import OPTION_CHOICES, Options, Params
+from dfrmot_jax.families import family_of
 from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, metrics_table, prepare_gt
+from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
+from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_OTHER_COLUMNS, ab3dmot_columns
 from dfrmot_jax.results import write_lane
 from dfrmot_jax.sweep import COMBINED, OPTION_NAMES, PARAM_NAMES, run_sweep
 from dfrmot_jax.synthetic import make_scene
@@ -106,6 +112,78 @@ def test_every_sweep_row_equals_its_config_run_alone(scene, ground, tmp_path_fac
             "params": {"a_f": [0.1, 0.3]}, "variants": vs}
     table = run_sweep(spec, progress=False, workers=0, log=lambda m: None)
     assert_rows_equal_alone(table, split, gt, tmp_path_factory.mktemp("alone"))
+
+
+#: each AB3DMOT metric's thresholds, on its own scale (an overlap at least; a distance at most)
+AB3DMOT_THRESHOLDS = {"iou_2d": (0.01, 0.2), "iou_3d": (0.01, 0.2), "giou_2d": (-0.4, 0.0), "giou_3d": (-0.4, -0.2, 0.1),
+                      "dist_2d": (2.0, 4.0), "dist_3d": (2.0, 4.0), "m_dis": (6.0, 11.0)}
+
+
+@pytest.fixture(scope="module")
+def ground3d(scene):
+    """The split as a family reading 3D detections only reads it (no 2D detections), its ground truth."""
+    split = dm.load_split(scene, None, "synth3d", "car")
+    return split, prepare_gt(scene, "car", split.names)
+
+
+def ab3dmot_alone(scene, split, gt, row, out: Path, iou: str | None) -> tuple[pd.DataFrame, dict | None]:
+    """One AB3DMOT config (a table row) tracked alone by its family's ``track`` (one lane), written by
+    its ``write_runs`` and scored from the files: ``metrics_table``, and with ``iou`` AB3DMOT's figures
+    of the files (what ``dfrmot eval --metrics ab3dmot`` prints)."""
+    fam = family_of("ab3dmot")
+    fc = fam.config
+    params = fc.Params(**{n: row[n] for n in fc.Params._fields})
+    options = fc.Options(**{n: type(fc.Options._field_defaults[n])(row[n]) for n in fc.Options._fields})
+    res = fam.track(split, params, options)
+    fam.write_runs(out, [fam.class_run(split, res, 0)])
+    figures = None if iou is None else ab3dmot_columns(
+        evaluate_ab3dmot_files(out, scene, "car", list(split.names), iou=iou, other=True))
+    return metrics_table(evaluate_files(out, gt)), figures
+
+
+@st.composite
+def ab3dmot_variants(draw) -> list[dict]:
+    """1-2 variants of distinct AB3DMOT metrics, each with its algorithm, a threshold on its scale,
+    min_hits and max_age drawn."""
+    metrics = draw(st.lists(st.sampled_from(sorted(AB3DMOT_THRESHOLDS)), min_size=1, max_size=2, unique=True))
+    return [{"name": f"v{i}", "options": {"metric": m, "algorithm": draw(st.sampled_from(["hungarian", "greedy"]))},
+             "params": {"threshold": [draw(st.sampled_from(AB3DMOT_THRESHOLDS[m]))],
+                        "min_hits": [draw(st.integers(0, 3))], "max_age": [draw(st.integers(1, 3))]}}
+            for i, m in enumerate(metrics)]
+
+
+@pytest.mark.slow
+@settings(max_examples=3, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(vs=ab3dmot_variants(), chunk=st.sampled_from([1, 2, 3]), figures=st.booleans())
+def test_every_ab3dmot_sweep_row_equals_its_config_run_alone(scene, ground3d, tmp_path_factory, vs, chunk, figures):
+    """An AB3DMOT sweep (its own columns, chunks, the scores' memo, its rows as its files print them):
+    every (config, sequence) row == the config alone, every metric field exactly; with ``[metrics]
+    ab3dmot`` every AB3DMOT figure of its COMBINED row == the files' (its other sum's too)."""
+    split, gt = ground3d
+    spec = {"name": "alone_ab3dmot", "chunk": chunk, "data": {"root": str(scene), "det3d": "synth3d"},
+            "options": {"family": "ab3dmot"}, "params": {"score_threshold": [-10000.0, 8.0]}, "variants": vs}
+    iou = "3d:0.25" if figures else None
+    if figures:
+        spec["metrics"] = {"ab3dmot": iou}
+    table = run_sweep(spec, progress=False, workers=0, log=lambda m: None)
+    fc = family_of("ab3dmot").config
+    assert set(fc.Params._fields + fc.Options._fields) <= set(table.columns) and "a_l" not in table.columns
+    tmp = tmp_path_factory.mktemp("alone_ab3dmot")
+    for cfg, rows in table.groupby("config", sort=False):
+        expect, want = ab3dmot_alone(scene, split, gt, rows.iloc[0], tmp / f"config{cfg}", iou)
+        got = rows.set_index("sequence")
+        assert list(got.index) == list(expect.index)
+        for col in expect.columns:
+            np.testing.assert_array_equal(got[col].to_numpy(), expect[col].to_numpy(), err_msg=f"config {cfg}, {col}")
+        if figures:
+            comb = got.loc[COMBINED]
+            for col in AB3DMOT_COLUMNS + AB3DMOT_OTHER_COLUMNS:
+                assert comb[col] == want[col], (cfg, col, comb[col], want[col])
+    if figures:
+        assert "sAMOTA" in table.columns
+    else:
+        assert "sAMOTA" not in table.columns
 
 
 @pytest.mark.slow          # the fast tier's budget: one of its costliest tests

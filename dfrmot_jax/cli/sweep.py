@@ -15,7 +15,9 @@ import sys
 from pathlib import Path
 
 from ..metrics.columns import canonical_objective
-from ..sweep import OPTION_NAMES, class_columns, load_spec, n_settings, prepare_sweep, run_sweep, sweep_report
+from ..family import DEFAULT_FAMILY
+from ..report.columns import option_names
+from ..sweep import class_columns, load_spec, n_settings, prepare_sweep, run_sweep, sweep_report
 from .backend import backend_from
 
 __all__ = ["run"]
@@ -39,21 +41,22 @@ def run(args) -> int:
         prep = prepare_sweep(spec, data_root=args.data, chunk=args.chunk, folds=args.folds,
                              max_configs=args.max_configs, max_memory=args.max_memory)
         table, datas, chunks = prep.table, prep.datas, prep.chunks
-        groups = table.groupby(list(OPTION_NAMES), sort=False).size().rename("configs")
+        groups = table.groupby(list(option_names(spec.family)), sort=False).size().rename("configs")
         frames = sum(sum(d.lengths) for d in datas)
         if len(datas) == 1:
             where = f"{len(datas[0].sequences)} sequences / {frames:,} frames"
         else:
             where = "classes " + ", ".join(f"{d.cls} ({len(d.sequences)} sequences / {sum(d.lengths):,} frames)"
                                            for d in datas)
-        print(f"sweep {spec.name}: {len(table):,} configs, {len(groups)} option group(s), {len(chunks)} chunks, "
-              f"{where} ({len(table) * frames / 1e6:.1f} M config-frames) -> {out}")
-        if class_columns(table.columns):
-            print(f"per-class columns: {', '.join(class_columns(table.columns))}")
+        family = "" if spec.family == DEFAULT_FAMILY else f" of tracker family {spec.family!r}"
+        print(f"sweep {spec.name}{family}: {len(table):,} configs, {len(groups)} option group(s), {len(chunks)} "
+              f"chunks, {where} ({len(table) * frames / 1e6:.1f} M config-frames) -> {out}")
+        if class_columns(table.columns, spec.family):
+            print(f"per-class columns: {', '.join(class_columns(table.columns, spec.family))}")
         print(groups.to_string())
         if spec.distortion is not None:
             d = spec.distortion
-            print(f"distortion: {n_settings(table)} settings x {d.n_lanes} lanes (level 0 once, undistorted; "
+            print(f"distortion: {n_settings(table, spec.family)} settings x {d.n_lanes} lanes (level 0 once, undistorted; "
                   f"{len(d.seeds)} seeds per nonzero level): "
                   + "; ".join(f"{k} {', '.join(f'{v:g}' for v in lv)}" for k, lv in d.kinds))
         return 0
@@ -65,7 +68,7 @@ def run(args) -> int:
     if args.summary:
         rep = sweep_report(df, objective=args.objective or spec.objective,
                            folds=args.folds if args.folds is not None else spec.folds, top=spec.top if args.top is None else args.top,
-                           contrast=spec.contrast, cls=args.cls or spec.report_class)
+                           contrast=spec.contrast, cls=args.cls or spec.report_class, family=spec.family)
         print(rep.text)
     over = df[(df["sequence"] == "COMBINED") & (df["overflow"] > 0)]
     if len(over):

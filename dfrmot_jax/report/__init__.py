@@ -17,7 +17,7 @@ package (:mod:`dfrmot_jax.sweep`) names all of these too::
 from .analysis import (MINIMISE, OBJECTIVES, axis_profiles, class_view, cross_validate, make_folds, objective_on,
                        per_sequence_arrays, sensitivity)
 from .columns import (AVERAGE, COMBINED, DISTORTION_AXES, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, Contrast,
-                      class_columns, extra_axes, parse_contrast)
+                      class_columns, extra_axes, option_names, param_names, parse_contrast, table_family)
 from .html import html_report, render_html, write_html
 from .report import SweepReport, report_folds, sweep_report
 from .robustness import robustness_contrast, robustness_curves, robustness_summary, setting_axes
@@ -28,5 +28,5 @@ __all__ = [
     "read_manifest", "cross_validate", "make_folds", "sensitivity", "axis_profiles", "class_view", "objective_on",
     "per_sequence_arrays", "OBJECTIVES", "MINIMISE", "robustness_curves", "robustness_contrast", "robustness_summary",
     "setting_axes", "Contrast", "parse_contrast", "COMBINED", "RAW_COLUMN", "AVERAGE", "PARAM_NAMES", "OPTION_NAMES",
-    "EXTRA_AXES", "DISTORTION_AXES", "class_columns", "extra_axes",
+    "EXTRA_AXES", "DISTORTION_AXES", "class_columns", "extra_axes", "param_names", "option_names", "table_family",
 ]

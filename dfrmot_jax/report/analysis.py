@@ -13,8 +13,8 @@ from ..metrics.columns import canonical_objective, class_average_columns  # noqa
 from ..metrics.kitti2d import clear, identity
 from ..metrics.kitti2d.evaluate import RAW_FIELDS, combine_sequences, summary_columns
 from ..metrics.kitti2d.table import TABLE_FIELDS
-from .columns import (AVERAGE, COMBINED, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, canonical_params, class_columns,
-                      extra_axes, split_class_column)
+from .columns import (AVERAGE, COMBINED, RAW_COLUMN, canonical_params, class_columns, extra_axes, setting_names,
+                      split_class_column, table_family)
 
 #: Objectives the report knows by name (any metric column works); these are minimised.
 MINIMISE = frozenset({"IDSW", "Frag", "ML", "CLR_FN", "CLR_FP", "IDFN", "IDFP", "PT", "MLR", "FP_per_frame",
@@ -26,8 +26,10 @@ def objective_direction(objective: str) -> int:
     return -1 if objective in MINIMISE else 1
 
 
-def check_objective(df: pd.DataFrame, objective: str) -> None:
-    if objective not in df.columns or objective in PARAM_NAMES or objective in OPTION_NAMES:
+def check_objective(df: pd.DataFrame, objective: str, family=None) -> None:
+    """ValueError unless ``objective`` is a metric column of ``df`` (not one of its tracker family's
+    parameters or options; ``family`` None: read from its columns, ``columns.table_family``)."""
+    if objective not in df.columns or objective in setting_names(table_family(df.columns, family)):
         known = [c for c in df.columns if c in TABLE_FIELDS]
         raise ValueError(f"objective {objective!r}: not a metric column; expected one of {known}")
 
@@ -42,14 +44,18 @@ def rank_configs(values: np.ndarray, objective: str) -> np.ndarray:
 REPLICATE_AXES = ("distortion.seed",)
 
 
-def _sensitivity_axes(comb: pd.DataFrame) -> list[str]:
-    return [a for a in varied_axes(comb) if a not in REPLICATE_AXES]
+def _sensitivity_axes(comb: pd.DataFrame, family=None) -> list[str]:
+    return [a for a in varied_axes(comb, family) if a not in REPLICATE_AXES]
 
 
-def varied_axes(df: pd.DataFrame) -> list[str]:
+def varied_axes(df: pd.DataFrame, family=None) -> list[str]:
+    """The columns of the configs' settings that vary over ``df``'s COMBINED rows: its tracker family's
+    parameters (plain, then per class), options, then the per-lane axes. ``family``: the table's (a
+    name or its settings; None: read from its columns, ``columns.table_family``)."""
     comb = df[df["sequence"] == COMBINED]
-    return [c for c in list(PARAM_NAMES) + class_columns(comb.columns) + list(OPTION_NAMES) + list(extra_axes())
-            if c in comb.columns and comb[c].nunique() > 1]
+    fc = table_family(df.columns, family)
+    return [c for c in list(fc.Params._fields) + class_columns(comb.columns, fc) + list(fc.Options._fields)
+            + list(extra_axes()) if c in comb.columns and comb[c].nunique() > 1]
 
 
 def _axis_groups(comb: pd.DataFrame, axes: list[str]) -> list[tuple[str, ...]]:
@@ -79,15 +85,15 @@ def _profile(comb: pd.DataFrame, group: tuple[str, ...], objective: str, bins: i
     return out.reset_index(drop=True)
 
 
-def axis_profiles(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> dict[str, pd.DataFrame]:
+def axis_profiles(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5, family=None) -> dict[str, pd.DataFrame]:
     """Per varied axis (axes that always move together: one, ``a+b+c``) the objective per value
     (:func:`_profile`: ``value``, ``label``, ``best``, ``mean``, ``n``): what :func:`sensitivity`
     measures the spread of, for plots."""
-    comb = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True))
-    return {"+".join(g): _profile(comb, g, objective, bins) for g in _axis_groups(comb, _sensitivity_axes(comb))}
+    comb = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True), family)
+    return {"+".join(g): _profile(comb, g, objective, bins) for g in _axis_groups(comb, _sensitivity_axes(comb, family))}
 
 
-def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.DataFrame:
+def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5, family=None) -> pd.DataFrame:
     """How much the objective moves with each varied axis (COMBINED rows).
 
     Per axis: ``values`` (distinct values; a numeric axis with more than 8, e.g. a random one, is
@@ -98,20 +104,22 @@ def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5) -> pd.
     axis moves away from the best config (NaN when the sweep has no such configs). Axes that always
     move together (e.g. gains swept as one set through [[variants]]) are one row, ``a+b+c``; values
     that are one setting (:func:`~.columns.canonical_params`) are one value; a distortion lane's seed
-    (:data:`REPLICATE_AXES`) is no axis. Sorted by ``spread_best``, largest first.
+    (:data:`REPLICATE_AXES`) is no axis. Sorted by ``spread_best``, largest first. ``family``: the
+    table's tracker family (None: read from its columns).
     """
-    comb = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True))
+    comb = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True), family)
+    axes = _sensitivity_axes(comb, family)
     y = comb[objective].to_numpy(np.float64)
     best = int(rank_configs(y, objective)[0])
     rows = []
-    for group in _axis_groups(comb, _sensitivity_axes(comb)):
+    for group in _axis_groups(comb, axes):
         a = group[0]
         col = comb[a]
         numeric = len(group) == 1 and pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col)
         prof = _profile(comb, group, objective, bins)
         by_best, by_mean = prof["best"], prof["mean"]
         mask = np.ones(len(comb), bool)
-        for other in _axis_groups(comb, _sensitivity_axes(comb)):
+        for other in _axis_groups(comb, axes):
             if other != group:
                 for o in other:
                     mask &= (comb[o] == comb.at[best, o]).to_numpy()
@@ -225,7 +233,8 @@ def pooled_objective(arrays: dict, rows: Sequence[int], cols: Sequence[int], obj
     return float(summary_columns(combine_sequences(_pooled(arrays, rows, cols)))[objective][0])
 
 
-def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA", cls: str | None = None) -> dict:
+def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA", cls: str | None = None,
+                   family=None) -> dict:
     """k-fold cross-validation over sequences (:func:`make_folds`, stratified by frame count).
 
     For each fold the best config by ``objective`` on the other folds (COMBINED over them, exactly
@@ -242,9 +251,10 @@ def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA", cl
     other folds of every class and scored on the class average over the held-out ones. The unit
     held out is a (class, sequence) pair: a scene held out for one class may be in the training
     folds of another (the classes' ground truth is disjoint). ``test_sequences`` of a fold (and
-    ``fold_sequences``) are then ``{class: [sequences]}``.
+    ``fold_sequences``) are then ``{class: [sequences]}``. ``family``: the table's tracker family
+    (None: read from its columns).
     """
-    check_objective(df, objective)
+    check_objective(df, objective, family)
     if objective in AB3DMOT_COLUMNS:
         raise ValueError(f"objective {objective}: AB3DMOT's figures are not sums over sequences (its recall "
                          f"thresholds come from all sequences together), so a sweep's rows cannot be re-combined "
@@ -254,7 +264,7 @@ def cross_validate(df: pd.DataFrame, folds: int = 5, objective: str = "HOTA", cl
     if cls == AVERAGE:
         return _cross_validate_average(df, classes, folds, objective)
     if classes:
-        df = class_view(df, cls)
+        df = class_view(df, cls, family)
     comb, names, lengths, arrays = per_sequence_arrays(df)
     fold_names = make_folds(names, lengths, folds)
     base = np.flatnonzero(comb["baseline"].to_numpy())
@@ -343,29 +353,31 @@ def report_class_of(df: pd.DataFrame, cls: str | None = None) -> str | None:
     return cls
 
 
-def class_view(df: pd.DataFrame, cls: str) -> pd.DataFrame:
+def class_view(df: pd.DataFrame, cls: str, family=None) -> pd.DataFrame:
     """The rows of one class of a sweep table, as a single-class table of that class.
 
     Per-class columns ``<cls>.<parameter>`` replace the plain ones (every parameter column then
     holds the value that class was tracked with) and all per-class columns are dropped; configs
     that are then alike (differing only in another class's values) are kept once (the first). A
     single-class table without per-class columns is returned as it is. ``cls = "average"``: the
-    class-average rows (one per config, ``sequence = COMBINED``), all columns kept.
+    class-average rows (one per config, ``sequence = COMBINED``), all columns kept. ``family``: the
+    table's tracker family (a name or its settings; None: read from its columns).
     """
+    fc = table_family(df.columns, family)
     classes = classes_of(df)
     cls = report_class_of(df, cls)
-    ccols = class_columns(df.columns)
+    ccols = class_columns(df.columns, fc)
     if cls == AVERAGE:
         return df[df["class"] == AVERAGE].reset_index(drop=True)
     if len(classes) <= 1 and not ccols:
         return df
     rows = df[df["class"] == cls].copy()
     for c in ccols:
-        k, p = split_class_column(c)
+        k, p = split_class_column(c, fc)
         if k == cls:
             rows[p] = rows[c]
     rows = rows.drop(columns=ccols)
-    keys = list(PARAM_NAMES) + [n for n in list(OPTION_NAMES) + list(extra_axes()) if n in rows.columns]
+    keys = list(fc.Params._fields) + [n for n in list(fc.Options._fields) + list(extra_axes()) if n in rows.columns]
     comb = rows[rows["sequence"] == COMBINED]
     keep = comb.drop_duplicates(keys, keep="first")["config"]
     if len(keep) < len(comb):

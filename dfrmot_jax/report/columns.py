@@ -2,11 +2,12 @@
 
 Row keys: ``sequence`` (a sequence's name, or :data:`COMBINED` for the row combined over them),
 ``class`` (a class, or :data:`AVERAGE` for the class-average rows); the per-alpha HOTA fields
-(:data:`RAW_COLUMN`); the configs' columns: every parameter (:data:`PARAM_NAMES`, per class
-``<class>.<parameter>``: :func:`class_columns`) and option (:data:`OPTION_NAMES`), the per-lane axes
+(:data:`RAW_COLUMN`); the configs' columns, those of the table's tracker family (every table is one
+family's: :func:`table_family`): every parameter (:func:`param_names`, per class
+``<class>.<parameter>``: :func:`class_columns`) and option (:func:`option_names`), the per-lane axes
 beyond them with their defaults (:func:`extra_axes`: the LiDAR settings, :data:`LIDAR_AXES`, and
 the distortion lanes, :data:`DISTORTION_AXES`) and the defaults of the settings added later
-(:data:`LATE_OPTIONS`, :data:`LATE_PARAMS`). The report's :class:`Contrast` of two groups of an
+(:func:`late_options`, :func:`late_params`). The report's :class:`Contrast` of two groups of an
 axis's values (``[report] contrast``, ``dfrmot report --contrast``; :func:`parse_contrast`).
 
 Moved here from ``sweep.spec``, ``sweep.table`` and ``sweep.lidar_axes`` (which import them from
@@ -22,11 +23,13 @@ from ..checks import Table, config_error, is_scalar, type_name
 import numpy as np
 import pandas as pd
 
-from ..family_configs import family_config
+from ..family import DEFAULT_FAMILY, FamilyConfig
+from ..family_configs import family_config, family_names
 from ..lidar_settings import LIFT_SETTINGS, LiftSettings, SimSettings
 
-__all__ = ["COMBINED", "RAW_COLUMN", "AVERAGE", "TABLE_FAMILY", "PARAM_NAMES", "OPTION_NAMES", "CLASSES", "INT_PARAMS",
-           "LATE_OPTIONS", "LATE_PARAMS",
+__all__ = ["COMBINED", "RAW_COLUMN", "AVERAGE", "PARAM_NAMES", "OPTION_NAMES", "CLASSES", "INT_PARAMS",
+           "LATE_OPTIONS", "LATE_PARAMS", "settings_of", "param_names", "option_names", "setting_names", "table_classes",
+           "int_params", "late_options", "late_params", "table_family",
            "split_class_column", "class_columns", "SIM_INT", "CROP", "crop_text", "lift_value", "LIFT_COLUMNS",
            "SIM_COLUMNS", "LIDAR_AXES", "EXTRA_AXES", "DISTORTION_AXES", "extra_axes", "CONTRAST_KEYS", "Contrast",
            "parse_contrast", "contrast_doc", "param_key", "canonical_params"]
@@ -39,53 +42,115 @@ RAW_COLUMN = "_hota_alpha"
 #: ``sequence = COMBINED``) and the report's name for ranking on them.
 AVERAGE = "average"
 
-#: the family of the stored tables' configs: every table is one family's, and every table written so far
-#: is DFR-FastMOT's (``family = "dfr"``, the default); its settings are the tables' parameter and option columns
-TABLE_FAMILY = family_config()
-PARAM_NAMES: tuple[str, ...] = TABLE_FAMILY.Params._fields
-OPTION_NAMES: tuple[str, ...] = TABLE_FAMILY.Options._fields
-#: the classes a table's per-class columns (``<class>.<parameter>``) may name
-CLASSES: tuple[str, ...] = TABLE_FAMILY.classes
-INT_PARAMS = TABLE_FAMILY.int_params
+#: DFR-FastMOT's (the default family's) parameter and option columns, classes, integer parameters and
+#: late settings, as every table written before tables named their family holds them; kept for the
+#: public API (``dfrmot_jax.sweep.PARAM_NAMES`` ...). A table's own are its family's:
+#: :func:`param_names`, :func:`option_names`, :func:`table_classes`, :func:`int_params`,
+#: :func:`late_options`, :func:`late_params` of the family of the table (:func:`table_family`).
+PARAM_NAMES: tuple[str, ...] = family_config().Params._fields
+OPTION_NAMES: tuple[str, ...] = family_config().Options._fields
+CLASSES: tuple[str, ...] = family_config().classes
+INT_PARAMS = family_config().int_params
 #: Options added after config hashes were first written -> their default (the family's
 #: ``late_options``). At its default such an option is left out of the hash (a row without its column
 #: has the default), so every earlier config keeps its hash and chunk ids; result rows written before
-#: it existed get the default.
-LATE_OPTIONS: dict[str, Any] = dict(TABLE_FAMILY.late_options)
-#: Parameters added after config hashes were first written -> their default, kept likewise (the
-#: family's ``late_params``).
-LATE_PARAMS: dict[str, Any] = dict(TABLE_FAMILY.late_params)
+#: it existed get the default. DFR-FastMOT's: :func:`late_options` gives a family's.
+LATE_OPTIONS: dict[str, Any] = dict(family_config().late_options)
+#: Parameters added after config hashes were first written -> their default, kept likewise (DFR-FastMOT's;
+#: :func:`late_params`).
+LATE_PARAMS: dict[str, Any] = dict(family_config().late_params)
+
+def settings_of(family: "str | FamilyConfig" = DEFAULT_FAMILY) -> FamilyConfig:
+    """The settings (:class:`~dfrmot_jax.family.FamilyConfig`) of ``family``, a name (ValueError
+    naming the registered ones when unknown) or the settings themselves."""
+    return family if isinstance(family, FamilyConfig) else family_config(family)
 
 
-def split_class_column(name: str) -> tuple[str, str] | None:
-    """``"pedestrian.a_l"`` -> ("pedestrian", "a_l"); None for any other column."""
+def param_names(family: "str | FamilyConfig" = DEFAULT_FAMILY) -> tuple[str, ...]:
+    """The parameter columns of a table of ``family`` (its ``Params`` fields, in order)."""
+    return tuple(settings_of(family).Params._fields)
+
+
+def option_names(family: "str | FamilyConfig" = DEFAULT_FAMILY) -> tuple[str, ...]:
+    """The option columns of a table of ``family`` (its ``Options`` fields, in order)."""
+    return tuple(settings_of(family).Options._fields)
+
+
+def setting_names(family: "str | FamilyConfig" = DEFAULT_FAMILY) -> tuple[str, ...]:
+    """Its parameter columns, then its option columns."""
+    return param_names(family) + option_names(family)
+
+
+def table_classes(family: "str | FamilyConfig" = DEFAULT_FAMILY) -> tuple[str, ...]:
+    """The classes a table of ``family``'s per-class columns (``<class>.<parameter>``) may name."""
+    return tuple(settings_of(family).classes)
+
+
+def int_params(family: "str | FamilyConfig" = DEFAULT_FAMILY) -> frozenset:
+    """The parameters of ``family`` that take integers."""
+    return frozenset(settings_of(family).int_params)
+
+
+def late_options(family: "str | FamilyConfig" = DEFAULT_FAMILY) -> dict[str, Any]:
+    """The options of ``family`` added after its config hashes were first written -> their default."""
+    return dict(settings_of(family).late_options)
+
+
+def late_params(family: "str | FamilyConfig" = DEFAULT_FAMILY) -> dict[str, Any]:
+    """The parameters of ``family`` added after its config hashes were first written -> their default."""
+    return dict(settings_of(family).late_params)
+
+
+def table_family(columns, family: "str | FamilyConfig | None" = None) -> FamilyConfig:
+    """The settings of the family a table's columns are of: ``family`` when given (a stored sweep's
+    manifest's ``family``, a sweep's ``SweepSpec.family``), else read from the ``columns`` (a table
+    given bare): the registered family every one of whose parameters and options is a column, the
+    default family first; the default family when none is."""
+    if family is not None:
+        return settings_of(family)
+    cols = set(columns)
+    for name in family_names():
+        fc = family_config(name)
+        if set(fc.Params._fields) <= cols and set(fc.Options._fields) <= cols:
+            return fc
+    return family_config()
+
+
+def split_class_column(name: str, family: "str | FamilyConfig" = DEFAULT_FAMILY) -> tuple[str, str] | None:
+    """``"pedestrian.a_l"`` -> ("pedestrian", "a_l"): a per-class column of a table of ``family``;
+    None for any other column."""
     if not isinstance(name, str) or "." not in name:
         return None
+    fc = settings_of(family)
     cls, param = name.split(".", 1)
-    return (cls, param) if cls in CLASSES and param in PARAM_NAMES else None
+    return (cls, param) if cls in fc.classes and param in fc.Params._fields else None
 
 
-def class_columns(columns) -> list[str]:
-    """The per-class parameter columns (``<class>.<parameter>``) among ``columns``, in their order."""
-    return [c for c in columns if split_class_column(c) is not None]
+def class_columns(columns, family: "str | FamilyConfig" = DEFAULT_FAMILY) -> list[str]:
+    """The per-class parameter columns (``<class>.<parameter>``) of ``family`` among ``columns``, in their order."""
+    fc = settings_of(family)
+    return [c for c in columns if split_class_column(c, fc) is not None]
 
 
-def param_key(name: str, v):
+def param_key(name: str, v, family: "str | FamilyConfig" = DEFAULT_FAMILY):
     """The identity of a parameter's value, as ``sweep.table.config_hash`` hashes it: an integer
-    parameter's int, any other's float32 value (its repr). Two values with one key are one setting."""
-    return int(v) if name in INT_PARAMS else repr(float(np.float32(v)))
+    parameter's int (of ``family``), any other's float32 value (its repr). Two values with one key
+    are one setting."""
+    return int(v) if name in settings_of(family).int_params else repr(float(np.float32(v)))
 
 
-def canonical_params(df: pd.DataFrame) -> pd.DataFrame:
+def canonical_params(df: pd.DataFrame, family: "str | FamilyConfig | None" = None) -> pd.DataFrame:
     """``df`` with one value per setting in each float parameter column (plain and per class): values
     one setting by :func:`param_key` (e.g. the C++'s float32 gain 0.89999997615814209 of a preset and
     a sweep file's 0.9, which hash alike) replaced by the most frequent of them (the first met on a
     tie), so that the report counts, ranks and draws them as one value. The same table when no column
-    holds two values of one setting; the stored tables are not changed."""
+    holds two values of one setting; the stored tables are not changed. ``family``: the table's (None:
+    read from its columns, :func:`table_family`)."""
+    fc = table_family(df.columns, family)
     out = df
-    for col in [c for c in list(PARAM_NAMES) + class_columns(df.columns) if c in df.columns]:
-        name = split_class_column(col)[1] if split_class_column(col) else col
-        if name in INT_PARAMS or not pd.api.types.is_float_dtype(df[col]):
+    for col in [c for c in list(fc.Params._fields) + class_columns(df.columns, fc) if c in df.columns]:
+        name = split_class_column(col, fc)[1] if split_class_column(col, fc) else col
+        if name in fc.int_params or not pd.api.types.is_float_dtype(df[col]):
             continue
         counts = df[col].value_counts(sort=False, dropna=True)          # in order of appearance
         if len(counts) < 2:
@@ -165,12 +230,14 @@ class Contrast:
     by: tuple[str, ...] = ()
 
 
-def parse_contrast(c, source) -> Contrast | None:
+def parse_contrast(c, source, family: "str | FamilyConfig" = DEFAULT_FAMILY) -> Contrast | None:
+    """The ``[report] contrast`` table ``c`` (None: none), its axes among ``family``'s parameters and options."""
     if c is None:
         return None
+    names = setting_names(family)
     t = Table(c, "report.contrast", source, CONTRAST_KEYS)
     axis = t.get("axis")
-    if axis not in PARAM_NAMES + OPTION_NAMES:
+    if axis not in names:
         raise t.error("axis", f"{axis!r}: expected a parameter or option name")
     groups = []
     for k in ("high", "low"):
@@ -189,7 +256,7 @@ def parse_contrast(c, source) -> Contrast | None:
                    source)
     by = t.get("by", [])
     by = [by] if isinstance(by, str) else by
-    if not isinstance(by, list) or any(b not in PARAM_NAMES + OPTION_NAMES or b == axis for b in by):
+    if not isinstance(by, list) or any(b not in names or b == axis for b in by):
         raise t.error("by", f"{by!r}: expected a list of other parameter / option names")
     return Contrast(axis, groups[0], groups[1], tuple(by))
 

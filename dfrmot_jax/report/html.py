@@ -30,6 +30,8 @@ from . import figures
 from .analysis import MINIMISE, axis_profiles, fmt_value, pareto_front, varied_axes
 from .report import SweepReport, held_out_gain, report_folds, sweep_report
 from .robustness import robustness_contrast
+from ..family import DEFAULT_FAMILY
+from ..family_configs import family_config
 from .columns import AVERAGE, COMBINED
 from .stored import read_manifest
 
@@ -82,7 +84,11 @@ def _identity(d: Path, m: dict, rep) -> str:
                 if c in df.columns}
     rows = {"directory": str(d.resolve()), "kind": m.get("kind", "sweep"), "description": m.get("description"),
             "sweep file": m.get("source") or "(given as a table, not a file)",
-            "data": f"{data.get('root')} — {data.get('det2d')} + {data.get('det3d')}, class "
+            "tracker family": None if rep.family in (None, DEFAULT_FAMILY) else
+            f"{family_config(rep.family).title} ({rep.family})",
+            "data": f"{data.get('root')} — "
+                    + (f"{data.get('det2d')} + " if data.get("det2d") is not None else "")
+                    + f"{data.get('det3d')}, class "
                     f"{', '.join(m.get('classes') or [data.get('class', '?')])}",
             "sequences": f"{len(seqs)} ({', '.join(seqs)}), {sum(m.get('lengths') or []):,} frames",
             "configs": f"{m.get('configs', df['config'].nunique()):,}" if not m.get("tune") else
@@ -193,7 +199,7 @@ def _tune(d: Path, m: dict, rep, objective: str) -> str:
         out.append(_figure(figures.pareto_figure(trials, front, objs),
                            f"Every trial's {objs[0]} and {objs[1]}, and the Pareto front: the trials no other beats "
                            f"on both."))
-        out.append(_table(front[["trial"] + objs + [a for a in varied_axes(rep.data) if a in front.columns]]))
+        out.append(_table(front[["trial"] + objs + [a for a in varied_axes(rep.data, rep.family) if a in front.columns]]))
     tr = (rep.summary.get("tune") or {}).get("transfer")
     if tr:
         out.append(f"<p>Transfer: the chosen config unchanged on {escape(tr['det2d'])} + {escape(tr['det3d'])}, "
@@ -240,7 +246,7 @@ def render_html(rep: SweepReport) -> str:
     if rob:             # a robustness study's answer first, as in the text report
         body += ["<h2>Robustness</h2>", rob]
     body += [f"<h2>Top configs by {escape(objective)}</h2>", _top(rep, objective)]
-    profiles = axis_profiles(rep.view, objective)
+    profiles = axis_profiles(rep.view, objective, family=rep.family)
     if profiles:
         body += ["<h2>Sensitivity per axis</h2>",
                  _figure(figures.sensitivity_figure(profiles, objective, None if baseline is None else

@@ -14,6 +14,8 @@ import numpy as np
 import pandas as pd
 
 from ..metrics.ab3dmot.sums import other_sum, python_of
+from ..family import DEFAULT_FAMILY
+from ..family_configs import family_config
 from ..metrics.columns import canonical_objective
 from .analysis import (
     check_objective,
@@ -31,8 +33,8 @@ from .analysis import (
 )
 from .intervals import interval_problem, report_intervals
 from .robustness import contrast_text, robustness_curves, robustness_text
-from .columns import AVERAGE, COMBINED, Contrast, canonical_params, contrast_doc, parse_contrast
-from .stored import load_results, read_manifest
+from .columns import AVERAGE, COMBINED, Contrast, canonical_params, contrast_doc, parse_contrast, table_family
+from .stored import load_results, manifest_family, read_manifest
 from .text import WIDTH, paragraph, text_table  # noqa: F401  (WIDTH: the report's width)
 
 #: the columns of the top-configs table, after the objective (those the table holds)
@@ -59,6 +61,7 @@ class SweepReport:
     baseline: pd.Series | None = None           # the baseline's COMBINED row of ``view`` (None: no baseline)
     folds_note: str = ""                        # how the folds were chosen, when the report chose them
     intervals: dict | None = None               # the paired bootstrap's figures (report.intervals)
+    family: str | None = None                   # the tracker family of the table's configs (its columns)
 
     def __str__(self) -> str:
         return self.text
@@ -98,26 +101,30 @@ class _Source:
     n_expected: int | None = None
     directory: Path | None = None
     manifest: dict | None = None
+    family: str | None = None           # the table's tracker family (None: read from its columns)
 
 
-def _source(results, folds, contrast, cls) -> _Source:
-    """The table (given, or a directory's with its manifest's folds, contrast and class as defaults)."""
+def _source(results, folds, contrast, cls, family=None) -> _Source:
+    """The table (given, or a directory's with its manifest's folds, contrast, class and tracker family
+    as defaults)."""
     if isinstance(results, pd.DataFrame):
-        src = _Source(results, folds, contrast, cls)
+        src = _Source(results, folds, contrast, cls, family=family)
     else:
         d = Path(results)
         m = read_manifest(d)
         src = _Source(load_results(d, allow_partial=True), m.get("folds") if folds is None else folds,
                       contrast if contrast is not None or not m.get("contrast") else m["contrast"],
-                      m.get("report_class") if cls is None else cls, m.get("configs"), d, m)
+                      m.get("report_class") if cls is None else cls, m.get("configs"), d, m,
+                      manifest_family(m) if family is None else family)
+    src.family = table_family(src.df.columns, src.family).name
     if isinstance(src.contrast, Mapping):
-        src.contrast = parse_contrast(dict(src.contrast), None)
+        src.contrast = parse_contrast(dict(src.contrast), None, src.family)
     return src
 
 
 def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top: int = 10,
                  contrast: Contrast | Mapping | None = None, cls: str | None = None,
-                 folds_note: str = "") -> SweepReport:
+                 folds_note: str = "", family: str | None = None) -> SweepReport:
     """Best configs by ``objective`` (HOTA, MOTA, IDF1, AssA, ... maximised; IDSW, Frag, ...
     minimised), the baseline beside them, the sensitivity per axis and, with ``folds``, the
     cross-validated best. ``results``: a table from :func:`sweep` or a sweep directory.
@@ -132,18 +139,20 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     :func:`class_view`) or ``"average"`` (default; for a directory: the file's ``report.class``):
     the class average (ratios averaged over the classes, counts summed), cross-validated with each
     class's sequences folded on their own (:func:`cross_validate`). ``folds_note``: how ``folds``
-    was chosen (:func:`report_folds`), said beside the cross-validation."""
-    src = _source(results, folds, contrast, cls)
+    was chosen (:func:`report_folds`), said beside the cross-validation. ``family``: the tracker family of
+    its configs (its columns; default: a directory's manifest's, else read from them: ``table_family``)."""
+    src = _source(results, folds, contrast, cls, family)
+    fam = src.family
     objective = canonical_objective(objective)
     if not isinstance(top, (int, np.integer)) or isinstance(top, bool) or top < 1:
         raise ValueError(f"top={top!r}: expected a whole number >= 1 (configs listed)")
-    full = canonical_params(src.df)         # one value per setting (the config hash's identity)
-    check_objective(full, objective)
+    full = canonical_params(src.df, fam)         # one value per setting (the config hash's identity)
+    check_objective(full, objective, fam)
     classes = classes_of(full)
     cls = report_class_of(full, src.cls)
-    df = class_view(full, cls) if classes else full
+    df = class_view(full, cls, fam) if classes else full
     comb = df[df["sequence"] == COMBINED].reset_index(drop=True)
-    axes = varied_axes(df)
+    axes = varied_axes(df, fam)
     order = rank_configs(comb[objective].to_numpy(), objective)
     best = comb.iloc[int(order[0])]
     base_rows = comb[comb["baseline"]]
@@ -152,9 +161,10 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     topdf = comb.iloc[order[:top]][["config", "config_hash"] + show + axes + ["overflow"]].copy()
     topdf.insert(0, "rank", np.arange(1, len(topdf) + 1))
     rep = SweepReport("", {}, topdf, pd.DataFrame(), data=full, view=df, manifest=src.manifest,
-                      directory=src.directory, baseline=baseline, folds_note=folds_note)
+                      directory=src.directory, baseline=baseline, folds_note=folds_note, family=fam)
     kind = "tune" if src.manifest is not None and src.manifest.get("kind") == "tune" else "sweep"
-    head, seqs = _headline(full, df, comb, classes, cls, objective, src.n_expected, kind)
+    title = None if fam == DEFAULT_FAMILY else family_config(fam).title      # (another tracker family: named)
+    head, seqs = _headline(full, df, comb, classes, cls, objective, src.n_expected, kind, title)
     rob_lines, rob_summary = [], None
     if "distortion.kind" in df.columns and (df["distortion.kind"] != "none").any():
         # a robustness study's answer first: its tables, then the generic sections (ranked over every lane)
@@ -174,10 +184,10 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     if sum_line:
         lines.append(paragraph(sum_line))
     lines += _interval_lines(rep, df, cls, objective)
-    rep.sensitivity = sensitivity(df, objective) if axes else pd.DataFrame()
+    rep.sensitivity = sensitivity(df, objective, family=fam) if axes else pd.DataFrame()
     lines += _sensitivity_lines(rep.sensitivity, objective)
     if src.folds:
-        rep.cv = cross_validate(full, src.folds, objective, cls)
+        rep.cv = cross_validate(full, src.folds, objective, cls, fam)
         lines += _cv_lines(rep, src.folds, comb, axes, best, objective)
     tune_summary = None
     if src.manifest is not None and src.manifest.get("kind") == "tune":
@@ -212,10 +222,11 @@ def ab3dmot_sum_line(comb: pd.DataFrame, best, baseline, manifest: Mapping | Non
 
 
 def _headline(full: pd.DataFrame, df: pd.DataFrame, comb: pd.DataFrame, classes: list, cls, objective: str,
-              n_expected: int | None, kind: str = "sweep") -> tuple[str, int]:
-    """The report's first paragraph (what was swept or tuned (``kind``), on what, ranked how) and the
-    sequences counted."""
+              n_expected: int | None, kind: str = "sweep", title: str | None = None) -> tuple[str, int]:
+    """The report's first paragraph (what was swept or tuned (``kind``; ``title``: its tracker family's,
+    said when not the default's), on what, ranked how) and the sequences counted."""
     name = df["sweep"].iloc[0] if "sweep" in df.columns else kind
+    name = name if title is None else f"{name} ({title})"
     n_cfg = int(full["config"].nunique())
     partial = f" (partial: {n_cfg} of {n_expected} configs)" if n_expected and n_expected != n_cfg else ""
     better = "lower" if objective_direction(objective) < 0 else "higher"

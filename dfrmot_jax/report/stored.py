@@ -17,10 +17,12 @@ import pandas as pd
 from ..io.atomic import sha256
 from ..metrics.columns import class_average_columns, class_combiner
 from ..metrics.kitti2d.evaluate import RAW_FIELDS
-from .columns import AVERAGE, COMBINED, LATE_OPTIONS, LATE_PARAMS, RAW_COLUMN
+from ..family import DEFAULT_FAMILY
+from ..family_configs import family_names
+from .columns import AVERAGE, COMBINED, RAW_COLUMN, settings_of
 
 __all__ = ["LEDGER", "NO_RECORD", "chunk_name", "Record", "read_ledger", "file_problem", "finish_table", "load_results",
-           "read_manifest", "manifest_problem"]
+           "read_manifest", "manifest_problem", "manifest_family"]
 
 
 #: The ledger of a sweep directory (module docstring).
@@ -71,12 +73,14 @@ def file_problem(path: Path, rec: Record | None, rows: int | None = None) -> str
     return None if digest == rec.sha256 else "checksum mismatch: changed or truncated"
 
 
-def finish_table(df: pd.DataFrame, classes: Sequence[str] = ()) -> pd.DataFrame:
+def finish_table(df: pd.DataFrame, classes: Sequence[str] = (), family=DEFAULT_FAMILY) -> pd.DataFrame:
     """Rows by config (within a config: classes in order, each its sequences then COMBINED); with
     several classes, each config's class-average row last (:func:`_average_rows`). Rows of chunks
-    written before an option of ``LATE_OPTIONS`` (a parameter of ``LATE_PARAMS``) existed get its default."""
+    written before an option of the tracker ``family``'s ``late_options`` (a parameter of its
+    ``late_params``) existed get its default."""
+    fc = settings_of(family)
     df = df[df["class"] != AVERAGE] if "class" in df.columns else df
-    late = {n: d for n, d in {**LATE_OPTIONS, **LATE_PARAMS}.items() if n in df.columns}
+    late = {n: d for n, d in {**fc.late_options, **fc.late_params}.items() if n in df.columns}
     df = df.fillna(late) if late else df
     classes = list(classes) or list(pd.unique(df["class"])) if "class" in df.columns else []
     if len(classes) > 1:
@@ -176,14 +180,15 @@ def load_results(out, *, allow_partial: bool = False) -> pd.DataFrame:
                                 + " (rerun the sweep to resume)")
     if not tables:
         raise FileNotFoundError(f"{out}: no finished chunk yet")
-    return finish_table(pd.concat(list(tables.values()), ignore_index=True), manifest.get("classes", ()))
+    return finish_table(pd.concat(list(tables.values()), ignore_index=True), manifest.get("classes", ()),
+                        manifest_family(manifest))
 
 
 #: the fields of a manifest's ``data`` (the sweep's data: ``sweep.plan.DataSettings.identity``) that its
-#: readers use, with their JSON types
-_DATA_FIELDS = {"root": str, "det2d": str, "det3d": str, "sequences": list}
+#: readers use, with their JSON types (``det2d`` null: a tracker family that reads 3D detections only)
+_DATA_FIELDS = {"root": str, "det2d": (str, type(None)), "det3d": str, "sequences": list}
 #: fields a manifest may lack, and their JSON types where present
-_OPTIONAL_FIELDS = {"kind": (str,), "objective": (str,), "classes": (list,), "lengths": (list,),
+_OPTIONAL_FIELDS = {"kind": (str,), "family": (str,), "objective": (str,), "classes": (list,), "lengths": (list,),
                     "folds": (int, type(None)), "report_class": (str, type(None))}
 
 
@@ -199,8 +204,9 @@ def _json_type(kind: type) -> str:
 def _data_problem(key: str, data: dict) -> str | None:
     """What is wrong with a manifest's data object ``data`` (at ``key``), None when nothing is."""
     for name, kind in _DATA_FIELDS.items():
-        if not isinstance(data.get(name), kind):
-            return f"{key}.{name}: missing or not {_json_type(kind)}"
+        kinds = kind if isinstance(kind, tuple) else (kind,)
+        if name not in data or not isinstance(data[name], kinds):
+            return f"{key}.{name}: missing or not {' or '.join(_json_type(k) for k in kinds)}"
     if not all(isinstance(s, str) for s in data["sequences"]):
         return f"{key}.sequences: expected sequence names"
     if not isinstance(data.get("class", ""), str):
@@ -221,6 +227,8 @@ def manifest_problem(doc) -> str | None:
     problem = _data_problem("data", data)
     if problem is not None:
         return problem
+    if isinstance(doc.get("family"), str) and doc["family"] not in family_names():
+        return f"family: {doc['family']!r} is not a registered tracker family ({', '.join(family_names())})"
     for name, kinds in _OPTIONAL_FIELDS.items():
         if name in doc and not isinstance(doc[name], kinds):
             return f"{name}: {_json_type(type(doc[name]))}, expected {' or '.join(_json_type(k) for k in kinds)}"
@@ -238,6 +246,13 @@ def manifest_problem(doc) -> str | None:
     if not isinstance(chunks, list) or not all(isinstance(c, str) for c in chunks):
         return "chunks: missing or not a list of chunk names"
     return None
+
+
+def manifest_family(manifest: dict) -> str:
+    """The tracker family of a sweep or tune directory's tables: its manifest's ``family``; a
+    manifest without it (every directory written before families, and every default family's) is
+    the default family's (``"dfr"``)."""
+    return manifest.get("family", DEFAULT_FAMILY)
 
 
 def read_manifest(out: Path) -> dict:

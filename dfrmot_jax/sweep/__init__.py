@@ -4,12 +4,14 @@
 The pipeline::
 
     load_spec(FILE) ─▶ SweepSpec ─▶ expand() ─▶ config table (one row per config: every parameter,
-        every static option, config_hash; with a [distortion] table also the per-lane columns
+        every static option of the sweep's tracker family, ``[options] family``: DFR-FastMOT's by
+        default, AB3DMOT's with "ab3dmot", ``param_names(family)`` / ``option_names(family)``;
+        config_hash; with a [distortion] table (DFR-FastMOT's) also the per-lane columns
         distortion.kind, distortion.level, distortion.seed: configs x levels x seeds)
     plan() ─▶ groups of rows with equal static Options (one compilation each) ─▶ chunks of
         ``chunk`` configs; chunk id = hash(data settings + the chunk's config hashes
         [+ the distortion settings])
-    run ─▶ per chunk: dfrmot_jax.track (one [B] batch; distortion lanes vmapped with the parameter
+    run ─▶ per chunk: the family's track (DFR-FastMOT's dfrmot_jax.track; one [B] batch; distortion lanes vmapped with the parameter
         lanes, one DistortSpec per option group) ─▶ metrics on the padded arrays (prepared ground
         truth reused, each distinct output of each sequence scored once) ─▶ DIR/chunks/<id>.parquet
         written atomically (tmp file + os.replace) and recorded (sha256, rows) in DIR/ledger.jsonl; a
@@ -59,7 +61,7 @@ from ..report import (AVERAGE, COMBINED, DISTORTION_AXES, EXTRA_AXES, MINIMISE, 
                       RAW_COLUMN, Contrast, SweepReport, axis_profiles, class_columns, class_view, cross_validate,
                       html_report, load_results, make_folds, objective_on, per_sequence_arrays, render_html,
                       report_folds, robustness_contrast, robustness_curves, robustness_summary, sensitivity,
-                      setting_axes, sweep_report, write_html)
+                      setting_axes, sweep_report, write_html, param_names, option_names, table_family)
 from .backend import LocalBackend, RayBackend, make_backend
 from .distortion import DistortionAxes
 from .plan import MAX_MEMORY_GB, DataSettings, check_memory, plan, resolve_data, resolve_data_all
@@ -78,4 +80,5 @@ __all__ = [
     "hash_version", "SweepDirectoryError", "MAX_CONFIGS", "MAX_MEMORY_GB", "config_count", "check_memory",
     "COMBINED", "RAW_COLUMN", "params_of", "per_sequence_arrays", "objective_on", "LocalBackend", "RayBackend",
     "make_backend", "html_report", "write_html", "render_html", "report_folds", "axis_profiles",
+    "param_names", "option_names", "table_family",
 ]

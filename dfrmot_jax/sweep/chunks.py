@@ -268,7 +268,7 @@ class ChunkRunner:
     def chunk_table(self, p: Pending, scores: dict, ab3dmot: list | None) -> pd.DataFrame:
         """A tracked chunk's table from its scores (:meth:`~.scoring.ChunkScorer.finish`)."""
         df = chunk_frame(self.table, p.chunk, self.data, self.split.names, self.split.lengths,
-                         scores, p.res, self.versions, self.spec.name)
+                         scores, p.res, self.versions, self.spec.name, self.spec.family)
         return df if ab3dmot is None else add_columns(df, ab3dmot)
 
     def complete(self, p: Pending, scores: dict, ab3dmot: list | None, keep: Keep, bar) -> None:

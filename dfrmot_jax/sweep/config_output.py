@@ -19,12 +19,12 @@ import numpy as np
 import pandas as pd
 
 from ..data import load_split
-from ..family import DEFAULT_FAMILY, TrackerFamily
+from ..family import TrackerFamily
 from ..families import family_of
 from ..metrics.columns import canonical_objective
 from ..report.analysis import class_view, classes_of, rank_configs, report_class_of
-from ..report.columns import AVERAGE, COMBINED, OPTION_NAMES, extra_axes
-from ..report.stored import load_results, read_manifest
+from ..report.columns import AVERAGE, COMBINED, extra_axes
+from ..report.stored import load_results, manifest_family, read_manifest
 from .table import params_of
 
 __all__ = ["write_config_output", "sweep_classes", "class_data"]
@@ -44,7 +44,7 @@ def _config(directory: Path, which, manifest: dict, df: pd.DataFrame) -> tuple[i
     """The config number ``which`` names, and how it was chosen ("" unless by ranking)."""
     classes = classes_of(df)
     cls = report_class_of(df, manifest.get("report_class")) if classes else None
-    view = class_view(df, cls) if classes else df
+    view = class_view(df, cls, manifest_family(manifest)) if classes else df
     comb = view[view["sequence"] == COMBINED].drop_duplicates("config").reset_index(drop=True)
     if which == "best":
         objective = canonical_objective(manifest.get("objective") or "HOTA")
@@ -75,7 +75,7 @@ def _class_run(directory: Path, df: pd.DataFrame, config: int, cls: str, data: d
                              f"LiDAR sweep's rows are not one config's output; track it with dfrmot track")
     fc = family.config
     params = params_of(comb, [pos], cls, family.name)
-    options = fc.Options(**{n: (row[n].item() if hasattr(row[n], "item") else row[n]) for n in OPTION_NAMES
+    options = fc.Options(**{n: (row[n].item() if hasattr(row[n], "item") else row[n]) for n in fc.Options._fields
                             if n in row.index})
     for name, value in options._asdict().items():
         problem = fc.option_problem(name, value)
@@ -94,7 +94,7 @@ def write_config_output(directory, which, out_dir) -> str:
     manifest = read_manifest(directory)
     df = load_results(directory)
     config, how = _config(directory, which, manifest, df)
-    family = family_of(manifest.get("family", DEFAULT_FAMILY))
+    family = family_of(manifest_family(manifest))
     runs, hashes = [], []
     for cls in sweep_classes(manifest):
         run, h = _class_run(directory, df, config, cls, class_data(manifest, cls), family)

@@ -26,7 +26,7 @@ from ..lidar import LIFT_SETTINGS, LiftSettings, SimSettings, lidar_dir, tie_sco
 from ..checks import Table, config_error, is_number
 from ..report.columns import CROP as _CROP, LIDAR_AXES, LIFT_COLUMNS, SIM_COLUMNS, SIM_INT as _SIM_INT
 from ..report.columns import lift_value as _lift_value
-from ..report.columns import CLASSES, TABLE_FAMILY
+from ..family import FamilyConfig
 
 __all__ = ["LIFT_COLUMNS", "SIM_COLUMNS", "LIDAR_AXES", "LidarAxes", "LidarKey", "parse_lidar", "lidar_key",
            "key_settings", "tie_table_scores", "describe_key"]
@@ -215,16 +215,18 @@ def describe_key(key: tuple) -> str:
     return " ".join(parts) or "default lifting"
 
 
-def tie_table_scores(table: pd.DataFrame, explicit: set[str]) -> pd.DataFrame:
+def tie_table_scores(table: pd.DataFrame, explicit: set[str], fc: FamilyConfig) -> pd.DataFrame:
     """The config rows of a sweep on lifted boxes with ``score_3d = score_2d`` (``lidar.tie_scores``:
     a lifted box carries its 2D detection's score, so it is kept exactly when that detection is), as
     ``dfrmot track`` does; the class columns ``<class>.score_3d`` likewise. ``explicit``: the axis
-    names of the sweep (a sweep that lists ``score_3d`` keeps its values)."""
-    if "score_3d" in explicit or any(n.endswith(".score_3d") for n in explicit):
+    names of the sweep (a sweep that lists ``score_3d`` keeps its values). ``fc``: the settings of the
+    sweep's tracker family; a family without both score thresholds (AB3DMOT's) keeps its table."""
+    if "score_3d" in explicit or any(n.endswith(".score_3d") for n in explicit) or \
+            not {"score_2d", "score_3d"} <= set(fc.Params._fields):
         return table
     table = table.copy()
-    for pre in [""] + [f"{c}." for c in CLASSES if f"{c}.score_2d" in table.columns or f"{c}.score_3d" in table.columns]:
+    for pre in [""] + [f"{c}." for c in fc.classes if f"{c}.score_2d" in table.columns or f"{c}.score_3d" in table.columns]:
         cols = {n: table[pre + n].to_numpy() if pre + n in table.columns else table[n].to_numpy()
-                for n in TABLE_FAMILY.Params._fields}
-        table[pre + "score_3d"] = np.asarray(tie_scores(TABLE_FAMILY.Params(**cols)).score_3d)
+                for n in fc.Params._fields}
+        table[pre + "score_3d"] = np.asarray(tie_scores(fc.Params(**cols)).score_3d)
     return table

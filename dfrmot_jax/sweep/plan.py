@@ -25,7 +25,6 @@ from ..paths import default_data_root
 from .axes import AxisKind, split_key, split_keys
 from ..checks import config_error
 from .distortion import DistortionAxes
-from ..report.columns import OPTION_NAMES
 from .spec import as_spec
 
 #: Default most tracker output one chunk may hold, GB (``run_sweep(max_memory=...)``, ``dfrmot sweep
@@ -35,9 +34,10 @@ MAX_MEMORY_GB = 2.0
 
 @dataclass(frozen=True)
 class DataSettings:
-    """Resolved data settings of a sweep (part of every chunk's identity)."""
+    """Resolved data settings of a sweep (part of every chunk's identity). ``det2d`` None: a tracker
+    family that reads 3D detections only (AB3DMOT's), no 2D detections read."""
     root: str
-    det2d: str
+    det2d: str | None
     det3d: str
     cls: str
     sequences: tuple[str, ...]
@@ -89,7 +89,8 @@ def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
         raise config_error("data.det3d", f"LiDAR scan folder {scans} not found (lidar:DIR expects "
                                          f"DIR/velodyne/SSSS/FFFFFF.bin; with [simulate] DIR is a cache folder)", src)
     reads = family_config(spec.family).detections       # (the detections its tracker family reads)
-    for key, det in ((("data.det2d", spec.det2d),) if "2d" in reads else ()) + \
+    det2d = spec.det2d if "2d" in reads or scans is not None else None      # (lifted boxes are of the 2D ones)
+    for key, det in ((("data.det2d", spec.det2d),) if det2d is not None else ()) + \
             ((("data.det3d", spec.det3d),) if scans is None and "3d" in reads else ()):
         try:
             detection_dir(root, det, spec.cls)
@@ -105,7 +106,7 @@ def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
             raise config_error("data.sequences", f"no ground truth for {missing} under {root / 'label_02'}", src)
         seqs = spec.sequences
     lengths = sequence_lengths(root, list(seqs))
-    return DataSettings(str(root), str(spec.det2d), str(spec.det3d), spec.cls, tuple(seqs),
+    return DataSettings(str(root), det2d if det2d is None else str(det2d), str(spec.det3d), spec.cls, tuple(seqs),
                         tuple(int(lengths[s]) for s in seqs))
 
 
@@ -127,10 +128,11 @@ class Chunk:
 def option_groups(table: pd.DataFrame, family: str = DEFAULT_FAMILY) -> dict[tuple, list[int]]:
     """Config rows by static options (the tracker ``family``'s ``Options``), in first-appearance order."""
     options = family_config(family).Options
-    types = {n: type(options._field_defaults[n]) for n in OPTION_NAMES}
+    names = options._fields
+    types = {n: type(options._field_defaults[n]) for n in names}
     groups: dict[tuple, list[int]] = {}
-    for row in table[["config"] + list(OPTION_NAMES)].to_dict("records"):
-        groups.setdefault(options(**{n: types[n](row[n]) for n in OPTION_NAMES}), []).append(int(row["config"]))
+    for row in table[["config"] + list(names)].to_dict("records"):
+        groups.setdefault(options(**{n: types[n](row[n]) for n in names}), []).append(int(row["config"]))
     return groups
 
 

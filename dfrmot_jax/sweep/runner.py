@@ -134,7 +134,7 @@ def _run(spec: SweepSpec, table: pd.DataFrame, datas, chunks, outdir: Path | Non
         n_groups = len({c.group for c in cchunks})
         lanes = ""
         if spec.distortion is not None:
-            n_set = n_settings(table)
+            n_set = n_settings(table, spec.family)
             lanes = (f" = {n_set:,} settings x {spec.distortion.n_lanes} distortion lanes (kinds "
                      f"{', '.join(k for k, _ in spec.distortion.kinds)}; {len(spec.distortion.seeds)} seeds)")
         name = spec.name if len(spec.classes) == 1 else f"{spec.name} [{d.cls}]"
@@ -161,7 +161,7 @@ def _run(spec: SweepSpec, table: pd.DataFrame, datas, chunks, outdir: Path | Non
     else:
         df = pd.concat([pd.read_parquet(chunk_path(outdir, c)) for c in chunks], ignore_index=True)
         df["sweep"] = spec.name             # (a renamed sweep keeps its directory and chunks)
-    df = finish_table(df, spec.classes)
+    df = finish_table(df, spec.classes, spec.family)
     if outdir is not None:
         write_results(outdir, df)
     if not raw:

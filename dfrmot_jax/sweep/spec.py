@@ -35,7 +35,7 @@ from ..checks import (
 from .axes import AxisKind
 from .distortion import DistortionAxes, parse_distortion
 from .lidar_axes import LidarAxes, parse_lidar
-from ..report.columns import AVERAGE, OPTION_NAMES, PARAM_NAMES, TABLE_FAMILY, Contrast, parse_contrast
+from ..report.columns import AVERAGE, Contrast, parse_contrast
 
 RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
 
@@ -169,9 +169,9 @@ def _check_param_value(name: str, v, key: str, source, fc: FamilyConfig) -> int 
 
 
 def _param_axis(name: str, spec, key: str, source, fc: FamilyConfig) -> Axis:
-    if name not in PARAM_NAMES:
-        hint = " (a static option: put it under [options])" if name in OPTION_NAMES else ""
-        raise config_error(key, f"unknown parameter{hint}; parameters are {list(PARAM_NAMES)}", source)
+    if name not in fc.Params._fields:
+        hint = " (a static option: put it under [options])" if name in fc.Options._fields else ""
+        raise config_error(key, f"unknown parameter{hint}; parameters are {list(fc.Params._fields)}", source)
     if isinstance(spec, Mapping):
         if len(spec) != 1:
             raise config_error(key, f"a distribution table has exactly one key among {list(GRID_KINDS + RANDOM_KINDS)}, "
@@ -246,9 +246,9 @@ def _check_option_value(name: str, v, key: str, source, fc: FamilyConfig):
 
 
 def _option_axis(name: str, spec, key: str, source, fc: FamilyConfig) -> Axis:
-    if name not in OPTION_NAMES:
-        hint = " (a dynamic parameter: put it under [params])" if name in PARAM_NAMES else ""
-        raise config_error(key, f"unknown option{hint}; options are {list(OPTION_NAMES)}", source)
+    if name not in fc.Options._fields:
+        hint = " (a dynamic parameter: put it under [params])" if name in fc.Params._fields else ""
+        raise config_error(key, f"unknown option{hint}; options are {list(fc.Options._fields)}", source)
     if isinstance(spec, Mapping):
         if list(spec) != ["grid"]:
             raise config_error(key, "static options take a value, a list or {grid = [...]} (each value is its own "
@@ -268,11 +268,11 @@ def _class_axis(cls: str, name: str, spec, key: str, source, classes: Sequence[s
     """A per-class parameter axis ``<cls>.<name>`` (``key`` names it in errors)."""
     if cls not in fc.classes:
         raise config_error(key.rsplit(".", 1)[0] if "." in key else key,
-                   f"{cls!r} is neither a parameter nor a class; parameters are {list(PARAM_NAMES)}, "
+                   f"{cls!r} is neither a parameter nor a class; parameters are {list(fc.Params._fields)}, "
                    f"classes {list(fc.classes)} (per-class axes: <class>.<parameter>)", source)
     if cls not in classes:
         raise config_error(key, f"class {cls!r} is not swept (data.class = {list(classes)})", source)
-    if name in OPTION_NAMES and name not in PARAM_NAMES:
+    if name in fc.Options._fields and name not in fc.Params._fields:
         raise config_error(key, "static options apply to every class; per-class axes are for parameters", source)
     axis = _param_axis(name, spec, key, source, fc)
     return replace(axis, name=f"{cls}.{name}", cls=cls)
@@ -295,10 +295,10 @@ def _axes(table, kind: str, prefix: str, source, fc: FamilyConfig,
         if "." in k:                                   # a quoted key "pedestrian.a_l"
             cls, name = k.split(".", 1)
             out.append(_class_axis(cls, name, v, f"{prefix}.{k}", source, classes, fc))
-        elif k not in PARAM_NAMES and k not in OPTION_NAMES and isinstance(v, Mapping) and \
+        elif k not in fc.Params._fields and k not in fc.Options._fields and isinstance(v, Mapping) and \
                 not set(v) & set(GRID_KINDS + RANDOM_KINDS):      # pedestrian.a_l = ... / [params.pedestrian]
             if k not in fc.classes:
-                raise config_error(f"{prefix}.{k}", f"unknown parameter or class; parameters are {list(PARAM_NAMES)}, "
+                raise config_error(f"{prefix}.{k}", f"unknown parameter or class; parameters are {list(fc.Params._fields)}, "
                                             f"classes {list(fc.classes)} (per-class axes: <class>.<parameter>)",
                            source)
             for name, spec in v.items():
@@ -364,11 +364,15 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
         raise rep.error("objective", str(e).removeprefix("objective ")) from None
     folds = rep.integer("folds", None, minimum=2)
     top_n = rep.integer("top", 10)
-    contrast = parse_contrast(rep.get("contrast"), source)
+    contrast = parse_contrast(rep.get("contrast"), source, fc)
     report_class = rep.get("class")
     if report_class is not None and (not isinstance(report_class, str) or report_class not in classes + (AVERAGE,)):
         raise rep.error("class", f"{report_class!r}: expected one of the sweep's classes {list(classes)} or "
                                  f"{AVERAGE!r}")
+    if doc.get("distortion") is not None and family != DEFAULT_FAMILY:
+        raise config_error("distortion", f"the distortions act on {family_config().title}'s frames inside its "
+                                         f"scan: they are {family_config().title}'s for now, not {fc.title}'s "
+                                         f"(options.family = {family!r})", source)
     distortion = parse_distortion(doc.get("distortion"), source)
     metrics = top.table("metrics", METRICS_KEYS)
     ab3dmot = _parse_metrics(metrics, rep, objective, folds)
@@ -432,8 +436,8 @@ FAMILY_KEY = "family"
 def parse_family(doc: Mapping, source: str | None = None) -> str:
     """``[options] family`` (and each ``[[variants]]``' ``options.family``): the tracker family of every
     config, one name of :mod:`dfrmot_jax.family_configs` (default ``"dfr"``). A sweep is of one family:
-    its tables hold one family's parameter and option columns, and those of DFR-FastMOT's, so a family
-    with other settings cannot be swept until the tables name each row's family."""
+    its tables hold that family's parameter and option columns (and its stored directory's manifest
+    names the family, but for the default one's)."""
     found = []
     variants = doc.get("variants") if isinstance(doc.get("variants"), list) else []
     for key, table in [("options", doc.get("options"))] + [(f"variants[{i}].options", v.get("options"))
@@ -449,13 +453,7 @@ def parse_family(doc: Mapping, source: str | None = None) -> str:
         raise config_error(found[[v for _, v in found].index(names[1])][0],
                            f"{names[1]!r}: a sweep is of one tracker family, and another entry names {names[0]!r}; "
                            f"sweep each family in a file of its own", source)
-    family = names[0] if names else DEFAULT_FAMILY
-    fc = family_config(family)
-    if fc.Params._fields != PARAM_NAMES or fc.Options._fields != OPTION_NAMES:
-        raise config_error(found[0][0], f"{family!r}: its parameters and options are not the columns of a sweep's "
-                                        f"tables, which are {TABLE_FAMILY.title}'s until the tables name each "
-                                        f"row's family", source)
-    return family
+    return names[0] if names else DEFAULT_FAMILY
 
 
 def _parse_variants(doc: Mapping, top: Table, classes: tuple[str, ...], source,

@@ -32,7 +32,7 @@ from ..io.atomic import TMP_NAME, naming, sha256, write_parquet_atomic, write_te
 from ..metrics.kitti2d.evaluate import RAW_FIELDS, summary_columns
 from .folder import SweepDirectoryError, claim
 from .plan import Chunk, DataSettings
-from ..report.columns import COMBINED, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, class_columns, contrast_doc, extra_axes
+from ..report.columns import COMBINED, RAW_COLUMN, class_columns, contrast_doc, extra_axes, settings_of
 from ..report.stored import LEDGER, NO_RECORD, Record, chunk_name, file_problem, read_ledger
 from .spec import SweepSpec
 from ..lidar import SIM_VERSION
@@ -46,8 +46,10 @@ class HashVersionError(ValueError):
 
 
 def chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, metrics: dict, res, versions,
-                 spec_name: str) -> pd.DataFrame:
-    """The tidy rows of one chunk: per config, one row per sequence then COMBINED."""
+                 spec_name: str, family: str = DEFAULT_FAMILY) -> pd.DataFrame:
+    """The tidy rows of one chunk: per config, one row per sequence then COMBINED; the config columns
+    are the tracker ``family``'s parameters (plain and per class) and options."""
+    fc = settings_of(family)
     L = len(chunk.configs)
     S = len(seq_names)
     R = S + 1
@@ -56,7 +58,7 @@ def chunk_frame(table, chunk: Chunk, data: DataSettings, seq_names, lengths, met
     cols["config"] = np.repeat(sub["config"].to_numpy(), R)
     cols["config_hash"] = np.repeat(sub["config_hash"].to_numpy(), R)
     cols["sequence"] = np.tile(np.array(list(seq_names) + [COMBINED], dtype=object), L)
-    for c in ["variant", "baseline"] + list(PARAM_NAMES) + class_columns(sub.columns) + list(OPTION_NAMES) + \
+    for c in ["variant", "baseline"] + list(fc.Params._fields) + class_columns(sub.columns, fc) + list(fc.Options._fields) + \
             [n for n in extra_axes() if n in sub.columns]:
         cols[c] = np.repeat(sub[c].to_numpy(), R)
     seq_sum = summary_columns(metrics["seq"])

@@ -29,8 +29,7 @@ from ..families import family_of
 from ..lidar import lidar_dir
 from .axes import AxisKind, cross_rows, hash_settings
 from .lidar_axes import tie_table_scores
-from ..report.columns import (LATE_OPTIONS, LATE_PARAMS, OPTION_NAMES, PARAM_NAMES, class_columns, extra_axes,
-                              param_key, split_class_column)
+from ..report.columns import class_columns, extra_axes, param_key, settings_of, split_class_column
 from .spec import Axis, SweepSpec, Variant, as_spec
 
 #: The scheme of ``config_hash`` and chunk ids; recorded in the manifest as ``hash_version``.
@@ -41,10 +40,12 @@ MAX_CONFIGS = 250_000
 
 
 
-def canonical_value(name: str, v):
-    """Canonical value for hashing: parameters as the tracker sees them (float32 / int32)."""
-    if name in PARAM_NAMES:
-        return param_key(name, v)
+def canonical_value(name: str, v, family=DEFAULT_FAMILY):
+    """Canonical value for hashing: parameters (of the tracker ``family``, a name or its settings) as
+    the tracker sees them (float32 / int32)."""
+    fc = settings_of(family)
+    if name in fc.Params._fields:
+        return param_key(name, v, fc)
     if isinstance(v, (bool, np.bool_)):
         return bool(v)
     if isinstance(v, (int, np.integer)):
@@ -54,16 +55,17 @@ def canonical_value(name: str, v):
     return str(v)
 
 
-def _class_extra(row: Mapping[str, Any]) -> dict:
-    """{class: {parameter: canonical value}} of the row's class columns that differ from its plain ones."""
+def _class_extra(row: Mapping[str, Any], fc) -> dict:
+    """{class: {parameter: canonical value}} of the row's class columns (of family settings ``fc``)
+    that differ from its plain ones."""
     out: dict[str, dict] = {}
     for col in row:
-        cp = split_class_column(col)
+        cp = split_class_column(col, fc)
         if cp is None:
             continue
         cls, p = cp
-        v = canonical_value(p, row[col])
-        if v != canonical_value(p, row[p]):
+        v = canonical_value(p, row[col], fc)
+        if v != canonical_value(p, row[p], fc):
             out.setdefault(cls, {})[p] = v
     return out
 
@@ -74,17 +76,20 @@ def config_hash(row: Mapping[str, Any], settings: Mapping[str, Any] | None = Non
     default, such as the distortion axes; + ``settings``, sweep-wide values off their defaults that
     change this row, e.g. a distortion lane's burst start rate; + a sweep over several classes' per-class
     values, columns ``<class>.<parameter>``, where they differ from the plain column: a row without
-    such a difference hashes exactly as before; an option of ``LATE_OPTIONS`` or a parameter of
-    ``LATE_PARAMS`` only off its default; + the tracker ``family`` unless it is the default one)."""
-    late = {n: canonical_value(n, row.get(n, d)) for n, d in LATE_OPTIONS.items()}
-    key = {"params": {n: canonical_value(n, row[n]) for n in PARAM_NAMES
-                      if n not in LATE_PARAMS or canonical_value(n, row.get(n, LATE_PARAMS[n])) != canonical_value(n, LATE_PARAMS[n])},
-           "options": {**{n: canonical_value(n, row[n]) for n in OPTION_NAMES if n not in LATE_OPTIONS},
-                       **{n: v for n, v in late.items() if v != canonical_value(n, LATE_OPTIONS[n])}}}
-    extra = {n: canonical_value(n, row[n]) for n, d in extra_axes().items() if n in row and row[n] != d}
+    such a difference hashes exactly as before; an option of the family's ``late_options`` or a
+    parameter of its ``late_params`` only off its default; + the tracker ``family`` unless it is the
+    default one). The parameters and options are ``family``'s (its name)."""
+    fc = settings_of(family)
+    late_o, late_p = fc.late_options, fc.late_params
+    late = {n: canonical_value(n, row.get(n, d), fc) for n, d in late_o.items()}
+    key = {"params": {n: canonical_value(n, row[n], fc) for n in fc.Params._fields
+                      if n not in late_p or canonical_value(n, row.get(n, late_p[n]), fc) != canonical_value(n, late_p[n], fc)},
+           "options": {**{n: canonical_value(n, row[n], fc) for n in fc.Options._fields if n not in late_o},
+                       **{n: v for n, v in late.items() if v != canonical_value(n, late_o[n], fc)}}}
+    extra = {n: canonical_value(n, row[n], fc) for n, d in extra_axes().items() if n in row and row[n] != d}
     if settings:
         extra["settings"] = dict(settings)
-    classes = _class_extra(row)
+    classes = _class_extra(row, fc)
     if classes:
         extra["classes"] = classes
     if extra:
@@ -134,7 +139,8 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
     """The config table of a sweep: one row per config, the baseline first.
 
     Columns: ``config`` (row number), ``config_hash``, ``variant``, ``baseline`` (bool), every
-    parameter (``PARAM_NAMES``) and option (``OPTION_NAMES``). Grid axes are crossed (the first axis
+    parameter and option of the sweep's tracker family (``SweepSpec.family``: its ``Params`` and
+    ``Options`` fields, ``report.columns.param_names`` / ``option_names``). Grid axes are crossed (the first axis
     slowest; parameters, then options); random axes (uniform, loguniform, randint, choice) are drawn
     per config from ``numpy.random.default_rng(seed)``; ``samples`` repeats each variant's grid with
     the random axes redrawn (Ray Tune's ``num_samples``). Configs that hash alike are kept once.
@@ -173,31 +179,35 @@ def _check_size(spec: SweepSpec, max_configs: int | None = None) -> None:
 def settings_table(spec: SweepSpec) -> pd.DataFrame:
     """The sweep's parameter / option settings (the baseline, then every variant's), typed and
     hashed (:func:`typed_table`), configs that hash alike kept once: the rows the axis kinds cross."""
+    fc = family_config(spec.family)
+    params = list(fc.Params._fields)
     single = len(spec.classes) == 1
     base_row, class_base = _baseline_rows(spec)
     # per-class columns: class defaults off the plain baseline, and every per-class axis
     explicit = [a.name for v in spec.variants for a in v.params if a.cls] if not single else []
-    derived = [f"{k}.{p}" for k, b in class_base.items() for p in PARAM_NAMES
-               if canonical_value(p, b[p]) != canonical_value(p, base_row[p])]
-    ccols = [f"{k}.{p}" for k in spec.classes for p in PARAM_NAMES if f"{k}.{p}" in set(explicit + derived)]
+    derived = [f"{k}.{p}" for k, b in class_base.items() for p in params
+               if canonical_value(p, b[p], fc) != canonical_value(p, base_row[p], fc)]
+    ccols = [f"{k}.{p}" for k in spec.classes for p in params if f"{k}.{p}" in set(explicit + derived)]
     rng = np.random.default_rng(spec.seed)
-    first = {**base_row, **{c: class_base[split_class_column(c)[0]][split_class_column(c)[1]] for c in ccols}}
+    first = {**base_row, **{c: class_base[split_class_column(c, fc)[0]][split_class_column(c, fc)[1]] for c in ccols}}
     rows: list[dict] = [{"variant": "baseline", "baseline": True, **first}]
     for v in spec.variants:
         rows += _variant_rows(spec, v, rng, base_row, class_base, ccols)
-    table = pd.DataFrame(rows, columns=["variant", "baseline"] + list(PARAM_NAMES) + ccols + list(OPTION_NAMES))
+    table = pd.DataFrame(rows, columns=["variant", "baseline"] + params + ccols + list(fc.Options._fields))
     for c in ccols:          # a class default that no row moves off the plain value says nothing
-        k, p = split_class_column(c)
-        if c not in explicit and all(canonical_value(p, x) == canonical_value(p, y) for x, y in zip(table[c], table[p])):
+        k, p = split_class_column(c, fc)
+        if c not in explicit and all(canonical_value(p, x, fc) == canonical_value(p, y, fc)
+                                     for x, y in zip(table[c], table[p])):
             table = table.drop(columns=[c])
     if lidar_dir(spec.det3d) is not None:      # lifted boxes carry their 2D score (as dfrmot track)
-        table = tie_table_scores(table, {a.name for v in spec.variants for a in v.params})
+        table = tie_table_scores(table, {a.name for v in spec.variants for a in v.params}, fc)
     return typed_table(table, spec.family).drop_duplicates("config_hash", keep="first").reset_index(drop=True)
 
 
 def _variant_rows(spec: SweepSpec, v: Variant, rng: np.random.Generator, base_row: dict,
                   class_base: dict[str, dict], ccols: list[str]) -> list[dict]:
     """The rows of one variant: its grid axes crossed, its random axes drawn, ``samples`` times."""
+    fc = family_config(spec.family)
     grid_axes = [a for a in v.params if a.is_grid] + list(v.options)
     rand_axes = [a for a in v.params if not a.is_grid]
     plain_set = {a.name for a in v.params if not a.cls}
@@ -210,12 +220,12 @@ def _variant_rows(spec: SweepSpec, v: Variant, rng: np.random.Generator, base_ro
             vals = {a.name: val for a, val in zip(grid_axes, combo)}
             vals.update({name: d[i] for name, d in draws.items()})
             row = {"variant": v.name, "baseline": False, **base_row}
-            row.update({k: x for k, x in vals.items() if split_class_column(k) is None})
+            row.update({k: x for k, x in vals.items() if split_class_column(k, fc) is None})
             if len(spec.classes) == 1:      # the one class's per-class axes are its parameters
-                row.update({split_class_column(k)[1]: x for k, x in vals.items()
-                            if split_class_column(k) is not None})
+                row.update({split_class_column(k, fc)[1]: x for k, x in vals.items()
+                            if split_class_column(k, fc) is not None})
             for c in ccols:      # precedence: per-class axis > plain axis > the class's baseline
-                k, p = split_class_column(c)
+                k, p = split_class_column(c, fc)
                 row[c] = vals[c] if c in vals else row[p] if p in plain_set else class_base[k][p]
             rows.append(row)
             i += 1
@@ -266,10 +276,10 @@ def typed_table(table: pd.DataFrame, family: str = DEFAULT_FAMILY) -> pd.DataFra
     Duplicates are kept."""
     fc = family_config(family)
     table = table.copy()
-    for n in list(PARAM_NAMES) + class_columns(table.columns):
-        t = split_class_column(n)[1] if split_class_column(n) else n
+    for n in list(fc.Params._fields) + class_columns(table.columns, fc):
+        t = split_class_column(n, fc)[1] if split_class_column(n, fc) else n
         table[n] = table[n].astype("int64" if t in fc.int_params else "float64")
-    for n in OPTION_NAMES:
+    for n in fc.Options._fields:
         d = fc.Options._field_defaults[n]
         table[n] = table[n].astype(bool if isinstance(d, bool) else "int64" if isinstance(d, int) else object)
     table.insert(0, "config_hash", [config_hash(r, family=family) for r in table.to_dict("records")])
@@ -297,24 +307,27 @@ def _baseline_rows(spec: SweepSpec) -> tuple[dict, dict[str, dict]]:
     return {**p._asdict(), **o._asdict()}, per
 
 
-def n_settings(table: pd.DataFrame) -> int:
-    """Distinct parameter / option settings of a table (a distortion sweep's configs without lanes)."""
-    return int(len(table.drop_duplicates(list(PARAM_NAMES) + class_columns(table.columns) + list(OPTION_NAMES))))
+def n_settings(table: pd.DataFrame, family: str = DEFAULT_FAMILY) -> int:
+    """Distinct parameter / option settings of a table of the tracker ``family`` (a distortion sweep's
+    configs without lanes)."""
+    fc = family_config(family)
+    return int(len(table.drop_duplicates(list(fc.Params._fields) + class_columns(table.columns, fc)
+                                         + list(fc.Options._fields))))
 
 
 def params_of(table: pd.DataFrame, rows: Sequence[int], cls: str | None = None, family: str = DEFAULT_FAMILY):
     """The parameters (the tracker ``family``'s ``Params``) of table rows for class ``cls`` (its
-    ``<cls>.<parameter>`` columns where the table has them, else the plain ones; a parameter of
-    ``LATE_PARAMS`` that a table written before it existed lacks: its default, as the report reads
+    ``<cls>.<parameter>`` columns where the table has them, else the plain ones; a parameter of its
+    ``late_params`` that a table written before it existed lacks: its default, as the report reads
     such a table)."""
     fc = family_config(family)
     sub = table.iloc[list(rows)]
 
     def column(n: str) -> np.ndarray:
         name = f"{cls}.{n}" if f"{cls}.{n}" in sub.columns else n
-        if name not in sub.columns and n in LATE_PARAMS:
-            return np.full(len(sub), LATE_PARAMS[n])
+        if name not in sub.columns and n in fc.late_params:
+            return np.full(len(sub), fc.late_params[n])
         return sub[name].to_numpy()
 
-    return fc.as_arrays(fc.Params(**{n: column(n) for n in PARAM_NAMES}))
+    return fc.as_arrays(fc.Params(**{n: column(n) for n in fc.Params._fields}))
 

@@ -27,7 +27,6 @@ from ..family import FamilyConfig
 from ..family_configs import family_config
 from ..metrics.columns import canonical_objective
 from ..report.analysis import MINIMISE
-from ..report.columns import PARAM_NAMES
 from ..checks import Table, is_number, type_name
 from ..sweep.spec import SweepConfigError, SweepSpec, parse_family, parse_spec, read_toml
 
@@ -137,7 +136,7 @@ def _parse_transfer(doc, source, fc: FamilyConfig) -> TransferSettings | None:
         raise SweepConfigError("tune.transfer", "name the other detections: det2d and / or det3d", source)
     base = t.table("baseline")
     for k, v in base.doc.items():
-        problem = "unknown parameter" if k not in PARAM_NAMES else \
+        problem = "unknown parameter" if k not in fc.Params._fields else \
             fc.param_problem(k, v) if is_number(v) else f"not a number ({type_name(v)})"
         if problem:
             raise base.error(k, f"{v!r}: {problem}")

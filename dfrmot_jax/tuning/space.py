@@ -23,7 +23,6 @@ from optuna.distributions import CategoricalDistribution, FloatDistribution, Int
 
 from ..family import DEFAULT_FAMILY
 from ..family_configs import family_config
-from ..report.columns import OPTION_NAMES, PARAM_NAMES
 from ..sweep.spec import SweepConfigError, SweepSpec
 from ..sweep.table import baseline_row, canonical_value, config_hash, typed_table
 
@@ -75,10 +74,10 @@ class SearchSpace:
         dim by the values its variant fixes)."""
         row = dict(self.fixed)
         row.update(self.variants.get(values.get(VARIANT), {}))
-        int_params = family_config(self.family).int_params
+        fc = family_config(self.family)
         for d in self.dims:
             v = values[d.name]
-            row[d.name] = int(v) if d.name in int_params else float(v) if d.name in PARAM_NAMES else v
+            row[d.name] = int(v) if d.name in fc.int_params else float(v) if d.name in fc.Params._fields else v
         return row
 
     def config_hash(self, values: Mapping[str, Any]) -> str:
@@ -91,7 +90,8 @@ class SearchSpace:
         base = [False] * len(rows) if baseline is None else list(baseline)
         recs = [{**r, "variant": "baseline" if b else r.get(VARIANT, "tune"), "baseline": bool(b)}
                 for r, b in zip(rows, base)]
-        df = pd.DataFrame(recs, columns=["variant", "baseline"] + list(PARAM_NAMES) + list(OPTION_NAMES))
+        fc = family_config(self.family)
+        df = pd.DataFrame(recs, columns=["variant", "baseline"] + list(fc.Params._fields) + list(fc.Options._fields))
         df = typed_table(df, self.family)
         df.insert(0, "config", np.arange(len(df), dtype=np.int64))
         return df
@@ -102,7 +102,8 @@ class SearchSpace:
         out = {d.name: self.fixed[d.name] for d in self.dims if d.name != VARIANT}
         if self.variants:
             out[VARIANT] = next((n for n, v in self.variants.items()
-                                 if all(canonical_value(k, self.fixed[k]) == canonical_value(k, x) for k, x in v.items())), None)
+                                 if all(canonical_value(k, self.fixed[k], self.family) == canonical_value(k, x, self.family)
+                                        for k, x in v.items())), None)
         return out
 
     def contains(self, values: Mapping[str, Any]) -> bool:
@@ -128,7 +129,8 @@ def search_space(spec: SweepSpec) -> SearchSpace:
             raise SweepConfigError(f"variants.{v.name}", "the variants of a tune must search the same axes "
                                    "(they may differ only in one-valued settings)", spec.source)
     base = baseline_row(spec)
-    variants = {v.name: {k: x for k, x in s.fixed.items() if canonical_value(k, x) != canonical_value(k, base[k])}
+    variants = {v.name: {k: x for k, x in s.fixed.items()
+                         if canonical_value(k, x, spec.family) != canonical_value(k, base[k], spec.family)}
                 for v, s in zip(spec.variants, spaces)}
     dim = Dim(VARIANT, "categorical", tuple(variants), "variants")
     return SearchSpace(first.dims + (dim,), base, variants, spec.family)
