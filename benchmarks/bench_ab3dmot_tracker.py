@@ -4,6 +4,11 @@
 - the oracle: ``--oracle-sequences`` (default all 21, 8008 frames), frames/s;
 - JAX, one lane (B = 1) over ``--sequences`` (default all 21, 8008 frames): compile + first run, then
   the warm run, frames/s; its lines checked against the reference run (``car_default``);
+- AB3DMOT's own code (xinshuoweng/AB3DMOT at 61f3bd7, not part of this project), when
+  ``--ab3dmot-python PY --ab3dmot-driver FILE`` (or the env vars ``AB3DMOT_PYTHON``,
+  ``AB3DMOT_DRIVER``) are given: a subprocess runs the driver over ``--ab3dmot-sequences`` (default
+  ``--sequences``); its frames/s are those of its ``track()`` calls alone; without them the run says
+  so and the ratios are against the NumPy oracle only;
 - JAX, ``--batch`` lanes (default 64: thresholds -0.4 .. 0.1 x min_hits 1..4 x max_age 1..4, the
   car preset's program) over ``--batch-sequences`` (default 0000-0003, 978 frames): config-frames/s,
   warm (the second call, with the capacities the first one grew to).
@@ -11,7 +16,16 @@
 Times are wall seconds and this process's CPU seconds; the machine is shared, so the load average
 goes with them. The LAST line is one JSON object.
 
-    python benchmarks/bench_ab3dmot_tracker.py [--data ROOT] [--buckets 3] [--batch 64]
+Measured 2026-11-28 (2 vCPU AMD EPYC, shared, load 3.6 -> ~7 -> 5.9; benchmarks/RESULTS.md, "AB3DMOT's
+tracker in JAX against AB3DMOT's own code"): AB3DMOT's own code 10.8 frames/s (740 s wall, 227 s CPU, for
+8008 frames); the oracle 169 frames/s; JAX B = 1 1317 frames/s (36168 lines exact), B = 64 1418
+config-frames/s: 122x and 131x AB3DMOT's wall frames/s, 44x and 61x per CPU second (goals 100x and 1000x).
+Kept: each box's footprint once per frame, pair lists in halves (CPU fps on 0000-0003: B = 1 980 -> 1549,
+B = 64 1612 -> 2592). Dropped: shift-register hull chains (2.7x slower), unrolled chains (compile > 10 min).
+The time is per pair (the GIoU hull of every pair, the clip of overlapping ones), so lanes do not amortise it.
+
+    python benchmarks/bench_ab3dmot_tracker.py [--data ROOT] [--buckets 3] [--batch 64] \
+        [--ab3dmot-python /work/venvs/ab3dmot-tracker/bin/python --ab3dmot-driver /work/ab3dmot_ref/time_tracker.py]
 """
 
 from __future__ import annotations
@@ -20,6 +34,7 @@ import argparse
 import itertools
 import json
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -52,10 +67,30 @@ def main(argv=None):
     ap.add_argument("--buckets", type=int, default=3)
     ap.add_argument("--tracks", type=int, default=48)
     ap.add_argument("--skip-oracle", action="store_true")
+    ap.add_argument("--ab3dmot-python", default=os.environ.get("AB3DMOT_PYTHON"),
+                    help="the Python of an environment with AB3DMOT's dependencies (env AB3DMOT_PYTHON)")
+    ap.add_argument("--ab3dmot-driver", default=os.environ.get("AB3DMOT_DRIVER"),
+                    help="a script timing AB3DMOT's own tracker, its last line JSON with frames and track_s "
+                         "(env AB3DMOT_DRIVER)")
+    ap.add_argument("--ab3dmot-sequences", default=None, help="AB3DMOT's own run (default: --sequences)")
     args = ap.parse_args(argv)
     root = Path(args.data)
     res = {"load_start": os.getloadavg()}
     params, options = J.ab3dmot_car(capacity=args.tracks, pairs=32, buckets=args.buckets)
+
+    if args.ab3dmot_python and args.ab3dmot_driver:
+        seqs = args.ab3dmot_sequences or args.sequences
+        proc = subprocess.run([args.ab3dmot_python, args.ab3dmot_driver, "--data", str(root), "--sequences", seqs,
+                               "--category", "Car"], capture_output=True, text=True, check=True)
+        own = json.loads(proc.stdout.strip().splitlines()[-1])
+        res.update(ab3dmot_frames=own["frames"], ab3dmot_track_s=own["track_s"], ab3dmot_cpu_s=own.get("cpu_s"),
+                   ab3dmot_fps=own["frames"] / own["track_s"], ab3dmot_load=own.get("load"))
+        print(f"AB3DMOT's own code: {own['frames']} frames, track() {own['track_s']:.1f} s: "
+              f"{res['ab3dmot_fps']:.1f} frames/s", flush=True)
+    else:
+        res.update(ab3dmot_fps=None)
+        print("AB3DMOT's own code not timed (no --ab3dmot-python / --ab3dmot-driver): ratios against the oracle "
+              "only", flush=True)
 
     if not args.skip_oracle:
         seqs = args.oracle_sequences.split(",")
@@ -93,6 +128,12 @@ def main(argv=None):
     print(f"JAX B={len(grid)}: {t} frames, first call {res['batch_first_s']:.1f} s, warm {wall:.2f} s "
           f"({cpu:.2f} s CPU): {len(grid) * t / wall:.0f} config-frames/s; peak {res['batch_peak']} tracks, "
           f"ran with {grown.capacity}", flush=True)
+    for name, base in (("ab3dmot", res.get("ab3dmot_fps")), ("oracle", res.get("oracle_fps"))):
+        if base:
+            res[f"b1_vs_{name}"] = res["b1_fps"] / base
+            res[f"batch_vs_{name}"] = res["batch_config_fps"] / base
+            print(f"against {name}: B=1 {res[f'b1_vs_{name}']:.0f}x, B={len(grid)} {res[f'batch_vs_{name}']:.0f}x",
+                  flush=True)
     res.update(load_end=os.getloadavg(), cpu_model=cpu_model(), cpus=os.cpu_count(), buckets=args.buckets,
                capacity=args.tracks)
     print(json.dumps(res))

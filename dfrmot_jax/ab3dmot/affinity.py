@@ -32,7 +32,8 @@ from . import polygon
 from .config import DISTANCE_METRICS, METRICS
 from .exact import fma, mul
 
-__all__ = ["affinity", "footprint", "pair_apart", "pair_intersection", "pair_hull", "combine", "distance",
+__all__ = ["affinity", "footprint", "circle", "circles_apart", "pair_apart", "pair_intersection", "pair_hull",
+           "footprint_intersection", "footprint_hull", "combine", "distance",
            "compact", "METRICS", "DISTANCE_METRICS"]
 
 
@@ -54,38 +55,54 @@ def footprint(boxes, zero):
     return x[..., ::-1], z[..., ::-1]
 
 
+def circle(boxes, zero):
+    """(cx, cz, r [...]): the centre of the footprint of boxes [..., 7] (its corners' mean) and
+    its circumradius (the farthest corner)."""
+    px, pz = footprint(boxes, zero)
+    cx = (((px[..., 0] + px[..., 1]) + px[..., 2]) + px[..., 3]) / 4
+    cz = (((pz[..., 0] + pz[..., 1]) + pz[..., 2]) + pz[..., 3]) / 4
+    dx, dz = px - cx[..., None], pz - cz[..., None]
+    return cx, cz, jnp.max(jnp.sqrt(mul(dx, dx, zero) + mul(dz, dz, zero)), -1)
+
+
+def circles_apart(a, b, zero):
+    """Footprints surely apart [...] from their circles (``circle``) a, b (broadcast)."""
+    (acx, acz, ra), (bcx, bcz, rb) = a, b
+    dx, dz = acx - bcx, acz - bcz
+    return jnp.sqrt(mul(dx, dx, zero) + mul(dz, dz, zero)) > (ra + rb) + 1e-6
+
+
 def pair_apart(det, trk, zero):
     """Footprints surely apart [...]: their centres farther than the sum of their circumradii +
     1e-6 (then the clip is empty), for paired boxes det, trk [..., 7] (broadcast)."""
-    def centre(px, pz):
-        cx = (((px[..., 0] + px[..., 1]) + px[..., 2]) + px[..., 3]) / 4
-        cz = (((pz[..., 0] + pz[..., 1]) + pz[..., 2]) + pz[..., 3]) / 4
-        dx, dz = px - cx[..., None], pz - cz[..., None]
-        return cx, cz, jnp.max(jnp.sqrt(mul(dx, dx, zero) + mul(dz, dz, zero)), -1)
-    acx, acz, ra = centre(*footprint(det, zero))
-    bcx, bcz, rb = centre(*footprint(trk, zero))
-    dx, dz = acx - bcx, acz - bcz
-    return jnp.sqrt(mul(dx, dx, zero) + mul(dz, dz, zero)) > (ra + rb) + 1e-6
+    return circles_apart(circle(det, zero), circle(trk, zero), zero)
+
+
+def footprint_intersection(d, t, zero):
+    """``pair_intersection`` of the footprints d, t (x, z [..., 4] each, ``footprint``)."""
+    px, py, n, over = polygon.clip(d[0], d[1], t[0], t[1], zero)
+    area, bad = polygon.hull_area(px, py, n, zero)
+    return jnp.where(n > 0, area, 0.0), ((bad & (n > 0)) | over)
 
 
 def pair_intersection(det, trk, zero):
     """(I [...], degenerate [...]) of paired boxes det, trk [..., 7]: the hull area of the
     detection's footprint clipped by the track's, 0 where the clip is empty."""
-    dx, dz = footprint(det, zero)
-    tx, tz = footprint(trk, zero)
-    px, py, n, over = polygon.clip(dx, dz, tx, tz, zero)
-    area, bad = polygon.hull_area(px, py, n, zero)
-    return jnp.where(n > 0, area, 0.0), ((bad & (n > 0)) | over)
+    return footprint_intersection(footprint(det, zero), footprint(trk, zero), zero)
 
 
-def pair_hull(det, trk, zero):
-    """(C [...], degenerate [...]): the hull area of both footprints of paired boxes [..., 7]."""
-    dx, dz = footprint(det, zero)
-    tx, tz = footprint(trk, zero)
+def footprint_hull(d, t, zero):
+    """``pair_hull`` of the footprints d, t (x, z [..., 4] each, ``footprint``)."""
+    (dx, dz), (tx, tz) = d, t
     shape = jnp.broadcast_shapes(dx.shape, tx.shape)
     hx = jnp.concatenate([jnp.broadcast_to(dx, shape), jnp.broadcast_to(tx, shape)], -1)
     hz = jnp.concatenate([jnp.broadcast_to(dz, shape), jnp.broadcast_to(tz, shape)], -1)
     return polygon.hull_area(hx, hz, jnp.full(shape[:-1], 8, jnp.int32), zero)
+
+
+def pair_hull(det, trk, zero):
+    """(C [...], degenerate [...]): the hull area of both footprints of paired boxes [..., 7]."""
+    return footprint_hull(footprint(det, zero), footprint(trk, zero), zero)
 
 
 def combine(det, trk, metric: str, inter, hull, zero):

@@ -17,7 +17,8 @@ from .config import AUTO_BUCKETS_MIN_T, MAX_CAPACITY, Options, Params, as_arrays
 import jax.numpy as jnp
 
 from . import kalman
-from .affinity import combine, compact, distance, pair_apart, pair_hull, pair_intersection
+from .affinity import circle, circles_apart, combine, compact, distance, footprint, footprint_hull, \
+    footprint_intersection
 from .exact import runtime_zero
 from .tracker import Frames, State, StepOutput, decide, finish, init, predict, step
 
@@ -62,8 +63,15 @@ def affinity_sizes(n_det: int, tracks: int, buckets: int) -> tuple[tuple[int, in
     return tuple(out)
 
 
-def ladder(total: int, levels: int) -> tuple[int, ...]:
-    """Capacities ``ceil(total / 4^s)`` for s = levels - 1 .. 0, smallest first (distinct)."""
+#: ``pooled_affinity``'s pair lists: each size of the ladder ``PAIR_STEP`` times the next smaller
+PAIR_STEP = 2
+
+
+def ladder(total: int, levels: int, step: int = 4) -> tuple[int, ...]:
+    """Capacities ``ceil(total / 4^s)`` for s = levels - 1 .. 0, smallest first (distinct); with
+    ``step`` 2 the same span in halves (2 levels - 1 sizes)."""
+    if step == 2:
+        return tuple(sorted({max(1, -(-total // (2 ** s))) for s in range(2 * max(levels, 1) - 1)}))
     return tuple(sorted({max(1, -(-total // (4 ** s))) for s in range(max(levels, 1))}))
 
 
@@ -98,21 +106,35 @@ def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
     def scatter(sel, values, fill):
         return jnp.full(full, fill, values.dtype).at[sel].set(values, mode="drop").reshape(b, n, k)
 
+    if "iou" in metric:
+        # each box's footprint and circle once (the same values as per pair), gathered per pair
+        det_fp, trk_fp = footprint(det, zero), footprint(trk, zero)             # x, z [N, 4], [B, K, 4]
+        det_c, trk_c = circle(det, zero), circle(trk, zero)
+
+        def geometry(sel):
+            sel = jnp.minimum(sel, full - 1)
+            lane, i, j = sel // (n * k), (sel // k) % n, sel % k
+            take_d = lambda v: v[i]                                             # noqa: E731
+            take_t = lambda v: v[lane, j]                                       # noqa: E731
+            return (tuple(map(take_d, det_fp)), tuple(map(take_t, trk_fp)), tuple(map(take_d, det_c)),
+                    tuple(map(take_t, trk_c)))
+
     def stage_pairs(cap):
         def run(mask):
             sel, _ = compact(mask, cap)
-            d, t, (lane, j) = boxes(sel)
             if "iou" not in metric:
+                d, t, (lane, j) = boxes(sel)
                 inn = kalman.innovation(jax.tree.map(lambda v: v[lane, j], pred.filt)) if metric == "m_dis" else None
                 return scatter(sel, distance(d, t, metric, zero, inn), 0.0), scatter(sel, sel < 0, False)
-            apart = scatter(sel, pair_apart(d, t, zero), True)
+            dfp, tfp, dc, tc = geometry(sel)
+            apart = scatter(sel, circles_apart(dc, tc, zero), True)
             if not metric.startswith("giou"):
                 return apart, scatter(sel, sel < 0, False), jnp.zeros((b, n, k))
-            hull, bad = pair_hull(d, t, zero)
+            hull, bad = footprint_hull(dfp, tfp, zero)
             return apart, scatter(sel, bad, False), scatter(sel, hull, 0.0)
         return run
 
-    sizes = ladder(full, levels)
+    sizes = ladder(full, levels, PAIR_STEP)
     if "iou" not in metric:
         value, bad = _switch(jnp.sum(mask), sizes, stage_pairs, mask)
         return value.astype(jnp.float32), bad & mask
@@ -122,12 +144,13 @@ def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
     def stage_clip(cap):
         def run(cand):
             sel, _ = compact(cand, cap)
-            d, t, _ = boxes(sel)
-            inter, bad = pair_intersection(d, t, zero)
+            dfp, tfp, _, _ = geometry(sel)
+            inter, bad = footprint_intersection(dfp, tfp, zero)
             return scatter(sel, inter, 0.0), scatter(sel, bad, False)
         return run
 
-    inter, clip_bad = _switch(jnp.sum(cand), ladder(full, levels + 1 if levels > 1 else 1), stage_clip, cand)
+    inter, clip_bad = _switch(jnp.sum(cand), ladder(full, levels + 1 if levels > 1 else 1, PAIR_STEP), stage_clip,
+                              cand)
     value = combine(det[None, :, None], trk[:, None, :], metric, inter, hull, zero)
     return value.astype(jnp.float32), (bad | clip_bad) & mask
 
