@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 
 from dfrmot_jax import ab3dmot as J
+from dfrmot_jax.ab3dmot.batch import tracking_lanes
 from dfrmot_jax.testing import ab3dmot_oracle as ab
 from dfrmot_jax.testing.ab3dmot_compare import Comparison, compare_folder
 from dfrmot_jax.testing.ab3dmot_geometry import DegenerateGeometry
@@ -235,6 +236,28 @@ def test_writer_numbers_ids_as_the_counter_and_writes_newest_first():
     assert [s.split()[:2] for s in lines["0000"]] == [["0", "2"], ["0", "1"]]      # newest first, from 1
     assert [s.split()[:2] for s in lines["0002"]] == [["0", "4"], ["0", "3"]]      # the counter runs on
     assert lines["0000"][1].split()[5] == "0.100000" and lines["0000"][0].split()[17] == "0.700000"
+
+
+def test_lanes_that_track_alike_are_tracked_once_and_equal_each_lane_alone():
+    """``min_hits`` and ``score_threshold`` choose written lines only: lanes equal in ``threshold``
+    and ``max_age`` are tracked once (``tracking_lanes``), and every lane's output (ids, sources,
+    boxes, id counter) equals that lane run alone."""
+    scenes = own_scenes("dist_3d", "hungar", range(210, 213))
+    split = J.pack([(s.name, J.parse_detections(s.text), s.n_frames) for s in scenes], N_DET)
+    options = J.Options("dist_3d", "hungarian", capacity=TRACKS)
+    params = J.stack_params([J.Params(3.0, 1, 2), J.Params(3.0, 3, 2), J.Params(3.0, 2, 2, 0.5),
+                             J.Params(1.5, 3, 2), J.Params(3.0, 0, 2, -1.0), J.Params(1.5, 1, 2)])
+    core, of = tracking_lanes(params)
+    assert core.threshold.tolist() == [3.0, 1.5] and of.tolist() == [0, 0, 0, 1, 0, 1]
+    assert core.min_hits.tolist() == [0, 0] and np.isneginf(core.score_threshold).all()
+    batch = J.run(params, split.frames, options)
+    written = 0
+    for b in range(6):
+        alone = J.run(J.Params(*(v[b] for v in params)), split.frames, options)
+        for field in ("ids", "src", "boxes", "next_id", "dropped", "overflow", "peak"):
+            assert np.array_equal(getattr(batch, field)[b], getattr(alone, field)[0]), (b, field)
+        written += int((alone.ids >= 0).sum())
+    assert len({int((batch.ids[b] >= 0).sum()) for b in range(6)}) >= 4 and written > 100
 
 
 # ----------------------------------------------------------------------------------------------

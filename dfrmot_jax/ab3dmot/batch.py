@@ -23,7 +23,7 @@ from .exact import runtime_zero
 from .tracker import Frames, State, StepOutput, decide, finish, init, predict, step
 
 __all__ = ["RunOutput", "run", "run_lane", "run_lanes", "pooled_affinity", "affinity_sizes", "ladder", "clear_programs",
-           "MAX_TRACKS", "data_capacity"]
+           "MAX_TRACKS", "data_capacity", "tracking_lanes", "frame_counts", "written_lines"]
 
 
 class RunOutput(NamedTuple):
@@ -215,16 +215,59 @@ def clear_programs() -> None:
     _PROGRAMS.clear()
 
 
+def tracking_lanes(params: Params) -> tuple[Params, np.ndarray]:
+    """The lanes that track differently, and which of them each lane is: ``min_hits`` and
+    ``score_threshold`` choose the written lines only (a track's life depends on ``threshold`` and
+    ``max_age``), so lanes equal in those two track alike. Returns (their ``Params`` [C], with
+    ``min_hits`` 0 and ``score_threshold`` -inf: every track ``max_age`` keeps is written; ``of``
+    [B] int the tracking lane of each lane). ``params``: leaves [B] (``as_arrays``)."""
+    key = np.stack([np.asarray(params.threshold, np.float64).view(np.int64),
+                    np.asarray(params.max_age, np.int64)], axis=1)
+    _, first, of = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")                # the tracking lanes in first-appearance order
+    rank = np.empty(len(order), np.int64)
+    rank[order] = np.arange(len(order))
+    first, of = first[order], rank[np.asarray(of).reshape(-1)]
+    c = len(first)
+    core = Params(np.asarray(params.threshold)[first], np.zeros(c, np.int32), np.asarray(params.max_age)[first],
+                  np.full(c, -np.inf))
+    return core, of
+
+
+def frame_counts(reset: np.ndarray) -> np.ndarray:
+    """[T] int: each frame's count in its sequence, from 1 (``State.frame_count`` after its step)."""
+    t = np.arange(len(reset))
+    start = np.maximum.accumulate(np.where(np.asarray(reset, bool), t, 0))
+    return t - start + 1
+
+
+def written_lines(ids, hits, src, score, fc, min_hits, score_threshold) -> np.ndarray:
+    """[B, T, K] the ids of lanes' written lines (-1 elsewhere) from their tracking lanes' output:
+    ``ids`` [B, T, K] every track kept (``min_hits`` 0, ``score_threshold`` -inf), ``hits`` [B, T, K],
+    ``src`` [B, T, K] each track's last detection (``t * N + slot``), ``score`` [T * N] the
+    detections' scores, ``fc`` [T] frame counts, ``min_hits`` / ``score_threshold`` [B]: the step's
+    rule (``tracker.finish``), applied afterwards."""
+    mh = np.asarray(min_hits, np.int64)[:, None, None]
+    st = np.asarray(score_threshold, np.float64)[:, None, None]
+    last = np.asarray(score, np.float64)[np.maximum(src, 0)]
+    keep = (ids >= 0) & ((hits >= mh) | (fc[None, :, None] <= mh)) & (last >= st)
+    return np.where(keep, ids, -1).astype(np.int32)
+
+
 def run(params: Params, frames: Frames, options: Options, first_id: int = 1, grow: bool = True) -> RunOutput:
     """Every lane of ``params`` (scalars: one lane; leaves [B]) over ``frames`` [T, N, ...], ids
-    from ``first_id``. Validates the setting first (ValueError with every problem). ``grow``: where
-    a lane ran out of track slots (``overflow``), every lane runs again with twice as many (up to
+    from ``first_id``. Validates the setting first (ValueError with every problem). Lanes that
+    track alike (:func:`tracking_lanes`: the same ``threshold`` and ``max_age``) are tracked once,
+    and each lane's lines chosen from that run by its ``min_hits`` and ``score_threshold``
+    (:func:`written_lines`): the same output as each lane tracked alone. ``grow``: where a lane ran
+    out of track slots (``overflow``), every lane runs again with twice as many (up to
     ``MAX_TRACKS``); the output says which ``options`` it ran with. Every pair is clipped
     (``pooled_affinity``): ``pairs_left`` is 0."""
     validate(params, options)
     p = as_arrays(params)
     b = max([np.shape(v)[0] for v in p if np.ndim(v)] or [1])
     p = Params(*(np.broadcast_to(np.atleast_1d(v), (b,)) for v in p))
+    core, of = tracking_lanes(p)
     t = np.shape(frames.valid)[0]
     if options.buckets == 0:
         options = options._replace(buckets=3 if t >= AUTO_BUCKETS_MIN_T else 1)
@@ -234,12 +277,18 @@ def run(params: Params, frames: Frames, options: Options, first_id: int = 1, gro
         f = Frames(np.asarray(frames.boxes, np.float64), np.asarray(frames.valid, bool),
                    np.asarray(frames.score, np.float64), np.asarray(frames.reset, bool))
         while True:
-            states = jax.tree.map(lambda v: np.repeat(np.asarray(v)[None], b, 0), init(options, first_id))
-            out, counters = _program(options)(p, f, states)
-            out = RunOutput(*jax.tree.map(np.asarray, tuple(out)), *(np.asarray(c) for c in counters), options)
+            c = core.threshold.shape[0]
+            states = jax.tree.map(lambda v: np.repeat(np.asarray(v)[None], c, 0), init(options, first_id))
+            out, counters = _program(options)(core, f, states)
+            out = jax.tree.map(np.asarray, out)
+            counters = [np.asarray(c) for c in counters]
             more = {}
-            if grow and out.overflow.any() and options.capacity < MAX_TRACKS:
+            if grow and counters[0].any() and options.capacity < MAX_TRACKS:
                 more["capacity"] = min(2 * options.capacity, MAX_TRACKS)
             if not more:
-                return out
+                break
             options = options._replace(**more)
+    ids = written_lines(out.ids[of], out.hits[of], out.src[of], f.score.reshape(-1), frame_counts(f.reset),
+                        p.min_hits, p.score_threshold)
+    return RunOutput(ids, out.src[of], out.boxes[of], out.next_id[of], out.dropped[of],
+                     *(c[of] for c in counters), options)

@@ -74,7 +74,7 @@ class Options(NamedTuple):
                 which dfrmot's runs refuse: the result files carry the boxes).
     buckets:    ``batch.run``: the sizes a frame's work is chosen from, smallest holding it (the
                 same result, less work on small frames, more compilations): the lists of pairs of
-                all lanes (``buckets`` sizes, x4 apart; the clipped pairs one more) and the
+                all lanes (2 ``buckets`` - 1 sizes, halves of one another; the clipped pairs two more) and the
                 assignment's slots (N, K halved ``buckets`` - 1 times); 0: 3 on splits of at
                 least ``AUTO_BUCKETS_MIN_T`` frames, else 1.
     """

@@ -103,6 +103,10 @@ class StepOutput(NamedTuple):
               ([K, 0] without ``Options.boxes``).
     next_id:  the id counter after the frame.
     dropped:  births dropped for want of a slot in the frame (``State.overflow``'s increment).
+    hits:     [K] int32 every slot's matches so far (birth included): with ``min_hits`` 0 and
+              ``score_threshold`` -inf, ``ids`` are every track ``max_age`` keeps, and the lines of
+              any other ``min_hits`` / ``score_threshold`` follow from ``hits``, the frame's count
+              in its sequence and the detections' scores (``batch.run`` shares lanes so).
     """
 
     ids: np.ndarray
@@ -110,6 +114,7 @@ class StepOutput(NamedTuple):
     boxes: np.ndarray
     next_id: np.ndarray
     dropped: np.ndarray
+    hits: np.ndarray
 
 
 def init(options: Options, first_id: int = 1) -> State:
@@ -247,7 +252,7 @@ def finish(params: Params, state: State, frame: Frames, options: Options, pred: 
     next_id = state.next_id + n_born
     dropped = jnp.asarray(n_born - (total - count), jnp.int32)
     out = StepOutput(jnp.where(written, ids, -1), src, filt.x[:, :7] if options.boxes else filt.x[:, :0], next_id,
-                     dropped)
+                     dropped, hits.astype(jnp.int32))
     alive = exists & (age < params.max_age)
     onto = alive[None, :] & ((jnp.cumsum(alive) - 1)[None, :] == slot[:, None])  # [new slot, old slot]
     take = jnp.argmax(onto, 1)
