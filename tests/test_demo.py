@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dfrmot_jax.cli.demo import GRID, sweep_file
+from dfrmot_jax.cli.demo import GRID, GRIDS, sweep_file
 from dfrmot_jax.config import preset
 from dfrmot_jax.sweep import COMBINED, load_results
 from dfrmot_jax.report.stored import read_manifest
@@ -68,6 +68,29 @@ def test_the_demos_sweep_file_is_a_sweep_file(tmp_path):
     assert all(float(getattr(base, k)) in doc["params"][k] for k in GRID), "the baseline is no point of the grid"
     assert doc["data"]["sequences"] == ["0000", "0001", "0002"] and doc["report"]["folds"] == 3
     assert "report" not in tomllib.loads(sweep_file(tmp_path, ["0000"]))
+
+
+def test_the_ab3dmot_demos_sweep_file_sweeps_its_family(tmp_path):
+    doc = tomllib.loads(sweep_file(tmp_path / "scene", ["0000", "0001"], "ab3dmot"))
+    assert doc["options"]["family"] == "ab3dmot" and doc["baseline"]["preset"] == "ab3dmot_car"
+    assert doc["params"] == GRIDS["ab3dmot"] and "det2d" not in doc["data"]
+    assert -0.2 in doc["params"]["threshold"] and 3 in doc["params"]["min_hits"] and 2 in doc["params"]["max_age"]
+
+
+@pytest.mark.slow
+def test_the_demo_sweeps_ab3dmot_with_family_ab3dmot(tmp_path, capsys):
+    """``--family ab3dmot``: the same scene, AB3DMOT's grid around its car preset, one vmapped call
+    (lanes that track alike tracked once), its report."""
+    out = tmp_path / "demo"
+    status, text, err = run_cli(capsys, ["demo", "--out", out, *SMALL, "--family", "ab3dmot"])
+    assert status == 0 and not err, err
+    assert "AB3DMOT, the ab3dmot_car preset as baseline + a 3 x 3 x 3 grid of threshold, min_hits, max_age" in text
+    stored = _stored(out / "sweep")
+    assert len(stored) == 27 and "baseline (preset ab3dmot_car)" in text
+    assert read_manifest(out / "sweep")["family"] == "ab3dmot"
+    config, hota = _best_printed(text)
+    assert stored.set_index("config").loc[config, "HOTA"] == stored["HOTA"].max()
+    assert (out / "sweep" / "report.html").read_text().startswith("<!DOCTYPE html>")
 
 
 @pytest.mark.slow

@@ -10,17 +10,23 @@ from .args import seed_arg
 from .commands import HELP
 from .errors import run_later
 
-__all__ = ["add_parser", "GRID", "NAME", "grid_shape"]
+__all__ = ["add_parser", "GRID", "GRIDS", "BASELINES", "NAME", "grid_shape"]
 
 #: the demo's grid: the 2D score threshold and the fixed-gain filter's beta and gamma (27 settings)
 GRID = {"score_2d": [0.35, 0.45, 0.55], "gain_beta": [0.5, 0.7, 0.9], "gain_gamma": [0.02, 0.05, 0.1]}
+#: each tracker family's demo grid (``--family``; 27 settings each): DFR-FastMOT's :data:`GRID`;
+#: AB3DMOT's threshold (generalised 3D IoU), min_hits and max_age around its car preset
+GRIDS = {"dfr": GRID,
+         "ab3dmot": {"threshold": [-0.4, -0.2, 0.0], "min_hits": [1, 2, 3], "max_age": [2, 3, 4]}}
+#: each family's baseline preset (a point of its grid)
+BASELINES = {"dfr": "dfr2023", "ab3dmot": "ab3dmot_car"}
 #: the demo sweep's name, and its work directory's under ``results/``
 NAME = "demo"
 
 
-def grid_shape() -> str:
-    """:data:`GRID`'s shape, e.g. ``3 x 3 x 3``."""
-    return " x ".join(str(len(v)) for v in GRID.values())
+def grid_shape(family: str = "dfr") -> str:
+    """The family's demo grid's shape, e.g. ``3 x 3 x 3``."""
+    return " x ".join(str(len(v)) for v in GRIDS[family].values())
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -38,5 +44,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     d.add_argument("--frames", type=int, default=120, help="frames per sequence (default 120)")
     d.add_argument("--seed", type=seed_arg, default=0, help="scene seed, >= 0 (default 0)")
     d.add_argument("--top", type=int, default=5, help="configs printed above the baseline (default 5)")
+    d.add_argument("--family", choices=list(GRIDS), default="dfr",
+                   help="the tracker family swept: dfr (DFR-FastMOT, the default: " + ", ".join(GRID) + ") or "
+                        "ab3dmot (AB3DMOT, from its 3D detections: " + ", ".join(GRIDS["ab3dmot"]) + "), its "
+                        "preset " + " / ".join(BASELINES.values()) + " as the baseline")
     d.set_defaults(func=run_later("dfrmot_jax.cli.demo"))
     return d
