@@ -343,9 +343,26 @@ def test_where_ab3dmot_stops_the_lane_says_so():
     assert out.degenerate.tolist() == [1]
 
 
+#: the reference runs tracked here; ``car_default`` goes through the family's path, ``dfrmot track``
+#: (tests/test_track_ab3dmot.py, byte for byte), and ``car_noaffipro``'s files are ``car_default``'s
+#: (:func:`test_the_run_without_affinity_post_processing_is_the_default_run`)
+TRACKED_RUNS = [r for r in ab.PRESETS if r not in ("car_default", "car_noaffipro")]
+
+
+@pytest.mark.kitti
+def test_the_run_without_affinity_post_processing_is_the_default_run(kitti_root):
+    """``affi_pro`` changes only AB3DMOT's saved affinity matrices: its run's files are the default's."""
+    runs = [kitti_root / REFERENCE / f"head61f3bd7_{r}" for r in ("car_default", "car_noaffipro")]
+    if not all(r.is_dir() for r in runs):
+        pytest.skip(f"AB3DMOT reference runs not found at {runs}")
+    names = sorted(p.name for p in runs[0].glob("*.txt"))
+    assert len(names) == 21 and names == sorted(p.name for p in runs[1].glob("*.txt"))
+    assert all((runs[0] / n).read_bytes() == (runs[1] / n).read_bytes() for n in names)
+
+
 @pytest.mark.slow
 @pytest.mark.kitti
-@pytest.mark.parametrize("run", list(ab.PRESETS))
+@pytest.mark.parametrize("run", TRACKED_RUNS)
 def test_all_sequences_match_reference(kitti_root, run):
     """All 21 sequences in order from id 1: AB3DMOT's lines exactly, ids literal."""
     ref = kitti_root / REFERENCE / f"head61f3bd7_{run}"

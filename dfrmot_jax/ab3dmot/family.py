@@ -35,7 +35,7 @@ from .config import FAMILY_CONFIG, Options, Params, as_arrays, validate
 from .results import LINE_FORMAT
 
 __all__ = ["FAMILY", "Prepared", "Ab3dmotRun", "prepare_frames", "track", "rows", "row_arrays", "class_run",
-           "write_runs", "default_capacity", "setting_problem", "output_slots", "lane_keys", "BYTES_PER_SLOT"]
+           "write_runs", "default_capacity", "setting_problem", "call_lanes", "output_slots", "lane_keys", "BYTES_PER_SLOT"]
 
 #: a lane's output bytes per track slot and frame: ids, the detection index (int32 each), the image
 #: box (4 float64), the 3D box (7 float64), whether a row (bool)
@@ -86,12 +86,30 @@ def _widen(a: np.ndarray, k: int, fill) -> np.ndarray:
     return np.concatenate([a, pad], axis=2)
 
 
+def call_lanes(of: np.ndarray, per: int) -> list[np.ndarray]:
+    """The lanes of each compiled call: lanes that track alike (``of`` [B], their tracking lane,
+    :func:`.batch.tracking_lanes`) in one call, tracked once there, each call holding at most
+    ``per`` tracking lanes and ``4 per`` lanes (its output's memory), tracking lanes in order of
+    first appearance."""
+    calls, cur, keys = [], [], 0
+    for key in range(int(of.max(initial=-1)) + 1):
+        group = np.flatnonzero(of == key)
+        if cur and (keys + 1 > per or len(cur) + len(group) > 4 * per):
+            calls.append(np.array(cur, np.int64))
+            cur, keys = [], 0
+        cur += group.tolist()
+        keys += 1
+    if cur:
+        calls.append(np.array(cur, np.int64))
+    return calls
+
+
 def track(split: Split | Prepared, params: Params, options: Options = Options(), *, lanes_per_call: int | None = None,
           grow: bool = True, detail: bool = True, rows_only: bool = False, distortion=None, spec=None) -> TrackResult:
     """Every lane of ``params`` (scalars: one lane; leaves [B]) over ``split`` (or its
     :class:`Prepared` frames): a :class:`dfrmot_jax.api.TrackResult` (see the module's docstring;
     ``own3`` marks the rows, ``capacity`` [B] the slots each lane ran with). ``lanes_per_call``:
-    lanes per compiled call (default all); ``grow``: a call whose lanes run out of track slots runs
+    tracking lanes per compiled call (default all; lanes that track alike share one, :func:`call_lanes`); ``grow``: a call whose lanes run out of track slots runs
     again with twice as many (:func:`.batch.run`); ``rows_only``: ``boxes`` and ``box3`` as
     :class:`dfrmot_jax.rows.Rows`. ``detail`` is always on (the rows' detections come with the ids).
     A lane where AB3DMOT's own run would have stopped (degenerate geometry) or whose greedy sort
@@ -105,27 +123,25 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
     p = as_arrays(params)
     b = max([np.shape(v)[0] for v in p if np.ndim(v)] or [1])
     p = Params(*(np.broadcast_to(np.atleast_1d(v), (b,)) for v in p))
-    per = max(1, int(lanes_per_call or b))
-    outs = []
-    for at in range(0, b, per):
-        part = Params(*(v[at:at + per] for v in p))
-        outs.append(batch.run(part, prep.frames, options, grow=grow))
+    calls = call_lanes(batch.tracking_lanes(p)[1], max(1, int(lanes_per_call or b)))
+    outs = [batch.run(Params(*(v[lanes] for v in p)), prep.frames, options, grow=grow) for lanes in calls]
+    back = np.argsort(np.concatenate(calls), kind="stable")     # (each lane's place among the calls' lanes)
     k = max(o.ids.shape[2] for o in outs)
-    ids = np.concatenate([_widen(o.ids, k, -1) for o in outs])[:, :, ::-1]
-    src = np.concatenate([_widen(o.src, k, -1) for o in outs])[:, :, ::-1]
-    box3 = np.concatenate([_widen(o.boxes, k, 0.0) for o in outs])[:, :, ::-1]
+    ids = np.concatenate([_widen(o.ids, k, -1) for o in outs])[back][:, :, ::-1]
+    src = np.concatenate([_widen(o.src, k, -1) for o in outs])[back][:, :, ::-1]
+    box3 = np.concatenate([_widen(o.boxes, k, 0.0) for o in outs])[back][:, :, ::-1]
     ids, box3 = np.ascontiguousarray(ids, np.int32), np.ascontiguousarray(box3)
     src = np.where(ids >= 0, src, -1).astype(np.int32)
     image = prep.image.reshape(-1, 4)[np.maximum(src, 0)]
     image[ids < 0] = np.nan
-    counters = {n: np.concatenate([getattr(o, n) for o in outs]) for n in ("dropped", "overflow", "peak",
-                                                                          "degenerate", "fallback")}
+    counters = {n: np.concatenate([getattr(o, n) for o in outs])[back] for n in ("dropped", "overflow", "peak",
+                                                                                "degenerate", "fallback")}
     bad = np.flatnonzero((counters["degenerate"] > 0) | (counters["fallback"] > 0))
     if bad.size:
         warnings.warn(f"AB3DMOT: lanes {bad[:8].tolist()} met a pair whose geometry AB3DMOT cannot compute or a "
                       f"greedy tie its sort breaks differently: their tracks are this package's, not AB3DMOT's",
                       UserWarning, stacklevel=2)
-    capacity = np.concatenate([np.full(len(o.ids), o.options.capacity, np.int64) for o in outs])
+    capacity = np.concatenate([np.full(len(o.ids), o.options.capacity, np.int64) for o in outs])[back]
     boxes = Rows.of(ids, image) if rows_only else image
     box3_out = Rows.of(ids, box3) if rows_only else box3
     ran = outs[-1].options._replace(capacity=int(capacity.max(initial=0)))
