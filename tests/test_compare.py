@@ -187,6 +187,7 @@ def test_resamples_as_counts_equal_the_exact_recombination(outputs):
         np.testing.assert_allclose(got[1], boot_b[f], rtol=0, atol=1e-9, err_msg=f)
 
 
+@pytest.mark.slow
 def test_report_intervals_of_a_sweep(tmp_path):
     """In a sweep's report: a copy of the best config is not distinguishable from it, the best against
     itself as baseline has the interval [0, 0], and the report prints and stores the figures."""
@@ -321,6 +322,7 @@ def test_an_ab3dmot_resample_is_the_resampled_files_scored(outputs, tmp_path, ca
     assert "12 paired resamples, each rescored" in out
 
 
+@pytest.mark.slow
 def test_a_sweep_of_an_older_results_version_is_compared_as_the_report_reads_it(tmp_path, capsys):
     """``compare DIR:best`` of a directory whose table lacks the parameters and options added since
     (kf_q3, kf_r3, the weak margins, assign: ``tests/fixtures/sweep_v1``) was ``internal error:
@@ -464,6 +466,7 @@ def test_the_page_shows_counts_as_whole_numbers(outputs, tmp_path, capsys):
     assert all("." in v for v in re.findall(r"<td>(.*?)</td>", hota))
 
 
+@pytest.mark.slow
 def test_the_two_birds_eye_views_of_a_pair_share_one_extent(outputs, tmp_path, capsys):
     """A's and B's bird's-eye views were drawn on extents of their own, so they could not be read side by
     side: one extent per pair now, the ground truth drawn at the same place in both."""

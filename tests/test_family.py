@@ -269,6 +269,7 @@ def test_an_ab3dmot_sweeps_table_holds_its_columns_and_no_dfr_ones(scene):
         parse_spec(_ab3dmot_spec(scene, distortion={"kinds": {"drop": [0.1]}}))
 
 
+@pytest.mark.slow
 def test_a_sweep_tracks_with_its_family_and_scores_what_dfr_scores(spy, scene, tmp_path):
     """The same configs swept as DFR-FastMOT and as the spy family: the spy's tracker fields were
     the ones called (the table's check once, its compaction, sizing and tracking per chunk), every

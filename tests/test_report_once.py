@@ -74,6 +74,7 @@ def test_the_page_and_the_printed_report_show_the_same_numbers(grid, tmp_path, c
     assert f"baseline {summary['baseline']:.3f}" in page
 
 
+@pytest.mark.slow
 def test_the_folds_the_report_chooses_are_said_in_both(grid):
     folds, note = report_folds(grid)
     assert folds == 3 and "min(5, sequences)" in note

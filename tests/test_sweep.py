@@ -237,6 +237,7 @@ def test_tidy_table(small_table, scene):
     assert comb["baseline"].sum() == 1
 
 
+@pytest.mark.slow
 def test_rows_equal_direct_track_and_eval(small_table, scene, tmp_path):
     """A sweep row is what track + write_lane + evaluate_files + metrics_table give for that config
     (same names): the rows its result files carry (boxes as printed), scored from the files."""
@@ -290,6 +291,7 @@ def test_deterministic_in_memory_equals_directory(small_table, scene, tmp_path):
     assert len(c) == len(expand(spec)) * 4
 
 
+@pytest.mark.slow
 def test_chunking_and_track_slots_do_not_change_results(small_table, scene):
     """Chunks of 2 (later chunks run with track slots sized from the group's earlier peaks) give the
     same rows as one chunk per option group."""
@@ -351,6 +353,7 @@ def test_compacted_detection_slots_change_nothing(small_table, scene, monkeypatc
     assert packed.valid2d.sum() < split.valid2d.sum()
 
 
+@pytest.mark.slow
 def test_duplicate_outputs_scored_once_same_result(scene):
     """kf_q does not matter to the fixed-gain filter: identical outputs, identical rows."""
     spec = small_spec(scene, params={"kf_q": [0.5, 1.0, 2.0]}, options={})

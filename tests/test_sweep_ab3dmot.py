@@ -149,6 +149,7 @@ def test_a_grid_tune_may_spend_its_budget_on_the_whole_grid(scene):
     assert r.table["config_hash"].nunique() >= 4
 
 
+@pytest.mark.slow
 def test_stale_columns_give_a_row_its_tracks_last_3d_box(scene, tmp_path):
     """kitti-stale: a row without its own 3D detection carries its track's last one (box and rot_y,
     the 2D score kept); with kitti it carries the placeholders, and rows with their own are equal."""
@@ -195,6 +196,7 @@ def test_car_and_pedestrian_on_kitti_with_their_class_average(kitti_root, tmp_pa
 
 @pytest.mark.parametrize("output, columns", [("detections", "kitti"), ("detections", "kitti-stale"),
                                              ("filtered", "kitti")])
+@pytest.mark.slow
 def test_rows_scored_by_their_keys_equal_rows_scored_by_their_values(scene, output, columns):
     """The sweep's AB3DMOT lanes find distinct boxes from slot / 3D-source keys (results.kitti_rows):
     the same figures as finding them from the values' bits, and as the padded arrays, some lanes only too."""

@@ -200,6 +200,7 @@ def test_option_groups_with_the_same_ids_keep_their_own_scores(scene, ground, tm
     assert_rows_equal_alone(table, split, gt, tmp_path)
 
 
+@pytest.mark.slow
 def test_evaluate_arrays_of_mixed_option_groups_equals_each_alone(ground):
     """One batch of lanes from several option groups (per-lane boxes, repeated ids) scores each lane
     as it scores alone."""

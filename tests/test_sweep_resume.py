@@ -103,6 +103,7 @@ def _v1_spec() -> dict:
     return doc["spec"]
 
 
+@pytest.mark.slow
 def test_v1_directory_resumes_recomputing_what_an_older_version_computed(tmp_path):
     """A directory of hash scheme 1 is still this sweep's (same config hashes and chunk ids), but its
     chunks were computed by results version 1 (before ``version.RESULTS_VERSION`` was recorded): they
