@@ -14,6 +14,7 @@ from dfrmot_jax.data import load_split
 from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
 from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_OTHER_COLUMNS, ab3dmot_columns
 from dfrmot_jax.results import ClassRun, write_runs
+from dfrmot_jax.report.html import html_report
 from dfrmot_jax.sweep import SweepConfigError, expand, params_of, parse_spec, plan, resolve_data, run_sweep, sweep_report
 from dfrmot_jax.sweep.plan import option_groups
 from dfrmot_jax.synthetic import make_scene
@@ -74,7 +75,13 @@ def test_a_sweep_scores_ab3dmot_as_its_written_files(scene, tmp_path, iou, colum
 
 
 @pytest.mark.slow
-def test_the_report_ranks_by_samota_and_refuses_its_folds(scene):
+def test_the_report_ranks_by_samota_and_refuses_its_folds(scene, tmp_path):
+    """Folds asked for sAMOTA are an error; the sweep file's folds (for the sums over sequences) are
+    not taken for it: its report, and its page, go without a cross-validation."""
+    out = tmp_path / "stored"
+    run_sweep(_spec(scene, report={"folds": 2}, metrics={"ab3dmot": "3d:0.25"}), out, progress=False, log=lambda m: None)
+    assert sweep_report(out, objective="sAMOTA").cv is None and sweep_report(out).cv is not None
+    assert html_report(out, tmp_path / "page.html", objective="sAMOTA").is_file()
     df = run_sweep(_spec(scene), progress=False, log=lambda m: None)
     rep = sweep_report(df, objective="sAMOTA")
     comb = df[df["sequence"] == "COMBINED"]

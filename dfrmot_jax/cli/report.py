@@ -47,8 +47,9 @@ def run(args) -> int:
     (whose folds, when nobody set them, are then :func:`report_folds`'s, printed too)."""
     contrast = parse_contrast(args.contrast) if getattr(args, "contrast", None) else None
     html = getattr(args, "html", None)
-    folds, note = report_folds(args.dir, args.folds) if html is not None else (args.folds, "")
-    rep = sweep_report(Path(args.dir), objective=args.objective or _manifest_objective(args.dir), folds=folds,
+    objective = args.objective or _manifest_objective(args.dir)
+    folds, note = report_folds(args.dir, args.folds, objective) if html is not None else (args.folds, "")
+    rep = sweep_report(Path(args.dir), objective=objective, folds=folds,
                        top=10 if args.top is None else args.top, contrast=contrast, cls=getattr(args, "cls", None),
                        folds_note=note)
     print(rep.text)

@@ -216,8 +216,9 @@ def html_report(results, out, *, objective: str | None = None, folds: int | None
     default: the directory's), the folds :func:`~.report.report_folds`'s. To print the report as
     well, compute it once and hand it to :func:`write_html` (``dfrmot report --html`` does)."""
     d = Path(results)
-    folds, note = report_folds(d, folds)
-    rep = sweep_report(d, objective=objective or read_manifest(d).get("objective") or "HOTA", folds=folds,
+    objective = objective or read_manifest(d).get("objective") or "HOTA"
+    folds, note = report_folds(d, folds, objective)
+    rep = sweep_report(d, objective=objective, folds=folds,
                        top=top, contrast=contrast, cls=cls, folds_note=note)
     return write_html(rep, out)
 

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from ..metrics.ab3dmot.sums import other_sum, python_of
+from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
 from ..family import DEFAULT_FAMILY
 from ..family_configs import family_config
 from ..metrics.columns import canonical_objective
@@ -76,12 +77,15 @@ class SweepReport:
         return pd.concat([view, pd.DataFrame([{**row, "rank": label}])], ignore_index=True)
 
 
-def report_folds(directory, folds: int | None = None) -> tuple[int | None, str]:
+def report_folds(directory, folds: int | None = None, objective: str = "") -> tuple[int | None, str]:
     """The folds of a directory's report that comes with a page (``dfrmot report --html``, the
     demo), and a note when chosen here: ``folds`` when given, else the sweep file's, else for a
-    sweep of 2 or more sequences min(5, sequences). A tune keeps its own nested cross-validation."""
+    sweep of 2 or more sequences min(5, sequences). A tune keeps its own nested cross-validation;
+    an AB3DMOT ``objective`` has none (its figures are not sums over sequences)."""
     if folds is not None:
         return folds, ""
+    if canonical_objective(objective or "HOTA") in AB3DMOT_COLUMNS:
+        return None, ""
     m = read_manifest(Path(directory))
     n = len(m.get("lengths") or [])
     if m.get("kind") == "tune" or m.get("folds") or n < 2:
@@ -104,15 +108,17 @@ class _Source:
     family: str | None = None           # the table's tracker family (None: read from its columns)
 
 
-def _source(results, folds, contrast, cls, family=None) -> _Source:
+def _source(results, folds, contrast, cls, family=None, objective: str = "") -> _Source:
     """The table (given, or a directory's with its manifest's folds, contrast, class and tracker family
-    as defaults)."""
+    as defaults). The sweep file's folds are not taken for an AB3DMOT ``objective``: its figures are
+    not sums over sequences, so its rows cannot be folded (``--folds`` given says so, an error)."""
     if isinstance(results, pd.DataFrame):
         src = _Source(results, folds, contrast, cls, family=family)
     else:
         d = Path(results)
         m = read_manifest(d)
-        src = _Source(load_results(d, allow_partial=True), m.get("folds") if folds is None else folds,
+        file_folds = None if objective in AB3DMOT_COLUMNS else m.get("folds")
+        src = _Source(load_results(d, allow_partial=True), file_folds if folds is None else folds,
                       contrast if contrast is not None or not m.get("contrast") else m["contrast"],
                       m.get("report_class") if cls is None else cls, m.get("configs"), d, m,
                       manifest_family(m) if family is None else family)
@@ -141,9 +147,9 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     class's sequences folded on their own (:func:`cross_validate`). ``folds_note``: how ``folds``
     was chosen (:func:`report_folds`), said beside the cross-validation. ``family``: the tracker family of
     its configs (its columns; default: a directory's manifest's, else read from them: ``table_family``)."""
-    src = _source(results, folds, contrast, cls, family)
-    fam = src.family
     objective = canonical_objective(objective)
+    src = _source(results, folds, contrast, cls, family, objective)
+    fam = src.family
     if not isinstance(top, (int, np.integer)) or isinstance(top, bool) or top < 1:
         raise ValueError(f"top={top!r}: expected a whole number >= 1 (configs listed)")
     full = canonical_params(src.df, fam)         # one value per setting (the config hash's identity)
