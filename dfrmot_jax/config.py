@@ -13,7 +13,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .family import FamilyConfig
+from .family import FamilyConfig, number_problem
 
 # The authors' C++ keeps ALPHA, BETA, GAMMA and DELTA_T = 1./FPS (FPS = 1000) as C++ ``float`` and
 # fills double matrices with them, gains diag(ALPHA, BETA / DELTA_T, GAMMA / (DELTA_T^2 / 2)) in
@@ -207,20 +207,7 @@ def param_problem(name: str, value) -> str | None:
     needed. The one check of parameters: ``validate_params`` and the sweep files' validation call it."""
     if name not in PARAM_RANGES:
         return f"unknown parameter; parameters are {list(Params._fields)}"
-    if isinstance(value, (str, bytes, bool, np.bool_)):
-        return "not a number"
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        return "not a number"
-    lo, hi = PARAM_RANGES[name]
-    if not np.all(np.isfinite(arr)):
-        return "not finite"
-    if np.any(arr < lo) or np.any(arr > hi):
-        return f"outside the valid range [{lo:g}, {hi:g}]"
-    if name in INT_PARAMS and np.any(arr != np.round(arr)):
-        return "expected an integer"
-    return None
+    return number_problem(value, PARAM_RANGES[name], name in INT_PARAMS)
 
 
 PRESETS: dict[str, tuple[Params, Options]] = {

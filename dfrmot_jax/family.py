@@ -20,19 +20,43 @@ family through these two records, never to one family's modules:
 ``family`` is a static option of a sweep (``[options] family = "dfr"``, the default
 :data:`DEFAULT_FAMILY`): which family's ``Params`` / ``Options`` its tables hold. A family joins by
 registering one more object of each record (``families.register``). This module names no family's
-code and imports nothing.
+code and imports nothing of the package (NumPy only: :func:`number_problem`, the check of a
+parameter's value every family's ``param_problem`` makes).
 """
 
 from __future__ import annotations
 
 from typing import Any, Callable, Mapping, NamedTuple
 
-__all__ = ["BOX_FORMATS", "DEFAULT_FAMILY", "FamilyConfig", "TrackerFamily", "config_problems", "family_problems"]
+import numpy as np
+
+__all__ = ["BOX_FORMATS", "DEFAULT_FAMILY", "FamilyConfig", "TrackerFamily", "config_problems", "family_problems",
+           "number_problem"]
 
 #: the family of a sweep or a stored table that names none (every table written before families existed)
 DEFAULT_FAMILY = "dfr"
 #: how result files print a row's image box (``TrackerFamily.box_format``): 6 significant digits, or ``%f``
 BOX_FORMATS = ("g6", "f6")
+
+
+def number_problem(value, bounds: tuple[float, float], integer: bool) -> str | None:
+    """What is wrong with ``value`` (a number or an array of them) for a parameter taking numbers in
+    ``bounds`` (inclusive; ``integer``: integers only), or None: not a number, not finite, outside
+    the range, not an integer."""
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        return "not a number"
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return "not a number"
+    lo, hi = bounds
+    if not np.all(np.isfinite(arr)):
+        return "not finite"
+    if np.any(arr < lo) or np.any(arr > hi):
+        return f"outside the valid range [{lo:g}, {hi:g}]"
+    if integer and np.any(arr != np.round(arr)):
+        return "expected an integer"
+    return None
 
 
 class FamilyConfig(NamedTuple):
@@ -196,8 +220,8 @@ def family_problems(family: TrackerFamily) -> list[str]:
     """What keeps ``family`` from being a family (empty: nothing): its config's problems, and every
     field of the tracker present."""
     out = config_problems(family.config)
-    out += [f"{name} is not callable" for name in TrackerFamily._fields if name not in ("config", "box_format", "oracle")
-            and not callable(getattr(family, name))]
+    out += [f"{name} is not callable" for name in TrackerFamily._fields
+            if name not in ("config", "box_format", "oracle") and not callable(getattr(family, name))]
     if family.box_format not in BOX_FORMATS:
         out.append(f"box_format {family.box_format!r}: expected one of {BOX_FORMATS}")
     if not isinstance(family.oracle, str) or not family.oracle.startswith("dfrmot_jax.testing."):

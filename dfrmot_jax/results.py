@@ -22,7 +22,7 @@ from .io.atomic import write_text_atomic
 from .io.columns import (COLUMN_SETS, PLACEHOLDER_DIMS, PLACEHOLDER_LOC, PLACEHOLDER_ROT_Y, PLACEHOLDER_SCORE,
                          as_written, invert_box3d_extent)
 from .io.result_writer import tracking_lines
-from .rows import Rows
+from .rows import RowSelection
 
 
 class LaneRows(NamedTuple):
@@ -163,20 +163,8 @@ def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRo
     """
     frames, options = res.frames, res.options
     ids = np.asarray(res.ids)
-    _, T, K = ids.shape
-    chosen = np.arange(ids.shape[0]) if lanes is None else np.asarray(lanes, np.int64)
-    flat = np.flatnonzero((ids if lanes is None else ids[chosen]) >= 0)
-    b, tk = np.divmod(flat, T * K)
-    t, k = np.divmod(tk, K)
-    at = flat if lanes is None else chosen[b] * (T * K) + tk     # the rows in res' own lanes, flat
-
-    def rows_of(a) -> np.ndarray:
-        """The rows' values of a [B, T, K, ...] array (or of a :class:`~dfrmot_jax.rows.Rows`)."""
-        if isinstance(a, Rows):
-            return a.values if lanes is None else a.lanes(chosen)
-        a = np.asarray(a)
-        return a.reshape((-1,) + a.shape[3:])[at]
-
+    sel = RowSelection.of(ids, lanes)
+    b, t, k, tk, rows_of = sel.lane, sel.t, sel.slot, sel.tk, sel.values
     src = rows_of(res.src3).astype(np.int64)
     has3 = src >= 0
     own = has3 if res.own3 is None else rows_of(res.own3).astype(bool) & has3
@@ -208,21 +196,22 @@ def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRo
         # the objects' boxes are every lane's: written once per object slot, then gathered
         box = as_written(np.asarray(output_boxes(frames, options), np.float64).reshape(-1, 4), 6)[box_key]
     box3d = np.concatenate([dims, loc, rot_y[:, None]], axis=1)
-    return KittiRows(b, t, k, rows_of(ids).astype(np.int64), box, score, box3d, len(chosen), T, box_key, box3d_key)
+    return KittiRows(b, t, k, rows_of(ids).astype(np.int64), box, score, box3d, len(sel.chosen), ids.shape[1],
+                     box_key, box3d_key)
+
+
+def padded_rows(r: KittiRows, shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows ``r`` as padded arrays of an output's ``shape`` (B, T, K): boxes [B, T, K, 4], scores
+    [B, T, K] and box3d [B, T, K, 7], float64, NaN where there is no row."""
+    out = [np.full(tuple(shape) + tail, np.nan) for tail in ((4,), (), (7,))]
+    for a, v in zip(out, (r.box, r.score, r.box3d)):
+        a[r.lane, r.t, r.slot] = v
+    return out[0], out[1], out[2]
 
 
 def kitti_row_arrays(split: Split, res, columns: str = "kitti") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`kitti_rows` as padded arrays: boxes [B, T, K, 4], scores [B, T, K] and box3d
-    [B, T, K, 7], float64, NaN where there is no row."""
-    r = kitti_rows(split, res, columns)
-    shape = np.asarray(res.ids).shape
-    boxes = np.full(shape + (4,), np.nan)
-    boxes[r.lane, r.t, r.slot] = r.box
-    scores = np.full(shape, np.nan)
-    scores[r.lane, r.t, r.slot] = r.score
-    box3d = np.full(shape + (7,), np.nan)
-    box3d[r.lane, r.t, r.slot] = r.box3d
-    return boxes, scores, box3d
+    """:func:`kitti_rows` as padded arrays (:func:`padded_rows`)."""
+    return padded_rows(kitti_rows(split, res, columns), np.asarray(res.ids).shape)
 
 
 def _check_columns(columns: str) -> None:

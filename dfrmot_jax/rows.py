@@ -16,7 +16,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-__all__ = ["Rows", "row_starts", "lane_values"]
+__all__ = ["Rows", "RowSelection", "row_starts", "lane_values"]
 
 
 def row_starts(ids: np.ndarray) -> np.ndarray:
@@ -91,3 +91,39 @@ def lane_values(a, ids: np.ndarray, b: int, t0: int = 0, t1: int | None = None) 
     if isinstance(a, Rows):
         return a.lane(b, t0, t1)
     return np.asarray(a)[b, t0:t1][np.asarray(ids)[b, t0:t1] >= 0]
+
+
+class RowSelection(NamedTuple):
+    """The rows (``ids >= 0``) of some lanes of an output ``ids [B, T, K]``, in (lane, frame, slot)
+    order: ``lane`` [R] (the chosen lanes renumbered 0..L-1 in their order), ``t`` [R], ``slot``
+    [R], ``tk`` [R] = ``t K + slot``, ``at`` [R] each row's flat index into [B, T, K]; ``chosen``
+    [L] the lanes, ``every``: all lanes in order (no ``lanes`` given). What the result rows of every
+    tracker family are read through."""
+
+    lane: np.ndarray
+    t: np.ndarray
+    slot: np.ndarray
+    tk: np.ndarray
+    at: np.ndarray
+    chosen: np.ndarray
+    every: bool
+
+    @classmethod
+    def of(cls, ids: np.ndarray, lanes=None) -> "RowSelection":
+        """The rows of lanes ``lanes`` (default all) of ``ids`` [B, T, K]."""
+        ids = np.asarray(ids)
+        _, T, K = ids.shape
+        chosen = np.arange(ids.shape[0]) if lanes is None else np.asarray(lanes, np.int64)
+        flat = np.flatnonzero((ids if lanes is None else ids[chosen]) >= 0)
+        b, tk = np.divmod(flat, T * K)
+        t, k = np.divmod(tk, K)
+        at = flat if lanes is None else chosen[b] * (T * K) + tk     # the rows in the output's own lanes, flat
+        return cls(b, t, k, tk, at, chosen, lanes is None)
+
+    def values(self, a) -> np.ndarray:
+        """The rows' values of a [B, T, K, ...] array (or of a :class:`Rows`)."""
+        if isinstance(a, Rows):
+            return a.values if self.every else a.lanes(self.chosen)
+        a = np.asarray(a)
+        return a.reshape((-1,) + a.shape[3:])[self.at]
+

@@ -10,7 +10,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..family import FamilyConfig
+from ..family import FamilyConfig, number_problem
 
 __all__ = ["Params", "Options", "ALGORITHMS", "METRICS", "DISTANCE_METRICS", "PARAM_RANGES", "INT_PARAMS",
            "OPTION_CHOICES", "OPTION_RANGES", "PRESETS", "CLASSES", "MAX_CAPACITY", "ab3dmot_car",
@@ -138,20 +138,7 @@ def param_problem(name: str, value) -> str | None:
     nothing): the one check of parameters."""
     if name not in PARAM_RANGES:
         return f"unknown parameter; parameters are {list(Params._fields)}"
-    if isinstance(value, (str, bytes, bool, np.bool_)):
-        return "not a number"
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        return "not a number"
-    lo, hi = PARAM_RANGES[name]
-    if not np.all(np.isfinite(arr)):
-        return "not finite"
-    if np.any(arr < lo) or np.any(arr > hi):
-        return f"outside the valid range [{lo:g}, {hi:g}]"
-    if name in INT_PARAMS and np.any(arr != np.round(arr)):
-        return "expected an integer"
-    return None
+    return number_problem(value, PARAM_RANGES[name], name in INT_PARAMS)
 
 
 def option_problem(name: str, value) -> str | None:
