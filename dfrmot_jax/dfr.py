@@ -24,8 +24,8 @@ from .family import TrackerFamily
 from .report.columns import class_columns
 from .rows import lane_values
 
-__all__ = ["FAMILY", "compact_split", "lane_keys", "setting_problem", "output_slots", "table_problem", "unstable_gains", "unstable_message",
-           "unstable_rows"]
+__all__ = ["FAMILY", "compact_split", "lane_keys", "setting_problem", "output_slots", "table_problem", "unstable_gains",
+           "unstable_message", "unstable_rows"]
 
 
 def compact_split(split: Split, params: Params) -> Split:
@@ -126,4 +126,5 @@ FAMILY = TrackerFamily(
     prepare_frames=data.prepare_frames, compact_split=compact_split, default_capacity=api.default_capacity,
     output_slots=output_slots, rows=results.kitti_rows, row_arrays=results.kitti_row_arrays,
     class_run=results.class_run, write_runs=results.write_runs, table_problem=table_problem,
-    failing_rows=unstable_rows, setting_problem=setting_problem, lane_keys=lane_keys, box_format="g6", oracle="dfrmot_jax.testing.reference")
+    failing_rows=unstable_rows, setting_problem=setting_problem, lane_keys=lane_keys, box_format="g6",
+    oracle="dfrmot_jax.testing.reference")

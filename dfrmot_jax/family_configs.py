@@ -2,7 +2,8 @@
 table's columns and ``--help`` read (NumPy only: nothing here reaches JAX).
 
 ``CONFIGS``: family name -> its :class:`~dfrmot_jax.family.FamilyConfig`; :func:`family_config`
-looks one up. DFR-FastMOT (``"dfr"``) and AB3DMOT (``"ab3dmot"``) are registered. A family joins by one more entry here (its config, from a module of its own that
+looks one up. DFR-FastMOT (``"dfr"``) and AB3DMOT (``"ab3dmot"``) are registered. A family
+joins by one more entry here (its config, from a module of its own that
 reaches no JAX, as DFR-FastMOT's ``config.FAMILY_CONFIG``) and its tracker in
 :data:`dfrmot_jax.families.FAMILIES`, or at run time through :func:`dfrmot_jax.families.register`,
 which records both.

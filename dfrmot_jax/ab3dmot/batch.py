@@ -23,13 +23,15 @@ from .exact import runtime_zero
 from .tracker import Frames, State, StepOutput, decide, finish, init, predict, step
 
 __all__ = ["RunOutput", "run", "run_lane", "run_lanes", "pooled_affinity", "affinity_sizes", "ladder", "clear_programs",
-           "MAX_TRACKS", "data_capacity", "tracking_lanes", "frame_counts", "written_lines"]
+           "MAX_TRACKS", "data_capacity", "broadcast_lanes", "tracking_lanes", "frame_counts",
+           "written_lines"]
 
 
 class RunOutput(NamedTuple):
     """A batch's output (NumPy): ``ids`` [B, T, K] (-1: not written), ``src`` [B, T, K], ``boxes``
     [B, T, K, 7] (``StepOutput``'s fields per frame), ``next_id`` [B, T] (the id counter after
-    each frame), ``dropped`` [B, T] (births dropped per frame), and per lane [B]: ``overflow`` (births dropped), ``peak`` (most slots needed),
+    each frame), ``dropped`` [B, T] (births dropped per frame), and per lane [B]: ``overflow``
+    (births dropped), ``peak`` (most slots needed),
     ``pairs_left``, ``degenerate``, ``fallback`` (see ``tracker.State``): a lane is AB3DMOT's exactly
     when all of ``overflow``, ``pairs_left``, ``degenerate`` and ``fallback`` are 0; ``options``:
     the ``Options`` of the run (capacities grown, buckets chosen)."""
@@ -63,16 +65,10 @@ def affinity_sizes(n_det: int, tracks: int, buckets: int) -> tuple[tuple[int, in
     return tuple(out)
 
 
-#: ``pooled_affinity``'s pair lists: each size of the ladder ``PAIR_STEP`` times the next smaller
-PAIR_STEP = 2
-
-
-def ladder(total: int, levels: int, step: int = 4) -> tuple[int, ...]:
-    """Capacities ``ceil(total / 4^s)`` for s = levels - 1 .. 0, smallest first (distinct); with
-    ``step`` 2 the same span in halves (2 levels - 1 sizes)."""
-    if step == 2:
-        return tuple(sorted({max(1, -(-total // (2 ** s))) for s in range(2 * max(levels, 1) - 1)}))
-    return tuple(sorted({max(1, -(-total // (4 ** s))) for s in range(max(levels, 1))}))
+def ladder(total: int, levels: int) -> tuple[int, ...]:
+    """``pooled_affinity``'s list sizes: ``ceil(total / 2^s)`` for s = 2 levels - 2 .. 0, smallest
+    first (distinct): a span of 4^(levels - 1) in halves, each size twice the next smaller."""
+    return tuple(sorted({max(1, -(-total // (2 ** s))) for s in range(2 * max(levels, 1) - 1)}))
 
 
 def _switch(count, sizes, branch, *args):
@@ -98,9 +94,13 @@ def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
     zero = runtime_zero(jnp.max(pred.frame_count))
     mask = frame.valid[None, :, None] & (jnp.arange(k)[None, None, :] < pred.count[:, None, None])
 
-    def boxes(sel):
+    def pair(sel):
+        """(lane, detection, track slot) of each listed pair (flat index into [B, N, K])."""
         sel = jnp.minimum(sel, full - 1)
-        lane, i, j = sel // (n * k), (sel // k) % n, sel % k
+        return sel // (n * k), (sel // k) % n, sel % k
+
+    def boxes(sel):
+        lane, i, j = pair(sel)
         return det[i], trk[lane, j], (lane, j)
 
     def scatter(sel, values, fill):
@@ -112,8 +112,7 @@ def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
         det_c, trk_c = circle(det, zero), circle(trk, zero)
 
         def geometry(sel):
-            sel = jnp.minimum(sel, full - 1)
-            lane, i, j = sel // (n * k), (sel // k) % n, sel % k
+            lane, i, j = pair(sel)
             take_d = lambda v: v[i]                                             # noqa: E731
             take_t = lambda v: v[lane, j]                                       # noqa: E731
             return (tuple(map(take_d, det_fp)), tuple(map(take_t, trk_fp)), tuple(map(take_d, det_c)),
@@ -134,7 +133,7 @@ def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
             return apart, scatter(sel, bad, False), scatter(sel, hull, 0.0)
         return run
 
-    sizes = ladder(full, levels, PAIR_STEP)
+    sizes = ladder(full, levels)
     if "iou" not in metric:
         value, bad = _switch(jnp.sum(mask), sizes, stage_pairs, mask)
         return value.astype(jnp.float32), bad & mask
@@ -149,7 +148,7 @@ def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
             return scatter(sel, inter, 0.0), scatter(sel, bad, False)
         return run
 
-    inter, clip_bad = _switch(jnp.sum(cand), ladder(full, levels + 1 if levels > 1 else 1, PAIR_STEP), stage_clip,
+    inter, clip_bad = _switch(jnp.sum(cand), ladder(full, levels + 1 if levels > 1 else 1), stage_clip,
                               cand)
     value = combine(det[None, :, None], trk[:, None, :], metric, inter, hull, zero)
     return value.astype(jnp.float32), (bad | clip_bad) & mask
@@ -215,6 +214,14 @@ def clear_programs() -> None:
     _PROGRAMS.clear()
 
 
+def broadcast_lanes(params: Params) -> Params:
+    """``params`` as lanes: every leaf [B] (``as_arrays``' dtypes; scalars broadcast, one lane when
+    all are)."""
+    p = as_arrays(params)
+    b = max([np.shape(v)[0] for v in p if np.ndim(v)] or [1])
+    return Params(*(np.broadcast_to(np.atleast_1d(v), (b,)) for v in p))
+
+
 def tracking_lanes(params: Params) -> tuple[Params, np.ndarray]:
     """The lanes that track differently, and which of them each lane is: ``min_hits`` and
     ``score_threshold`` choose the written lines only (a track's life depends on ``threshold`` and
@@ -264,9 +271,7 @@ def run(params: Params, frames: Frames, options: Options, first_id: int = 1, gro
     ``MAX_TRACKS``); the output says which ``options`` it ran with. Every pair is clipped
     (``pooled_affinity``): ``pairs_left`` is 0."""
     validate(params, options)
-    p = as_arrays(params)
-    b = max([np.shape(v)[0] for v in p if np.ndim(v)] or [1])
-    p = Params(*(np.broadcast_to(np.atleast_1d(v), (b,)) for v in p))
+    p = broadcast_lanes(params)
     core, of = tracking_lanes(p)
     t = np.shape(frames.valid)[0]
     if options.buckets == 0:
@@ -276,18 +281,15 @@ def run(params: Params, frames: Frames, options: Options, first_id: int = 1, gro
     with jax.enable_x64(True):
         f = Frames(np.asarray(frames.boxes, np.float64), np.asarray(frames.valid, bool),
                    np.asarray(frames.score, np.float64), np.asarray(frames.reset, bool))
+        c = core.threshold.shape[0]
         while True:
-            c = core.threshold.shape[0]
             states = jax.tree.map(lambda v: np.repeat(np.asarray(v)[None], c, 0), init(options, first_id))
             out, counters = _program(options)(core, f, states)
             out = jax.tree.map(np.asarray, out)
-            counters = [np.asarray(c) for c in counters]
-            more = {}
-            if grow and counters[0].any() and options.capacity < MAX_TRACKS:
-                more["capacity"] = min(2 * options.capacity, MAX_TRACKS)
-            if not more:
+            counters = [np.asarray(v) for v in counters]        # overflow first
+            if not (grow and counters[0].any() and options.capacity < MAX_TRACKS):
                 break
-            options = options._replace(**more)
+            options = options._replace(capacity=min(2 * options.capacity, MAX_TRACKS))
     ids = written_lines(out.ids[of], out.hits[of], out.src[of], f.score.reshape(-1), frame_counts(f.reset),
                         p.min_hits, p.score_threshold)
     return RunOutput(ids, out.src[of], out.boxes[of], out.next_id[of], out.dropped[of],

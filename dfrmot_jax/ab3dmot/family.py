@@ -28,14 +28,15 @@ from ..data import CLASS_NAMES, Split
 from ..family import TrackerFamily
 from ..io.atomic import write_text_atomic
 from ..io.columns import as_written_fixed
-from ..results import KittiRows
-from ..rows import Rows, lane_values
+from ..results import KittiRows, padded_rows
+from ..rows import Rows, RowSelection, lane_values
 from . import batch, tracker
-from .config import FAMILY_CONFIG, Options, Params, as_arrays, validate
+from .config import FAMILY_CONFIG, Options, Params, validate
 from .results import LINE_FORMAT
 
 __all__ = ["FAMILY", "Prepared", "Ab3dmotRun", "prepare_frames", "track", "rows", "row_arrays", "class_run",
-           "write_runs", "default_capacity", "setting_problem", "call_lanes", "output_slots", "lane_keys", "BYTES_PER_SLOT"]
+           "write_runs", "default_capacity", "setting_problem", "call_lanes", "output_slots", "lane_keys",
+           "BYTES_PER_SLOT"]
 
 #: a lane's output bytes per track slot and frame: ids, the detection index (int32 each), the image
 #: box (4 float64), the 3D box (7 float64), whether a row (bool)
@@ -109,8 +110,9 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
     """Every lane of ``params`` (scalars: one lane; leaves [B]) over ``split`` (or its
     :class:`Prepared` frames): a :class:`dfrmot_jax.api.TrackResult` (see the module's docstring;
     ``own3`` marks the rows, ``capacity`` [B] the slots each lane ran with). ``lanes_per_call``:
-    tracking lanes per compiled call (default all; lanes that track alike share one, :func:`call_lanes`); ``grow``: a call whose lanes run out of track slots runs
-    again with twice as many (:func:`.batch.run`); ``rows_only``: ``boxes`` and ``box3`` as
+    tracking lanes per compiled call (default all; lanes that track alike share one,
+    :func:`call_lanes`); ``grow``: a call whose lanes run out of track slots runs again with twice
+    as many (:func:`.batch.run`); ``rows_only``: ``boxes`` and ``box3`` as
     :class:`dfrmot_jax.rows.Rows`. ``detail`` is always on (the rows' detections come with the ids).
     A lane where AB3DMOT's own run would have stopped (degenerate geometry) or whose greedy sort
     AB3DMOT breaks differently is named in a warning."""
@@ -120,10 +122,8 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
     if not options.boxes:
         raise ValueError("AB3DMOT: boxes = false writes no 3D boxes, which the result rows carry; keep boxes = true")
     prep = split if isinstance(split, Prepared) else prepare_frames(split, options)
-    p = as_arrays(params)
-    b = max([np.shape(v)[0] for v in p if np.ndim(v)] or [1])
-    p = Params(*(np.broadcast_to(np.atleast_1d(v), (b,)) for v in p))
-    calls = call_lanes(batch.tracking_lanes(p)[1], max(1, int(lanes_per_call or b)))
+    p = batch.broadcast_lanes(params)
+    calls = call_lanes(batch.tracking_lanes(p)[1], max(1, int(lanes_per_call or len(p.threshold))))
     outs = [batch.run(Params(*(v[lanes] for v in p)), prep.frames, options, grow=grow) for lanes in calls]
     back = np.argsort(np.concatenate(calls), kind="stable")     # (each lane's place among the calls' lanes)
     k = max(o.ids.shape[2] for o in outs)
@@ -156,36 +156,20 @@ def rows(split: Split, res: TrackResult, columns: str = "kitti", lanes=None) -> 
     as ``%f`` reads back. ``columns`` ("kitti" or "kitti-stale") changes nothing: each row carries
     its own 3D box."""
     ids = np.asarray(res.ids)
-    _, T, K = ids.shape
-    chosen = np.arange(ids.shape[0]) if lanes is None else np.asarray(lanes, np.int64)
-    flat = np.flatnonzero((ids if lanes is None else ids[chosen]) >= 0)
-    b, tk = np.divmod(flat, T * K)
-    t, k = np.divmod(tk, K)
-    at = flat if lanes is None else chosen[b] * (T * K) + tk
-
-    def rows_of(a) -> np.ndarray:
-        if isinstance(a, Rows):
-            return a.values if lanes is None else a.lanes(chosen)
-        a = np.asarray(a)
-        return a.reshape((-1,) + a.shape[3:])[at]
-
+    sel = RowSelection.of(ids, lanes)
+    rows_of = sel.values
     src = rows_of(res.src3).astype(np.int64)
     box = as_written_fixed(np.asarray(split.box3d, np.float64).reshape(-1, 4)[src])
     score = as_written_fixed(np.asarray(split.score3d, np.float64).reshape(-1)[src])
     state = rows_of(res.box3).astype(np.float64)
     box3d = as_written_fixed(state[:, [6, 5, 4, 0, 1, 2, 3]])
-    return KittiRows(b, t, k, rows_of(ids).astype(np.int64), box, score, box3d, len(chosen), T)
+    return KittiRows(sel.lane, sel.t, sel.slot, rows_of(ids).astype(np.int64), box, score, box3d, len(sel.chosen),
+                     ids.shape[1])
 
 
 def row_arrays(split: Split, res: TrackResult, columns: str = "kitti") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`rows` as padded arrays: boxes [B, T, K, 4], scores [B, T, K] and box3d [B, T, K, 7],
-    float64, NaN where there is no row."""
-    r = rows(split, res, columns)
-    shape = np.asarray(res.ids).shape
-    out = [np.full(shape + tail, np.nan) for tail in ((4,), (), (7,))]
-    for a, v in zip(out, (r.box, r.score, r.box3d)):
-        a[r.lane, r.t, r.slot] = v
-    return tuple(out)
+    """:func:`rows` as padded arrays (:func:`dfrmot_jax.results.padded_rows`)."""
+    return padded_rows(rows(split, res, columns), np.asarray(res.ids).shape)
 
 
 class Ab3dmotRun(NamedTuple):
@@ -288,5 +272,6 @@ FAMILY = TrackerFamily(
     config=FAMILY_CONFIG, init=tracker.init, step=tracker.step, run_batch=batch.run, track=track,
     prepare_frames=prepare_frames, compact_split=compact_split, default_capacity=default_capacity,
     output_slots=output_slots, rows=rows, row_arrays=row_arrays, class_run=class_run, write_runs=write_runs,
-    table_problem=table_problem, failing_rows=failing_rows, setting_problem=setting_problem, lane_keys=lane_keys, box_format="f6",
+    table_problem=table_problem, failing_rows=failing_rows, setting_problem=setting_problem, lane_keys=lane_keys,
+    box_format="f6",
     oracle="dfrmot_jax.testing.ab3dmot_oracle")

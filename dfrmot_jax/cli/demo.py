@@ -1,7 +1,8 @@
 """``dfrmot demo``: the main job on a synthetic scene, no data needed. A synthetic KITTI-layout scene
 (labels, calibration, 2D and 3D detections: :func:`~dfrmot_jax.synthetic.make_scene`) is written to
 ``DIR/scene``, a sweep file over it to ``DIR/demo.toml`` (the dfr2023 preset as baseline and a grid
-of :data:`GRID`; with ``--family ab3dmot`` AB3DMOT's car preset and its grid, ``GRIDS``), and the sweep is run as ``dfrmot sweep`` runs it (:func:`~dfrmot_jax.sweep.run_sweep`:
+of :data:`GRID`; with ``--family ab3dmot`` AB3DMOT's car preset and its grid, ``GRIDS``), and the
+sweep is run as ``dfrmot sweep`` runs it (:func:`~dfrmot_jax.sweep.run_sweep`:
 every config tracked in one vmapped call and scored) into ``DIR/sweep``; the best configs are printed
 beside the baseline, and the report of the folder (computed once, :func:`~dfrmot_jax.sweep.sweep_report`)
 is written next to its results as ``DIR/sweep/report.html``.

@@ -33,8 +33,8 @@ from .track_parser import add_parser, config_help  # this command's parser (it n
 __all__ = ["add_parser", "run", "config_help", "parse_seqs", "class_settings"]
 
 
-def _classes(text: str, classes_of=None) -> list[str]:
-    known = classes_of or preset_family("dfr2023").classes
+def _classes(text: str, known) -> list[str]:
+    """The classes of ``--class`` (comma-separated, each once), each one of ``known`` (the family's)."""
     classes = [c.strip() for c in text.split(",") if c.strip()]
     bad = [c for c in classes if c not in known]
     if bad or not classes or len(set(classes)) != len(classes):

@@ -77,8 +77,7 @@ class LaneScorer:
     def __init__(self, gt: PreparedGT, offsets, lanes_per_batch: int = 16, similarity: str = "2d",
                  as_written: bool | str = False):
         self.gt = gt
-        self.as_written = {False: None, True: "g6"}.get(as_written, as_written) if not isinstance(as_written, str) \
-            else as_written
+        self.as_written = as_written if isinstance(as_written, str) else "g6" if as_written else None
         if self.as_written not in (None, "g6", "f6"):
             raise ValueError(f"as_written={as_written!r}: expected False, True (\"g6\") or \"f6\"")
         self.offsets = np.asarray(offsets, np.int64)
