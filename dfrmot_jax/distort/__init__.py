@@ -101,11 +101,13 @@ below is importable from ``dfrmot_jax.distort`` itself.
 from __future__ import annotations
 
 from .bursts import burst_draw, burst_length, occluded
-from .clutter import ground_xz, pad_for_clutter
+from .clutter import Placement3D, ground_xz, pad_for_clutter, place_3d
 from .draws import BURST_TAG, lane_hash, normal, stream_hash, uniform
 from .exact import project_box
 from .hook import FrameDistortion, distort_frame, distort_lanes, distort_split
 from .identity import gt_identity, pad_identity
+from .lanes import (LEVELS_2D, Detections3D, DistortedLane, LaneDistortion, distinct_lanes, distortion_3d, frames_3d, is_zero, lane_params,
+                    only_3d, read_back, split_detections)
 from .spec import (
                    ASPECT2_Q,
                    BURST_DISTS,
@@ -140,8 +142,9 @@ __all__ = [
     "ASPECT2_Q", "BURST_DISTS", "BURST_LEN", "BURST_RATE", "BURST_TAG", "CAR_DIMS", "CAR_Y", "CLUTTER_XZ",
     "CLUTTER_Z", "DEFAULT_P2", "FREE_DIST", "FREE_IOU", "GROUPS", "KINDS", "METRES_PER_PIXEL", "N_QUANTILES",
     "SCORE2_Q", "SCORE3_PER_SCORE2", "SCORE3_Q", "WIDTH2_Q",
-    "DistortParams", "DistortSpec", "FrameDistortion",
+    "LEVELS_2D", "Detections3D", "DistortParams", "DistortSpec", "FrameDistortion", "DistortedLane", "LaneDistortion", "Placement3D",
     "burst_draw", "burst_length", "cast_params", "check_params", "distort_frame", "distort_lanes", "distort_split",
+    "distinct_lanes", "distortion_3d", "frames_3d", "is_zero", "lane_params", "only_3d", "place_3d", "read_back", "split_detections",
     "ground_xz", "gt_identity", "lane_hash", "level_params", "make_spec", "normal", "occluded", "pad_for_clutter",
     "pad_identity", "project_box", "stack_distort", "stream_hash", "uniform", "used_groups",
 ]
