@@ -29,10 +29,10 @@ MAX_OBJECTS = MAX_ROWS
 
 #: a TrackResult's fields: the tracker's own output (``core.run.BatchOutput``, gathered over the
 #: lanes' calls) and what ``track`` adds: the capacity each lane ran with, the frames, the options
-TRACK_RESULT_FIELDS = BatchOutput._fields + ("capacity", "frames", "options")
+TRACK_RESULT_FIELDS = BatchOutput._fields + ("capacity", "frames", "options", "distortion")
 
 
-class TrackResult(namedtuple("TrackResult", TRACK_RESULT_FIELDS)):
+class TrackResult(namedtuple("TrackResult", TRACK_RESULT_FIELDS, defaults=(None,))):
     """Outputs of a batch of B lanes over a split of T frames: the fields of
     :class:`dfrmot_jax.core.run.BatchOutput`, then ``capacity``, ``frames``, ``options``.
 
@@ -44,7 +44,9 @@ class TrackResult(namedtuple("TrackResult", TRACK_RESULT_FIELDS)):
     [B, T, K] int32, own3 [B, T, K] bool and, output "filtered", box3 [B, T, K, 6] float32: the 3D
     detection each row carries and the tracks' filtered 3D corners (``core.step.StepOutput``).
     capacity [B] the capacity each lane ran with; frames: the ``Frames`` tracked; options: the
-    validated ``Options``. With ``track(rows_only=True)`` a lane's own boxes and box3 are
+    validated ``Options``; distortion: with ``track(distortion=...)`` a ``distort.LaneDistortion``
+    (each lane's levels, the spec, the frames it read): what the rows read each lane's own
+    distorted 3D detections back from (else None). With ``track(rows_only=True)`` a lane's own boxes and box3 are
     :class:`dfrmot_jax.rows.Rows` (their values at ids >= 0 only).
     """
 
@@ -274,9 +276,13 @@ class _Outputs:
             for name in self.packed:
                 got[name] = Rows(np.concatenate(self.lane_rows[name]), start, got["ids"].shape[1])
         boxes = got["boxes"] if per_lane_boxes else output_boxes(frames, options)
+        lanes = None
+        if inputs.extra is not None:
+            spec, gid2, gid3 = inputs.extra
+            lanes = distort.LaneDistortion(inputs.distortion, spec, frames, gid2, gid3)
         return TrackResult(ids=got["ids"], boxes=boxes, dropped=self.dropped, overflow=overflow, peak=self.peak,
                            src3=got.get("src3"), own3=got.get("own3"), box3=got.get("box3"), capacity=capacity,
-                           frames=frames, options=options)
+                           frames=frames, options=options, distortion=lanes)
 
 
 def _compacted(split: Split, frames: Frames, params: Params, options: Options):

@@ -15,7 +15,7 @@ import hashlib
 import numpy as np
 import pandas as pd
 
-from . import api, data, results
+from . import api, data, distort, results
 from .config import FAMILY_CONFIG, MIN_CAPACITY, Options, Params, keep_thresholds
 from .core import run, step
 from .core.filters import fixed_gain_radius
@@ -102,7 +102,8 @@ def lane_keys(res, base) -> list[bytes]:
     """One digest per lane of what its rows carry (``TrackerFamily.lane_keys``): the options, ``base``
     (the lane's digest of its ids and own image boxes) and, per row, the 3D source (``src3``,
     ``own3``); with output "filtered" also the lane's own 3D boxes. (With output "detections" a
-    row's score and 3D box follow from the options, its slot and its 3D source, on the one split.)"""
+    row's score and 3D box follow from the options, its slot and its 3D source, on the one split;
+    with a distortion, the lane's levels and seed too.)"""
     ids = np.asarray(res.ids)
     rows = ids >= 0
     filtered = res.options.output == "filtered"
@@ -112,6 +113,8 @@ def lane_keys(res, base) -> list[bytes]:
         r = rows[b]
         h = hashlib.sha1(repr(res.options).encode())
         h.update(base[b])
+        if res.distortion is not None:         # (its rows' scores and 3D boxes are the lane's own detections')
+            h.update(res.distortion.key(b))
         h.update(src[b][r].astype(np.int32).tobytes())
         h.update(np.packbits(own[b][r]).tobytes())
         if filtered:
@@ -127,4 +130,4 @@ FAMILY = TrackerFamily(
     output_slots=output_slots, rows=results.kitti_rows, row_arrays=results.kitti_row_arrays,
     class_run=results.class_run, write_runs=results.write_runs, table_problem=table_problem,
     failing_rows=unstable_rows, setting_problem=setting_problem, lane_keys=lane_keys, box_format="g6",
-    oracle="dfrmot_jax.testing.reference")
+    oracle="dfrmot_jax.testing.reference", distortion_spec=distort.make_spec)

@@ -153,6 +153,9 @@ class TrackerFamily(NamedTuple):
                       ``%g``) or ``"f6"`` (``%f``); a sweep scores the boxes as the files read back.
     oracle:           the module of its independent NumPy implementation, the oracle its parity tests
                       compare with (under ``dfrmot_jax.testing``, which nothing in the package imports).
+    distortion_spec:  ``(options, clutter_slots=, burst_max=, burst_dist=, frames=, dps=) -> DistortSpec``:
+                      the static spec of a distortion study's lanes on its frames (``track(distortion=,
+                      spec=)`` takes it); None: the family takes no distortion of its detections.
     """
 
     config: FamilyConfig
@@ -174,6 +177,7 @@ class TrackerFamily(NamedTuple):
     lane_keys: Callable
     box_format: str
     oracle: str
+    distortion_spec: Callable | None = None
 
     @property
     def name(self) -> str:

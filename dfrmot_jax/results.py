@@ -17,6 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .config import Options
+from .distort import split_detections
 from .data import CLASS_NAMES, Frames, Split, object_boxes, object_slots
 from .io.atomic import write_text_atomic
 from .io.columns import (COLUMN_SETS, PLACEHOLDER_DIMS, PLACEHOLDER_LOC, PLACEHOLDER_ROT_Y, PLACEHOLDER_SCORE,
@@ -52,16 +53,19 @@ def output_boxes(frames: Frames, options: Options, boxes: np.ndarray | None = No
     return boxes
 
 
-def slot_scores(split: Split, frames: Frames, options: Options) -> np.ndarray | None:
+def slot_scores(split: Split, frames: Frames, options: Options, score2=None, score3=None) -> np.ndarray | None:
     """[T, K] the detection score of each object slot (output "detections"; NaN for padding slots
     such as clutter), None for output "filtered" (slots are tracks).
 
     Object slots follow ``data.object_boxes``: fused = the frames' 2D slots then their 3D slots;
     "2d" = 2D slots; "3d" = 3D slots. A 2D slot k < M2 is ``split.score2d[t, k]``, a 3D slot
-    j < M3 ``split.score3d[t, j]``.
+    j < M3 ``split.score3d[t, j]``; ``score2`` / ``score3`` (with their frames' valid masks): other
+    scores of the slots, a distorted lane's (:func:`lane_detections`).
     """
     if options.output != "detections":
         return None
+    score2 = (split.score2d, split.valid2d) if score2 is None else score2
+    score3 = (split.score3d, split.valid3d) if score3 is None else score3
     T = split.n_frames
     k2, k3 = frames.box2.shape[1], frames.box3.shape[1]
 
@@ -71,7 +75,7 @@ def slot_scores(split: Split, frames: Frames, options: Options) -> np.ndarray | 
         out[:, :m] = np.where(valid[:, :m], a[:, :m], np.nan)
         return out
 
-    return object_slots(options, pad(split.score2d, split.valid2d, k2), pad(split.score3d, split.valid3d, k3))
+    return object_slots(options, pad(*score2, k2), pad(*score3, k3))
 
 
 def lane_rows(split: Split, s: int, ids: np.ndarray, boxes: np.ndarray, *, src3: np.ndarray | None = None,
@@ -119,6 +123,46 @@ def row_3d_values(split: Split, rows: LaneRows) -> dict:
         raise ValueError("src3 names an empty 3D detection slot")
     out.update(has3=has3, own3=rows.own3, dims=split.dims3d[t, j], loc=split.loc3d[t, j],
                rot_y=split.rot_y3d[t, j], alpha=split.alpha3d[t, j], score3=split.score3d[t, j])
+    return out
+
+
+class RowDetections(NamedTuple):
+    """Per row [R]: the score of its object slot (``slot``: NaN without one, output "filtered") and
+    the values of the 3D detection at its ``(tt, jj)`` (``score3``, ``rot_y``, ``dims`` [R, 3],
+    ``loc`` [R, 3]), float64."""
+
+    slot: np.ndarray
+    score3: np.ndarray
+    rot_y: np.ndarray
+    dims: np.ndarray
+    loc: np.ndarray
+
+
+def lane_detections(split: Split, res, lane: np.ndarray, t: np.ndarray, k: np.ndarray, tt: np.ndarray,
+                    jj: np.ndarray) -> RowDetections:
+    """The detection values rows carry (:class:`RowDetections`): row r of lane ``lane[r]`` at frame
+    ``t[r]``, object slot ``k[r]``, 3D detection ``(tt[r], jj[r])``. The split's values, or with a
+    distortion (``res.distortion``, a ``distort.LaneDistortion``) each lane's own distorted
+    detections (``LaneDistortion.lanes``: its scores, shifted centres, clutter boxes), read back one
+    distinct distortion at a time."""
+    frames, options = res.frames, res.options
+    n = lane.size
+    if res.distortion is None:
+        slot = slot_scores(split, frames, options)
+        at = (tt, jj)
+        return RowDetections(np.full(n, np.nan) if slot is None else slot[t, k].astype(np.float64),
+                             split.score3d[at], split.rot_y3d[at], split.dims3d[at], split.loc3d[at])
+    out = RowDetections(np.full(n, np.nan), np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)))
+    lanes, pos = np.unique(lane, return_inverse=True)
+    pos = pos.reshape(-1)
+    for d in res.distortion.lanes(split_detections(split), lanes, split.score2d):
+        r = np.isin(pos, d.which)
+        at = (tt[r], jj[r])
+        slot = slot_scores(split, frames, options, (d.score2, d.valid2), (d.dets.score, d.dets.valid))
+        if slot is not None:
+            out.slot[r] = slot[t[r], k[r]]
+        out.score3[r], out.rot_y[r], out.dims[r], out.loc[r] = (d.dets.score[at], d.dets.rot_y[at], d.dets.dims[at],
+                                                                  d.dets.loc[at])
     return out
 
 
@@ -171,14 +215,14 @@ def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRo
     filtered = options.output == "filtered"
     carry = has3 if filtered else own
     box_carry = has3 if columns == "kitti-stale" else carry
-    tt, jj = np.divmod(np.where(has3, src, 0), split.valid3d.shape[1])
+    m3 = split.valid3d.shape[1] if res.distortion is None else frames.valid3.shape[1]
+    tt, jj = np.divmod(np.where(has3, src, 0), m3)
     n = b.size
-    slot = slot_scores(split, frames, options)
-    score = np.full(n, PLACEHOLDER_SCORE) if slot is None else slot[t, k].astype(np.float64)
-    score = np.where(np.isfinite(score), score, PLACEHOLDER_SCORE)
-    score[carry] = split.score3d[tt[carry], jj[carry]]
+    dets = lane_detections(split, res, sel.chosen[b], t, k, tt, jj)
+    score = np.where(np.isfinite(dets.slot), dets.slot, PLACEHOLDER_SCORE)
+    score[carry] = dets.score3[carry]
     rot_y = np.full(n, PLACEHOLDER_ROT_Y)
-    rot_y[box_carry] = split.rot_y3d[tt[box_carry], jj[box_carry]]
+    rot_y[box_carry] = dets.rot_y[box_carry]
     dims = np.full((n, 3), PLACEHOLDER_DIMS)
     loc = np.full((n, 3), PLACEHOLDER_LOC)
     box_key = box3d_key = None
@@ -189,8 +233,8 @@ def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRo
         dims[ok], loc[ok] = as_written(d, 7), as_written(l, 7)
         box = as_written(rows_of(res.boxes).astype(np.float64), 6)
     else:
-        dims[box_carry] = split.dims3d[tt[box_carry], jj[box_carry]]
-        loc[box_carry] = split.loc3d[tt[box_carry], jj[box_carry]]
+        dims[box_carry] = dets.dims[box_carry]
+        loc[box_carry] = dets.loc[box_carry]
         box_key = tk
         box3d_key = np.where(box_carry, src, -1)
         # the objects' boxes are every lane's: written once per object slot, then gathered

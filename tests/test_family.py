@@ -265,8 +265,12 @@ def test_an_ab3dmot_sweeps_table_holds_its_columns_and_no_dfr_ones(scene):
         parse_spec(_ab3dmot_spec(scene, params={"a_l": [4.0, 8.0]}))
     with pytest.raises(SweepConfigError, match=r"options.output: unknown option; options are \['metric'"):
         parse_spec(_ab3dmot_spec(scene, options={"family": "ab3dmot", "output": "filtered"}))
-    with pytest.raises(SweepConfigError, match=r"distortion: the distortions .* DFR-FastMOT's for now, not AB3DMOT's"):
-        parse_spec(_ab3dmot_spec(scene, distortion={"kinds": {"drop": [0.1]}}))
+    # a [distortion] table distorts AB3DMOT's 3D detections (tests/test_ab3dmot_distort.py); the kinds
+    # of 2D detections only, which it does not read, are refused
+    assert parse_spec(_ab3dmot_spec(scene, distortion={"kind": "drop", "level": [0.1]})).distortion.kinds == (
+        ("drop", (0.1,)),)
+    with pytest.raises(SweepConfigError, match=r"distortion.kind: kind 'drop_2d' distorts 2D detections only"):
+        parse_spec(_ab3dmot_spec(scene, distortion={"kind": "drop_2d", "level": [0.1]}))
 
 
 @pytest.mark.slow
@@ -317,7 +321,8 @@ def test_a_tune_hashes_and_checks_its_familys_configs(spy, scene):
 
 def test_an_ab3dmot_sweep_file_through_the_command_line(scene, tmp_path, capsys):
     """``dfrmot sweep FILE --dry-run`` of an AB3DMOT file plans its option groups (its Options'
-    columns); with a ``[distortion]`` table the file is refused: exit 2, the key named, no traceback."""
+    columns), a ``[distortion]`` table's lanes too; a kind of 2D detections only is refused: exit 2,
+    the key named, no traceback."""
     from dfrmot_jax.testing.cli import error_line, run_cli
 
     text = (f'name = "abcli"\nchunk = 3\n[data]\nroot = "{scene}"\ndet3d = "synth3d"\n[params]\n'
@@ -329,9 +334,13 @@ def test_an_ab3dmot_sweep_file_through_the_command_line(scene, tmp_path, capsys)
     assert status == 0, err
     assert "sweep abcli of tracker family 'ab3dmot': 8 configs, 2 option group(s), 4 chunks" in out
     assert "metric   algorithm" in out and "a_l" not in out and not (tmp_path / "never").exists()
-    f.write_text(text + "[distortion]\nkinds = {drop = [0.1]}\n")
+    f.write_text(text + "[distortion]\nkind = [\"drop\", \"jitter_2d\"]\nlevel = [0.1]\n")
     status, out, err = run_cli(capsys, ["sweep", f, "--dry-run"])
-    assert status == 2 and "distortion: the distortions act on DFR-FastMOT's frames" in error_line(err, "sweep")
+    assert status == 2 and "distortion.kind[1]: kind 'jitter_2d' distorts 2D detections only" in error_line(err, "sweep")
+    f.write_text(text + "[distortion]\nkind = \"drop\"\nlevel = [0, 0.1]\nseeds = 2\n")
+    status, out, err = run_cli(capsys, ["sweep", f, "--dry-run", "--out", tmp_path / "never"])
+    assert status == 0, err
+    assert "24 configs" in out
 
 
 @pytest.mark.slow

@@ -25,7 +25,8 @@ from dfrmot_jax.metrics import evaluate_arrays, evaluate_files, metrics_table, p
 from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
 from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_OTHER_COLUMNS, ab3dmot_columns
 from dfrmot_jax.results import write_lane
-from dfrmot_jax.sweep import COMBINED, OPTION_NAMES, PARAM_NAMES, run_sweep
+from dfrmot_jax.distort import stack_distort
+from dfrmot_jax.sweep import COMBINED, OPTION_NAMES, PARAM_NAMES, parse_spec, run_sweep
 from dfrmot_jax.synthetic import make_scene
 
 #: every static option a sweep may cross, with its values (capacity: the data's default)
@@ -126,15 +127,20 @@ def ground3d(scene):
     return split, prepare_gt(scene, "car", split.names)
 
 
-def ab3dmot_alone(scene, split, gt, row, out: Path, iou: str | None) -> tuple[pd.DataFrame, dict | None]:
-    """One AB3DMOT config (a table row) tracked alone by its family's ``track`` (one lane), written by
-    its ``write_runs`` and scored from the files: ``metrics_table``, and with ``iou`` AB3DMOT's figures
+def ab3dmot_alone(scene, split, gt, row, out: Path, iou: str | None, dist=None) -> tuple[pd.DataFrame, dict | None]:
+    """One AB3DMOT config (a table row) tracked alone by its family's ``track`` (one lane; with
+    ``dist``, the sweep's ``DistortionAxes``, on the row's distortion lane), written by its
+    ``write_runs`` and scored from the files: ``metrics_table``, and with ``iou`` AB3DMOT's figures
     of the files (what ``dfrmot eval --metrics ab3dmot`` prints)."""
     fam = family_of("ab3dmot")
     fc = fam.config
     params = fc.Params(**{n: row[n] for n in fc.Params._fields})
     options = fc.Options(**{n: type(fc.Options._field_defaults[n])(row[n]) for n in fc.Options._fields})
-    res = fam.track(split, params, options)
+    kw = {}
+    if dist is not None:
+        dp = dist.lane(row["distortion.kind"], row["distortion.level"], row["distortion.seed"])
+        kw = dict(distortion=stack_distort([dp]), clutter_slots=dist.clutter_slots)
+    res = fam.track(split, params, options, **kw)
     fam.write_runs(out, [fam.class_run(split, res, 0)])
     figures = None if iou is None else ab3dmot_columns(
         evaluate_ab3dmot_files(out, scene, "car", list(split.names), iou=iou, other=True))
@@ -152,26 +158,38 @@ def ab3dmot_variants(draw) -> list[dict]:
             for i, m in enumerate(metrics)]
 
 
+#: the distortions an AB3DMOT sweep may draw: none, drops and bursts, or every 3D distortion with clutter
+AB3DMOT_DISTORTIONS = (None, {"kind": ["drop_3d", "burst"], "levels": {"drop_3d": [0.3], "burst": [4]}, "seeds": 1},
+                       {"kind": ["clutter", "jitter"], "levels": {"clutter": [1.0], "jitter": [3.0]}, "seeds": [7],
+                        "clutter_slots": 2})
+
+
 @pytest.mark.slow
-@settings(max_examples=3, deadline=None, derandomize=True, database=None,
+@settings(max_examples=5, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-@given(vs=ab3dmot_variants(), chunk=st.sampled_from([1, 2, 3]), figures=st.booleans())
-def test_every_ab3dmot_sweep_row_equals_its_config_run_alone(scene, ground3d, tmp_path_factory, vs, chunk, figures):
+@given(vs=ab3dmot_variants(), chunk=st.sampled_from([1, 2, 3]), figures=st.booleans(),
+       dist=st.sampled_from(AB3DMOT_DISTORTIONS))
+def test_every_ab3dmot_sweep_row_equals_its_config_run_alone(scene, ground3d, tmp_path_factory, vs, chunk, figures,
+                                                            dist):
     """An AB3DMOT sweep (its own columns, chunks, the scores' memo, its rows as its files print them):
     every (config, sequence) row == the config alone, every metric field exactly; with ``[metrics]
-    ab3dmot`` every AB3DMOT figure of its COMBINED row == the files' (its other sum's too)."""
+    ab3dmot`` every AB3DMOT figure of its COMBINED row == the files' (its other sum's too); with a
+    ``[distortion]`` table each row's lane tracked alone on its distorted detections."""
     split, gt = ground3d
     spec = {"name": "alone_ab3dmot", "chunk": chunk, "data": {"root": str(scene), "det3d": "synth3d"},
             "options": {"family": "ab3dmot"}, "params": {"score_threshold": [-10000.0, 8.0]}, "variants": vs}
     iou = "3d:0.25" if figures else None
     if figures:
         spec["metrics"] = {"ab3dmot": iou}
+    if dist is not None:
+        spec["distortion"] = dist
+    axes = parse_spec(spec).distortion
     table = run_sweep(spec, progress=False, workers=0, log=lambda m: None)
     fc = family_of("ab3dmot").config
     assert set(fc.Params._fields + fc.Options._fields) <= set(table.columns) and "a_l" not in table.columns
     tmp = tmp_path_factory.mktemp("alone_ab3dmot")
     for cfg, rows in table.groupby("config", sort=False):
-        expect, want = ab3dmot_alone(scene, split, gt, rows.iloc[0], tmp / f"config{cfg}", iou)
+        expect, want = ab3dmot_alone(scene, split, gt, rows.iloc[0], tmp / f"config{cfg}", iou, axes)
         got = rows.set_index("sequence")
         assert list(got.index) == list(expect.index)
         for col in expect.columns:

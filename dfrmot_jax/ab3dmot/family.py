@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import distort
 from ..api import TrackResult
 from ..data import CLASS_NAMES, Split
 from ..family import TrackerFamily
@@ -34,7 +35,8 @@ from . import batch, tracker
 from .config import FAMILY_CONFIG, Options, Params, validate
 from .results import LINE_FORMAT
 
-__all__ = ["FAMILY", "Prepared", "Ab3dmotRun", "prepare_frames", "track", "rows", "row_arrays", "class_run",
+__all__ = ["FAMILY", "Prepared", "LanePrepared", "Ab3dmotRun", "prepared", "distortion_spec", "distorted_lanes",
+           "lane_prepared", "prepare_frames", "track", "rows", "row_arrays", "class_run",
            "write_runs", "default_capacity", "setting_problem", "call_lanes", "output_slots", "lane_keys",
            "BYTES_PER_SLOT"]
 
@@ -45,21 +47,75 @@ BYTES_PER_SLOT = 4 + 4 + 32 + 56 + 1
 
 class Prepared(NamedTuple):
     """A split's detections as AB3DMOT's tracker takes them: ``frames`` (:class:`.tracker.Frames`
-    [T, M3, ...], the 3D detections in file order, padding zeroed) and ``image`` [T, M3, 4] their
-    image boxes (the 3D detector's own ``x1 y1 x2 y2``)."""
+    [T, M3, ...], the 3D detections in file order, padding zeroed), ``image`` [T, M3, 4] their
+    image boxes (the 3D detector's own ``x1 y1 x2 y2``) and ``alpha`` [T, M3] their observation
+    angles (what a result line carries beside the tracker's state; None: the split's)."""
 
     frames: tracker.Frames
     image: np.ndarray
+    alpha: np.ndarray | None = None
+
+    def detections(self) -> distort.Detections3D:
+        """The detections as ``distort`` reads them (float64 file values)."""
+        b = self.frames.boxes
+        alpha = np.zeros(b.shape[:2]) if self.alpha is None else self.alpha
+        return distort.Detections3D(np.asarray(self.frames.valid, bool), self.frames.score, b[..., :3], b[..., 3],
+                                    b[..., [6, 5, 4]], alpha, self.image)
+
+
+class LanePrepared(NamedTuple):
+    """Each lane's :class:`Prepared` frames where lanes track different detections (a distortion
+    study): ``preps`` the distinct ones, ``of`` [B] each lane's; a ``TrackResult``'s ``frames``."""
+
+    preps: tuple
+    of: np.ndarray
+
+
+def prepared(dets: distort.Detections3D, reset) -> Prepared:
+    """3D detections (file values, float64) as the tracker's frames: boxes ``x y z th l w h``."""
+    valid = np.asarray(dets.valid, bool)
+    boxes = np.concatenate([dets.loc, dets.rot_y[..., None], dets.dims[..., ::-1]], axis=-1)      # x y z th l w h
+    boxes = np.where(valid[..., None], boxes, 0.0).astype(np.float64)
+    score = np.where(valid, dets.score, 0.0).astype(np.float64)
+    return Prepared(tracker.Frames(boxes, valid, score, np.asarray(reset, bool)), np.asarray(dets.image, np.float64),
+                    np.asarray(dets.alpha, np.float64))
 
 
 def prepare_frames(split: Split, options: Options | None = None) -> Prepared:
     """``split``'s 3D detections as the tracker's frames (the same for every ``Options``)."""
-    valid = np.asarray(split.valid3d, bool)
-    boxes = np.concatenate([split.loc3d, split.rot_y3d[..., None], split.dims3d[..., ::-1]], axis=-1)  # x y z th l w h
-    boxes = np.where(valid[..., None], boxes, 0.0).astype(np.float64)
-    score = np.where(valid, split.score3d, 0.0).astype(np.float64)
-    return Prepared(tracker.Frames(boxes, valid, score, np.asarray(split.reset, bool)),
-                    np.asarray(split.box3d, np.float64))
+    return prepared(distort.split_detections(split), split.reset)
+
+
+def distortion_spec(options=None, clutter_slots: int = 0, burst_max: int = 30, burst_dist: str = "fixed",
+                    frames: Prepared | None = None, dps=None, **kw) -> distort.DistortSpec:
+    """The ``DistortSpec`` of AB3DMOT's lanes (``TrackerFamily.distortion_spec``; ``options``, its
+    own, change nothing): image boxes as the detector wrote them (no truncation), the 3D shift in
+    ``DistortSpec.centroid``'s axes (DFR-FastMOT's default, ``"legacy"``: the same physical shift as
+    its runs with that convention), the clutter's laws measured on ``frames``' 3D detections as
+    DFR-FastMOT measures them on its own (the same values); only the groups of ``dps``' 3D levels."""
+    f3 = None
+    if frames is not None:
+        f3 = distort.frames_3d(frames.detections(), frames.frames.reset, kw.get("centroid", "legacy"))
+    return distort.make_spec(None, clutter_slots=clutter_slots, burst_max=burst_max, burst_dist=burst_dist, frames=f3,
+                             dps=None if dps is None else distort.only_3d(dps), **{"truncate": False, **kw})
+
+
+def distorted_lanes(split: Split, prep: Prepared, dps, spec: distort.DistortSpec) -> tuple[LanePrepared,
+                                                                                           distort.LaneDistortion]:
+    """Each lane's distorted detections (``dps`` leaves [B]): the distinct distortions' frames
+    (:meth:`distort.LaneDistortion.lanes` on the 3D detections alone, :func:`distort.distortion_3d`;
+    2D levels ignored), each frame's detections left packed to its first slots in their order (as
+    AB3DMOT reads a detection file: its tracker takes a frame's valid slots as a prefix), the clutter
+    after the real ones; a lane whose levels are all 0 the undistorted ``prep`` itself."""
+    lanes = distort.distortion_3d(split, prep.detections(), dps, spec)
+    b = len(np.asarray(dps.seed))
+    of = np.zeros(b, np.int64)
+    preps = []
+    for d in lanes.lanes(prep.detections(), np.arange(b)):
+        of[d.which] = len(preps)
+        zero = distort.is_zero(distort.lane_params(lanes.params, int(d.which[0])))
+        preps.append(prep if zero else prepared(d.dets.packed(), prep.frames.reset))
+    return LanePrepared(tuple(preps), of), lanes
 
 
 def default_capacity(frames: Prepared, params: Params, options: Options, clutter_slots: int = 0) -> int:
@@ -106,7 +162,8 @@ def call_lanes(of: np.ndarray, per: int) -> list[np.ndarray]:
 
 
 def track(split: Split | Prepared, params: Params, options: Options = Options(), *, lanes_per_call: int | None = None,
-          grow: bool = True, detail: bool = True, rows_only: bool = False, distortion=None, spec=None) -> TrackResult:
+          grow: bool = True, detail: bool = True, rows_only: bool = False, distortion=None, spec=None,
+          clutter_slots: int = 0) -> TrackResult:
     """Every lane of ``params`` (scalars: one lane; leaves [B]) over ``split`` (or its
     :class:`Prepared` frames): a :class:`dfrmot_jax.api.TrackResult` (see the module's docstring;
     ``own3`` marks the rows, ``capacity`` [B] the slots each lane ran with). ``lanes_per_call``:
@@ -115,24 +172,50 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
     as many (:func:`.batch.run`); ``rows_only``: ``boxes`` and ``box3`` as
     :class:`dfrmot_jax.rows.Rows`. ``detail`` is always on (the rows' detections come with the ids).
     A lane where AB3DMOT's own run would have stopped (degenerate geometry) or whose greedy sort
-    AB3DMOT breaks differently is named in a warning."""
-    if distortion is not None:
-        raise ValueError("AB3DMOT (family 'ab3dmot') takes no distortion of its detections yet")
+    AB3DMOT breaks differently is named in a warning.
+
+    ``distortion``: ``distort.DistortParams`` (scalars or leaves [B]; needs the ``Split``, whose
+    labels give the bursts' identities): lane b tracks its 3D detections distorted by its own levels
+    and seed, the draws DFR-FastMOT's lanes take (:func:`distorted_lanes`; 2D levels change nothing
+    here), the lanes of each distinct distortion in calls of their own on its materialised frames;
+    ``spec`` / ``clutter_slots``: the static ``DistortSpec`` (default :func:`distortion_spec` of the
+    data and the levels). The result's ``frames`` are then a :class:`LanePrepared` and its
+    ``distortion`` the ``distort.LaneDistortion``; its rows carry each lane's distorted detections."""
     validate(params, options)
     if not options.boxes:
         raise ValueError("AB3DMOT: boxes = false writes no 3D boxes, which the result rows carry; keep boxes = true")
     prep = split if isinstance(split, Prepared) else prepare_frames(split, options)
     p = batch.broadcast_lanes(params)
-    calls = call_lanes(batch.tracking_lanes(p)[1], max(1, int(lanes_per_call or len(p.threshold))))
-    outs = [batch.run(Params(*(v[lanes] for v in p)), prep.frames, options, grow=grow) for lanes in calls]
+    b = len(p.threshold)
+    per = max(1, int(lanes_per_call or b))
+    frames, lanes = prep, None
+    groups = [(np.arange(b), prep)]
+    if distortion is not None:
+        if not isinstance(split, Split):
+            raise ValueError("track(distortion=...) needs the Split (its ground truth), not prepared frames")
+        dps = distort.DistortParams(*(np.broadcast_to(np.asarray(v), (b,)) for v in distortion))
+        if spec is None:
+            spec = distortion_spec(clutter_slots=clutter_slots, frames=prep, dps=dps)
+        distort.check_params(distort.only_3d(dps), spec)
+        frames, lanes = distorted_lanes(split, prep, dps, spec)
+        groups = [(np.flatnonzero(frames.of == d), q) for d, q in enumerate(frames.preps)]
+    calls, outs, image = [], [], []
+    for group, q in groups:
+        sub = Params(*(v[group] for v in p))
+        for at in call_lanes(batch.tracking_lanes(sub)[1], per):
+            out = batch.run(Params(*(v[at] for v in sub)), q.frames, options, grow=grow)
+            calls.append(group[at])
+            outs.append(out)
+            image.append(q.image.reshape(-1, 4)[np.maximum(out.src, 0)])
     back = np.argsort(np.concatenate(calls), kind="stable")     # (each lane's place among the calls' lanes)
     k = max(o.ids.shape[2] for o in outs)
     ids = np.concatenate([_widen(o.ids, k, -1) for o in outs])[back][:, :, ::-1]
     src = np.concatenate([_widen(o.src, k, -1) for o in outs])[back][:, :, ::-1]
     box3 = np.concatenate([_widen(o.boxes, k, 0.0) for o in outs])[back][:, :, ::-1]
+    image = np.concatenate([_widen(v, k, 0.0) for v in image])[back][:, :, ::-1]
     ids, box3 = np.ascontiguousarray(ids, np.int32), np.ascontiguousarray(box3)
     src = np.where(ids >= 0, src, -1).astype(np.int32)
-    image = prep.image.reshape(-1, 4)[np.maximum(src, 0)]
+    image = np.ascontiguousarray(image)
     image[ids < 0] = np.nan
     counters = {n: np.concatenate([getattr(o, n) for o in outs])[back] for n in ("dropped", "overflow", "peak",
                                                                                 "degenerate", "fallback")}
@@ -146,7 +229,18 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
     box3_out = Rows.of(ids, box3) if rows_only else box3
     ran = outs[-1].options._replace(capacity=int(capacity.max(initial=0)))
     return TrackResult(ids, boxes, counters["dropped"].astype(np.int32), counters["overflow"].astype(np.int32),
-                       counters["peak"].astype(np.int32), src, ids >= 0, box3_out, capacity, prep, ran)
+                       counters["peak"].astype(np.int32), src, ids >= 0, box3_out, capacity, frames, ran, lanes)
+
+
+def lane_prepared(res: TrackResult, lanes) -> list[tuple[np.ndarray, Prepared]]:
+    """The frames ``lanes`` (lane indices of ``res``) tracked: (the positions in ``lanes`` of each
+    distinct :class:`Prepared`, it)."""
+    lanes = np.asarray(lanes, np.int64)
+    frames = res.frames
+    if not isinstance(frames, LanePrepared):
+        return [(np.arange(lanes.size), frames)]
+    of = frames.of[lanes]
+    return [(np.flatnonzero(of == d), q) for d, q in enumerate(frames.preps) if np.any(of == d)]
 
 
 def rows(split: Split, res: TrackResult, columns: str = "kitti", lanes=None) -> KittiRows:
@@ -159,8 +253,12 @@ def rows(split: Split, res: TrackResult, columns: str = "kitti", lanes=None) -> 
     sel = RowSelection.of(ids, lanes)
     rows_of = sel.values
     src = rows_of(res.src3).astype(np.int64)
-    box = as_written_fixed(np.asarray(split.box3d, np.float64).reshape(-1, 4)[src])
-    score = as_written_fixed(np.asarray(split.score3d, np.float64).reshape(-1)[src])
+    box, score = np.zeros((src.size, 4)), np.zeros(src.size)
+    for at, q in lane_prepared(res, sel.chosen):       # (each lane's own detections: a distortion's)
+        r = np.isin(sel.lane, at)
+        box[r] = q.image.reshape(-1, 4)[src[r]]
+        score[r] = q.frames.score.reshape(-1)[src[r]]
+    box, score = as_written_fixed(box), as_written_fixed(score)
     state = rows_of(res.box3).astype(np.float64)
     box3d = as_written_fixed(state[:, [6, 5, 4, 0, 1, 2, 3]])
     return KittiRows(sel.lane, sel.t, sel.slot, rows_of(ids).astype(np.int64), box, score, box3d, len(sel.chosen),
@@ -174,19 +272,21 @@ def row_arrays(split: Split, res: TrackResult, columns: str = "kitti") -> tuple[
 
 class Ab3dmotRun(NamedTuple):
     """One class's lane to write (:func:`write_runs`): its split, ids [T, K], the rows' detections
-    src3 [T, K] and 3D boxes box3 [T, K, 7] (the Kalman state), slots in writing order."""
+    src3 [T, K] and 3D boxes box3 [T, K, 7] (the Kalman state), slots in writing order; ``prep``
+    the detections it tracked (their image boxes, scores and angles; None: the split's)."""
 
     split: Split
     ids: np.ndarray
     src3: np.ndarray
     box3: np.ndarray
+    prep: Prepared | None = None
 
 
 def class_run(split: Split, res: TrackResult, lane: int = 0) -> Ab3dmotRun:
     """Lane ``lane`` of a :func:`track` result on ``split`` as :func:`write_runs` takes it."""
     ids = np.asarray(res.ids)
     box3 = res.box3.lane_dense(lane, ids[lane], 0.0) if isinstance(res.box3, Rows) else np.asarray(res.box3)[lane]
-    return Ab3dmotRun(split, ids[lane], np.asarray(res.src3)[lane], box3)
+    return Ab3dmotRun(split, ids[lane], np.asarray(res.src3)[lane], box3, lane_prepared(res, [lane])[0][1])
 
 
 def _sequence_lines(run: Ab3dmotRun, s: int, offset: int) -> tuple[list[str], int]:
@@ -196,9 +296,10 @@ def _sequence_lines(run: Ab3dmotRun, s: int, offset: int) -> tuple[list[str], in
     ids = np.asarray(run.ids)[sl]
     t, k = np.nonzero(ids >= 0)
     src = np.asarray(run.src3)[sl][t, k].astype(np.int64)
-    image = np.asarray(split.box3d, np.float64).reshape(-1, 4)[src]
-    alpha = np.asarray(split.alpha3d, np.float64).reshape(-1)[src]
-    score = np.asarray(split.score3d, np.float64).reshape(-1)[src]
+    q = prepare_frames(split) if run.prep is None else run.prep
+    image = q.image.reshape(-1, 4)[src]
+    alpha = np.asarray(split.alpha3d if q.alpha is None else q.alpha, np.float64).reshape(-1)[src]
+    score = q.frames.score.reshape(-1)[src]
     x, y, z, th, l, w, h = np.asarray(run.box3, np.float64)[sl][t, k].T
     name = CLASS_NAMES[split.cls]
     frame = np.asarray(split.frame)[sl][t]
@@ -254,13 +355,16 @@ def setting_problem(what: str, params: Params, options: Options) -> str | None:
 
 def lane_keys(res: TrackResult, base) -> list[bytes]:
     """One digest per lane of what its rows carry (``TrackerFamily.lane_keys``): ``base`` (its ids
-    and image boxes) and, per row, its detection (``src3``) and its 3D box."""
+    and image boxes) and, per row, its detection (``src3``) and its 3D box; with a distortion, the
+    lane's levels and seed (which detections its rows read)."""
     ids = np.asarray(res.ids)
     src = np.asarray(res.src3)
     out = []
     for b in range(ids.shape[0]):
         h = hashlib.sha1(b"ab3dmot")
         h.update(base[b])
+        if res.distortion is not None:
+            h.update(res.distortion.key(b))
         h.update(src[b][ids[b] >= 0].astype(np.int32).tobytes())
         h.update(np.ascontiguousarray(lane_values(res.box3, ids, b)).tobytes())
         out.append(h.digest())
@@ -274,4 +378,4 @@ FAMILY = TrackerFamily(
     output_slots=output_slots, rows=rows, row_arrays=row_arrays, class_run=class_run, write_runs=write_runs,
     table_problem=table_problem, failing_rows=failing_rows, setting_problem=setting_problem, lane_keys=lane_keys,
     box_format="f6",
-    oracle="dfrmot_jax.testing.ab3dmot_oracle")
+    oracle="dfrmot_jax.testing.ab3dmot_oracle", distortion_spec=distortion_spec)

@@ -80,6 +80,24 @@ drops ~0.05 us, bursts ~1-2 us, jitter ~4 us, score noise ~0.6 us, clutter (3 sl
 everything ~8-14 us. ``DistortSpec.enabled`` compiles only the groups a study uses
 (``make_spec(dps=...)``).
 
+Both tracker families, the same faults. The draws depend on ``(seed, t)``, the slot and the
+ground-truth identity only, so DFR-FastMOT (inside its scan, on its ``Frames``) and AB3DMOT (which
+reads 3D detections alone) get the same faults on the 3D detections from one seed and level:
+AB3DMOT's lanes (``ab3dmot.family.track(distortion=...)``) run :func:`apply_draws` on a ``Frames``
+holding the split's 3D detections only (:func:`frames_3d`: the detector's untruncated image box as
+``box3``, ``lo3/hi3`` in ``DistortSpec.centroid``'s convention, ``"legacy"`` by default), each
+distinct lane materialised on the host (:func:`distort_split`, with the clutter's poses), and read
+the result back as result files carry it (:func:`read_back`, ``lanes``): the same drops and bursts
+(``gid3`` from :func:`gt_identity` with the detector's image box), the same score noise, the same
+physical shift of the box centre (``jitter_3d``: DFR-FastMOT's ``lo3`` shift in its convention,
+mapped to camera x y z), ``jitter_box3`` on the image box AB3DMOT writes (untruncated), and the same
+3D clutter (:func:`place_3d`: position, heading, score; AB3DMOT tracks the rotated ``CAR_DIMS`` box,
+DFR-FastMOT its axis-aligned ``lo3/hi3``). The 2D levels (``drop_2d``, ``jitter_2d``,
+``score_noise_2d``, ``clutter_2d``) change nothing of a 3D detection: AB3DMOT ignores them
+(:func:`only_3d`), and its sweeps refuse the kinds that set only them. DFR-FastMOT's rows of a
+distorted lane (its sAMOTA) read that lane's 3D detections back by the same rule
+(``results.lane_detections`` through the ``TrackResult``'s :class:`LaneDistortion`).
+
 Typical use: ``dfrmot_jax.track(split, params, options, distortion=dps)`` does all of this
 (``api.prepare_distortion``, then a ``core.run.FrameHook`` of :class:`FrameDistortion`); by hand::
 
@@ -94,18 +112,34 @@ Modules: ``spec`` (levels, static spec, constants, level helpers), ``draws`` (th
 random draws), ``bursts``, ``noise`` (jitter, score noise), ``clutter`` (reserved slots, false
 positives), ``exact`` (float32 arithmetic with exact products, the clutter's projection),
 ``hook`` (:func:`distort_frame`, :class:`FrameDistortion`, :func:`distort_split`,
-:func:`distort_lanes`), ``identity`` (host side: ground-truth ids from the label files). Every name
-below is importable from ``dfrmot_jax.distort`` itself.
+:func:`distort_lanes`), ``identity`` (host side: ground-truth ids from the label files), ``lanes``
+(host side: a lane's 3D detections read back, :class:`Detections3D`, :class:`LaneDistortion`,
+:func:`frames_3d`, :func:`distortion_3d`). Every name below is importable from
+``dfrmot_jax.distort`` itself.
 """
 
 from __future__ import annotations
 
 from .bursts import burst_draw, burst_length, occluded
-from .clutter import ground_xz, pad_for_clutter
+from .clutter import Placement3D, ground_xz, pad_for_clutter, place_3d
 from .draws import BURST_TAG, lane_hash, normal, stream_hash, uniform
 from .exact import project_box
 from .hook import FrameDistortion, distort_frame, distort_lanes, distort_split
 from .identity import gt_identity, pad_identity
+from .lanes import (
+                    LEVELS_2D,
+                    Detections3D,
+                    DistortedLane,
+                    LaneDistortion,
+                    distinct_lanes,
+                    distortion_3d,
+                    frames_3d,
+                    is_zero,
+                    lane_params,
+                    only_3d,
+                    read_back,
+                    split_detections,
+)
 from .spec import (
                    ASPECT2_Q,
                    BURST_DISTS,
@@ -140,8 +174,10 @@ __all__ = [
     "ASPECT2_Q", "BURST_DISTS", "BURST_LEN", "BURST_RATE", "BURST_TAG", "CAR_DIMS", "CAR_Y", "CLUTTER_XZ",
     "CLUTTER_Z", "DEFAULT_P2", "FREE_DIST", "FREE_IOU", "GROUPS", "KINDS", "METRES_PER_PIXEL", "N_QUANTILES",
     "SCORE2_Q", "SCORE3_PER_SCORE2", "SCORE3_Q", "WIDTH2_Q",
-    "DistortParams", "DistortSpec", "FrameDistortion",
+    "LEVELS_2D", "Detections3D", "DistortParams", "DistortSpec", "FrameDistortion", "DistortedLane", "LaneDistortion", "Placement3D",
     "burst_draw", "burst_length", "cast_params", "check_params", "distort_frame", "distort_lanes", "distort_split",
+    "distinct_lanes", "distortion_3d", "frames_3d", "is_zero", "lane_params", "only_3d", "place_3d", "read_back",
+    "split_detections",
     "ground_xz", "gt_identity", "lane_hash", "level_params", "make_spec", "normal", "occluded", "pad_for_clutter",
     "pad_identity", "project_box", "stack_distort", "stream_hash", "uniform", "used_groups",
 ]

@@ -10,6 +10,7 @@ gives the laws).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -168,8 +169,31 @@ def clutter_2d(key, box, score, valid, real, rate, spec: DistortSpec, image_size
             valid | _fill_tail(jnp.zeros_like(valid), put, put))
 
 
-def clutter_3d(key, box, score, valid, lo3, hi3, real, rate, spec: DistortSpec, image_size):
-    """Fill the last S 3D slots with clutter; ``real`` [M] the slots occupying space."""
+class Placement3D(NamedTuple):
+    """Where a frame's 3D false positives stand (:func:`place_3d`), before any box convention: per
+    reserved slot ``put`` [S] (switched on and empty), ``hot`` [S, K] the chosen candidate (one-hot),
+    and per candidate ``loc`` [S, K, 3] (x, ``CAR_Y``, z; camera axes, bottom centre), ``rot`` [S, K]
+    heading, ``box`` [S, K, 4] image box (truncated with ``spec.truncate``); ``score`` [S]. Every
+    box is ``CAR_DIMS`` (h, w, l)."""
+
+    put: jnp.ndarray
+    hot: jnp.ndarray
+    loc: jnp.ndarray
+    rot: jnp.ndarray
+    box: jnp.ndarray
+    score: jnp.ndarray
+
+    def pose(self) -> jnp.ndarray:
+        """[S, 4] float32 x, y, z, heading of each slot's chosen candidate."""
+        return jnp.concatenate([_pick(self.loc, self.hot), _pick(self.rot[..., None], self.hot)], axis=-1)
+
+
+def place_3d(key, valid, lo3, hi3, real, rate, spec: DistortSpec, image_size) -> Placement3D:
+    """The placement of the 3D false positives of the last S slots (the package docstring's law):
+    ``valid`` [M] the slots holding a detection now, ``lo3`` / ``hi3`` [M, 3] the boxes in the
+    ``spec.centroid`` convention (only their ground-plane position is read), ``real`` [M] the slots
+    occupying space. Shared by every family: DFR-FastMOT's slots take :func:`clutter_3d`'s corners,
+    AB3DMOT's the rotated box (``Placement3D.pose``)."""
     S, K = int(spec.clutter_slots), int(spec.clutter_tries)
     on = uniform(absorb(key, 0), (S,)) < rate / S
     u = uniform(absorb(key, 1), (S, K, 3))
@@ -178,7 +202,6 @@ def clutter_3d(key, box, score, valid, lo3, hi3, real, rate, spec: DistortSpec, 
     rot = (2.0 * u[..., 2] - 1.0) * np.float32(math.pi)
     loc = jnp.stack([x, jnp.full_like(x, CAR_Y), z], -1)                 # [S, K, 3]
     dims = jnp.broadcast_to(jnp.asarray(CAR_DIMS, jnp.float32), loc.shape)
-    c_lo, c_hi = box3d_extent(dims, loc, spec.centroid)
     c_box = project_box(dims, loc, rot, spec.p2, image_size)
     if spec.truncate:
         c_box = truncate_3d_box(c_box)
@@ -190,6 +213,18 @@ def clutter_3d(key, box, score, valid, lo3, hi3, real, rate, spec: DistortSpec, 
     near_real = jnp.max(jnp.where(real, -_dist(c_xz[:, :, None, :], xz[None, None, :, :]), -jnp.inf), axis=-1)
     near_pair = -_dist(c_xz[:, :, None, None, :], c_xz[None, None, :, :, :])                      # [S, K, S, K]
     hot = _place(near_real, near_pair, lambda c: c <= -FREE_DIST, -jnp.inf)
-    return (_fill_tail(box, put, _pick(c_box, hot)), _fill_tail(score, put, sc),
-            valid | _fill_tail(jnp.zeros_like(valid), put, put),
-            _fill_tail(lo3, put, _pick(c_lo, hot)), _fill_tail(hi3, put, _pick(c_hi, hot)))
+    return Placement3D(put, hot, loc, rot, c_box, sc)
+
+
+def clutter_3d(key, box, score, valid, lo3, hi3, real, rate, spec: DistortSpec, image_size, pose: bool = False):
+    """Fill the last S 3D slots with clutter (:func:`place_3d`), their ``lo3/hi3`` the corners of
+    ``geometry.box3d_extent`` for ``spec.centroid``; ``real`` [M] the slots occupying space. With
+    ``pose`` also the slots' [S, 4] x, y, z, heading (``Placement3D.pose``)."""
+    p = place_3d(key, valid, lo3, hi3, real, rate, spec, image_size)
+    put, hot = p.put, p.hot
+    dims = jnp.broadcast_to(jnp.asarray(CAR_DIMS, jnp.float32), p.loc.shape)
+    c_lo, c_hi = box3d_extent(dims, p.loc, spec.centroid)
+    out = (_fill_tail(box, put, _pick(p.box, hot)), _fill_tail(score, put, p.score),
+           valid | _fill_tail(jnp.zeros_like(valid), put, put),
+           _fill_tail(lo3, put, _pick(c_lo, hot)), _fill_tail(hi3, put, _pick(c_hi, hot)))
+    return out + (p.pose(),) if pose else out

@@ -71,8 +71,10 @@ class HashDraws(NamedTuple):
 
 
 def apply_draws(frame: Frames, gid2, gid3, t, dp: DistortParams, spec: DistortSpec, source,
-                image_size=DEFAULT_IMAGE_SIZE) -> Frames:
-    """The steps of :func:`distort_frame` with the random draws of ``source`` (``HashDraws``)."""
+                image_size=DEFAULT_IMAGE_SIZE, pose: bool = False):
+    """The steps of :func:`distort_frame` with the random draws of ``source`` (``HashDraws``).
+    With ``pose``: (frame, [S, 4] float32 x, y, z, heading of the 3D clutter slots' boxes, zeros
+    without clutter; ``clutter.Placement3D.pose``), what a family tracking rotated 3D boxes reads."""
     dp = cast_params(dp)
     t = jnp.asarray(t, jnp.int32)
     gid2 = jnp.asarray(gid2, jnp.int32)
@@ -107,47 +109,54 @@ def apply_draws(frame: Frames, gid2, gid3, t, dp: DistortParams, spec: DistortSp
         score2 = score_noise(score2, frame.valid2, dp.score_noise_2d, n2)
         score3 = score_noise(score3, frame.valid3, dp.score_noise_3d, n3)
     # 5. clutter in the reserved slots (free space judged against the frame's real detections)
+    where = jnp.zeros((int(spec.clutter_slots), 4), jnp.float32)
     if spec.clutter_slots > 0 and "clutter" in on:
         box2, score2, valid2 = clutter_2d(key(draws.CLUT2), box2, score2, valid2, frame.valid2, dp.clutter_2d,
                                            spec, image_size)
-        box3, score3, valid3, lo3, hi3 = clutter_3d(key(draws.CLUT3), box3, score3, valid3, lo3, hi3,
-                                                     frame.valid3, dp.clutter_3d, spec, image_size)
-    return Frames(reset=frame.reset, box2=box2, score2=score2, valid2=valid2, box3=box3, score3=score3,
-                  valid3=valid3, lo3=lo3, hi3=hi3)
+        box3, score3, valid3, lo3, hi3, *placed = clutter_3d(key(draws.CLUT3), box3, score3, valid3, lo3, hi3,
+                                                              frame.valid3, dp.clutter_3d, spec, image_size, pose)
+        where = placed[0] if pose else where
+    out = Frames(reset=frame.reset, box2=box2, score2=score2, valid2=valid2, box3=box3, score3=score3,
+                 valid3=valid3, lo3=lo3, hi3=hi3)
+    return (out, where) if pose else out
 
 
-@functools.partial(jax.jit, static_argnames=("spec", "image_size"))
-def _distort_all(frames, gid2, gid3, t, dp, spec, image_size):
-    return jax.vmap(lambda fr, g2, g3, tt: distort_frame(fr, g2, g3, tt, dp, spec, image_size))(
+@functools.partial(jax.jit, static_argnames=("spec", "image_size", "pose"))
+def _distort_all(frames, gid2, gid3, t, dp, spec, image_size, pose=False):
+    return jax.vmap(lambda fr, g2, g3, tt: apply_draws(fr, g2, g3, tt, dp, spec, HashDraws(), image_size, pose))(
         frames, gid2, gid3, t)
 
 
-@functools.partial(jax.jit, static_argnames=("spec", "image_size"))
-def _distort_lanes(frames, gid2, gid3, t, dp, spec, image_size):
-    return jax.vmap(lambda d: _distort_all(frames, gid2, gid3, t, d, spec, image_size))(dp)
+@functools.partial(jax.jit, static_argnames=("spec", "image_size", "pose"))
+def _distort_lanes(frames, gid2, gid3, t, dp, spec, image_size, pose=False):
+    return jax.vmap(lambda d: _distort_all(frames, gid2, gid3, t, d, spec, image_size, pose))(dp)
 
 
-def distort_lanes(frames: Frames, gid2, gid3, dp: DistortParams, spec: DistortSpec,
-                  image_size=DEFAULT_IMAGE_SIZE, t0: int = 0) -> Frames:
-    """:func:`distort_split` for a batch ``dp [B]`` (e.g. from ``spec.stack_distort``): Frames
-    ``[B, T, ...]``, one jit(vmap) call. Materialises B copies: for evaluation and tests."""
+def _on_host(fn, frames: Frames, gid2, gid3, dp: DistortParams, spec: DistortSpec, image_size, t0: int, pose: bool):
+    """``fn`` (:func:`_distort_all` or :func:`_distort_lanes`) of the frames under x64."""
     with jax.enable_x64(True):
         frames = Frames(*(jnp.asarray(x) for x in frames))
         t = jnp.arange(frames.reset.shape[0], dtype=jnp.int32) + jnp.int32(t0)
-        return _distort_lanes(frames, jnp.asarray(gid2, jnp.int32), jnp.asarray(gid3, jnp.int32), t,
-                              cast_params(dp), spec, tuple(image_size))
+        return fn(frames, jnp.asarray(gid2, jnp.int32), jnp.asarray(gid3, jnp.int32), t, cast_params(dp), spec,
+                  tuple(image_size), pose)
+
+
+def distort_lanes(frames: Frames, gid2, gid3, dp: DistortParams, spec: DistortSpec,
+                  image_size=DEFAULT_IMAGE_SIZE, t0: int = 0, pose: bool = False):
+    """:func:`distort_split` for a batch ``dp [B]`` (e.g. from ``spec.stack_distort``): Frames
+    ``[B, T, ...]``, one jit(vmap) call (with ``pose``, and the clutter's poses [B, T, S, 4]).
+    Materialises B copies: for evaluation and tests."""
+    return _on_host(_distort_lanes, frames, gid2, gid3, dp, spec, image_size, t0, pose)
 
 
 def distort_split(frames: Frames, gid2, gid3, dp: DistortParams, spec: DistortSpec,
-                  image_size=DEFAULT_IMAGE_SIZE, t0: int = 0) -> Frames:
+                  image_size=DEFAULT_IMAGE_SIZE, t0: int = 0, pose: bool = False):
     """All frames ``[T, ...]`` of one lane distorted (global frame index ``t0 + arange(T)``).
 
     The same bits the scanned step sees frame by frame when the step runs under ``jax.enable_x64``
     as the tracker's does (see ``exact.lin``); runs under x64 itself. For evaluation, plots and
-    tests: materialises one lane's ``[T, ...]`` copy. ``dp`` scalars (:func:`distort_lanes` for a batch).
+    tests: materialises one lane's ``[T, ...]`` copy. ``dp`` scalars (:func:`distort_lanes` for a
+    batch). With ``pose``: (frames, [T, S, 4] the 3D clutter slots' x, y, z, heading;
+    :func:`apply_draws`).
     """
-    with jax.enable_x64(True):
-        frames = Frames(*(jnp.asarray(x) for x in frames))
-        t = jnp.arange(frames.reset.shape[0], dtype=jnp.int32) + jnp.int32(t0)
-        return _distort_all(frames, jnp.asarray(gid2, jnp.int32), jnp.asarray(gid3, jnp.int32), t, cast_params(dp),
-                            spec, tuple(image_size))
+    return _on_host(_distort_all, frames, gid2, gid3, dp, spec, image_size, t0, pose)

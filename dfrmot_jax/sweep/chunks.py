@@ -226,13 +226,14 @@ class ChunkRunner:
             if dps is None:
                 res = track(frames, params, opts, lanes_per_call=self.lanes_per_call, grow=True,
                             detail=self.scoring.ab3dmot is not None, rows_only=True)
-            else:       # distortion lanes vmapped with the parameter lanes; per-lane output boxes
+            else:       # each lane's own distorted detections; per-lane output boxes (and rows' 3D values)
                 res = track(self.split, params, opts, lanes_per_call=self.lanes_per_call, grow=True,
-                            distortion=dps, spec=self.dspecs[c.options], rows_only=True)
+                            detail=self.scoring.ab3dmot is not None, distortion=dps, spec=self.dspecs[c.options],
+                            rows_only=True)
         if c.options.capacity == 0:         # start the group's later chunks where track grew to
             self.caps[c.options] = max(self.caps[c.options], int(res.capacity.max(initial=0)))
         self.timing.track += time.perf_counter() - tt
-        slim = res._replace(ids=None, boxes=None, frames=None, src3=None, own3=None, box3=None)
+        slim = res._replace(ids=None, boxes=None, frames=None, src3=None, own3=None, box3=None, distortion=None)
         return Pending(c, slim, [], []), res
 
     def distortion_of(self, c: Chunk, frames):
@@ -243,7 +244,7 @@ class ChunkRunner:
         if dist is None:
             return None
         if c.options not in self.dspecs:
-            self.dspecs[c.options] = dist.make_spec(c.options, frames=frames,
+            self.dspecs[c.options] = dist.make_spec(c.options, frames=frames, family=self.family,
                                                     dps=distort_of(self.table, self.groups[c.options], dist))
         return distort_of(self.table, c.configs, dist)
 

@@ -84,9 +84,14 @@ class DistortionAxes:
                 "burst_max": int(self.burst_max), "burst_rate": float(self.burst_rate),
                 "burst_len": float(self.burst_len)}
 
-    def make_spec(self, options: Options, frames=None, dps=None) -> distort.DistortSpec:
-        return distort.make_spec(options, clutter_slots=self.clutter_slots, burst_max=self.burst_max,
-                                 burst_dist=self.burst_dist, frames=frames, dps=dps)
+    def make_spec(self, options, frames=None, dps=None, family=None) -> distort.DistortSpec:
+        """The ``DistortSpec`` of the lanes: the tracker ``family``'s own (its ``distortion_spec``
+        for its ``options`` and ``frames``; None: DFR-FastMOT's, ``distort.make_spec``)."""
+        make = distort.make_spec if family is None else family.distortion_spec
+        if make is None:
+            raise ValueError(f"tracker family {family.name!r} takes no distortion of its detections")
+        return make(options, clutter_slots=self.clutter_slots, burst_max=self.burst_max, burst_dist=self.burst_dist,
+                    frames=frames, dps=dps)
 
     @property
     def n_lanes(self) -> int:
@@ -177,16 +182,26 @@ def _check_level(kind: str, v, key: str, source, clutter_slots: int, burst_max: 
     return v
 
 
-def parse_distortion(d, source) -> DistortionAxes | None:
+def kinds_2d() -> tuple[str, ...]:
+    """The kinds that distort 2D detections only (every level they set is one of
+    ``distort.LEVELS_2D``): nothing of a 3D detection moves."""
+    return tuple(k for k in distort.KINDS if k != "none" and all(
+        v == 0 or n in distort.LEVELS_2D for n, v in distort.level_params(k, 1.0)._asdict().items() if n != "seed"))
+
+
+def parse_distortion(d, source, detections=("2d", "3d"), title: str = "") -> DistortionAxes | None:
     """The [distortion] table of a sweep document (None without it); bad values raise
-    :class:`~dfrmot_jax.sweep.checks.SweepConfigError` naming the key."""
+    :class:`~dfrmot_jax.sweep.checks.SweepConfigError` naming the key. ``detections``: what the
+    sweep's tracker family reads (``FamilyConfig.detections``, ``title`` its name): a family reading
+    no 2D detections refuses the kinds that distort only those (:func:`kinds_2d`: its lanes would be
+    the undistorted run)."""
     if d is None:
         return None
     t = Table(d, "distortion", source, DISTORTION_KEYS)
     levels_doc = d.get("levels")
     if levels_doc is not None and not isinstance(levels_doc, Mapping):
         raise config_error("distortion.levels", f"expected a table kind = [levels], got {levels_doc!r}", source)
-    kinds = _parse_kinds(d.get("kind"), levels_doc, source)
+    kinds = _parse_kinds(d.get("kind"), levels_doc, source, () if "2d" in detections else kinds_2d(), title)
     clutter_slots = t.integer("clutter_slots", 0, minimum=0)
     burst_max = t.integer("burst_max", 30)
     burst_dist = t.choice("burst_dist", "fixed", distort.BURST_DISTS)
@@ -220,7 +235,7 @@ def parse_distortion(d, source) -> DistortionAxes | None:
     return axes
 
 
-def _parse_kinds(kinds_doc, levels_doc, source) -> list[str]:
+def _parse_kinds(kinds_doc, levels_doc, source, refused=(), title: str = "") -> list[str]:
     """``distortion.kind`` (a kind or a list; without it, the kinds of ``distortion.levels``), checked."""
     if kinds_doc is None:
         if not levels_doc:
@@ -238,6 +253,10 @@ def _parse_kinds(kinds_doc, levels_doc, source) -> list[str]:
         if not isinstance(k, str) or k not in known:
             hint = " (level 0 of every kind is the undistorted run: add 0 to the levels)" if k == "none" else ""
             raise config_error(key, f"unknown distortion kind {k!r}{hint}; expected one of {list(known)}", source)
+        if k in refused:
+            raise config_error(key, f"kind {k!r} distorts 2D detections only, which {title or 'this family'} does not "
+                                    f"read (its lanes would be the undistorted run); use {k[:-3]!r} or "
+                                    f"{k[:-3] + ('_box3' if k == 'jitter_2d' else '_3d')!r}", source)
     names = [k for _, k in kinds]
     if len(set(names)) != len(names):
         raise config_error("distortion.kind", "a kind is listed twice", source)

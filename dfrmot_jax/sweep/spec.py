@@ -369,20 +369,13 @@ def parse_spec(doc: Mapping, source: str | None = None) -> SweepSpec:
     if report_class is not None and (not isinstance(report_class, str) or report_class not in classes + (AVERAGE,)):
         raise rep.error("class", f"{report_class!r}: expected one of the sweep's classes {list(classes)} or "
                                  f"{AVERAGE!r}")
-    if doc.get("distortion") is not None and family != DEFAULT_FAMILY:
-        raise config_error("distortion", f"the distortions act on {family_config().title}'s frames inside its "
-                                         f"scan: they are {family_config().title}'s for now, not {fc.title}'s "
-                                         f"(options.family = {family!r})", source)
-    distortion = parse_distortion(doc.get("distortion"), source)
+    distortion = parse_distortion(doc.get("distortion"), source, fc.detections, fc.title)
     metrics = top.table("metrics", METRICS_KEYS)
     ab3dmot = _parse_metrics(metrics, rep, objective, folds)
     ab3dmot_columns = metrics.choice("ab3dmot_columns", "kitti", ("kitti", "kitti-stale"),
                                      "the result columns AB3DMOT's figures score")
     ab3dmot_sum = metrics.choice("ab3dmot_sum", DEFAULT_SUM, SUMS, "how AB3DMOT's evaluator sums track scores "
                                  "(compensated: CPython >= 3.12; sequential: CPython <= 3.11)")
-    if ab3dmot is not None and distortion is not None:
-        raise metrics.error("ab3dmot", "AB3DMOT's figures are not computed in distortion studies yet (their "
-                                       "lanes' 3D rows include clutter)")
 
     spec = SweepSpec(name=name, description=desc, chunk=chunk, seed=seed, samples=samples, data_root=root,
                      det2d=data.get("det2d", "rrc"), det3d=data.get("det3d", "pointrcnn"), cls=classes[0],
