@@ -109,7 +109,8 @@ def test_ab3dmot_is_the_second_family_and_follows_the_protocol():
     assert (fam.init, fam.step, fam.run_batch) == (ab_tracker.init, ab_tracker.step, ab_batch.run)
     assert fam.box_format == "f6" and family_of().box_format == "g6"
     assert preset_family("ab3dmot_pedestrian") is fam.config and preset_family("tuned_both") is config.FAMILY_CONFIG
-    assert all_presets()[:1] == ("dfr2023",) and all_presets()[-2:] == ("ab3dmot_car", "ab3dmot_pedestrian")
+    assert all_presets()[:1] == ("dfr2023",) and all_presets()[-4:] == ("ab3dmot_car", "ab3dmot_pedestrian", "ab3dmot_car_tuned",
+                                                                     "ab3dmot_pedestrian_tuned")
     with pytest.raises(ValueError, match="unknown preset 'nope': expected one of .*'ab3dmot_car'"):
         preset_family("nope")
     assert importlib.import_module(fam.oracle).__name__ == "dfrmot_jax.testing.ab3dmot_oracle"
