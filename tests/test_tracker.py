@@ -42,9 +42,11 @@ def test_presets_match_reference(scene, name):
 
 @pytest.mark.slow
 def test_random_settings_match_reference(scene):
+    """5 random settings (static options and parameters drawn), each id for id with the oracle on the
+    synthetic scene (one compilation each; the KITTI parity test draws 16 more on 21 sequences)."""
     _, seqs, split = scene
     rng = np.random.default_rng(11)
-    for params, options in random_settings(rng, 8):
+    for params, options in random_settings(rng, 5):
         _assert_parity(split, seqs, params, options)
 
 
