@@ -298,8 +298,10 @@ def test_car_preset_with_buckets_matches_reference_and_oracle(kitti_root):
 
 @pytest.mark.slow
 def test_a_batch_equals_its_lanes_run_alone():
-    """Four settings in one vmapped call give each lane's output of a call of its own."""
-    scenes = own_scenes("dist_3d", "hungar", range(200, 204))
+    """Four settings in one vmapped call give each lane's output of a call of its own, every field.
+    The split, options and shapes of test_lanes_that_track_alike_are_tracked_once_and_equal_each_lane_alone
+    (edge scenes 210-212, dist_3d Hungarian): the runs alone reuse its compiled one-lane program."""
+    scenes = own_scenes("dist_3d", "hungar", range(210, 213))
     split = J.pack([(s.name, J.parse_detections(s.text), s.n_frames) for s in scenes], N_DET)
     options = J.Options("dist_3d", "hungarian", capacity=TRACKS)
     params = J.stack_params([J.Params(3.0, 1, 1), J.Params(1.0, 3, 2), J.Params(6.0, 2, 4), J.Params(0.5, 1, 3)])
