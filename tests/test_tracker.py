@@ -149,9 +149,9 @@ def test_second_call_with_new_values_does_not_recompile(scene):
         tracker.run_batch(stack_params([Params(a_l=3.0)] * 2), frames, Options(), cap + 8)
 
 
-#: a_weak matters only with weak detections: it is changed from a base with weak_3d = 4, under options of
-#: its own (kalman_init only acts with the Kalman filter: the code's tracker, as a separate group)
-WEAK = Options(kalman_init="steady")
+#: a_weak matters only with weak detections: it is changed from a base with weak_3d = 4 (its own base
+#: lane in the Options() batch, so no program of its own is compiled)
+WEAK_BASE = {"a_weak": Params(weak_3d=4.0)}
 CHANGES = {
     "score_2d": (Options(), 0.8), "score_3d": (Options(), 9.0), "merge_iou": (Options(), 0.9),
     "a_c": (Options(modality="2d"), 0.6), "a_l": (Options(modality="3d"), 1.0), "alpha_c": (Options(), 0.95),
@@ -161,26 +161,29 @@ CHANGES = {
     "kf_p0": (Options(filter="kalman", output="filtered"), 1e-3),
     "kf_q3": (Options(filter="kalman", output="filtered"), 1e4), "kf_r3": (Options(filter="kalman", output="filtered"), 1e4),
     "keep_lost": (Options(output="filtered"), 5), "min_hits": (Options(), 4),
-    "weak_2d": (Options(), 0.4), "weak_3d": (Options(), 4.0), "a_weak": (WEAK, 0.9),
+    "weak_2d": (Options(), 0.4), "weak_3d": (Options(), 4.0), "a_weak": (Options(), 0.9),
 }
 
 
 @pytest.mark.slow
 def test_every_parameter_changes_the_output(scene):
-    """A guard against settings that are silently ignored."""
+    """A guard against settings that are silently ignored: every parameter, changed from its base
+    lane (``Params()``, or ``WEAK_BASE``) in one batch per static option set, changes the output."""
     _, _, split = scene
     assert set(CHANGES) == set(Params._fields)
     by_options = {}
     for name, (options, value) in CHANGES.items():
-        by_options.setdefault(options, []).append((name, value))
+        by_options.setdefault(options, []).append((name, value, WEAK_BASE.get(name, Params())))
     for options, changes in by_options.items():
-        base = Params(weak_3d=4.0) if options == WEAK else Params()
-        lanes = [base] + [base._replace(**{n: v}) for n, v in changes]
+        bases = list(dict.fromkeys(base for _, _, base in changes))
+        lanes = bases + [base._replace(**{n: v}) for n, v, base in changes]
         res = track(split, stack_params(lanes), options)
-        for b, (name, value) in enumerate(changes, start=1):
-            same = np.array_equal(res.ids[b], res.ids[0]) and (
-                options.output == "detections" or np.array_equal(res.boxes[b], res.boxes[0]))
-            assert not same, f"changing {name} to {value} under {options} changed nothing"
+        for b, (name, value, base) in enumerate(changes, start=len(bases)):
+            a = bases.index(base)
+            assert lanes[b] != lanes[a]
+            same = np.array_equal(res.ids[b], res.ids[a]) and (
+                options.output == "detections" or np.array_equal(res.boxes[b], res.boxes[a]))
+            assert not same, f"changing {name} to {value} under {options} (from {base}) changed nothing"
 
 
 @pytest.mark.slow
