@@ -298,14 +298,18 @@ def test_too_many_objects_per_frame_is_refused_up_front():
     Options(output="filtered", filter="kalman"), Options(modality="3d"), Options(merge="calib_projection", modality="2d"))])
 def test_lanes_sharing_merge_settings_share_objects_made_outside_the_scan(scene, options, monkeypatch):
     """Lanes with the same ``config.OBJECT_PARAMS`` (score_2d, score_3d, merge_iou, weak_2d, weak_3d) share their objects, made once outside the
-    scan (``core.run.split_objects``): the same arrays as each step making its own, detail included."""
+    scan (``core.run.split_objects``): the same arrays as each step making its own, detail included.
+    8 lanes, 4 per setting of those parameters, with the batch's threshold for sharing
+    (``SHARED_OBJECTS_MIN_LANES`` lanes per setting, 8) lowered to 4: the same shared path as 16
+    lanes at the default, on half the lanes."""
     from dfrmot_jax import api
 
     _, _, split = scene
+    monkeypatch.setattr(api, "SHARED_OBJECTS_MIN_LANES", 4)
     rng = np.random.default_rng(17)
     triples = [random_params(rng) for _ in range(2)]
     lanes = []
-    for i in range(16):
+    for i in range(8):
         p = random_params(rng, options.output)
         t = triples[i % 2]
         lanes.append(p._replace(**{name: getattr(t, name) for name in OBJECT_PARAMS}))
