@@ -201,6 +201,10 @@ def pool():
 @pytest.mark.parametrize("name,fraction,seed", [("dfr2023", 0.25, 1), ("dfr2023", 0.5, 2),
                                                 ("dfr_head", 0.25, 3), ("dfr_head", 0.5, 4)])
 def test_random_row_drops_of_kitti_tracker_equals_oracle(kitti_root, pool, name, fraction, seed):
+    """A random fraction of the 2D and 3D rows of every car sequence dropped; JAX tracks all of them
+    in one call, the NumPy oracle checks (exactly, tol 0) half of them: those with index = seed mod 2.
+    Each preset's two cases have seeds of both parities, so every sequence is compared under each
+    preset (at one of the two fractions)."""
     rng = np.random.default_rng(seed)
     seqs = []
     for s in load_sequences(kitti_root, "rrc", "pointrcnn", "car"):
@@ -211,8 +215,10 @@ def test_random_row_drops_of_kitti_tracker_equals_oracle(kitti_root, pool, name,
     params, options = preset(name)
     split = pack(seqs)
     res = track(split, params, options)
-    bad = lane_mismatches(split, res, 0, reference_rows(seqs, params, options, pool), tol=0.0)
-    assert bad["lines"] > 10000
+    half = [i for i in range(len(seqs)) if i % 2 == seed % 2]
+    bad = lane_mismatches(split, res, 0, reference_rows([seqs[i] for i in half], params, options, pool), tol=0.0,
+                          sequences=half)
+    assert bad["lines"] > 4000
     assert (bad["missing"], bad["extra"], bad["id"], bad["box"]) == (0, 0, 0, 0), bad
 
 

@@ -42,9 +42,11 @@ def test_presets_match_reference(scene, name):
 
 @pytest.mark.slow
 def test_random_settings_match_reference(scene):
+    """5 random settings (static options and parameters drawn), each id for id with the oracle on the
+    synthetic scene (one compilation each; the KITTI parity test draws 16 more on 21 sequences)."""
     _, seqs, split = scene
     rng = np.random.default_rng(11)
-    for params, options in random_settings(rng, 8):
+    for params, options in random_settings(rng, 5):
         _assert_parity(split, seqs, params, options)
 
 
@@ -81,7 +83,8 @@ def test_small_frames_track_like_the_oracle_and_like_one_size(scene, plan, monke
     """Frames with few detections run on smaller copies of the step (``core.run.small_frames``, on
     for long splits; forced here, with the scene's own plan and with three sizes): the oracle's tracks
     id for id, and the same arrays as one size, for random settings, the rows' 3D sources
-    (``detail``) included (the KITTI parity tests run it on all 21 sequences, where it is on)."""
+    (``detail``) included (the KITTI parity tests run it on all 21 sequences, where it is on). Each
+    plan: one random setting (its own draw) and the two default settings, both outputs."""
     _, seqs, split = scene
     frames = prepare_frames(split, Options())
     if plan == "three sizes":
@@ -91,7 +94,7 @@ def test_small_frames_track_like_the_oracle_and_like_one_size(scene, plan, monke
     assert plan == "own" or np.all(np.bincount(found[1], minlength=4) > 0), "a size holds no frame"
     rng = np.random.default_rng(31)
     carried = 0
-    for params, options in (random_settings(rng, 2 if plan == "own" else 1)
+    for params, options in (random_settings(rng, 1)
                             + [(Params(), Options()), (Params(), Options(output="filtered"))]):
         batch = stack_params([params, random_params(rng, options.output)])
         small = track(split, batch, options, small_frames_min=0, detail=True)
@@ -107,12 +110,19 @@ def test_small_frames_track_like_the_oracle_and_like_one_size(scene, plan, monke
 
 @pytest.mark.slow
 def test_vmap_batch_equals_loop_of_single_runs(scene):
+    """32 random settings in one vmapped call; 6 of its lanes (the first, the last and 4 drawn with a
+    fixed seed, so lanes from both ends and the middle of the batch) each equal a run of their own,
+    ids and live boxes. Every lane runs through the same vmapped program, so a lane-mixing bug shows
+    in any lane; comparing all 32 cost 32 single runs."""
     _, _, split = scene
     rng = np.random.default_rng(5)
     options = Options(filter="kalman", output="filtered", capacity=48)
     settings = [random_params(rng, "filtered") for _ in range(32)]
     batch = track(split, stack_params(settings), options, lanes_per_call=32)
-    for b, p in enumerate(settings):
+    chosen = sorted({0, 31, *np.random.default_rng(7).choice(np.arange(1, 31), 4, replace=False).tolist()})
+    assert len(chosen) == 6
+    for b in chosen:
+        p = settings[b]
         single = track(split, stack_params([p]), options)
         k = single.ids.shape[2]
         np.testing.assert_array_equal(batch.ids[b][:, :k], single.ids[0])
@@ -139,9 +149,9 @@ def test_second_call_with_new_values_does_not_recompile(scene):
         tracker.run_batch(stack_params([Params(a_l=3.0)] * 2), frames, Options(), cap + 8)
 
 
-#: a_weak matters only with weak detections: it is changed from a base with weak_3d = 4, under options of
-#: its own (kalman_init only acts with the Kalman filter: the code's tracker, as a separate group)
-WEAK = Options(kalman_init="steady")
+#: a_weak matters only with weak detections: it is changed from a base with weak_3d = 4 (its own base
+#: lane in the Options() batch, so no program of its own is compiled)
+WEAK_BASE = {"a_weak": Params(weak_3d=4.0)}
 CHANGES = {
     "score_2d": (Options(), 0.8), "score_3d": (Options(), 9.0), "merge_iou": (Options(), 0.9),
     "a_c": (Options(modality="2d"), 0.6), "a_l": (Options(modality="3d"), 1.0), "alpha_c": (Options(), 0.95),
@@ -151,26 +161,29 @@ CHANGES = {
     "kf_p0": (Options(filter="kalman", output="filtered"), 1e-3),
     "kf_q3": (Options(filter="kalman", output="filtered"), 1e4), "kf_r3": (Options(filter="kalman", output="filtered"), 1e4),
     "keep_lost": (Options(output="filtered"), 5), "min_hits": (Options(), 4),
-    "weak_2d": (Options(), 0.4), "weak_3d": (Options(), 4.0), "a_weak": (WEAK, 0.9),
+    "weak_2d": (Options(), 0.4), "weak_3d": (Options(), 4.0), "a_weak": (Options(), 0.9),
 }
 
 
 @pytest.mark.slow
 def test_every_parameter_changes_the_output(scene):
-    """A guard against settings that are silently ignored."""
+    """A guard against settings that are silently ignored: every parameter, changed from its base
+    lane (``Params()``, or ``WEAK_BASE``) in one batch per static option set, changes the output."""
     _, _, split = scene
     assert set(CHANGES) == set(Params._fields)
     by_options = {}
     for name, (options, value) in CHANGES.items():
-        by_options.setdefault(options, []).append((name, value))
+        by_options.setdefault(options, []).append((name, value, WEAK_BASE.get(name, Params())))
     for options, changes in by_options.items():
-        base = Params(weak_3d=4.0) if options == WEAK else Params()
-        lanes = [base] + [base._replace(**{n: v}) for n, v in changes]
+        bases = list(dict.fromkeys(base for _, _, base in changes))
+        lanes = bases + [base._replace(**{n: v}) for n, v, base in changes]
         res = track(split, stack_params(lanes), options)
-        for b, (name, value) in enumerate(changes, start=1):
-            same = np.array_equal(res.ids[b], res.ids[0]) and (
-                options.output == "detections" or np.array_equal(res.boxes[b], res.boxes[0]))
-            assert not same, f"changing {name} to {value} under {options} changed nothing"
+        for b, (name, value, base) in enumerate(changes, start=len(bases)):
+            a = bases.index(base)
+            assert lanes[b] != lanes[a]
+            same = np.array_equal(res.ids[b], res.ids[a]) and (
+                options.output == "detections" or np.array_equal(res.boxes[b], res.boxes[a]))
+            assert not same, f"changing {name} to {value} under {options} (from {base}) changed nothing"
 
 
 @pytest.mark.slow
@@ -285,14 +298,18 @@ def test_too_many_objects_per_frame_is_refused_up_front():
     Options(output="filtered", filter="kalman"), Options(modality="3d"), Options(merge="calib_projection", modality="2d"))])
 def test_lanes_sharing_merge_settings_share_objects_made_outside_the_scan(scene, options, monkeypatch):
     """Lanes with the same ``config.OBJECT_PARAMS`` (score_2d, score_3d, merge_iou, weak_2d, weak_3d) share their objects, made once outside the
-    scan (``core.run.split_objects``): the same arrays as each step making its own, detail included."""
+    scan (``core.run.split_objects``): the same arrays as each step making its own, detail included.
+    8 lanes, 4 per setting of those parameters, with the batch's threshold for sharing
+    (``SHARED_OBJECTS_MIN_LANES`` lanes per setting, 8) lowered to 4: the same shared path as 16
+    lanes at the default, on half the lanes."""
     from dfrmot_jax import api
 
     _, _, split = scene
+    monkeypatch.setattr(api, "SHARED_OBJECTS_MIN_LANES", 4)
     rng = np.random.default_rng(17)
     triples = [random_params(rng) for _ in range(2)]
     lanes = []
-    for i in range(16):
+    for i in range(8):
         p = random_params(rng, options.output)
         t = triples[i % 2]
         lanes.append(p._replace(**{name: getattr(t, name) for name in OBJECT_PARAMS}))

@@ -33,19 +33,21 @@ def reference_rows(seqs: list[SequenceDets], params: Params, options: Options,
     return [futures[i].result() for i in range(len(seqs))]
 
 
-def lane_mismatches(split: Split, res: TrackResult, b: int, ref: list[list[tuple]], tol: float = 1e-4) -> dict:
-    """Count lines of lane b that differ from the reference: {'lines', 'missing', 'extra', 'id', 'box'}."""
+def lane_mismatches(split: Split, res: TrackResult, b: int, ref: list[list[tuple]], tol: float = 1e-4,
+                    sequences: list[int] | None = None) -> dict:
+    """Count lines of lane b that differ from the reference: {'lines', 'missing', 'extra', 'id', 'box'}.
+    ``sequences``: the split's sequences compared (default: all), ``ref[j]`` the rows of ``sequences[j]``."""
     boxes = res.lane_boxes(b)
     out = {"lines": 0, "missing": 0, "extra": 0, "id": 0, "box": 0}
-    for s in range(len(split.names)):
+    for j, s in enumerate(range(len(split.names)) if sequences is None else sequences):
         r = lane_rows(split, s, res.ids[b], boxes)
         mine = {}
         for f, i, bx in zip(r.frame.tolist(), r.track_id.tolist(), r.box):
             mine.setdefault((f, i), []).append(bx)
         theirs = {}
-        for row in ref[s]:
+        for row in ref[j]:
             theirs.setdefault((row[0], row[1]), []).append(np.array(row[2:6]))
-        out["lines"] += len(ref[s])
+        out["lines"] += len(ref[j])
         for key, bxs in theirs.items():
             got = mine.get(key)
             if got is None:
