@@ -296,7 +296,7 @@ def _sequence_lines(run: Ab3dmotRun, s: int, offset: int) -> tuple[list[str], in
     ids = np.asarray(run.ids)[sl]
     t, k = np.nonzero(ids >= 0)
     src = np.asarray(run.src3)[sl][t, k].astype(np.int64)
-    q = prepare_frames(split) if run.prep is None else run.prep
+    q = run.prep
     image = q.image.reshape(-1, 4)[src]
     alpha = np.asarray(split.alpha3d if q.alpha is None else q.alpha, np.float64).reshape(-1)[src]
     score = q.frames.score.reshape(-1)[src]
@@ -322,6 +322,8 @@ def write_runs(out_dir, runs: list[Ab3dmotRun], *, columns: str = "kitti") -> li
     per_seq: dict[str, list[tuple[np.ndarray, list[str]]]] = {}
     top: dict[str, int] = {}
     for run in runs:
+        if run.prep is None:        # (the split's own detections, prepared once per run)
+            run = run._replace(prep=prepare_frames(run.split))
         for s, name in enumerate(run.split.names):
             lines, most = _sequence_lines(run, s, top.get(name, 0) if name in per_seq else 0)
             frames = np.array([int(line.split(" ", 1)[0]) for line in lines], np.int64)

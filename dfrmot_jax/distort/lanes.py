@@ -164,8 +164,10 @@ class LaneDistortion(NamedTuple):
     gid3: np.ndarray
 
     def key(self, b: int) -> bytes:
-        """Lane ``b``'s levels and seed (part of the key of the metrics' memo of its rows)."""
-        return np.asarray([float(v) for v in lane_params(self.params, b)], np.float64).tobytes()
+        """Lane ``b``'s levels and seed and the static spec they were drawn under (part of the key of
+        the metrics' memo of its rows: the detections a lane reads follow from these and the split)."""
+        return (np.asarray([float(v) for v in lane_params(self.params, b)], np.float64).tobytes()
+                + repr(self.spec).encode())
 
     def lanes(self, base: Detections3D, lanes, score2=None) -> list["DistortedLane"]:
         """Each distinct distortion of ``lanes`` (lane indices), one at a time, as a
