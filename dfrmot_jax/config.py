@@ -237,6 +237,14 @@ PRESETS: dict[str, tuple[Params, Options]] = {
                           gain_alpha=1.0, gain_beta=0.4, gain_gamma=0.03, weak_2d=0.1, weak_3d=6.0, a_weak=0.5),
                    Options(output="filtered")),
 }
+# Issue 43's one configuration for 3D and 2D, chosen across both families on AB3DMOT's training split only
+# by tuned_both's rule (the largest sAMOTA + HOTA, compensated sum): among tuned_both (training split 91.13 +
+# 83.17 = 174.30), every point of the AB3DMOT car grid (sweeps/kitti_ab3dmot_grid.toml; its largest,
+# ab3dmot_car_tuned, 89.85 + 67.72 = 157.57) and AB3DMOT's tracks writing the camera's 2D box (measured
+# outside the package: ab3dmot_car_tuned 89.87 + 70.12 = 159.99), tuned_both's settings win, so the chosen
+# configuration is tuned_both's. Validation split, scored once: sAMOTA 95.73, HOTA 85.48 (sweeps/README,
+# "Best of both"): the HOTA goal (86.5) is not met.
+PRESETS["best_of_both"] = PRESETS["tuned_both"]
 
 
 CLASSES = ("car", "pedestrian")
