@@ -11,12 +11,20 @@ from dfrmot_jax import setup_host_devices
 from dfrmot_jax.core.run import clear_programs
 from dfrmot_jax.paths import ENV_VAR, data_available, default_data_root
 
-# Compiled programs kept for this test session only, in a folder of its own removed at exit (never
+# Compiled programs kept for this test run only, in a folder of its own removed at exit (never
 # ~/.cache, where the in-process CLI would keep them): a program compiled again (after
-# clear_programs, or in a test's subprocess or Ray worker) is taken from there, JAX's own key
-# naming all it depends on; test_devices tests the cache in processes of its own.
-_COMPILE_CACHE = tempfile.mkdtemp(prefix="dfrmot_tests_xla_")
-atexit.register(shutil.rmtree, _COMPILE_CACHE, True)
+# clear_programs, in another xdist worker, or in a test's subprocess, notebook kernel or Ray worker) is
+# taken from there, JAX's own key naming all it depends on (JAX's file cache locks its folder, so the
+# processes share it safely); test_devices tests the cache in processes of its own. The process that
+# makes the folder (pytest itself, or xdist's controller, whose environment its workers inherit)
+# removes it; the workers use it.
+_RUN_CACHE_VAR = "DFRMOT_TEST_RUN_COMPILE_CACHE"
+if os.environ.get(_RUN_CACHE_VAR) and os.environ.get("PYTEST_XDIST_WORKER"):
+    _COMPILE_CACHE = os.environ[_RUN_CACHE_VAR]
+else:
+    _COMPILE_CACHE = tempfile.mkdtemp(prefix="dfrmot_tests_xla_")
+    atexit.register(shutil.rmtree, _COMPILE_CACHE, True)
+    os.environ[_RUN_CACHE_VAR] = _COMPILE_CACHE
 os.environ["DFRMOT_COMPILE_CACHE"] = _COMPILE_CACHE
 # One XLA device per core for the whole session, before any test runs a JAX operation.
 setup_host_devices()
