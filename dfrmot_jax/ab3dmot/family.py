@@ -37,7 +37,8 @@ from .results import LINE_FORMAT
 
 __all__ = ["FAMILY", "Prepared", "LanePrepared", "Ab3dmotRun", "prepared", "distortion_spec", "distorted_lanes",
            "lane_prepared", "prepare_frames", "track", "rows", "row_arrays", "class_run",
-           "write_runs", "default_capacity", "setting_problem", "call_lanes", "output_slots", "lane_keys",
+           "write_runs", "default_capacity", "setting_problem", "call_lanes", "lane_calls", "stacked_frames",
+           "output_slots", "lane_keys",
            "BYTES_PER_SLOT"]
 
 #: a lane's output bytes per track slot and frame: ids, the detection index (int32 each), the image
@@ -161,6 +162,33 @@ def call_lanes(of: np.ndarray, per: int) -> list[np.ndarray]:
     return calls
 
 
+def stacked_frames(preps) -> tracker.Frames:
+    """The frames of several :class:`Prepared` of one shape, stacked on a lane axis: boxes
+    [T, D, N, 7], valid and score [T, D, N], reset [T] (the first's; the same split)."""
+    fr = [q.frames for q in preps]
+    return tracker.Frames(np.stack([f.boxes for f in fr], 1), np.stack([f.valid for f in fr], 1),
+                          np.stack([f.score for f in fr], 1), fr[0].reset)
+
+
+def lane_calls(frames: LanePrepared, params: Params, per: int) -> list[tuple]:
+    """The compiled calls of a distortion study's lanes (``params`` leaves [B], ``frames.of`` [B]
+    each lane's distinct frames): lanes whose frames have one shape share calls, each call holding
+    at most ``per`` tracking lanes (:func:`call_lanes`; lanes on different frames never track
+    alike). Per call: (the shape group's lanes [G], the call's lanes [L] (indices into B), the
+    distinct frames it reads [D'] (indices into ``frames.preps``), each lane's among them [L])."""
+    shapes = [np.shape(q.frames.valid) for q in frames.preps]
+    out = []
+    for shape in dict.fromkeys(shapes):
+        ds = np.flatnonzero([s == shape for s in shapes])
+        group = np.flatnonzero(np.isin(frames.of, ds))
+        sub = Params(*(np.asarray(v)[group] for v in params))
+        of = frames.of[group]
+        for at in call_lanes(batch.tracking_lanes(sub, of)[1], per):
+            used, local = np.unique(of[at], return_inverse=True)
+            out.append((group, group[at], used, local.reshape(-1)))
+    return out
+
+
 def track(split: Split | Prepared, params: Params, options: Options = Options(), *, lanes_per_call: int | None = None,
           grow: bool = True, detail: bool = True, rows_only: bool = False, distortion=None, spec=None,
           clutter_slots: int = 0) -> TrackResult:
@@ -177,7 +205,8 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
     ``distortion``: ``distort.DistortParams`` (scalars or leaves [B]; needs the ``Split``, whose
     labels give the bursts' identities): lane b tracks its 3D detections distorted by its own levels
     and seed, the draws DFR-FastMOT's lanes take (:func:`distorted_lanes`; 2D levels change nothing
-    here), the lanes of each distinct distortion in calls of their own on its materialised frames;
+    here), on its distortion's materialised frames, the lanes of all distortions batched into shared
+    calls (:func:`lane_calls`, each lane on its own frames, :func:`.batch.run`'s ``frame_of``);
     ``spec`` / ``clutter_slots``: the static ``DistortSpec`` (default :func:`distortion_spec` of the
     data and the levels). The result's ``frames`` are then a :class:`LanePrepared` and its
     ``distortion`` the ``distort.LaneDistortion``; its rows carry each lane's distorted detections."""
@@ -189,7 +218,6 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
     b = len(p.threshold)
     per = max(1, int(lanes_per_call or b))
     frames, lanes = prep, None
-    groups = [(np.arange(b), prep)]
     if distortion is not None:
         if not isinstance(split, Split):
             raise ValueError("track(distortion=...) needs the Split (its ground truth), not prepared frames")
@@ -198,15 +226,22 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
             spec = distortion_spec(clutter_slots=clutter_slots, frames=prep, dps=dps)
         distort.check_params(distort.only_3d(dps), spec)
         frames, lanes = distorted_lanes(split, prep, dps, spec)
-        groups = [(np.flatnonzero(frames.of == d), q) for d, q in enumerate(frames.preps)]
     calls, outs, image = [], [], []
-    for group, q in groups:
-        sub = Params(*(v[group] for v in p))
-        for at in call_lanes(batch.tracking_lanes(sub)[1], per):
-            out = batch.run(Params(*(v[at] for v in sub)), q.frames, options, grow=grow)
-            calls.append(group[at])
+    if distortion is None:
+        for at in call_lanes(batch.tracking_lanes(p)[1], per):
+            out = batch.run(Params(*(v[at] for v in p)), prep.frames, options, grow=grow)
+            calls.append(at)
             outs.append(out)
-            image.append(q.image.reshape(-1, 4)[np.maximum(out.src, 0)])
+            image.append(prep.image.reshape(-1, 4)[np.maximum(out.src, 0)])
+    else:       # the lanes of every distinct distortion in shared calls, each on its own frames
+        for group, at, used, local in lane_calls(frames, p, per):
+            qs = [frames.preps[d] for d in used]
+            out = batch.run(Params(*(v[at] for v in p)), stacked_frames(qs), options, grow=grow, frame_of=local,
+                            lanes=per)
+            calls.append(at)
+            outs.append(out)
+            images = np.stack([q.image.reshape(-1, 4) for q in qs])                     # [D', T * N, 4]
+            image.append(images[local[:, None, None], np.maximum(out.src, 0)])
     back = np.argsort(np.concatenate(calls), kind="stable")     # (each lane's place among the calls' lanes)
     k = max(o.ids.shape[2] for o in outs)
     ids = np.concatenate([_widen(o.ids, k, -1) for o in outs])[back][:, :, ::-1]
@@ -224,7 +259,8 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
         warnings.warn(f"AB3DMOT: lanes {bad[:8].tolist()} met a pair whose geometry AB3DMOT cannot compute or a "
                       f"greedy tie its sort breaks differently: their tracks are this package's, not AB3DMOT's",
                       UserWarning, stacklevel=2)
-    capacity = np.concatenate([np.full(len(o.ids), o.options.capacity, np.int64) for o in outs])[back]
+    capacity = np.concatenate([np.full(len(o.ids), o.options.capacity, np.int64) if o.capacity is None
+                               else np.asarray(o.capacity, np.int64) for o in outs])[back]
     boxes = Rows.of(ids, image) if rows_only else image
     box3_out = Rows.of(ids, box3) if rows_only else box3
     ran = outs[-1].options._replace(capacity=int(capacity.max(initial=0)))
