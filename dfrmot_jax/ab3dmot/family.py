@@ -30,7 +30,7 @@ from ..family import TrackerFamily
 from ..io.atomic import write_text_atomic
 from ..io.columns import as_written_fixed
 from ..results import KittiRows, padded_rows
-from ..rows import Rows, RowSelection, lane_values
+from ..rows import Rows, RowSelection, lane_values, row_starts
 from . import batch, tracker
 from .config import FAMILY_CONFIG, Options, Params, validate
 from .results import LINE_FORMAT
@@ -189,6 +189,43 @@ def lane_calls(frames: LanePrepared, params: Params, per: int) -> list[tuple]:
     return out
 
 
+def _run_calls(prep: Prepared, frames: LanePrepared | None, p: Params, options: Options, per: int, grow: bool,
+               rows_only: bool) -> tuple[list, list, list, dict, dict]:
+    """:func:`track`'s compiled calls: every lane of ``p`` (leaves [B]) on ``prep`` (or, with a
+    distortion, on its own of ``frames``): (each call's lanes, its ``RunOutput``, its image boxes
+    [L, T, K, 4] (without ``rows_only``), and with ``rows_only`` per lane its image and 3D boxes at
+    its rows only (in (frame, slot) order, newest slot first: ``Rows``' values), not dense)."""
+    calls, outs, image, rows3, rows2 = [], [], [], {}, {}
+
+    def keep(at, out: batch.RunOutput, image_of) -> None:
+        """A call's output for lanes ``at``; ``image_of(j, src)``: the image boxes of its lane j's
+        detections ``src``."""
+        calls.append(at)
+        if rows_only:
+            live = out.ids[:, :, ::-1] >= 0
+            for j, lane in enumerate(at):
+                rows3[lane] = out.boxes[j][:, ::-1][live[j]]
+                rows2[lane] = image_of(j, out.src[j][:, ::-1][live[j]])
+            out = out._replace(boxes=None)
+        else:
+            image.append(np.stack([image_of(j, np.maximum(out.src[j], 0)) for j in range(len(at))]))
+        outs.append(out)
+
+    if frames is None:
+        flat = prep.image.reshape(-1, 4)
+        for at in call_lanes(batch.tracking_lanes(p)[1], per):
+            keep(at, batch.run(Params(*(v[at] for v in p)), prep.frames, options, grow=grow),
+                 lambda j, src: flat[src])
+    else:       # the lanes of every distinct distortion in shared calls, each on its own frames
+        for group, at, used, local in lane_calls(frames, p, per):
+            qs = [frames.preps[d] for d in used]
+            out = batch.run(Params(*(v[at] for v in p)), stacked_frames(qs), options, grow=grow, frame_of=local,
+                            lanes=per)
+            flats = [q.image.reshape(-1, 4) for q in qs]
+            keep(at, out, lambda j, src, flats=flats, local=local: flats[local[j]][src])
+    return calls, outs, image, rows2, rows3
+
+
 def track(split: Split | Prepared, params: Params, options: Options = Options(), *, lanes_per_call: int | None = None,
           grow: bool = True, detail: bool = True, rows_only: bool = False, distortion=None, spec=None,
           clutter_slots: int = 0) -> TrackResult:
@@ -226,32 +263,22 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
             spec = distortion_spec(clutter_slots=clutter_slots, frames=prep, dps=dps)
         distort.check_params(distort.only_3d(dps), spec)
         frames, lanes = distorted_lanes(split, prep, dps, spec)
-    calls, outs, image = [], [], []
-    if distortion is None:
-        for at in call_lanes(batch.tracking_lanes(p)[1], per):
-            out = batch.run(Params(*(v[at] for v in p)), prep.frames, options, grow=grow)
-            calls.append(at)
-            outs.append(out)
-            image.append(prep.image.reshape(-1, 4)[np.maximum(out.src, 0)])
-    else:       # the lanes of every distinct distortion in shared calls, each on its own frames
-        for group, at, used, local in lane_calls(frames, p, per):
-            qs = [frames.preps[d] for d in used]
-            out = batch.run(Params(*(v[at] for v in p)), stacked_frames(qs), options, grow=grow, frame_of=local,
-                            lanes=per)
-            calls.append(at)
-            outs.append(out)
-            images = np.stack([q.image.reshape(-1, 4) for q in qs])                     # [D', T * N, 4]
-            image.append(images[local[:, None, None], np.maximum(out.src, 0)])
+    calls, outs, image, rows2, rows3 = _run_calls(prep, frames if distortion is not None else None, p, options, per,
+                                                  grow, rows_only)
     back = np.argsort(np.concatenate(calls), kind="stable")     # (each lane's place among the calls' lanes)
     k = max(o.ids.shape[2] for o in outs)
     ids = np.concatenate([_widen(o.ids, k, -1) for o in outs])[back][:, :, ::-1]
     src = np.concatenate([_widen(o.src, k, -1) for o in outs])[back][:, :, ::-1]
-    box3 = np.concatenate([_widen(o.boxes, k, 0.0) for o in outs])[back][:, :, ::-1]
-    image = np.concatenate([_widen(v, k, 0.0) for v in image])[back][:, :, ::-1]
-    ids, box3 = np.ascontiguousarray(ids, np.int32), np.ascontiguousarray(box3)
+    ids = np.ascontiguousarray(ids, np.int32)
     src = np.where(ids >= 0, src, -1).astype(np.int32)
-    image = np.ascontiguousarray(image)
-    image[ids < 0] = np.nan
+    if rows_only:           # (the rows of every lane in lane order: ``Rows.of`` of the dense arrays)
+        start, t = row_starts(ids), ids.shape[1]
+        boxes = Rows(np.concatenate([rows2[lane] for lane in range(b)]), start, t)
+        box3_out = Rows(np.concatenate([rows3[lane] for lane in range(b)]), start, t)
+    else:
+        box3_out = np.ascontiguousarray(np.concatenate([_widen(o.boxes, k, 0.0) for o in outs])[back][:, :, ::-1])
+        boxes = np.ascontiguousarray(np.concatenate([_widen(v, k, 0.0) for v in image])[back][:, :, ::-1])
+        boxes[ids < 0] = np.nan
     counters = {n: np.concatenate([getattr(o, n) for o in outs])[back] for n in ("dropped", "overflow", "peak",
                                                                                 "degenerate", "fallback")}
     bad = np.flatnonzero((counters["degenerate"] > 0) | (counters["fallback"] > 0))
@@ -261,8 +288,6 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
                       UserWarning, stacklevel=2)
     capacity = np.concatenate([np.full(len(o.ids), o.options.capacity, np.int64) if o.capacity is None
                                else np.asarray(o.capacity, np.int64) for o in outs])[back]
-    boxes = Rows.of(ids, image) if rows_only else image
-    box3_out = Rows.of(ids, box3) if rows_only else box3
     ran = outs[-1].options._replace(capacity=int(capacity.max(initial=0)))
     return TrackResult(ids, boxes, counters["dropped"].astype(np.int32), counters["overflow"].astype(np.int32),
                        counters["peak"].astype(np.int32), src, ids >= 0, box3_out, capacity, frames, ran, lanes)
