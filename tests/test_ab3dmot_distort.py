@@ -14,6 +14,7 @@ from dfrmot_jax.ab3dmot.config import Options as AOptions
 from dfrmot_jax.ab3dmot.config import Params as AParams
 from dfrmot_jax.config import Options
 from dfrmot_jax.data import load_split, prepare_frames
+from dfrmot_jax.rows import Rows
 from dfrmot_jax.synthetic import make_scene
 from dfrmot_jax.testing import ab3dmot_oracle as ab
 
@@ -141,3 +142,38 @@ def test_distorted_lanes_equal_each_alone_the_oracle_and_level0_the_undistorted(
                 np.testing.assert_array_equal(getattr(got, f), getattr(want, f))
     assert sum(len(v) for v in _lines(split, res, 2, tmp_path / "x").values()) != sum(
         len(v) for v in _lines(split, res, 0, tmp_path / "y").values())
+
+
+@pytest.mark.slow          # (two compilations: the shared call's lanes, and one lane alone)
+def test_distinct_distortions_batched_in_one_call_equal_each_alone(split):
+    """Several distinct distortions of one frame shape (level 0, drops, bursts) and two settings,
+    batched into shared calls (``batch.run(frame_of=...)``: each tracking lane on its own frames,
+    calls padded to one lane count) from too few track slots (the calls grow): every lane's ids,
+    rows (``rows_only`` too), counters and capacity == the lane tracked alone."""
+    lanes = [distort.level_params("none", 0.0, seed=0), distort.level_params("drop", 0.2, seed=0),
+             distort.level_params("drop", 0.5, seed=0), distort.level_params("burst", 4.0, seed=2, burst_rate=0.1)]
+    b = len(lanes)
+    p = AParams(np.r_[np.full(b, -0.2), np.full(b, 0.01)], np.r_[np.full(b, 3), np.full(b, 1)],
+                np.full(2 * b, 2), np.full(2 * b, -1e4))
+    dps = distort.stack_distort(lanes + lanes)
+    options = AOptions(metric="giou_3d", algorithm="greedy", capacity=4)
+    res = af.track(split, p, options, distortion=dps, lanes_per_call=3)
+    rows = af.track(split, p, options, distortion=dps, lanes_per_call=3, rows_only=True, spec=res.distortion.spec)
+    assert len(set(res.capacity.tolist())) > 1                 # (lanes grew apart)
+    for f in ("boxes", "box3"):
+        want = Rows.of(res.ids, getattr(res, f))
+        np.testing.assert_array_equal(getattr(rows, f).values, want.values)
+        np.testing.assert_array_equal(getattr(rows, f).start, want.start)
+    for lane in range(2 * b):
+        one = AParams(*(v[lane] for v in p))
+        alone = af.track(split, one, options, distortion=distort.stack_distort([lanes[lane % b]]),
+                         spec=res.distortion.spec)
+        for f in ("peak", "overflow", "capacity", "dropped"):
+            np.testing.assert_array_equal(np.asarray(getattr(res, f))[lane], np.asarray(getattr(alone, f))[0])
+        mine, own = np.asarray(res.ids)[lane], np.asarray(alone.ids)[0]
+        for f in ("ids", "src3", "box3", "boxes"):
+            np.testing.assert_array_equal(np.asarray(getattr(res, f))[lane][mine >= 0],
+                                          np.asarray(getattr(alone, f))[0][own >= 0])
+        got, want = af.rows(split, res, lanes=[lane]), af.rows(split, alone)
+        for f in ("t", "ids", "box", "score", "box3d"):
+            np.testing.assert_array_equal(getattr(got, f), getattr(want, f))

@@ -24,7 +24,7 @@ from .tracker import Frames, State, StepOutput, decide, finish, init, predict, s
 
 __all__ = ["RunOutput", "run", "run_lane", "run_lanes", "pooled_affinity", "affinity_sizes", "ladder", "clear_programs",
            "MAX_TRACKS", "data_capacity", "broadcast_lanes", "tracking_lanes", "frame_counts",
-           "written_lines"]
+           "written_lines", "own_frames"]
 
 
 class RunOutput(NamedTuple):
@@ -34,7 +34,8 @@ class RunOutput(NamedTuple):
     (births dropped), ``peak`` (most slots needed),
     ``pairs_left``, ``degenerate``, ``fallback`` (see ``tracker.State``): a lane is AB3DMOT's exactly
     when all of ``overflow``, ``pairs_left``, ``degenerate`` and ``fallback`` are 0; ``options``:
-    the ``Options`` of the run (capacities grown, buckets chosen)."""
+    the ``Options`` of the run (capacities grown, buckets chosen); ``capacity`` [B] the track
+    slots each lane alone would have grown to (None: ``options.capacity``)."""
 
     ids: np.ndarray
     src: np.ndarray
@@ -47,6 +48,7 @@ class RunOutput(NamedTuple):
     degenerate: np.ndarray
     fallback: np.ndarray
     options: Options | None = None
+    capacity: np.ndarray | None = None
 
 
 def run_lane(params: Params, frames: Frames, state: State, options: Options) -> tuple[State, StepOutput]:
@@ -80,19 +82,26 @@ def _switch(count, sizes, branch, *args):
 
 
 def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
-    """Every lane's affinity matrix (A [B, N, K] float32, degenerate [B, N, K]) from the pairs
+    """Every lane's affinity matrix (A [B, N, K] float32, degenerate [B, N, K]) of ``frame``'s
+    detections (boxes [N, 7], shared by the lanes, or each lane's own [B, N, 7]) from the pairs
     that exist (valid detection, live track) of all lanes, packed into one list: each per-pair
     value is computed once, on the smallest of a ladder of list sizes that holds them (``lax.switch``
     on their number); IoU metrics clip only the pairs whose footprints may overlap, packed again.
     The same values as ``affinity.affinity`` lane by lane (the same elementwise functions)."""
     metric = options.metric
     b, k = pred.count.shape[0], pred.age.shape[1]
-    n = frame.valid.shape[0]
+    n = frame.valid.shape[-1]
     full = b * n * k
     trk = pred.filt.x[..., :7]                                                  # [B, K, 7]
-    det = frame.boxes                                                           # [N, 7]
+    det = frame.boxes                                                           # [N, 7] or per lane [B, N, 7]
+    own = det.ndim == 3
     zero = runtime_zero(jnp.max(pred.frame_count))
-    mask = frame.valid[None, :, None] & (jnp.arange(k)[None, None, :] < pred.count[:, None, None])
+    valid = frame.valid[:, :, None] if own else frame.valid[None, :, None]
+    mask = valid & (jnp.arange(k)[None, None, :] < pred.count[:, None, None])
+
+    def take_det(v, lane, i):
+        """A detection value per pair: the lane's own detections, or the shared ones."""
+        return v[lane, i] if own else v[i]
 
     def pair(sel):
         """(lane, detection, track slot) of each listed pair (flat index into [B, N, K])."""
@@ -101,7 +110,7 @@ def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
 
     def boxes(sel):
         lane, i, j = pair(sel)
-        return det[i], trk[lane, j], (lane, j)
+        return take_det(det, lane, i), trk[lane, j], (lane, j)
 
     def scatter(sel, values, fill):
         return jnp.full(full, fill, values.dtype).at[sel].set(values, mode="drop").reshape(b, n, k)
@@ -113,7 +122,7 @@ def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
 
         def geometry(sel):
             lane, i, j = pair(sel)
-            take_d = lambda v: v[i]                                             # noqa: E731
+            take_d = lambda v: take_det(v, lane, i)                             # noqa: E731
             take_t = lambda v: v[lane, j]                                       # noqa: E731
             return (tuple(map(take_d, det_fp)), tuple(map(take_t, trk_fp)), tuple(map(take_d, det_c)),
                     tuple(map(take_t, trk_c)))
@@ -150,7 +159,7 @@ def pooled_affinity(frame: Frames, pred, options: Options, levels: int):
 
     inter, clip_bad = _switch(jnp.sum(cand), ladder(full, levels + 1 if levels > 1 else 1), stage_clip,
                               cand)
-    value = combine(det[None, :, None], trk[:, None, :], metric, inter, hull, zero)
+    value = combine(det[:, :, None] if own else det[None, :, None], trk[:, None, :], metric, inter, hull, zero)
     return value.astype(jnp.float32), (bad | clip_bad) & mask
 
 
@@ -159,8 +168,11 @@ def run_lanes(params: Params, frames: Frames, states: State, options: Options) -
     the step vmapped over the lanes, its affinity matrices from ``pooled_affinity`` (no pair left
     out: ``Options.pairs`` does not apply) and its assignment on the smallest of
     ``affinity_sizes`` holding the frame's valid detections and every lane's live tracks (the same
-    result: slots beyond hold nothing). Outputs [T, B, ...]. Traceable."""
-    n_det = frames.valid.shape[1]
+    result: slots beyond hold nothing). ``frames``: shared by the lanes (boxes [T, N, 7]) or each
+    lane's own (:func:`own_frames`: boxes [T, B, N, 7], valid and score [T, B, N], reset [T]).
+    Outputs [T, B, ...]. Traceable."""
+    n_det = frames.valid.shape[-1]
+    fax = Frames(0, 0, 0, None) if own_frames(frames) else None     # (the frame's vmap axes)
     sizes = affinity_sizes(n_det, options.capacity, options.buckets)
     levels = max(options.buckets, 1)
 
@@ -171,7 +183,8 @@ def run_lanes(params: Params, frames: Frames, states: State, options: Options) -
 
         def at(size):
             def lanes(p, pr, a, bd, lf):
-                return jax.vmap(lambda q, r, a, bd, lf: decide(q, r, f, options, size, (a, bd, lf)))(p, pr, a, bd, lf)
+                return jax.vmap(lambda q, r, fr, a, bd, lf: decide(q, r, fr, options, size, (a, bd, lf)),
+                                in_axes=(0, 0, fax, 0, 0, 0))(p, pr, f, a, bd, lf)
             return lanes
 
         need_n = jnp.max(jnp.where(f.valid, jnp.arange(n_det) + 1, 0))
@@ -181,9 +194,14 @@ def run_lanes(params: Params, frames: Frames, states: State, options: Options) -
         else:
             fits = jnp.array([(need_n <= nb) & (need_k <= kb) for nb, kb in sizes])
             dec = lax.switch(jnp.argmax(fits), [at(size) for size in sizes], params, pred, a32, bad, none)
-        return jax.vmap(finish, in_axes=(0, 0, None, None, 0, 0))(params, s, f, options, pred, dec)
+        return jax.vmap(finish, in_axes=(0, 0, fax, None, 0, 0))(params, s, f, options, pred, dec)
 
     return lax.scan(body, states, frames)
+
+
+def own_frames(frames: Frames) -> bool:
+    """Whether ``frames`` are each lane's own (valid [T, B, N]) rather than shared (valid [T, N])."""
+    return np.ndim(frames.valid) == 3
 
 
 _PROGRAMS: dict = {}
@@ -222,14 +240,17 @@ def broadcast_lanes(params: Params) -> Params:
     return Params(*(np.broadcast_to(np.atleast_1d(v), (b,)) for v in p))
 
 
-def tracking_lanes(params: Params) -> tuple[Params, np.ndarray]:
+def tracking_lanes(params: Params, frame_of=None) -> tuple[Params, np.ndarray]:
     """The lanes that track differently, and which of them each lane is: ``min_hits`` and
     ``score_threshold`` choose the written lines only (a track's life depends on ``threshold`` and
     ``max_age``), so lanes equal in those two track alike. Returns (their ``Params`` [C], with
     ``min_hits`` 0 and ``score_threshold`` -inf: every track ``max_age`` keeps is written; ``of``
-    [B] int the tracking lane of each lane). ``params``: leaves [B] (``as_arrays``)."""
-    key = np.stack([np.asarray(params.threshold, np.float64).view(np.int64),
-                    np.asarray(params.max_age, np.int64)], axis=1)
+    [B] int the tracking lane of each lane). ``params``: leaves [B] (``as_arrays``); ``frame_of``
+    [B] int (optional): the frames each lane reads (lanes on different frames never track alike)."""
+    cols = [np.asarray(params.threshold, np.float64).view(np.int64), np.asarray(params.max_age, np.int64)]
+    if frame_of is not None:
+        cols.append(np.asarray(frame_of, np.int64).reshape(-1))
+    key = np.stack(cols, axis=1)
     _, first, of = np.unique(key, axis=0, return_index=True, return_inverse=True)
     order = np.argsort(first, kind="stable")                # the tracking lanes in first-appearance order
     rank = np.empty(len(order), np.int64)
@@ -252,45 +273,72 @@ def written_lines(ids, hits, src, score, fc, min_hits, score_threshold) -> np.nd
     """[B, T, K] the ids of lanes' written lines (-1 elsewhere) from their tracking lanes' output:
     ``ids`` [B, T, K] every track kept (``min_hits`` 0, ``score_threshold`` -inf), ``hits`` [B, T, K],
     ``src`` [B, T, K] each track's last detection (``t * N + slot``), ``score`` [T * N] the
-    detections' scores, ``fc`` [T] frame counts, ``min_hits`` / ``score_threshold`` [B]: the step's
-    rule (``tracker.finish``), applied afterwards."""
+    detections' scores (or each lane's own, [B, T * N]), ``fc`` [T] frame counts, ``min_hits`` /
+    ``score_threshold`` [B]: the step's rule (``tracker.finish``), applied afterwards."""
     mh = np.asarray(min_hits, np.int64)[:, None, None]
     st = np.asarray(score_threshold, np.float64)[:, None, None]
-    last = np.asarray(score, np.float64)[np.maximum(src, 0)]
+    score = np.asarray(score, np.float64)
+    if score.ndim == 2:
+        last = score[np.arange(len(score))[:, None, None], np.maximum(src, 0)]
+    else:
+        last = score[np.maximum(src, 0)]
     keep = (ids >= 0) & ((hits >= mh) | (fc[None, :, None] <= mh)) & (last >= st)
     return np.where(keep, ids, -1).astype(np.int32)
 
 
-def run(params: Params, frames: Frames, options: Options, first_id: int = 1, grow: bool = True) -> RunOutput:
+def run(params: Params, frames: Frames, options: Options, first_id: int = 1, grow: bool = True,
+        frame_of=None, lanes: int = 0) -> RunOutput:
     """Every lane of ``params`` (scalars: one lane; leaves [B]) over ``frames`` [T, N, ...], ids
     from ``first_id``. Validates the setting first (ValueError with every problem). Lanes that
     track alike (:func:`tracking_lanes`: the same ``threshold`` and ``max_age``) are tracked once,
     and each lane's lines chosen from that run by its ``min_hits`` and ``score_threshold``
     (:func:`written_lines`): the same output as each lane tracked alone. ``grow``: where a lane ran
     out of track slots (``overflow``), every lane runs again with twice as many (up to
-    ``MAX_TRACKS``); the output says which ``options`` it ran with. Every pair is clipped
-    (``pooled_affinity``): ``pairs_left`` is 0."""
+    ``MAX_TRACKS``); the output says which ``options`` it ran with, and ``capacity`` [B] the slots
+    each lane would have grown to alone (the first it did not overflow). Every pair is clipped
+    (``pooled_affinity``): ``pairs_left`` is 0.
+
+    ``frame_of`` [B] int: lanes on frames of their own: ``frames`` then hold D distinct frame sets
+    (boxes [T, D, N, 7], valid and score [T, D, N], reset [T] shared) and lane b reads set
+    ``frame_of[b]``; each tracking lane runs on its own (``src`` indexes its set's ``t * N + slot``),
+    all in one compiled call: the same output as each lane run alone on its frames.
+    ``lanes``: the call holds at least this many tracking lanes (the last repeated; its output
+    dropped): calls of different lane counts share one compiled program."""
     validate(params, options)
     p = broadcast_lanes(params)
-    core, of = tracking_lanes(p)
+    b = len(p.threshold)
+    if frame_of is not None:
+        frame_of = np.broadcast_to(np.asarray(frame_of, np.int64).reshape(-1), (b,))
+    core, of = tracking_lanes(p, frame_of)
     t = np.shape(frames.valid)[0]
     if options.buckets == 0:
         options = options._replace(buckets=3 if t >= AUTO_BUCKETS_MIN_T else 1)
     if options.capacity == 0:
         options = options._replace(capacity=data_capacity(frames))
+    c = core.threshold.shape[0]
+    run_c = max(c, int(lanes))
+    fill = np.minimum(np.arange(run_c), c - 1)               # (the tracking lanes, the last repeated)
+    core = Params(*(np.asarray(v)[fill] for v in core))
     with jax.enable_x64(True):
         f = Frames(np.asarray(frames.boxes, np.float64), np.asarray(frames.valid, bool),
                    np.asarray(frames.score, np.float64), np.asarray(frames.reset, bool))
-        c = core.threshold.shape[0]
+        if frame_of is not None:        # each tracking lane its own frames [T, C, N, ...]
+            _, first = np.unique(of, return_index=True)    # (a lane of each tracking lane)
+            own = frame_of[first][fill]
+            f = Frames(f.boxes[:, own], f.valid[:, own], f.score[:, own], f.reset)
+        capacity = np.zeros(run_c, np.int64)            # (each tracking lane's own: the first it fits)
         while True:
-            states = jax.tree.map(lambda v: np.repeat(np.asarray(v)[None], c, 0), init(options, first_id))
+            states = jax.tree.map(lambda v: np.repeat(np.asarray(v)[None], run_c, 0), init(options, first_id))
             out, counters = _program(options)(core, f, states)
             out = jax.tree.map(np.asarray, out)
             counters = [np.asarray(v) for v in counters]        # overflow first
+            capacity[(capacity == 0) & (counters[0] == 0)] = options.capacity
             if not (grow and counters[0].any() and options.capacity < MAX_TRACKS):
                 break
             options = options._replace(capacity=min(2 * options.capacity, MAX_TRACKS))
-    ids = written_lines(out.ids[of], out.hits[of], out.src[of], f.score.reshape(-1), frame_counts(f.reset),
+    capacity[capacity == 0] = options.capacity
+    score = f.score.reshape(-1) if frame_of is None else np.moveaxis(f.score, 1, 0).reshape(run_c, -1)[of]
+    ids = written_lines(out.ids[of], out.hits[of], out.src[of], score, frame_counts(f.reset),
                         p.min_hits, p.score_threshold)
     return RunOutput(ids, out.src[of], out.boxes[of], out.next_id[of], out.dropped[of],
-                     *(c[of] for c in counters), options)
+                     *(c[of] for c in counters), options, capacity[of])

@@ -30,14 +30,15 @@ from ..family import TrackerFamily
 from ..io.atomic import write_text_atomic
 from ..io.columns import as_written_fixed
 from ..results import KittiRows, padded_rows
-from ..rows import Rows, RowSelection, lane_values
+from ..rows import Rows, RowSelection, lane_values, row_starts
 from . import batch, tracker
 from .config import FAMILY_CONFIG, Options, Params, validate
 from .results import LINE_FORMAT
 
 __all__ = ["FAMILY", "Prepared", "LanePrepared", "Ab3dmotRun", "prepared", "distortion_spec", "distorted_lanes",
            "lane_prepared", "prepare_frames", "track", "rows", "row_arrays", "class_run",
-           "write_runs", "default_capacity", "setting_problem", "call_lanes", "output_slots", "lane_keys",
+           "write_runs", "default_capacity", "setting_problem", "call_lanes", "lane_calls", "stacked_frames",
+           "output_slots", "lane_keys",
            "BYTES_PER_SLOT"]
 
 #: a lane's output bytes per track slot and frame: ids, the detection index (int32 each), the image
@@ -161,6 +162,70 @@ def call_lanes(of: np.ndarray, per: int) -> list[np.ndarray]:
     return calls
 
 
+def stacked_frames(preps) -> tracker.Frames:
+    """The frames of several :class:`Prepared` of one shape, stacked on a lane axis: boxes
+    [T, D, N, 7], valid and score [T, D, N], reset [T] (the first's; the same split)."""
+    fr = [q.frames for q in preps]
+    return tracker.Frames(np.stack([f.boxes for f in fr], 1), np.stack([f.valid for f in fr], 1),
+                          np.stack([f.score for f in fr], 1), fr[0].reset)
+
+
+def lane_calls(frames: LanePrepared, params: Params, per: int) -> list[tuple]:
+    """The compiled calls of a distortion study's lanes (``params`` leaves [B], ``frames.of`` [B]
+    each lane's distinct frames): lanes whose frames have one shape share calls, each call holding
+    at most ``per`` tracking lanes (:func:`call_lanes`; lanes on different frames never track
+    alike). Per call: (the shape group's lanes [G], the call's lanes [L] (indices into B), the
+    distinct frames it reads [D'] (indices into ``frames.preps``), each lane's among them [L])."""
+    shapes = [np.shape(q.frames.valid) for q in frames.preps]
+    out = []
+    for shape in dict.fromkeys(shapes):
+        ds = np.flatnonzero([s == shape for s in shapes])
+        group = np.flatnonzero(np.isin(frames.of, ds))
+        sub = Params(*(np.asarray(v)[group] for v in params))
+        of = frames.of[group]
+        for at in call_lanes(batch.tracking_lanes(sub, of)[1], per):
+            used, local = np.unique(of[at], return_inverse=True)
+            out.append((group, group[at], used, local.reshape(-1)))
+    return out
+
+
+def _run_calls(prep: Prepared, frames: LanePrepared | None, p: Params, options: Options, per: int, grow: bool,
+               rows_only: bool) -> tuple[list, list, list, dict, dict]:
+    """:func:`track`'s compiled calls: every lane of ``p`` (leaves [B]) on ``prep`` (or, with a
+    distortion, on its own of ``frames``): (each call's lanes, its ``RunOutput``, its image boxes
+    [L, T, K, 4] (without ``rows_only``), and with ``rows_only`` per lane its image and 3D boxes at
+    its rows only (in (frame, slot) order, newest slot first: ``Rows``' values), not dense)."""
+    calls, outs, image, rows3, rows2 = [], [], [], {}, {}
+
+    def keep(at, out: batch.RunOutput, image_of) -> None:
+        """A call's output for lanes ``at``; ``image_of(j, src)``: the image boxes of its lane j's
+        detections ``src``."""
+        calls.append(at)
+        if rows_only:
+            live = out.ids[:, :, ::-1] >= 0
+            for j, lane in enumerate(at):
+                rows3[lane] = out.boxes[j][:, ::-1][live[j]]
+                rows2[lane] = image_of(j, out.src[j][:, ::-1][live[j]])
+            out = out._replace(boxes=None)
+        else:
+            image.append(np.stack([image_of(j, np.maximum(out.src[j], 0)) for j in range(len(at))]))
+        outs.append(out)
+
+    if frames is None:
+        flat = prep.image.reshape(-1, 4)
+        for at in call_lanes(batch.tracking_lanes(p)[1], per):
+            keep(at, batch.run(Params(*(v[at] for v in p)), prep.frames, options, grow=grow),
+                 lambda j, src: flat[src])
+    else:       # the lanes of every distinct distortion in shared calls, each on its own frames
+        for group, at, used, local in lane_calls(frames, p, per):
+            qs = [frames.preps[d] for d in used]
+            out = batch.run(Params(*(v[at] for v in p)), stacked_frames(qs), options, grow=grow, frame_of=local,
+                            lanes=per)
+            flats = [q.image.reshape(-1, 4) for q in qs]
+            keep(at, out, lambda j, src, flats=flats, local=local: flats[local[j]][src])
+    return calls, outs, image, rows2, rows3
+
+
 def track(split: Split | Prepared, params: Params, options: Options = Options(), *, lanes_per_call: int | None = None,
           grow: bool = True, detail: bool = True, rows_only: bool = False, distortion=None, spec=None,
           clutter_slots: int = 0) -> TrackResult:
@@ -177,7 +242,8 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
     ``distortion``: ``distort.DistortParams`` (scalars or leaves [B]; needs the ``Split``, whose
     labels give the bursts' identities): lane b tracks its 3D detections distorted by its own levels
     and seed, the draws DFR-FastMOT's lanes take (:func:`distorted_lanes`; 2D levels change nothing
-    here), the lanes of each distinct distortion in calls of their own on its materialised frames;
+    here), on its distortion's materialised frames, the lanes of all distortions batched into shared
+    calls (:func:`lane_calls`, each lane on its own frames, :func:`.batch.run`'s ``frame_of``);
     ``spec`` / ``clutter_slots``: the static ``DistortSpec`` (default :func:`distortion_spec` of the
     data and the levels). The result's ``frames`` are then a :class:`LanePrepared` and its
     ``distortion`` the ``distort.LaneDistortion``; its rows carry each lane's distorted detections."""
@@ -189,7 +255,6 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
     b = len(p.threshold)
     per = max(1, int(lanes_per_call or b))
     frames, lanes = prep, None
-    groups = [(np.arange(b), prep)]
     if distortion is not None:
         if not isinstance(split, Split):
             raise ValueError("track(distortion=...) needs the Split (its ground truth), not prepared frames")
@@ -198,25 +263,22 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
             spec = distortion_spec(clutter_slots=clutter_slots, frames=prep, dps=dps)
         distort.check_params(distort.only_3d(dps), spec)
         frames, lanes = distorted_lanes(split, prep, dps, spec)
-        groups = [(np.flatnonzero(frames.of == d), q) for d, q in enumerate(frames.preps)]
-    calls, outs, image = [], [], []
-    for group, q in groups:
-        sub = Params(*(v[group] for v in p))
-        for at in call_lanes(batch.tracking_lanes(sub)[1], per):
-            out = batch.run(Params(*(v[at] for v in sub)), q.frames, options, grow=grow)
-            calls.append(group[at])
-            outs.append(out)
-            image.append(q.image.reshape(-1, 4)[np.maximum(out.src, 0)])
+    calls, outs, image, rows2, rows3 = _run_calls(prep, frames if distortion is not None else None, p, options, per,
+                                                  grow, rows_only)
     back = np.argsort(np.concatenate(calls), kind="stable")     # (each lane's place among the calls' lanes)
     k = max(o.ids.shape[2] for o in outs)
     ids = np.concatenate([_widen(o.ids, k, -1) for o in outs])[back][:, :, ::-1]
     src = np.concatenate([_widen(o.src, k, -1) for o in outs])[back][:, :, ::-1]
-    box3 = np.concatenate([_widen(o.boxes, k, 0.0) for o in outs])[back][:, :, ::-1]
-    image = np.concatenate([_widen(v, k, 0.0) for v in image])[back][:, :, ::-1]
-    ids, box3 = np.ascontiguousarray(ids, np.int32), np.ascontiguousarray(box3)
+    ids = np.ascontiguousarray(ids, np.int32)
     src = np.where(ids >= 0, src, -1).astype(np.int32)
-    image = np.ascontiguousarray(image)
-    image[ids < 0] = np.nan
+    if rows_only:           # (the rows of every lane in lane order: ``Rows.of`` of the dense arrays)
+        start, t = row_starts(ids), ids.shape[1]
+        boxes = Rows(np.concatenate([rows2[lane] for lane in range(b)]), start, t)
+        box3_out = Rows(np.concatenate([rows3[lane] for lane in range(b)]), start, t)
+    else:
+        box3_out = np.ascontiguousarray(np.concatenate([_widen(o.boxes, k, 0.0) for o in outs])[back][:, :, ::-1])
+        boxes = np.ascontiguousarray(np.concatenate([_widen(v, k, 0.0) for v in image])[back][:, :, ::-1])
+        boxes[ids < 0] = np.nan
     counters = {n: np.concatenate([getattr(o, n) for o in outs])[back] for n in ("dropped", "overflow", "peak",
                                                                                 "degenerate", "fallback")}
     bad = np.flatnonzero((counters["degenerate"] > 0) | (counters["fallback"] > 0))
@@ -224,9 +286,8 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
         warnings.warn(f"AB3DMOT: lanes {bad[:8].tolist()} met a pair whose geometry AB3DMOT cannot compute or a "
                       f"greedy tie its sort breaks differently: their tracks are this package's, not AB3DMOT's",
                       UserWarning, stacklevel=2)
-    capacity = np.concatenate([np.full(len(o.ids), o.options.capacity, np.int64) for o in outs])[back]
-    boxes = Rows.of(ids, image) if rows_only else image
-    box3_out = Rows.of(ids, box3) if rows_only else box3
+    capacity = np.concatenate([np.full(len(o.ids), o.options.capacity, np.int64) if o.capacity is None
+                               else np.asarray(o.capacity, np.int64) for o in outs])[back]
     ran = outs[-1].options._replace(capacity=int(capacity.max(initial=0)))
     return TrackResult(ids, boxes, counters["dropped"].astype(np.int32), counters["overflow"].astype(np.int32),
                        counters["peak"].astype(np.int32), src, ids >= 0, box3_out, capacity, frames, ran, lanes)
