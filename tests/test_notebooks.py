@@ -9,7 +9,7 @@ import pytest
 NOTEBOOKS = sorted((Path(__file__).resolve().parent.parent / "notebooks").glob("*.ipynb"))
 #: every notebook is executed (quick mode: about 10 s each); these must be there
 EXPECTED = ("01_sweep_quickstart.ipynb", "02_distortion_robustness.ipynb", "03_paper_table.ipynb",
-            "04_tuning.ipynb", "05_lidar_mono.ipynb", "06_compare.ipynb")
+            "04_tuning.ipynb", "05_lidar_mono.ipynb", "06_compare.ipynb", "07_which_tracker.ipynb")
 
 
 def test_expected_notebooks_present():
