@@ -217,10 +217,14 @@ def _run_calls(prep: Prepared, frames: LanePrepared | None, p: Params, options: 
             keep(at, batch.run(Params(*(v[at] for v in p)), prep.frames, options, grow=grow),
                  lambda j, src: flat[src])
     else:       # the lanes of every distinct distortion in shared calls, each on its own frames
-        for group, at, used, local in lane_calls(frames, p, per):
+        todo = lane_calls(frames, p, per)
+        # every call padded to the most tracking lanes any call holds (<= per): one compilation, no more work
+        most = max(len(batch.tracking_lanes(Params(*(v[at] for v in p)), local)[0].threshold)
+                   for _, at, _, local in todo)
+        for group, at, used, local in todo:
             qs = [frames.preps[d] for d in used]
             out = batch.run(Params(*(v[at] for v in p)), stacked_frames(qs), options, grow=grow, frame_of=local,
-                            lanes=per)
+                            lanes=most)
             flats = [q.image.reshape(-1, 4) for q in qs]
             keep(at, out, lambda j, src, flats=flats, local=local: flats[local[j]][src])
     return calls, outs, image, rows2, rows3
