@@ -174,8 +174,8 @@ def lane_calls(frames: LanePrepared, params: Params, per: int) -> list[tuple]:
     """The compiled calls of a distortion study's lanes (``params`` leaves [B], ``frames.of`` [B]
     each lane's distinct frames): lanes whose frames have one shape share calls, each call holding
     at most ``per`` tracking lanes (:func:`call_lanes`; lanes on different frames never track
-    alike). Per call: (the shape group's lanes [G], the call's lanes [L] (indices into B), the
-    distinct frames it reads [D'] (indices into ``frames.preps``), each lane's among them [L])."""
+    alike). Per call: (its lanes [L] (indices into B), the distinct frames it reads [D'] (indices
+    into ``frames.preps``), each lane's among them [L], its number of tracking lanes)."""
     shapes = [np.shape(q.frames.valid) for q in frames.preps]
     out = []
     for shape in dict.fromkeys(shapes):
@@ -183,9 +183,10 @@ def lane_calls(frames: LanePrepared, params: Params, per: int) -> list[tuple]:
         group = np.flatnonzero(np.isin(frames.of, ds))
         sub = Params(*(np.asarray(v)[group] for v in params))
         of = frames.of[group]
-        for at in call_lanes(batch.tracking_lanes(sub, of)[1], per):
+        tracks = batch.tracking_lanes(sub, of)[1]
+        for at in call_lanes(tracks, per):
             used, local = np.unique(of[at], return_inverse=True)
-            out.append((group, group[at], used, local.reshape(-1)))
+            out.append((group[at], used, local.reshape(-1), len(np.unique(tracks[at]))))
     return out
 
 
@@ -219,9 +220,8 @@ def _run_calls(prep: Prepared, frames: LanePrepared | None, p: Params, options: 
     else:       # the lanes of every distinct distortion in shared calls, each on its own frames
         todo = lane_calls(frames, p, per)
         # every call padded to the most tracking lanes any call holds (<= per): one compilation, no more work
-        most = max(len(batch.tracking_lanes(Params(*(v[at] for v in p)), local)[0].threshold)
-                   for _, at, _, local in todo)
-        for group, at, used, local in todo:
+        most = max(n for *_, n in todo)
+        for at, used, local, _ in todo:
             qs = [frames.preps[d] for d in used]
             out = batch.run(Params(*(v[at] for v in p)), stacked_frames(qs), options, grow=grow, frame_of=local,
                             lanes=most)
@@ -290,8 +290,7 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
         warnings.warn(f"AB3DMOT: lanes {bad[:8].tolist()} met a pair whose geometry AB3DMOT cannot compute or a "
                       f"greedy tie its sort breaks differently: their tracks are this package's, not AB3DMOT's",
                       UserWarning, stacklevel=2)
-    capacity = np.concatenate([np.full(len(o.ids), o.options.capacity, np.int64) if o.capacity is None
-                               else np.asarray(o.capacity, np.int64) for o in outs])[back]
+    capacity = np.concatenate([np.asarray(o.capacity, np.int64) for o in outs])[back]     # (batch.run sets it)
     ran = outs[-1].options._replace(capacity=int(capacity.max(initial=0)))
     return TrackResult(ids, boxes, counters["dropped"].astype(np.int32), counters["overflow"].astype(np.int32),
                        counters["peak"].astype(np.int32), src, ids >= 0, box3_out, capacity, frames, ran, lanes)
