@@ -172,7 +172,7 @@ class KittiRows(NamedTuple):
     ids [R] track id, box [R, 4] image box, score [R], box3d [R, 7] ``h w l x y z rot_y`` (the
     2D-only placeholder where the row carries no 3D box), n_lanes B, n_frames T. box_key / box3d_key [R] int64
     or None: rows of one frame with equal keys carry equal image boxes / 3D boxes (the object slot,
-    the 3D detection's index; None with output "filtered", whose boxes are each lane's own), so a
+    the 3D detection's index; None with output "filtered" or a distortion, whose boxes are each lane's own), so a
     scorer finds the distinct values from the keys instead of the values' bits."""
 
     lane: np.ndarray
@@ -231,6 +231,12 @@ def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRo
         ok = has3 & np.all(np.isfinite(rows3), axis=1)
         d, l = invert_box3d_extent(rows3[ok, :3], rows3[ok, 3:], options.centroid)
         dims[ok], loc[ok] = as_written(d, 7), as_written(l, 7)
+        box = as_written(rows_of(res.boxes).astype(np.float64), 6)
+    elif res.distortion is not None:
+        # each lane's own detections: its image boxes, and 3D values that another lane's same slot or
+        # 3D index does not share (so no keys: the scorers tell the values apart by their bits)
+        dims[box_carry] = dets.dims[box_carry]
+        loc[box_carry] = dets.loc[box_carry]
         box = as_written(rows_of(res.boxes).astype(np.float64), 6)
     else:
         dims[box_carry] = dets.dims[box_carry]
