@@ -12,6 +12,7 @@ import importlib
 import json
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -383,6 +384,10 @@ def test_an_ab3dmot_sweep_is_stored_resumed_reported_written_alone_and_tuned(sce
     assert not dfr_only & set(rep.top.columns)
     page = write_html(rep, tmp_path / "report.html").read_text()
     assert "threshold" in page and "a_l" not in page
+    with warnings.catch_warnings():         # sAMOTA has no per-sequence values: no empty heatmap drawn
+        warnings.simplefilter("error")
+        page = write_html(sweep_report(out, objective="sAMOTA"), tmp_path / "samota.html").read_text()
+    assert "no per-sequence heatmap" in page and "sAMOTA per sequence" not in page
     status, text, err = run_cli(capsys, ["report", out, "--html", tmp_path / "cli.html"])
     assert status == 0 and "threshold" in text and (tmp_path / "cli.html").is_file(), err
 

@@ -147,6 +147,9 @@ def _heatmap(rep, objective: str, baseline) -> str:
     if not len(rows):
         return ""
     grid = rows.pivot_table(index="config", columns="sequence", values=objective, aggfunc="first", sort=False)
+    if not grid.notna().to_numpy().any():      # a figure of the whole sequence list only (AB3DMOT's sAMOTA)
+        return (f"<p>{escape(objective)} is a figure of the whole sequence list (its COMBINED row): there is no "
+                f"per-sequence heatmap of it.</p>")
     grid = grid.reindex(configs)
     base = None if baseline is None else int(baseline["config"])
     grid.index = [(f"#{i + 1} " if i < len(rep.top) else "") + ("baseline " if c == base else "") + f"(config {c})"
