@@ -72,11 +72,12 @@ class Options(NamedTuple):
                 N K); pairs beyond it are counted (``State.pairs_left``) and taken as apart.
     boxes:      the steps write the tracks' 3D boxes (``StepOutput.boxes`` [K, 7]; False: [K, 0],
                 which dfrmot's runs refuse: the result files carry the boxes).
-    buckets:    ``batch.run``: the sizes a frame's work is chosen from, smallest holding it (the
-                same result, less work on small frames, more compilations): the lists of pairs of
-                all lanes (2 ``buckets`` - 1 sizes, halves of one another; the clipped pairs two more) and the
-                assignment's slots (N, K halved ``buckets`` - 1 times); 0: 3 on splits of at
-                least ``AUTO_BUCKETS_MIN_T`` frames, else 1.
+    buckets:    ``batch.run``: the slot counts a frame's assignment is chosen from, smallest
+                holding its detections and every lane's live tracks (the same result, less work on
+                small frames, one more copy of the assignment's code per count): N, K halved
+                ``buckets`` - 1 times; 0: 3 on splits of at least ``AUTO_BUCKETS_MIN_T`` frames,
+                else 1. (The affinity's pairs run in fixed-size blocks whatever this is:
+                ``batch.pooled_affinity``.)
     """
 
     metric: str = "giou_3d"
