@@ -1,8 +1,9 @@
 """The parts of AB3DMOT in JAX (dfrmot_jax.ab3dmot) against their references, bit for bit: the
 emulated fused multiply-add against exact rational arithmetic, the Kalman filter in closed form
 against the oracle's filterpy arithmetic, every affinity metric against AB3DMOT's own values (the
-oracle's pair fixture) and the oracle on random boxes, the Hungarian port against scipy, and the
-introsort order against the oracle's NumPy 1.23 argsort. The whole tracker: test_ab3dmot_jax.py."""
+oracle's pair fixture) and the oracle on random boxes, the Hungarian port against scipy, the
+introsort order against the oracle's NumPy 1.23 argsort, and the batch's blockwise pair loops
+against the whole matrix at once. The whole tracker: test_ab3dmot_jax.py."""
 
 from __future__ import annotations
 
@@ -192,3 +193,43 @@ def test_degenerate_pairs_are_reported_where_ab3dmot_raises(metric):
             assert (got[i, i], bad[i, i]) == (want, False), i
         except geo.DegenerateGeometry:
             assert bad[i, i], i
+
+
+@pytest.mark.slow
+def test_blockwise_gives_each_pairs_values_whatever_the_block():
+    """``batch.blockwise`` (the pooled affinity's loops over blocks of the packed pairs): every
+    block size gives the pairs' values (a distance, the apart test, the clip's intersection) of the
+    whole matrix at once, bit for bit, 0 / False where the mask is not set; an empty mask runs no
+    trip. (The boxes are the programs' arguments, as in a run: XLA folds computations on constants
+    with other roundings.)"""
+    from dfrmot_jax.ab3dmot.affinity import distance, pair_apart, pair_intersection
+    from dfrmot_jax.ab3dmot.batch import blockwise
+    from dfrmot_jax.ab3dmot.exact import runtime_zero
+
+    rng = np.random.default_rng(3)
+    det, trk = rng.normal(size=(2, 5, 7)) * 1.5, rng.normal(size=(2, 6, 7)) * 1.5
+    det[..., 4:] = trk[..., 4:] = 2.0
+    mask = rng.random((2, 5, 6)) < 0.5
+
+    def metrics(a, b, m):
+        zero = runtime_zero(jnp.sum(m))
+        return (distance(a, b, "dist_3d", zero), pair_apart(a, b, zero), *pair_intersection(a, b, zero))
+
+    whole = x64(lambda m, d, t: metrics(d[:, :, None], t[:, None, :], m))(mask, det, trk)
+    want = tuple(np.where(mask, w, np.zeros((), w.dtype)) for w in whole)
+
+    def program(block):
+        def lanes(m, d, t):
+            def values(sel):
+                sel = jnp.minimum(sel, m.size - 1)
+                lane, i, j = sel // 30, (sel // 6) % 5, sel % 6
+                return metrics(d[lane, i], t[lane, j], m)
+            return blockwise(m, block, values)
+        return x64(lanes)
+
+    assert np.sum(want[2] > 0) >= 5                     # (footprints that overlap: clipped)
+    for block in (1, 8, 64):
+        run = program(block)
+        got = run(mask, det, trk)
+        assert all(g.dtype == w.dtype and np.array_equal(g, w) for g, w in zip(got, want)), block
+    assert not any(np.any(g) for g in run(np.zeros_like(mask), det, trk))

@@ -127,12 +127,13 @@ def combine(det, trk, metric: str, inter, hull, zero):
     return inter3 / union3 - (hull3 - union3) / hull3
 
 
-def compact(mask, capacity: int):
-    """The flat positions [capacity] of the first ``capacity`` True entries of ``mask`` (any
-    shape; the rest point past the end), and each entry's rank among them (mask's shape)."""
+def compact(mask, capacity: int, start=0):
+    """The flat positions [capacity] of the True entries of ``mask`` (any shape) ranked ``start``
+    to ``start + capacity - 1`` in flat order (``start`` an int or traced scalar; positions of
+    ranks beyond the last point past the end), and each entry's rank among them (mask's shape)."""
     flat = mask.reshape(-1)
     incl = jnp.cumsum(flat.astype(jnp.int32))
-    sel = jnp.searchsorted(incl, jnp.arange(capacity) + 1, side="left")
+    sel = jnp.searchsorted(incl, start + jnp.arange(capacity) + 1, side="left")
     return sel, (incl - 1).reshape(mask.shape)
 
 

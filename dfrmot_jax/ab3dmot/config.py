@@ -72,11 +72,12 @@ class Options(NamedTuple):
                 N K); pairs beyond it are counted (``State.pairs_left``) and taken as apart.
     boxes:      the steps write the tracks' 3D boxes (``StepOutput.boxes`` [K, 7]; False: [K, 0],
                 which dfrmot's runs refuse: the result files carry the boxes).
-    buckets:    ``batch.run``: the sizes a frame's work is chosen from, smallest holding it (the
-                same result, less work on small frames, more compilations): the lists of pairs of
-                all lanes (2 ``buckets`` - 1 sizes, halves of one another; the clipped pairs two more) and the
-                assignment's slots (N, K halved ``buckets`` - 1 times); 0: 3 on splits of at
-                least ``AUTO_BUCKETS_MIN_T`` frames, else 1.
+    buckets:    ``batch.run``: the slot counts a frame's assignment is chosen from, smallest
+                holding its detections and every lane's live tracks (the same result, less work on
+                small frames, one more copy of the assignment's code per count): N, K halved
+                ``buckets`` - 1 times; 0: 3 on splits of at least ``AUTO_BUCKETS_MIN_T`` frames,
+                else 1. (The affinity's pairs run in fixed-size blocks whatever this is:
+                ``batch.pooled_affinity``.)
     """
 
     metric: str = "giou_3d"
@@ -91,8 +92,10 @@ OPTION_CHOICES: dict[str, tuple[str, ...]] = {"metric": METRICS, "algorithm": AL
 #: the options that take integers -> their range (inclusive)
 OPTION_RANGES: dict[str, tuple[int, int]] = {"capacity": (0, MAX_CAPACITY), "pairs": (0, 1 << 16), "buckets": (0, 4)}
 
-#: ``Options.buckets = 0`` takes 3 buckets from this many frames on (their two compilations more,
-#: ~10-20 s for the IoU metrics on 2 cores, pay on long splits: KITTI car, 670 frames, B = 1, 3.4x)
+#: ``Options.buckets = 0`` takes 3 buckets from this many frames on (two more copies of the
+#: assignment to compile, a few seconds on 2 cores, pay on long splits: KITTI car, 8008 frames, 2
+#: busy cores, giou_3d: buckets 3 runs B = 1 in 2.2 s against 3.2 s (Hungarian), 2.9 against 6.4 s
+#: (greedy); B = 8 in 12.1 against 12.9 s and 20 against 38 s)
 AUTO_BUCKETS_MIN_T = 2000
 
 
