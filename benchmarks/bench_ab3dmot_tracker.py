@@ -16,13 +16,12 @@
 Times are wall seconds and this process's CPU seconds; the machine is shared, so the load average
 goes with them. The LAST line is one JSON object.
 
-Measured 2026-11-28 (2 vCPU AMD EPYC, shared, load 3.6 -> ~7 -> 5.9; benchmarks/RESULTS.md, "AB3DMOT's
-tracker in JAX against AB3DMOT's own code"): AB3DMOT's own code 10.8 frames/s (740 s wall, 227 s CPU, for
-8008 frames); the oracle 169 frames/s; JAX B = 1 1317 frames/s (36168 lines exact), B = 64 1418
-config-frames/s: 122x and 131x AB3DMOT's wall frames/s, 44x and 61x per CPU second (goals 100x and 1000x).
-Kept: each box's footprint once per frame, pair lists in halves (CPU fps on 0000-0003: B = 1 980 -> 1549,
-B = 64 1612 -> 2592). Dropped: shift-register hull chains (2.7x slower), unrolled chains (compile > 10 min).
-The time is per pair (the GIoU hull of every pair, the clip of overlapping ones), so lanes do not amortise it.
+Measured 2026-11-29 (2 vCPU AMD EPYC, quiet; benchmarks/RESULTS.md, "AB3DMOT's programs: one copy of the
+pair geometry, in blocks"): AB3DMOT's own code 135.9 frames/s (59 s of track() for 8008 frames, 117 s CPU);
+JAX B = 1 4009 frames/s (36168 lines exact), B = 64 24550 config-frames/s: 29.5x and 181x (goals 100x and
+1000x). Earlier: pair lists in halves, then one block loop per stage (compile 12 -> 3 s, runs 15-35 % faster).
+Dropped: shift-register hull chains (2.7x slower), unrolled chains (compile > 10 min). The time is per pair
+(the GIoU hull of every pair, the clip of overlapping ones), so lanes do not amortise it.
 
     python benchmarks/bench_ab3dmot_tracker.py [--data ROOT] [--buckets 3] [--batch 64] \
         [--ab3dmot-python /work/venvs/ab3dmot-tracker/bin/python --ab3dmot-driver /work/ab3dmot_ref/time_tracker.py]
