@@ -225,22 +225,20 @@ def kitti_rows(split: Split, res, columns: str = "kitti", lanes=None) -> KittiRo
     rot_y[box_carry] = dets.rot_y[box_carry]
     dims = np.full((n, 3), PLACEHOLDER_DIMS)
     loc = np.full((n, 3), PLACEHOLDER_LOC)
-    box_key = box3d_key = None
     if filtered:
         rows3 = rows_of(res.box3).astype(np.float64)
         ok = has3 & np.all(np.isfinite(rows3), axis=1)
         d, l = invert_box3d_extent(rows3[ok, :3], rows3[ok, 3:], options.centroid)
         dims[ok], loc[ok] = as_written(d, 7), as_written(l, 7)
-        box = as_written(rows_of(res.boxes).astype(np.float64), 6)
-    elif res.distortion is not None:
-        # each lane's own detections: its image boxes, and 3D values that another lane's same slot or
-        # 3D index does not share (so no keys: the scorers tell the values apart by their bits)
-        dims[box_carry] = dets.dims[box_carry]
-        loc[box_carry] = dets.loc[box_carry]
-        box = as_written(rows_of(res.boxes).astype(np.float64), 6)
     else:
         dims[box_carry] = dets.dims[box_carry]
         loc[box_carry] = dets.loc[box_carry]
+    if filtered or res.distortion is not None:
+        # each lane's own boxes (a distortion's: its image boxes and 3D values, which another lane's
+        # same slot or 3D index does not share), so no keys: the scorers tell the values apart by their bits
+        box_key = box3d_key = None
+        box = as_written(rows_of(res.boxes).astype(np.float64), 6)
+    else:
         box_key = tk
         box3d_key = np.where(box_carry, src, -1)
         # the objects' boxes are every lane's: written once per object slot, then gathered
