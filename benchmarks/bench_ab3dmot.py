@@ -1,4 +1,4 @@
-"""Benchmark: AB3DMOT's KITTI metrics (dfrmot_jax.metrics.ab3dmot) on one result folder, cold.
+"""Benchmark: AB3DMOT's KITTI metrics (dfrmot_jax.metrics.samota) on one result folder, cold.
 
 Times :func:`evaluate_ab3dmot_files` on the published DFR-FastMOT output (20 car sequences), 3D IoU
 0.25 by default: cold = every call reads the result files and reads and prepares the ground truth
@@ -51,9 +51,9 @@ def _times(fn, repeats):
 def main() -> None:
     from machine import machine_info
 
-    from dfrmot_jax.metrics.ab3dmot import prep as ab3dmot_prep
-    from dfrmot_jax.metrics.ab3dmot.evaluate import evaluate_ab3dmot_files
-    from dfrmot_jax.metrics.ab3dmot.arrays import evaluate_ab3dmot_arrays
+    from dfrmot_jax.metrics.samota import prep as ab3dmot_prep
+    from dfrmot_jax.metrics.samota.evaluate import evaluate_ab3dmot_files
+    from dfrmot_jax.metrics.samota.arrays import evaluate_ab3dmot_arrays
     from dfrmot_jax.paths import default_data_root
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -119,7 +119,7 @@ def main() -> None:
 
 def _sweep_path(n: int, iou: str, root) -> dict:
     """The sweep's AB3DMOT scoring of the grid's first and last ``n`` configs (module docstring)."""
-    from dfrmot_jax.api import track
+    from dfrmot_jax.trackers.dfr.track import track
     from dfrmot_jax.sweep.chunks import ChunkRunner
     from dfrmot_jax.sweep.runner import prepare_sweep
     from dfrmot_jax.sweep.table import params_of

@@ -1,4 +1,4 @@
-"""Benchmark: AB3DMOT's tracker in JAX (dfrmot_jax.ab3dmot) against the NumPy oracle
+"""Benchmark: AB3DMOT's tracker in JAX (dfrmot_jax.trackers.ab3dmot) against the NumPy oracle
 (dfrmot_jax.testing.ab3dmot_oracle), KITTI PointRCNN car, the car preset (giou_3d, Hungarian).
 
 - the oracle: ``--oracle-sequences`` (default all 21, 8008 frames), frames/s;
@@ -43,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from machine import cpu_model  # noqa: E402
 
-from dfrmot_jax import ab3dmot as J  # noqa: E402
+from dfrmot_jax.trackers import ab3dmot as J  # noqa: E402
 from dfrmot_jax.io.kitti import sequence_lengths  # noqa: E402
 from dfrmot_jax.paths import default_data_root  # noqa: E402
 from dfrmot_jax.testing import ab3dmot_oracle as ab  # noqa: E402

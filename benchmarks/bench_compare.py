@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import dfrmot_jax as dm
-from dfrmot_jax.config import preset
+from dfrmot_jax.trackers.dfr.config import preset
 from dfrmot_jax.metrics.common.sequences import cached_class_sequences
 import numpy as np
 
@@ -29,7 +29,7 @@ from dfrmot_jax.report.intervals import REPORT_RESAMPLES
 from dfrmot_jax.metrics.kitti2d.evaluate import cached_gt
 from dfrmot_jax.metrics.kitti2d.tracker_files import read_tracker_files
 from dfrmot_jax.paths import default_data_root
-from dfrmot_jax.results import write_lane
+from dfrmot_jax.trackers.dfr.results import write_lane
 from machine import machine_info
 
 

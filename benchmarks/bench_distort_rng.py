@@ -40,7 +40,7 @@ import dfrmot_jax
 dfrmot_jax.setup_host_devices()   # before any JAX operation (machine_info reports the devices)
 
 from dfrmot_jax import distort as D
-from dfrmot_jax.data import Frames
+from dfrmot_jax.frames import Frames
 from dfrmot_jax.distort import cast_params, draws
 from dfrmot_jax.distort.hook import apply_draws
 from dfrmot_jax.distort.bursts import burst_length

@@ -39,9 +39,10 @@ def tracker_reference(b: int = 64, lanes_per_call: int = 16) -> float:
     import numpy as np
 
     from bench_tracker import lane_calls, run_calls, settings
-    from dfrmot_jax.config import keep_thresholds, preset
-    from dfrmot_jax.data import compact_split, load_sequences, pack, prepare_frames
-    from dfrmot_jax.api import default_capacity
+    from dfrmot_jax.trackers.dfr.config import keep_thresholds, preset
+    from dfrmot_jax.data import compact_split, load_sequences, pack
+    from dfrmot_jax.trackers.dfr.frames import prepare_frames
+    from dfrmot_jax.trackers.dfr.track import default_capacity
     from dfrmot_jax.paths import default_data_root
 
     names = [f"{i:04d}" for i in range(21)]

@@ -31,11 +31,12 @@ import dfrmot_jax
 
 dfrmot_jax.setup_host_devices()   # one XLA device per core, before any JAX operation
 
-from dfrmot_jax.core import run as tracker
-from dfrmot_jax.api import default_capacity, track
+from dfrmot_jax.trackers.dfr import run as tracker
+from dfrmot_jax.trackers.dfr.track import default_capacity, track
 from dfrmot_jax.devices import chosen_platform, default_lanes_per_call
-from dfrmot_jax.data import compact_split, load_sequences, pack, prepare_frames
-from dfrmot_jax.config import Params, keep_thresholds, preset, stack_params
+from dfrmot_jax.data import compact_split, load_sequences, pack
+from dfrmot_jax.trackers.dfr.frames import prepare_frames
+from dfrmot_jax.trackers.dfr.config import Params, keep_thresholds, preset, stack_params
 from dfrmot_jax.paths import default_data_root
 from dfrmot_jax.testing.reference import track_sequence
 from machine import machine_info, peak_rss_mb
@@ -58,7 +59,7 @@ def lane_calls(big: Params, b: int, width: int) -> list:
 
 
 def run_calls(lanes: list, frames, options, cap: int) -> tuple:
-    """``core.run.run_batch`` of each call: (seconds of a first call of the first lanes, which
+    """``trackers.dfr.run.run_batch`` of each call: (seconds of a first call of the first lanes, which
     compiles; seconds of all the calls after it; their outputs)."""
     t0 = time.perf_counter()
     tracker.run_batch(lanes[0], frames, options, cap)

@@ -2,7 +2,7 @@
 
     python benchmarks/fit_kalman.py [--grid DIR] [--class car]
 
-Fits kf_q, kf_r of the 2D corners and kf_q3, kf_r3 of the 3D corners (``dfrmot_jax.tuning.kalman_noise``)
+Fits kf_q, kf_r of the 2D corners and kf_q3, kf_r3 of the 3D corners (``dfrmot_jax.trackers.dfr.kalman_noise``)
 to every ``label_02`` sequence, once per covariance initialisation (``kalman_init`` diffuse / steady),
 then tracks the class's split (RRC + PointRCNN) with filter "kalman" and scores it (TrackEval-identical
 HOTA): the fitted noise on the dfr2023 preset and on the best grid config's other settings, the 2D
@@ -32,7 +32,7 @@ NOISE = ("kf_q", "kf_r", "kf_q3", "kf_r3")
 
 def best_grid_config(grid_dir: Path):
     """(Params, Options, HOTA) of the best Kalman config of the kitti_kalman sweep (run when unfinished)."""
-    from dfrmot_jax.config import Options, Params
+    from dfrmot_jax.trackers.dfr.config import Options, Params
     from dfrmot_jax.sweep import load_results, run_sweep
 
     try:
@@ -59,7 +59,7 @@ def main(argv=None) -> int:
     import dfrmot_jax as dm
     from dfrmot_jax.metrics import evaluate_arrays, metrics_table, prepare_gt
     from dfrmot_jax.paths import data_available, default_data_root
-    from dfrmot_jax.tuning.kalman_noise import fit_kalman_noise
+    from dfrmot_jax.trackers.dfr.kalman_noise import fit_kalman_noise
 
     root = default_data_root()
     if not data_available(root):

@@ -14,21 +14,33 @@ from .version import __version__
 
 __all__ = ["Options", "Params", "Split", "TrackResult", "default_capacity", "default_data_root", "load_split",
            "prepare_frames", "preset", "setup_host_devices", "stack_params", "track", "__version__", "run_sweep",
-           "sweep", "sweep_report", "tune"]
+           "sweep", "sweep_report", "tune", "ab3dmot", "dfr"]
 
 
 def __getattr__(name: str):
     """A name of the public API, imported when first asked for (then kept in the module)."""
-    if name in ("TrackResult", "default_capacity", "track"):
-        from . import api as home
+    if name in ("default_capacity", "track"):
+        from .trackers.dfr import track as home
+    elif name == "TrackResult":
+        from .trackers import protocol as home
     elif name == "setup_host_devices":
         from . import devices as home
-    elif name in ("Split", "load_split", "prepare_frames"):
+    elif name in ("Split", "load_split"):
         from . import data as home
+    elif name == "prepare_frames":
+        from .trackers.dfr import frames as home
+    elif name == "ab3dmot":       # each tracker family's folder, by its name (``from dfrmot_jax import ab3dmot``)
+        from .trackers import ab3dmot as value
+        globals()[name] = value
+        return value
+    elif name == "dfr":
+        from .trackers import dfr as value
+        globals()[name] = value
+        return value
     elif name == "default_data_root":
         from . import paths as home
     elif name in ("Options", "Params", "preset", "stack_params"):
-        from . import config as home
+        from .trackers.dfr import config as home
     elif name in ("run_sweep", "sweep_report", "sweep"):
         # importing the sweep package binds it here as ``sweep`` (its function ``sweep`` is a deprecated alias)
         from .sweep import run_sweep, sweep_report

@@ -2,7 +2,7 @@
 the key), :class:`Table` (the one rule by which keys are named: every value is read through its
 table, which names the full key, ``report.folds``, in every error) and the small validators the
 parsers of :mod:`dfrmot_jax.sweep.spec`, :mod:`dfrmot_jax.sweep.distortion`,
-:mod:`dfrmot_jax.tuning.settings` and the report's contrast (:mod:`dfrmot_jax.report.columns`)
+:mod:`dfrmot_jax.tuning.settings` and the report's contrast (:mod:`dfrmot_jax.table_columns`)
 build on. A module of the package root (NumPy only), so that the report, which imports no JAX, and
 the sweep share it."""
 

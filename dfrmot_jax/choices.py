@@ -85,7 +85,7 @@ def parse_iou(spec) -> tuple[str, float]:
     return kind, value
 
 
-#: the two ways AB3DMOT's evaluator sums track scores, by name (:mod:`dfrmot_jax.metrics.ab3dmot.sums`)
+#: the two ways AB3DMOT's evaluator sums track scores, by name (:mod:`dfrmot_jax.metrics.samota.sums`)
 SUMS = ("compensated", "sequential")
 #: the default: CPython >= 3.12's compensated sum
 DEFAULT_SUM = "compensated"

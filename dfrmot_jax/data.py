@@ -2,8 +2,8 @@
 
 ``load_split`` reads detections for many sequences and packs them (host numpy) into a ``Split``:
 detections ``[T, M2]`` (2D) and ``[T, M3]`` (3D) with masks, ``T`` the total frame count of the
-split, a ``reset`` flag on each sequence's first frame. ``prepare_frames`` turns a split into the
-device inputs of the scan (``Frames``) for one set of static ``Options``.
+split, a ``reset`` flag on each sequence's first frame. Family-free: each tracker family turns a split
+into its own device inputs (DFR-FastMOT's ``trackers.dfr.frames.prepare_frames``).
 """
 
 from __future__ import annotations
@@ -27,9 +27,6 @@ from .io.kitti import (
 )
 from .io.memo import FileMemo, file_stamps
 from .io.sequence import SequenceDets  # public here too: load_sequences returns it, pack takes it
-from .core.boxes import truncate_2d_box, truncate_3d_box
-from .core.step import Frames
-from .config import Options
 from .lidar_settings import LiftSettings
 from .lidar.scans import scan_stamps
 from .lidar.source import lidar_dir, lift_sequence
@@ -221,8 +218,8 @@ def _rows_by_frame(frames: np.ndarray, n_frames: int) -> tuple[np.ndarray, np.nd
 
 
 #: what an empty detection slot holds, per Split field (``pack``, ``compact_split``)
-_PAD_2D = {"box2d": 0.0, "score2d": 0.0, "row2d": -1}
-_PAD_3D = {"box3d": 0.0, "proj3d": 0.0, "score3d": 0.0, "dims3d": 1.0, "loc3d": (0.0, 0.0, 10.0), "rot_y3d": 0.0,
+PAD_2D = {"box2d": 0.0, "score2d": 0.0, "row2d": -1}
+PAD_3D = {"box3d": 0.0, "proj3d": 0.0, "score3d": 0.0, "dims3d": 1.0, "loc3d": (0.0, 0.0, 10.0), "rot_y3d": 0.0,
            "alpha3d": 0.0, "row3d": -1}
 
 
@@ -239,7 +236,7 @@ def pack(seqs: list[SequenceDets], cls: str = "car", image_size=DEFAULT_IMAGE_SI
     m2 = max([min_slots] + [int(c.max(initial=0)) for _, c in per2])
     m3 = max([min_slots] + [int(c.max(initial=0)) for _, c in per3])
 
-    pads = {**_PAD_2D, **_PAD_3D}
+    pads = {**PAD_2D, **PAD_3D}
 
     def empty(field: str, m: int, *width: int, dtype=np.float64) -> np.ndarray:
         return np.full((T, m, *width), pads[field], dtype)
@@ -329,10 +326,10 @@ def compact_slots(split: Split, score_2d: float, score_3d: float) -> tuple[Split
     at most once per frame; padding slots name slots no setting keeps)."""
     fields: dict = {}
     kept = kept_slots(split, score_2d, score_3d)
-    for (order, valid), valid_name, pads in zip(kept, ("valid2d", "valid3d"), (_PAD_2D, _PAD_3D)):
+    for (order, valid), valid_name, pads in zip(kept, ("valid2d", "valid3d"), (PAD_2D, PAD_3D)):
         fields[valid_name] = valid
         for name, pad in pads.items():
-            fields[name] = _take_slots(getattr(split, name), order, valid, pad)
+            fields[name] = take_slots(getattr(split, name), order, valid, pad)
     return split._replace(**fields), kept[0][0], kept[1][0]
 
 
@@ -349,7 +346,7 @@ def kept_slots(split: Split, score_2d: float, score_3d: float) -> tuple[tuple[np
     return tuple(out)
 
 
-def _take_slots(a: np.ndarray, order: np.ndarray, valid: np.ndarray, pad) -> np.ndarray:
+def take_slots(a: np.ndarray, order: np.ndarray, valid: np.ndarray, pad) -> np.ndarray:
     """[T, M', ...] the values of ``a [T, M, ...]`` at each frame's slots ``order``, ``pad`` where not ``valid``."""
     t, m = a.shape[:2]
     flat = (order + (np.arange(t) * m)[:, None]).ravel()
@@ -359,66 +356,7 @@ def _take_slots(a: np.ndarray, order: np.ndarray, valid: np.ndarray, pad) -> np.
     return v
 
 
-def compact_frames(split: Split, frames: Frames, options: Options, score_2d: float,
-                   score_3d: float) -> tuple[Frames, np.ndarray, np.ndarray]:
-    """(``prepare_frames(compact_split(split, ...), options)``, order2, order3) made from the split's
-    prepared ``frames`` (``prepare_frames(split, options)``) instead: the same arrays bit for bit
-    (every prepared value is a function of its own slot's values, and an empty slot holds what a
-    prepared empty slot of the split holds), with the split's fields not read by the tracker never
-    moved and no second preparation (``track`` at B = 1: ~30 ms less of ~180 ms)."""
-    (order2, keep2), (order3, keep3) = kept_slots(split, score_2d, score_3d)
-    lo_pad, hi_pad = box3d_extent(np.array([_PAD_3D["dims3d"]] * 3, np.float64).reshape(1, 3),
-                                  np.asarray(_PAD_3D["loc3d"], np.float64).reshape(1, 3), options.centroid)
-    return Frames(
-        reset=frames.reset.copy(),
-        box2=_take_slots(frames.box2, order2, keep2, 0.0), score2=_take_slots(frames.score2, order2, keep2, 0.0),
-        valid2=keep2,
-        box3=_take_slots(frames.box3, order3, keep3, 0.0), score3=_take_slots(frames.score3, order3, keep3, 0.0),
-        valid3=_take_slots(frames.valid3, order3, keep3, False),       # a kept box must be finite too
-        lo3=_take_slots(frames.lo3, order3, keep3, lo_pad[0]),
-        hi3=_take_slots(frames.hi3, order3, keep3, hi_pad[0])), order2, order3
-
-
 # ---------------------------------------------------------------------------------------------
 # Inputs of the scan for one set of static options
 
 
-def image_box_3d(split_box3d: np.ndarray, split_proj3d: np.ndarray, options: Options) -> np.ndarray:
-    """The image box a 3D detection carries under the options (before truncation)."""
-    use_proj = options.merge == "calib_projection" or options.modality == "3d"
-    return split_proj3d if use_proj else split_box3d
-
-
-def prepare_frames(split: Split, options: Options) -> Frames:
-    """Host-side, once per (split, options): truncation, image-box choice and 3D box convention."""
-    options.validate()
-    box3 = image_box_3d(split.box3d, split.proj3d, options)
-    valid3 = split.valid3d & np.all(np.isfinite(box3), axis=-1)
-    box3 = np.where(np.isfinite(box3), box3, 0.0)
-    if options.truncate:
-        box2 = truncate_2d_box(split.box2d)
-        box3 = truncate_3d_box(box3)
-    else:
-        box2 = split.box2d
-    lo3, hi3 = box3d_extent(split.dims3d, split.loc3d, options.centroid)
-    return Frames(
-        reset=split.reset.copy(),
-        box2=box2.astype(np.float32), score2=split.score2d.astype(np.float32), valid2=split.valid2d.copy(),
-        box3=box3.astype(np.float32), score3=split.score3d.astype(np.float32), valid3=valid3,
-        lo3=lo3, hi3=hi3,
-    )
-
-
-def object_slots(options: Options, per_2d: np.ndarray, per_3d: np.ndarray) -> np.ndarray:
-    """Values [T, O, ...] of the tracker's object slots from values of the 2D slots [T, M2, ...] and
-    the 3D slots [T, M3, ...]: the 2D slots, the 3D slots, or both in that order (modality)."""
-    if options.modality == "2d":
-        return per_2d
-    if options.modality == "3d":
-        return per_3d
-    return np.concatenate([per_2d, per_3d], axis=1)
-
-
-def object_boxes(frames: Frames, options: Options) -> np.ndarray:
-    """[T, O, 4] the image box of each object slot of the tracker's ``detections`` output."""
-    return object_slots(options, frames.box2, frames.box3)

@@ -5,7 +5,7 @@ sweep axes ``lift.NAME``: :func:`lift_setting_name`, :func:`with_setting`) and :
 
 A module of the package root that imports nothing of the package (NumPy only; the ``lidar`` package
 reaches the tracker's box rules, ``core.boxes``): a sweep's stored tables name their LiDAR columns
-from these settings (:mod:`dfrmot_jax.report.columns`), and the report reads them without JAX.
+from these settings (:mod:`dfrmot_jax.table_columns`), and the report reads them without JAX.
 """
 
 from __future__ import annotations

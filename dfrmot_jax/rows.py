@@ -16,7 +16,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-__all__ = ["Rows", "RowSelection", "row_starts", "lane_values"]
+__all__ = ["KittiRows", "Rows", "RowSelection", "lane_values", "padded_rows", "row_starts"]
 
 
 def row_starts(ids: np.ndarray) -> np.ndarray:
@@ -126,4 +126,35 @@ class RowSelection(NamedTuple):
             return a.values if self.every else a.lanes(self.chosen)
         a = np.asarray(a)
         return a.reshape((-1,) + a.shape[3:])[self.at]
+
+
+class KittiRows(NamedTuple):
+    """The rows of B lanes' ``--columns kitti`` result files as flat arrays, in (lane, frame, slot)
+    order (the order of a file's lines): lane [R], t [R] frame along the split, slot [R] output slot,
+    ids [R] track id, box [R, 4] image box, score [R], box3d [R, 7] ``h w l x y z rot_y`` (the
+    2D-only placeholder where the row carries no 3D box), n_lanes B, n_frames T. box_key / box3d_key [R] int64
+    or None: rows of one frame with equal keys carry equal image boxes / 3D boxes (the object slot,
+    the 3D detection's index; None with output "filtered" or a distortion, whose boxes are each lane's own), so a
+    scorer finds the distinct values from the keys instead of the values' bits."""
+
+    lane: np.ndarray
+    t: np.ndarray
+    slot: np.ndarray
+    ids: np.ndarray
+    box: np.ndarray
+    score: np.ndarray
+    box3d: np.ndarray
+    n_lanes: int
+    n_frames: int
+    box_key: np.ndarray | None = None
+    box3d_key: np.ndarray | None = None
+
+
+def padded_rows(r: KittiRows, shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows ``r`` as padded arrays of an output's ``shape`` (B, T, K): boxes [B, T, K, 4], scores
+    [B, T, K] and box3d [B, T, K, 7], float64, NaN where there is no row."""
+    out = [np.full(tuple(shape) + tail, np.nan) for tail in ((4,), (), (7,))]
+    for a, v in zip(out, (r.box, r.score, r.box3d)):
+        a[r.lane, r.t, r.slot] = v
+    return out[0], out[1], out[2]
 

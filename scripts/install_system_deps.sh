@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # System packages the tests use besides Python's: Chromium and its WebDriver (Debian's chromium and
-# chromium-driver), in which tests/test_report_html.py opens the HTML report. Installed with apt-get
+# chromium-driver), in which tests/report/test_report_html.py opens the HTML report. Installed with apt-get
 # when missing and possible (as root, or with password-less sudo); otherwise a note on stderr, and
 # the browser test skips saying why. This script never fails the install.
 set -u

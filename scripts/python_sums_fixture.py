@@ -2,7 +2,7 @@
 
 Run with the default interpreter (any); it runs pyenv's 3.11 / 3.12 / 3.13 on the same cases (pure
 Python, no package needed) and stores each one's ``sum`` (repr-exact JSON floats), so the tests of
-``dfrmot_jax.metrics.ab3dmot.sums`` check both behaviours on every interpreter, not only the running one.
+``dfrmot_jax.metrics.samota.sums`` check both behaviours on every interpreter, not only the running one.
 """
 
 import glob

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from dfrmot_jax import setup_host_devices
-from dfrmot_jax.core.run import clear_programs
+from dfrmot_jax.trackers.dfr.run import clear_programs
 from dfrmot_jax.paths import ENV_VAR, data_available, default_data_root
 
 # Compiled programs kept for this test run only, in a folder of its own removed at exit (never

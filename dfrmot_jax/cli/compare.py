@@ -26,8 +26,8 @@ from ..report.stored import read_manifest
 from ..sweep.config_output import class_data, sweep_classes, write_config_output
 from ..metrics.kitti2d.tracker_files import read_tracker_files
 from ..report.compare import compare_outputs, comparison_text
-from ..metrics.ab3dmot.table import other_sum_line, recall_table
-from ..report.compare_ab3dmot import ab3dmot_rows
+from ..metrics.samota.table import other_sum_line, recall_table
+from ..report.compare_samota import ab3dmot_rows
 from ..report.compare_html import write_compare_html
 from .eval import check_class_rows, check_folders, chosen_sequences, ground_truth, label_root
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..family_configs import family_config
+from ..trackers.registry import family_config
 from ..io.lock import folder_lock
 from ..report import SweepReport, sweep_report, write_html
 from ..report.analysis import fmt_value

@@ -31,21 +31,21 @@ COMBINED counts as TrackEval does for the same sequence list.
 
 ``--metrics`` picks the metric families: ``kitti2d`` (TrackEval's, the default) and ``ab3dmot``
 (AB3DMOT's KITTI sAMOTA / AMOTA / AMOTP and its best-threshold MOTA, MOTP, IDS, FRAG, FP, FN:
-:mod:`dfrmot_jax.metrics.ab3dmot.evaluate`, IoU from ``--ab3dmot-iou``, ``2d:T`` or ``3d:T``, default
-``3d:0.25``), which adds the columns of :mod:`dfrmot_jax.metrics.ab3dmot.table` to the CSV (on the
+:mod:`dfrmot_jax.metrics.samota.evaluate`, IoU from ``--ab3dmot-iou``, ``2d:T`` or ``3d:T``, default
+``3d:0.25``), which adds the columns of :mod:`dfrmot_jax.metrics.samota.table` to the CSV (on the
 ``COMBINED`` rows; percent like the other ratio columns). ``--seqmap FILE`` evaluates the sequences
 of a KITTI seqmap (e.g. AB3DMOT's validation split), like ``--seqs``; a seqmap naming a sequence
 without ground truth is refused with its file and line.
 
 AB3DMOT's evaluator averages track scores with Python's ``sum``, whose float arithmetic changed in
-CPython 3.12 (:mod:`dfrmot_jax.metrics.ab3dmot.sums`): ``--ab3dmot-sum compensated`` (the default,
+CPython 3.12 (:mod:`dfrmot_jax.metrics.samota.sums`): ``--ab3dmot-sum compensated`` (the default,
 CPython >= 3.12) or ``sequential`` (CPython <= 3.11, with the drift that drops tracks at their own
 threshold). Where the other sum gives other figures, one line after the table says what they are
 (the CSV holds them as ``other_sAMOTA other_AMOTA other_ab3dmot_MOTA``, and the sum as
 ``ab3dmot_sum``). ``--recall-table F`` (implies ``--metrics ab3dmot``) writes where the recall
 points go: per tracker, class, sum and recall point, the threshold, recall, counts, sMOTA, the
 matches to ignored ground truth and the tracks dropped by the drift
-(:func:`dfrmot_jax.metrics.ab3dmot.table.recall_table`).
+(:func:`dfrmot_jax.metrics.samota.table.recall_table`).
 """
 
 from __future__ import annotations
@@ -59,15 +59,8 @@ import pandas as pd
 from ..choices import DEFAULT_SUM, EVAL_CLASSES, parse_classes
 from ..io.kitti import KittiFormatError
 from ..io.result_rows import read_result_rows
-from ..metrics.ab3dmot.prep import read_seqmap
-from ..metrics.ab3dmot.table import (
-    AB3DMOT_COLUMNS,
-    ab3dmot_table,
-    add_ab3dmot_columns,
-    evaluate_ab3dmot_classes,
-    other_sum_line,
-    recall_table,
-)
+from ..metrics.samota.prep import read_seqmap
+from ..metrics.samota.table import (AB3DMOT_COLUMNS, ab3dmot_table, add_ab3dmot_columns, evaluate_ab3dmot_classes, other_sum_line, recall_table)
 from ..metrics.common.sequences import CLASS_NAME_TO_ID, cached_class_sequences
 from ..metrics.kitti2d.evaluate import AVERAGE, cached_gt, class_average, evaluate_dets
 from ..metrics.kitti2d.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table

@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 
 from ..metrics.columns import canonical_objective
-from ..family import DEFAULT_FAMILY
-from ..report.columns import option_names
+from ..trackers.protocol import DEFAULT_FAMILY
+from ..table_columns import option_names
 from ..sweep import class_columns, load_spec, n_settings, prepare_sweep, run_sweep, sweep_report
 from .backend import backend_from
 

@@ -9,7 +9,7 @@ once, naming the folder and the process writing it. ``--set CLASS.NAME=VALUE`` f
 
 The preset names the tracker family (``--preset dfr2023``: DFR-FastMOT; ``--preset ab3dmot_car``:
 AB3DMOT), whose settings ``--set`` changes and whose tracker runs (through the family protocol,
-:mod:`dfrmot_jax.families`); a family that reads 3D detections only reads no ``--det2d``.
+:mod:`dfrmot_jax.trackers.registry`); a family that reads 3D detections only reads no ``--det2d``.
 
 The command's parser and ``--help`` (every parameter, option and preset) are
 :mod:`dfrmot_jax.cli.track_parser`'s, which imports nothing of the tracker.
@@ -21,12 +21,12 @@ import time
 from pathlib import Path
 
 from ..data import load_split
-from ..families import family_of
-from ..family_configs import preset_family
+from ..trackers.registry import family_of
+from ..trackers.registry import preset_family
 from ..io.lock import LOCK_NAME, folder_lock
 from ..lidar import LiftSettings, lidar_dir, lift_setting_name, tie_scores, with_setting
 from ..paths import default_data_root
-from ..results import result_files
+from ..io.result_writer import result_files
 from .args import parse_seqs
 from .track_parser import add_parser, config_help  # this command's parser (it needs only config)
 

@@ -1,7 +1,7 @@
 """The ``dfrmot track`` parser, apart from the command (:mod:`dfrmot_jax.cli.track`): its options and
 the epilog listing every parameter, option and preset with its meaning, generated from the tracker
-family's settings (``config_help``: its :class:`~dfrmot_jax.family.FamilyConfig`, through
-:mod:`dfrmot_jax.family_configs`). It needs nothing else, so that ``dfrmot track --help`` imports no
+family's settings (``config_help``: its :class:`~dfrmot_jax.trackers.protocol.FamilyConfig`, through
+:mod:`dfrmot_jax.trackers.registry`). It needs nothing else, so that ``dfrmot track --help`` imports no
 tracker; the command's module is imported when it runs (``errors.run_later``)."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import re
 import shutil
 import textwrap
 
-from ..family import DEFAULT_FAMILY
-from ..family_configs import all_presets, family_config, family_names
+from ..trackers.protocol import DEFAULT_FAMILY
+from ..trackers.registry import all_presets, family_config, family_names
 from ..paths import ENV_VAR
 from .args import seqs_arg
 from .commands import HELP

@@ -99,12 +99,12 @@ distorted lane (its sAMOTA) read that lane's 3D detections back by the same rule
 (``results.lane_detections`` through the ``TrackResult``'s :class:`LaneDistortion`).
 
 Typical use: ``dfrmot_jax.track(split, params, options, distortion=dps)`` does all of this
-(``api.prepare_distortion``, then a ``core.run.FrameHook`` of :class:`FrameDistortion`); by hand::
+(``trackers.dfr.track.prepare_distortion``, then a ``trackers.dfr.run.FrameHook`` of :class:`FrameDistortion`); by hand::
 
     dps = distort.stack_distort([distort.level_params("drop", p, seed=s) for p in ps for s in seeds])
     spec = distort.make_spec(options, clutter_slots=0, frames=frames, dps=dps)   # checks dps too
     frames = distort.pad_for_clutter(frames, spec)
-    gid2, gid3 = distort.pad_identity(*distort.gt_identity(split, root, options), spec)
+    gid2, gid3 = distort.pad_identity(*distort.gt_identity(split, root), spec)
     # scan xs = (frames, gid2, gid3, arange(T, int32)); per lane, per frame t:
     #     frame = distort.distort_frame(frame, gid2_t, gid3_t, t, dp, spec)   # then the tracker's step
 

@@ -16,8 +16,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..core.boxes import iou, truncate_2d_box, truncate_3d_box
-from ..data import Frames
+from ..boxes import iou, truncate_2d_box, truncate_3d_box
+from ..frames import Frames
 from ..geometry import box3d_extent
 from .draws import absorb, uniform
 from .exact import lin, project_box, widen

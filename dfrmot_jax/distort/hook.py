@@ -1,5 +1,5 @@
 """The per-frame distortion: :func:`distort_frame` (pure, jittable, vmappable), the tracker's
-hook :class:`FrameDistortion` (``core.run.FrameHook.fn``), and the host drivers
+hook :class:`FrameDistortion` (``trackers.dfr.run.FrameHook.fn``), and the host drivers
 :func:`distort_split` / :func:`distort_lanes` that materialise distorted frames for evaluation
 and tests."""
 
@@ -11,8 +11,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..core.boxes import truncate_2d_box, truncate_3d_box
-from ..data import DEFAULT_IMAGE_SIZE, Frames
+from ..boxes import truncate_2d_box, truncate_3d_box
+from ..data import DEFAULT_IMAGE_SIZE
+from ..frames import Frames
 from . import draws
 from .bursts import occluded
 from .clutter import clutter_2d, clutter_3d
@@ -22,7 +23,7 @@ from .spec import DistortParams, DistortSpec, cast_params
 
 
 class FrameDistortion(NamedTuple):
-    """The tracker's per-frame hook (``core.run.FrameHook.fn``) of a distortion study: hashable by
+    """The tracker's per-frame hook (``trackers.dfr.run.FrameHook.fn``) of a distortion study: hashable by
     its static spec; the hook's lane values are ``DistortParams``, its xs the (gid2, gid3) arrays."""
 
     spec: DistortSpec

@@ -11,9 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import Options
-from ..core.boxes import iou
-from ..data import Split, image_box_3d
+from ..boxes import iou
+from ..data import Split
 from ..io.kitti import read_tracking_labels
 from .clutter import pad_slots
 from .spec import DistortSpec
@@ -37,7 +36,7 @@ def _match_ids(det_box: np.ndarray, det_valid: np.ndarray, gt_box: np.ndarray, g
     return out
 
 
-def gt_identity(split: Split, root, options: Options | None = None,
+def gt_identity(split: Split, root, box3: np.ndarray | None = None,
                 min_iou: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """Host side: the ground-truth track id of every detection slot.
 
@@ -45,14 +44,14 @@ def gt_identity(split: Split, root, options: Options | None = None,
     ``root/label_02/SSSS.txt``, every class except ``DontCare``) of the ground-truth box of the same
     frame with the highest 2D IoU with the detection's image box, when that IoU >= ``min_iou``;
     -1 otherwise (and for empty slots). 2D detections use their raw (untruncated) box; 3D
-    detections their image box under ``options`` (``data.image_box_3d``: the detector's box by
-    default, the calib projection with ``merge="calib_projection"`` or ``modality="3d"``).
+    detections ``box3`` [T, M3, 4], the image box the tracker gives each (default the detector's own,
+    ``split.box3d``; DFR-FastMOT's with ``merge="calib_projection"`` or ``modality="3d"``: the calib
+    projection, ``trackers.dfr.frames.image_box_3d``).
     Each detection takes its best ground truth independently (several detections may share one
     identity: an occluded object's duplicates vanish with it). Ids restart per sequence.
     """
-    options = Options() if options is None else options
     root = Path(root)
-    box3 = image_box_3d(split.box3d, split.proj3d, options)
+    box3 = split.box3d if box3 is None else box3
     gid2 = np.full(split.valid2d.shape, -1, np.int32)
     gid3 = np.full(split.valid3d.shape, -1, np.int32)
     for k, name in enumerate(split.names):

@@ -25,7 +25,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..data import Frames, Split
+from ..frames import Frames
+from ..data import Split
 from ..geometry import box3d_extent
 from ..io.columns import invert_box3d_extent
 from .clutter import pad_for_clutter, pad_slots
@@ -73,7 +74,7 @@ def frames_3d(dets: Detections3D, reset, centroid: str) -> Frames:
     that reads 3D detections alone: ``box3`` the detector's image box (float32, untruncated),
     ``score3`` float32, ``lo3/hi3`` ``geometry.box3d_extent`` for ``centroid`` (the corners
     DFR-FastMOT's frames hold for that ``Options.centroid``: the same bits), ``valid3`` as
-    ``data.prepare_frames`` has it (a detection with a finite image box)."""
+    ``trackers.dfr.frames.prepare_frames`` has it (a detection with a finite image box)."""
     image = np.asarray(dets.image, np.float64)
     finite = np.all(np.isfinite(image), axis=-1)
     lo3, hi3 = box3d_extent(dets.dims, dets.loc, centroid)

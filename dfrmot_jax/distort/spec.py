@@ -9,8 +9,7 @@ from typing import Any, NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from ..config import Options
-from ..data import Frames
+from ..frames import Frames
 
 
 class DistortParams(NamedTuple):
@@ -177,20 +176,21 @@ def check_params(dp: DistortParams, spec: DistortSpec) -> DistortParams:
     return dp
 
 
-def make_spec(options: Options | None = None, clutter_slots: int = 0, burst_max: int = 30,
+def make_spec(options=None, clutter_slots: int = 0, burst_max: int = 30,
               burst_dist: str = "fixed", frames: Frames | None = None, dps: DistortParams | None = None,
               **kw) -> DistortSpec:
-    """A ``DistortSpec`` matching the frames' ``Options`` (truncate, centroid).
+    """A ``DistortSpec`` matching the frames' ``options``: any record with ``truncate`` and ``centroid``
+    fields (DFR-FastMOT's ``Options``); a field it lacks, or None, takes ``DistortSpec``'s default.
 
     With ``frames`` (host ``Frames [T, ...]``), the clutter laws (score, width and aspect quantiles)
     are measured on their valid detections; otherwise the KITTI RRC/PointRCNN car defaults.
     With ``dps`` (the batch that will run), only the groups it uses are compiled in (``enabled``):
     a drop-only study then pays for drops only. ``kw`` sets any other field (``clutter_tries``, ...).
     """
-    options = Options() if options is None else options
+    defaults = DistortSpec._field_defaults
     fields: dict[str, Any] = dict(clutter_slots=int(clutter_slots), burst_max=int(burst_max),
-                                  burst_dist=burst_dist, truncate=bool(options.truncate),
-                                  centroid=options.centroid)
+                                  burst_dist=burst_dist, truncate=bool(getattr(options, "truncate", defaults["truncate"])),
+                                  centroid=getattr(options, "centroid", defaults["centroid"]))
     if dps is not None:
         fields["enabled"] = used_groups(dps)
     if frames is not None:

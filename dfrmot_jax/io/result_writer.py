@@ -4,12 +4,15 @@ checks that keep every file readable by :func:`dfrmot_jax.io.kitti.read_tracking
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 
 from .atomic import write_text_atomic
 from .columns import format_lines
 
-__all__ = ["write_tracking_results", "tracking_lines"]
+__all__ = ["RESULT_FILE", "result_files", "write_sequence_files", "write_tracking_results", "tracking_lines"]
 
 
 def _as_int(name: str, value, n: int) -> np.ndarray:
@@ -101,3 +104,29 @@ def tracking_lines(frame, track_id, box, type_name="Car", alpha=None, dims=None,
         message = str(e).removeprefix("format_lines: ").replace("score3", "score")  # this function's name for it
         raise ValueError(f"write_tracking_results: {message}") from None
     return lines
+
+
+#: the files a family's ``write_runs`` writes (``SSSS.txt``) or leaves when killed mid-write (``.SSSS.txt.PID.tmp``,
+#: the temporaries of ``io.atomic.write_text_atomic``)
+RESULT_FILE = re.compile(r"\d{4}\.txt|\.\d{4}\.txt\.\d+\.tmp")
+
+
+def result_files(out_dir) -> list[Path]:
+    """The files of ``out_dir`` that a family's ``write_runs`` writes or leaves behind, sorted: result files
+    ``SSSS.txt`` and temporaries ``.SSSS.txt.PID.tmp`` of an interrupted write (nothing else)."""
+    return sorted(p for p in Path(out_dir).iterdir()
+                  if RESULT_FILE.fullmatch(p.name) and (p.is_file() or p.is_symlink()))
+
+
+def write_sequence_files(out_dir, lines: dict[str, list[str]]) -> list[Path]:
+    """``out_dir/SSSS.txt`` for each sequence name of ``lines`` (its lines, no newline each), every
+    line ending with a newline, each file written atomically (:mod:`.atomic`); the one writer of a
+    family's per-sequence result files. Returns the paths, sorted by sequence."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name in sorted(lines):
+        path = out_dir / f"{name}.txt"
+        write_text_atomic(path, "".join(line + "\n" for line in lines[name]))
+        paths.append(path)
+    return paths

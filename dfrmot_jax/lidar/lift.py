@@ -46,7 +46,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from ..core.boxes import truncate_2d_box
+from ..boxes import truncate_2d_box
 from ..io.kitti import Calib
 from ..lidar_settings import LiftSettings
 

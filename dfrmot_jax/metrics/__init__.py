@@ -7,7 +7,7 @@
   ``'bev'`` on every entry point the metrics match on the 3D or bird's-eye-view IoU instead of the
   image IoU (``similarity``; the KITTI preprocessing stays 2D). ``dfrmot_jax.metrics`` offers this
   family's entry points (``__all__``, typical use below).
-* :mod:`~dfrmot_jax.metrics.ab3dmot`: AB3DMOT's KITTI 3D MOT metrics, sAMOTA, AMOTA, AMOTP and its
+* :mod:`~dfrmot_jax.metrics.samota`: AB3DMOT's KITTI 3D MOT metrics, sAMOTA, AMOTA, AMOTP and its
   best-threshold CLEAR figures, exact to its evaluator (``evaluate``: ``evaluate_ab3dmot_files``;
   ``prep`` reading its inputs, ``passes``, ``arrays`` scoring padded outputs, ``table`` its columns).
 

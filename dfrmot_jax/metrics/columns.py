@@ -1,7 +1,7 @@
 """The columns of both metric families together, for sweep tables and tunes: the columns an objective
 may name (:func:`canonical_objective`) and how a class average combines each column
 (:func:`class_combiner`, :func:`class_average_columns`). TrackEval's columns are
-:mod:`dfrmot_jax.metrics.kitti2d`'s, AB3DMOT's :mod:`dfrmot_jax.metrics.ab3dmot`'s; this module is
+:mod:`dfrmot_jax.metrics.kitti2d`'s, AB3DMOT's :mod:`dfrmot_jax.metrics.samota`'s; this module is
 where a user of both finds them together (the families themselves meet only in
 :mod:`dfrmot_jax.metrics.common`).
 """
@@ -12,7 +12,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from dfrmot_jax.metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, AB3DMOT_RATIO_COLUMNS
+from .samota.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS, AB3DMOT_RATIO_COLUMNS
 from dfrmot_jax.metrics.kitti2d.evaluate import CLASS_AVERAGED_FIELDS, CLASS_SUMMED_FIELDS
 from dfrmot_jax.metrics.kitti2d.table import TABLE_FIELDS
 

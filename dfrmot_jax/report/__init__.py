@@ -1,5 +1,5 @@
 """Reports of stored sweep and tune tables: what a sweep directory holds, read back and analysed,
-without JAX (nothing here imports JAX, ``core/`` or ``api`` through any chain of imports: ``dfrmot
+without JAX (nothing here imports JAX or a tracker family's folder through any chain of imports: ``dfrmot
 report DIR`` starts without them).
 
 Modules: :mod:`.columns` (the tables' columns: ``COMBINED``, ``AVERAGE``, the per-alpha column, the
@@ -16,8 +16,7 @@ package (:mod:`dfrmot_jax.sweep`) names all of these too::
 
 from .analysis import (MINIMISE, OBJECTIVES, axis_profiles, class_view, cross_validate, make_folds, objective_on,
                        per_sequence_arrays, sensitivity)
-from .columns import (AVERAGE, COMBINED, DISTORTION_AXES, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, Contrast,
-                      class_columns, extra_axes, option_names, param_names, parse_contrast, table_family)
+from ..table_columns import (AVERAGE, COMBINED, DISTORTION_AXES, EXTRA_AXES, OPTION_NAMES, PARAM_NAMES, RAW_COLUMN, Contrast, class_columns, extra_axes, option_names, param_names, parse_contrast, table_family)
 from .html import html_report, render_html, write_html
 from .report import SweepReport, report_folds, sweep_report
 from .robustness import robustness_contrast, robustness_curves, robustness_summary, setting_axes

@@ -8,13 +8,12 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
-from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
+from ..metrics.samota.table import AB3DMOT_COLUMNS, AB3DMOT_COUNT_COLUMNS
 from ..metrics.columns import canonical_objective, class_average_columns  # noqa: F401
 from ..metrics.kitti2d import clear, identity
 from ..metrics.kitti2d.evaluate import RAW_FIELDS, combine_sequences, summary_columns
 from ..metrics.kitti2d.table import TABLE_FIELDS
-from .columns import (AVERAGE, COMBINED, RAW_COLUMN, canonical_params, class_columns, extra_axes, setting_names,
-                      split_class_column, table_family)
+from ..table_columns import (AVERAGE, COMBINED, RAW_COLUMN, canonical_params, class_columns, extra_axes, setting_names, split_class_column, table_family)
 
 #: Objectives the report knows by name (any metric column works); these are minimised.
 MINIMISE = frozenset({"IDSW", "Frag", "ML", "CLR_FN", "CLR_FP", "IDFN", "IDFP", "PT", "MLR", "FP_per_frame",

@@ -31,7 +31,7 @@ from ..metrics.kitti2d.bootstrap import (BOOTSTRAP_FIELDS, LOWER_IS_BETTER, batc
 from ..metrics.kitti2d.evaluate import combine_sequences, result_dicts
 from ..metrics.kitti2d.kitti import preprocess
 from ..metrics.kitti2d.table import summary_row
-from .columns import COMBINED
+from ..table_columns import COMBINED
 from .compare_views import differing_tracks, output_events
 
 __all__ = ["COLUMNS", "Comparison", "compare_outputs", "comparison_text", "DEFAULT_RESAMPLES"]

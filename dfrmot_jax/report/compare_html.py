@@ -13,8 +13,8 @@ import pandas as pd
 from ..io.atomic import write_text_atomic
 from ..metrics.kitti2d.bootstrap import LOWER_IS_BETTER
 from ..version import __version__
-from ..metrics.ab3dmot.table import other_sum_line, recall_table
-from .columns import COMBINED
+from ..metrics.samota.table import other_sum_line, recall_table
+from ..table_columns import COMBINED
 from .compare import Comparison
 from .compare_views import bev_svg, timeline_svg
 from .html import CSS

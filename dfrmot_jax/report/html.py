@@ -30,9 +30,9 @@ from . import figures
 from .analysis import MINIMISE, axis_profiles, fmt_value, pareto_front, varied_axes
 from .report import SweepReport, held_out_gain, report_folds, sweep_report
 from .robustness import robustness_contrast
-from ..family import DEFAULT_FAMILY
-from ..family_configs import family_config
-from .columns import AVERAGE, COMBINED
+from ..trackers.protocol import DEFAULT_FAMILY
+from ..trackers.registry import family_config
+from ..table_columns import AVERAGE, COMBINED
 from .stored import read_manifest
 
 #: settings drawn per kind in the robustness curves (the report's best first)

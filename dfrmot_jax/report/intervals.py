@@ -20,10 +20,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
+from ..metrics.samota.table import AB3DMOT_COLUMNS
 from ..metrics.kitti2d.bootstrap import counts_of, resample_indices, resampled_figure
 from .analysis import objective_direction, per_sequence_arrays, rank_configs
-from .columns import RAW_COLUMN
+from ..table_columns import RAW_COLUMN
 
 __all__ = ["REPORT_RESAMPLES", "report_intervals", "interval_problem"]
 

@@ -13,10 +13,10 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from ..metrics.ab3dmot.sums import other_sum, python_of
-from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
-from ..family import DEFAULT_FAMILY
-from ..family_configs import family_config
+from ..metrics.samota.sums import other_sum, python_of
+from ..metrics.samota.table import AB3DMOT_COLUMNS
+from ..trackers.protocol import DEFAULT_FAMILY
+from ..trackers.registry import family_config
 from ..metrics.columns import canonical_objective
 from .analysis import (
     check_objective,
@@ -34,7 +34,7 @@ from .analysis import (
 )
 from .intervals import interval_problem, report_intervals
 from .robustness import contrast_text, robustness_curves, robustness_text
-from .columns import AVERAGE, COMBINED, Contrast, canonical_params, contrast_doc, parse_contrast, table_family
+from ..table_columns import AVERAGE, COMBINED, Contrast, canonical_params, contrast_doc, parse_contrast, table_family
 from .stored import load_results, manifest_family, read_manifest
 from .text import WIDTH, paragraph, text_table  # noqa: F401  (WIDTH: the report's width)
 

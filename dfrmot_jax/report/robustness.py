@@ -11,7 +11,7 @@ import pandas as pd
 from scipy import stats
 
 from .analysis import check_objective, fmt_value, json_value, objective_direction, varied_axes
-from .columns import COMBINED, DISTORTION_AXES, Contrast
+from ..table_columns import COMBINED, DISTORTION_AXES, Contrast
 from .text import paragraph, text_table
 
 

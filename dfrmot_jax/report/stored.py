@@ -17,9 +17,9 @@ import pandas as pd
 from ..io.atomic import sha256
 from ..metrics.columns import class_average_columns, class_combiner
 from ..metrics.kitti2d.evaluate import RAW_FIELDS
-from ..family import DEFAULT_FAMILY
-from ..family_configs import family_names
-from .columns import AVERAGE, COMBINED, RAW_COLUMN, settings_of
+from ..trackers.protocol import DEFAULT_FAMILY
+from ..trackers.registry import family_names
+from ..table_columns import AVERAGE, COMBINED, RAW_COLUMN, settings_of
 
 __all__ = ["LEDGER", "NO_RECORD", "chunk_name", "Record", "read_ledger", "file_problem", "finish_table", "load_results",
            "read_manifest", "manifest_problem", "manifest_family"]

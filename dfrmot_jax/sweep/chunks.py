@@ -34,18 +34,18 @@ import pandas as pd
 from tqdm import tqdm
 
 from .. import distort
-from ..api import TrackResult
+from ..trackers.protocol import TrackResult
 from ..devices import chosen_platform, default_lanes_per_call
 from ..data import Split, cached_split
-from ..family import TrackerFamily
-from ..families import family_of
+from ..trackers.protocol import TrackerFamily
+from ..trackers.registry import family_of
 from ..lidar import LIDAR_PREFIX, lidar_dir, simulate_cached
-from ..metrics.ab3dmot.prep import cached_ab3dmot_gt
+from ..metrics.samota.prep import cached_ab3dmot_gt
 from ..metrics.kitti2d.evaluate import cached_gt
 from ..metrics.kitti2d.kitti import PreparedGT
 from ..metrics.kitti2d.lane_scorer import LaneScorer
 from ..version import __version__
-from .ab3dmot_lanes import Ab3dmotLanes, add_columns
+from .samota_lanes import Ab3dmotLanes, add_columns
 from .distortion import DistortionAxes
 from .lidar_axes import key_settings
 from .malloc import fixed_mmap_threshold
@@ -214,7 +214,7 @@ class ChunkRunner:
 
     def track_chunk(self, c: Chunk) -> tuple[Pending, TrackResult]:
         """Track chunk ``c``: its :class:`~.scoring.Pending` (scoring not started) and the whole
-        :class:`~dfrmot_jax.api.TrackResult` (what the scoring's start reads)."""
+        :class:`~dfrmot_jax.trackers.protocol.TrackResult` (what the scoring's start reads)."""
         frames = self.frames_of(c.options)
         params = params_of(self.table, c.configs, self.data.cls, self.spec.family)
         track = self.family.track

@@ -19,11 +19,11 @@ import numpy as np
 import pandas as pd
 
 from ..data import load_split
-from ..family import TrackerFamily
-from ..families import family_of
+from ..trackers.protocol import TrackerFamily
+from ..trackers.registry import family_of
 from ..metrics.columns import canonical_objective
 from ..report.analysis import class_view, classes_of, rank_configs, report_class_of
-from ..report.columns import AVERAGE, COMBINED, extra_axes
+from ..table_columns import AVERAGE, COMBINED, extra_axes
 from ..report.stored import load_results, manifest_family, read_manifest
 from .table import params_of
 

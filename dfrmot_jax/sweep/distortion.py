@@ -11,16 +11,15 @@ from typing import Any, Mapping
 import numpy as np
 
 from .. import distort
-from ..config import Options
 from ..checks import GRID_KINDS, Table, check_count, clean_float, config_error, is_number
-from ..report.columns import DISTORTION_AXES
+from ..table_columns import DISTORTION_AXES
 
 DISTORTION_KEYS = ("kind", "level", "levels", "seeds", "clutter_slots", "burst_dist", "burst_max", "burst_rate",
                    "burst_len")
 #: Kinds whose level is a probability (<= 1).
 PROBABILITY_KINDS = ("drop", "drop_2d", "drop_3d", "burst_rate")
 #: (The per-lane distortion axes, ``DISTORTION_AXES``, are defined with the stored tables' columns in
-#: ``report.columns``.) The undistorted lane (level 0 of every kind and seed).
+#: ``table_columns``.) The undistorted lane (level 0 of every kind and seed).
 UNDISTORTED = ("none", 0.0, 0)
 
 
@@ -229,7 +228,7 @@ def parse_distortion(d, source, detections=("2d", "3d"), title: str = "") -> Dis
                           burst_max=int(burst_max), burst_rate=float(burst_rate), burst_len=float(burst_len))
     try:        # the distortion module's own checks on every lane (belt and braces)
         dps = distort.stack_distort([axes.lane(k, v, s) for k, lv in axes.kinds for v in lv for s in seeds[:1]])
-        distort.check_params(dps, axes.make_spec(Options(), dps=dps))
+        distort.check_params(dps, axes.make_spec(None, dps=dps))
     except ValueError as e:
         raise config_error("distortion", str(e), source) from None
     return axes

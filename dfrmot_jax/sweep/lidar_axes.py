@@ -24,9 +24,9 @@ import pandas as pd
 
 from ..lidar import LIFT_SETTINGS, LiftSettings, SimSettings, lidar_dir, tie_scores, with_setting
 from ..checks import Table, config_error, is_number
-from ..report.columns import CROP as _CROP, LIDAR_AXES, LIFT_COLUMNS, SIM_COLUMNS, SIM_INT as _SIM_INT
-from ..report.columns import lift_value as _lift_value
-from ..family import FamilyConfig
+from ..table_columns import CROP as _CROP, LIDAR_AXES, LIFT_COLUMNS, SIM_COLUMNS, SIM_INT as _SIM_INT
+from ..table_columns import lift_value as _lift_value
+from ..trackers.protocol import FamilyConfig
 
 __all__ = ["LIFT_COLUMNS", "SIM_COLUMNS", "LIDAR_AXES", "LidarAxes", "LidarKey", "parse_lidar", "lidar_key",
            "key_settings", "tie_table_scores", "describe_key"]

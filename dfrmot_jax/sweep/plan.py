@@ -16,9 +16,9 @@ from typing import Sequence
 import pandas as pd
 
 from ..data import detection_dir, sequences_with_class
-from ..family import DEFAULT_FAMILY
-from ..family_configs import family_config
-from ..families import family_of
+from ..trackers.protocol import DEFAULT_FAMILY
+from ..trackers.registry import family_config
+from ..trackers.registry import family_of
 from ..io.kitti import KittiFormatError, sequence_lengths
 from ..lidar import lidar_dir
 from ..paths import default_data_root

@@ -21,7 +21,7 @@ from .lidar_axes import describe_key
 from .plan import Chunk, DataSettings, check_memory, plan, resolve_data_all
 from .spec import SweepSpec, as_spec
 from .store import chunk_path, computed_by, finished_chunks, write_chunk, write_manifest, write_results
-from ..report.columns import RAW_COLUMN
+from ..table_columns import RAW_COLUMN
 from ..report.stored import finish_table
 from .table import expand, n_settings
 

@@ -23,11 +23,11 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Iterator
 
-from ..api import TrackResult
+from ..trackers.protocol import TrackResult
 from ..metrics.kitti2d.evaluate import worker_pool
 from ..metrics.kitti2d.kitti import PreparedGT
 from ..metrics.kitti2d.lane_scorer import LaneScorer
-from .ab3dmot_lanes import Ab3dmotLanes
+from .samota_lanes import Ab3dmotLanes
 from .plan import Chunk
 
 
@@ -43,7 +43,7 @@ class Timing:
 
 @dataclass
 class Pending:
-    """A tracked chunk waiting for its metrics. ``res``: its :class:`~dfrmot_jax.api.TrackResult`
+    """A tracked chunk waiting for its metrics. ``res``: its :class:`~dfrmot_jax.trackers.protocol.TrackResult`
     without the per-row arrays (the counts the table needs: dropped, overflow, peak, capacity);
     ``digests``: its lanes' per-sequence digests (``LaneScorer.seq_digests``); ``todo``: per
     sequence, the lanes whose output it scores itself (``LaneScorer.new_items``), the others are

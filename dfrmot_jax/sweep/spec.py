@@ -1,7 +1,7 @@
 """The sweep file: spec dataclasses, TOML parsing and validation (``load_spec``, ``parse_spec``).
 
 Every parameter and option value is checked by the one validator of the sweep's tracker family
-(``[options] family``, default ``"dfr"``: its :class:`~dfrmot_jax.family.FamilyConfig`'s
+(``[options] family``, default ``"dfr"``: its :class:`~dfrmot_jax.trackers.protocol.FamilyConfig`'s
 ``param_problem`` / ``option_problem``, presets and classes); a bad file fails before any work with a
 :class:`SweepConfigError` naming the key. The format is documented in ``sweeps/README.md``.
 """
@@ -15,12 +15,12 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..family import DEFAULT_FAMILY, FamilyConfig
-from ..family_configs import family_config, family_names
+from ..trackers.protocol import DEFAULT_FAMILY, FamilyConfig
+from ..trackers.registry import family_config, family_names
 from ..lidar import lidar_dir
 from ..choices import DEFAULT_AB3DMOT_IOU, parse_iou
-from ..metrics.ab3dmot.sums import DEFAULT_SUM, SUMS
-from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
+from ..metrics.samota.sums import DEFAULT_SUM, SUMS
+from ..metrics.samota.table import AB3DMOT_COLUMNS
 from ..metrics.columns import canonical_objective
 from ..checks import (
     GRID_KINDS,
@@ -35,7 +35,7 @@ from ..checks import (
 from .axes import AxisKind
 from .distortion import DistortionAxes, parse_distortion
 from .lidar_axes import LidarAxes, parse_lidar
-from ..report.columns import AVERAGE, Contrast, parse_contrast
+from ..table_columns import AVERAGE, Contrast, parse_contrast
 
 RANDOM_KINDS = ("uniform", "loguniform", "randint", "choice")
 
@@ -428,7 +428,7 @@ FAMILY_KEY = "family"
 
 def parse_family(doc: Mapping, source: str | None = None) -> str:
     """``[options] family`` (and each ``[[variants]]``' ``options.family``): the tracker family of every
-    config, one name of :mod:`dfrmot_jax.family_configs` (default ``"dfr"``). A sweep is of one family:
+    config, one name of :mod:`dfrmot_jax.trackers.registry` (default ``"dfr"``). A sweep is of one family:
     its tables hold that family's parameter and option columns (and its stored directory's manifest
     names the family, but for the default one's)."""
     found = []

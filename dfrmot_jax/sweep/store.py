@@ -27,12 +27,12 @@ from typing import Any, Sequence
 import numpy as np
 import pandas as pd
 
-from ..family import DEFAULT_FAMILY
+from ..trackers.protocol import DEFAULT_FAMILY
 from ..io.atomic import TMP_NAME, naming, sha256, write_parquet_atomic, write_text_atomic
 from ..metrics.kitti2d.evaluate import RAW_FIELDS, summary_columns
 from .folder import SweepDirectoryError, claim
 from .plan import Chunk, DataSettings
-from ..report.columns import COMBINED, RAW_COLUMN, class_columns, contrast_doc, extra_axes, settings_of
+from ..table_columns import COMBINED, RAW_COLUMN, class_columns, contrast_doc, extra_axes, settings_of
 from ..report.stored import LEDGER, NO_RECORD, Record, chunk_name, file_problem, read_ledger
 from .spec import SweepSpec
 from ..lidar import SIM_VERSION

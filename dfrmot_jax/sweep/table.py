@@ -23,13 +23,13 @@ import numpy as np
 import pandas as pd
 
 from ..checks import config_error
-from ..family import DEFAULT_FAMILY
-from ..family_configs import family_config
-from ..families import family_of
+from ..trackers.protocol import DEFAULT_FAMILY
+from ..trackers.registry import family_config
+from ..trackers.registry import family_of
 from ..lidar import lidar_dir
 from .axes import AxisKind, cross_rows, hash_settings
 from .lidar_axes import tie_table_scores
-from ..report.columns import class_columns, extra_axes, param_key, settings_of, split_class_column
+from ..table_columns import class_columns, extra_axes, param_key, settings_of, split_class_column
 from .spec import Axis, SweepSpec, Variant, as_spec
 
 #: The scheme of ``config_hash`` and chunk ids; recorded in the manifest as ``hash_version``.
@@ -140,7 +140,7 @@ def expand(spec, max_configs: int | None = None) -> pd.DataFrame:
 
     Columns: ``config`` (row number), ``config_hash``, ``variant``, ``baseline`` (bool), every
     parameter and option of the sweep's tracker family (``SweepSpec.family``: its ``Params`` and
-    ``Options`` fields, ``report.columns.param_names`` / ``option_names``). Grid axes are crossed (the first axis
+    ``Options`` fields, ``table_columns.param_names`` / ``option_names``). Grid axes are crossed (the first axis
     slowest; parameters, then options); random axes (uniform, loguniform, randint, choice) are drawn
     per config from ``numpy.random.default_rng(seed)``; ``samples`` repeats each variant's grid with
     the random axes redrawn (Ray Tune's ``num_samples``). Configs that hash alike are kept once.
@@ -240,7 +240,7 @@ def cross(table: pd.DataFrame, kind: AxisKind, kinds: Sequence[AxisKind],
     hash alike kept once."""
     unknown = [c for c in kind.columns if c not in extra_axes()]
     if unknown:             # (config_hash and the result rows know a kind's columns from that registry)
-        raise ValueError(f"axis columns {unknown} are not registered in dfrmot_jax.report.columns.EXTRA_AXES")
+        raise ValueError(f"axis columns {unknown} are not registered in dfrmot_jax.table_columns.EXTRA_AXES")
     cols = list(table.columns.drop("config_hash"))
     out = pd.DataFrame(cross_rows(table[cols].to_dict("records"), kind), columns=cols + list(kind.columns))
     for c in cols:

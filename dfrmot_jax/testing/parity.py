@@ -8,11 +8,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..api import TrackResult
+from ..trackers.protocol import TrackResult
 from ..data import SequenceDets, Split
-from ..config import Options, Params
+from ..trackers.dfr.config import Options, Params
 from .reference import track_sequence
-from ..results import lane_rows
+from ..trackers.dfr.results import lane_rows
 
 
 def reference_pool(workers: int = 2) -> ProcessPoolExecutor:
@@ -68,7 +68,7 @@ class ReferenceLane(NamedTuple):
     ids [T, K] int32 (-1 none); boxes [T, K, 4] float64; src3 [T, K] int64 (global 3D index
     ``t * M3 + slot`` into the split's [T, M3] arrays of the 3D detection the row carries, -1 none);
     own3 [T, K] bool; box3 [T, K, 6] float64 (output "filtered": filtered 3D corners; NaN none).
-    Slots: output "detections" = object slots (``data.object_boxes``: fused 2D slots then 3D slots);
+    Slots: output "detections" = object slots (``trackers.dfr.frames.object_boxes``: fused 2D slots then 3D slots);
     "filtered" = the frame's rows in the oracle's order.
     """
 

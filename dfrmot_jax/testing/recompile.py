@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 
-from ..core.run import compilations
+from ..trackers.dfr.run import compilations
 
 
 @contextmanager

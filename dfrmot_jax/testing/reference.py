@@ -5,8 +5,8 @@ are float32 as parsed; parameters are float64 (score thresholds compared in floa
 scores); arithmetic (IoU, distances, costs, filters) is float64, as in the JAX tracker and the
 authors' C++, so that the two can be compared id for id.
 
-It shares no code with the tracker: it imports nothing that imports ``dfrmot_jax.core`` (checked
-by ``tests/test_oracle_independent.py``) and keeps its own copies of the box rules the tracker
+It shares no code with the tracker: it imports nothing that imports ``dfrmot_jax.trackers.dfr`` (checked
+by ``tests/house/test_oracle_independent.py``) and keeps its own copies of the box rules the tracker
 takes from ``core.boxes`` (IoU, the loaders' integer truncation), written from the C++ code.
 """
 
@@ -22,7 +22,7 @@ from scipy.optimize import linear_sum_assignment
 
 from ..geometry import box3d_extent, project_box3d_to_image
 from ..io.sequence import SequenceDets
-from ..config import Options, Params
+from ..trackers.dfr.config import Options, Params
 
 F32 = np.float32
 F64 = np.float64

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config import CENTROIDS, FILTERS, KALMAN_INITS, MERGES, MODALITIES, OUTPUTS, Options, Params
+from ..trackers.dfr.config import CENTROIDS, FILTERS, KALMAN_INITS, MERGES, MODALITIES, OUTPUTS, Options, Params
 
 
 def random_params(rng: np.random.Generator, output: str = "detections") -> Params:

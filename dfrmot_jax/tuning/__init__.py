@@ -13,14 +13,14 @@ The pipeline::
 
 Modules: :mod:`.settings` (the [tune] table), :mod:`.space` (distributions, config tables,
 unconstrained coordinates), :mod:`.study` (batched ask/tell, resume), :mod:`.gradient`
-(estimator, refinement), :mod:`.nested`, :mod:`.run` (``run_tune``), :mod:`.plots`,
-:mod:`.kalman_noise` (Kalman noise by maximum likelihood).
+(estimator, refinement), :mod:`.nested`, :mod:`.run` (``run_tune``), :mod:`.plots`.
+DFR-FastMOT's Kalman noise by maximum likelihood is its family's own
+(:mod:`dfrmot_jax.trackers.dfr.kalman_noise`).
 """
 
-from .kalman_noise import Fit, Series, fit_kalman_noise, fit_series, gather_series
 from .run import TuneResult, run_tune
 from .settings import RefineSettings, TuneSettings, load_tune, parse_tune
 from .space import SearchSpace, search_space
 
 __all__ = ["TuneResult", "run_tune", "RefineSettings", "TuneSettings", "load_tune", "parse_tune", "SearchSpace",
-           "search_space", "Fit", "Series", "fit_kalman_noise", "fit_series", "gather_series"]
+           "search_space"]

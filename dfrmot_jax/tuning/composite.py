@@ -4,8 +4,8 @@ AB3DMOT's figures are not sums over sequences: its recall thresholds come from t
 sequences together, so a figure over a set of sequences must be computed on that set's rows at
 once (a table's per-sequence rows cannot be re-combined, as TrackEval's can). Here each chosen
 config and the baseline are tracked once over the whole split (``track(detail=True)``), their rows
-turned into the values a ``--columns kitti`` file carries (:func:`dfrmot_jax.results.kitti_row_arrays`),
-and scored with :func:`dfrmot_jax.metrics.ab3dmot.arrays.evaluate_ab3dmot_arrays`:
+turned into the values a ``--columns kitti`` file carries (:func:`dfrmot_jax.trackers.dfr.results.kitti_row_arrays`),
+and scored with :func:`dfrmot_jax.metrics.samota.arrays.evaluate_ab3dmot_arrays`:
 
 - ``held_out`` of fold f: config f on fold f's sequences together;
 - ``cross_validated``: every sequence with the rows of the config chosen without it, all sequences
@@ -21,12 +21,12 @@ import numpy as np
 import pandas as pd
 
 from ..data import cached_split
-from ..family import DEFAULT_FAMILY
-from ..families import family_of
-from ..metrics.ab3dmot.arrays import evaluate_ab3dmot_arrays
-from ..metrics.ab3dmot.prep import cached_ab3dmot_gt
-from ..metrics.ab3dmot.sums import DEFAULT_SUM
-from ..metrics.ab3dmot.table import ab3dmot_columns
+from ..trackers.protocol import DEFAULT_FAMILY
+from ..trackers.registry import family_of
+from ..metrics.samota.arrays import evaluate_ab3dmot_arrays
+from ..metrics.samota.prep import cached_ab3dmot_gt
+from ..metrics.samota.sums import DEFAULT_SUM
+from ..metrics.samota.table import ab3dmot_columns
 from ..sweep.plan import DataSettings, option_groups
 from ..sweep.table import params_of
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
+from ..metrics.samota.table import AB3DMOT_COLUMNS
 from ..report.analysis import make_folds, per_sequence_arrays, pooled_objective
 from .composite import ab3dmot_held_out
 from .once import tune_once

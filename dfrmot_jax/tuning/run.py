@@ -9,11 +9,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Mapping
 
-from ..family import DEFAULT_FAMILY
+from ..trackers.protocol import DEFAULT_FAMILY
 from ..io.atomic import write_text_atomic
 from ..io.lock import folder_lock
 from ..choices import DEFAULT_AB3DMOT_IOU
-from ..metrics.ab3dmot.table import AB3DMOT_COLUMNS
+from ..metrics.samota.table import AB3DMOT_COLUMNS
 from ..sweep.backend import make_backend
 from ..sweep.plan import resolve_data
 from ..sweep.runner import run_sweep

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 from typing import Mapping
 
 from ..choices import SAMPLERS
-from ..family import FamilyConfig
-from ..family_configs import family_config
+from ..trackers.protocol import FamilyConfig
+from ..trackers.registry import family_config
 from ..metrics.columns import canonical_objective
 from ..report.analysis import MINIMISE
 from ..checks import Table, is_number, type_name

@@ -21,8 +21,8 @@ import numpy as np
 import pandas as pd
 from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
 
-from ..family import DEFAULT_FAMILY
-from ..family_configs import family_config
+from ..trackers.protocol import DEFAULT_FAMILY
+from ..trackers.registry import family_config
 from ..sweep.spec import SweepConfigError, SweepSpec
 from ..sweep.table import baseline_row, canonical_value, config_hash, typed_table
 

@@ -46,8 +46,8 @@ from tqdm import tqdm
 from ..io.atomic import write_parquet_atomic, write_text_atomic
 from ..sweep.runner import run_sweep
 from ..sweep.spec import SweepSpec
-from ..report.columns import COMBINED
-from ..families import family_of
+from ..table_columns import COMBINED
+from ..trackers.registry import family_of
 from .pairwise import pairwise_sampler
 from .settings import TuneSettings
 from .space import SearchSpace
@@ -198,7 +198,7 @@ def _read_record(outdir: Path | None, b: int) -> dict | None:
 def _evaluate_batch(study, ev: Evaluator, space: SearchSpace, settings: TuneSettings, b: int, rec: dict) -> None:
     """Evaluate batch ``b``'s trials in one call and tell them; trials the tracker family knows to be
     useless (``TrackerFamily.failing_rows``; DFR-FastMOT: fixed gains that make the filter unstable,
-    :func:`dfrmot_jax.dfr.unstable_rows`: boxes grow without bound) are told FAIL without being run:
+    :func:`dfrmot_jax.trackers.dfr.family.unstable_rows`: boxes grow without bound) are told FAIL without being run:
     they do not count towards the budget (the log says how many)."""
 
 

@@ -1,4 +1,4 @@
-"""What both metric families use (:mod:`dfrmot_jax.metrics.kitti2d`, :mod:`dfrmot_jax.metrics.ab3dmot`):
+"""What both metric families use (:mod:`dfrmot_jax.metrics.kitti2d`, :mod:`dfrmot_jax.metrics.samota`):
 the one place where they meet, importing neither.
 
 Modules: ``box3d`` (the one rotated 3D / BEV box IoU), ``fields3d`` (the one set of rules for a

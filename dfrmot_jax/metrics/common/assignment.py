@@ -19,7 +19,7 @@ reproducing that order, written here from the paper and scipy's documented behav
   for the tree's other rows, ``v[j] -= min_val - d[j]`` for its columns) and the path is augmented.
 
 Every operation is the same float64 operation in the same order as in that description, so the
-choices are the same bit for bit; ``tests/test_assignment.py`` checks it against scipy on many random,
+choices are the same bit for bit; ``tests/metrics/common/test_assignment.py`` checks it against scipy on many random,
 tie-heavy (small integers, repeated rows and columns, constant) and rectangular matrices.
 :func:`solve_many` solves a whole list of blocks in one compiled call: no Python per block.
 
@@ -27,7 +27,7 @@ Compiled callers pass :func:`solve_block` and :func:`workspace` typed arguments,
 constants (``np.int64(0)``, ``np.bool_(True)``; a count that starts at a constant and grows in a loop
 starts at ``np.int64(...)``): numba compiles a kernel anew for every literal value it is called
 with (and for the literal type a loop's first typing pass sees), which tripled these kernels' share
-of the first run's compilation (``tests/test_kernel_cache.py`` checks each compiles once).
+of the first run's compilation (``tests/metrics/common/test_kernel_cache.py`` checks each compiles once).
 ``+inf`` entries are forbidden pairs, as in scipy; NaN or ``-inf`` or an infeasible block raise.
 """
 

@@ -1,6 +1,6 @@
 """Overlap of rotated KITTI 3D boxes: bird's-eye-view (BEV) intersection, BEV IoU and 3D IoU.
 
-The one rotated-box overlap of the package: the AB3DMOT metrics (:mod:`dfrmot_jax.metrics.ab3dmot.evaluate`)
+The one rotated-box overlap of the package: the AB3DMOT metrics (:mod:`dfrmot_jax.metrics.samota.evaluate`)
 use it, and it is the 3D / BEV similarity available to HOTA / CLEAR / Identity.
 
 Boxes are KITTI camera-frame boxes, one per row of a ``[P, 7]`` float64 array

@@ -1,7 +1,7 @@
 """Distinct rows of float arrays, told apart bit for bit: many outputs of a sweep carry the same
 boxes, and both metric families compute what depends on a box once per distinct (frame, box)
 (TrackEval's IoU table, :mod:`dfrmot_jax.metrics.kitti2d.box_table`; AB3DMOT's rows,
-:mod:`dfrmot_jax.metrics.ab3dmot.arrays`) or per distinct 3D box (:func:`row_ids`).
+:mod:`dfrmot_jax.metrics.samota.arrays`) or per distinct 3D box (:func:`row_ids`).
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """The 3D fields of a tracking row (``h w l x y z rot_y``): the rules every reader applies, once.
 
 A KITTI tracking row carries a 3D box in columns 11-17 (``h w l x y z rot_y``, camera frame, see
-:mod:`dfrmot_jax.metrics.common.box3d`). Three readers take them: AB3DMOT's (:mod:`~dfrmot_jax.metrics.ab3dmot.prep`),
+:mod:`dfrmot_jax.metrics.common.box3d`). Three readers take them: AB3DMOT's (:mod:`~dfrmot_jax.metrics.samota.prep`),
 TrackEval's with 3D / BEV similarity (:func:`dfrmot_jax.metrics.kitti2d.tracker_files.read_tracker_files`) and the
 array paths (:func:`~dfrmot_jax.metrics.kitti2d.padded.tracker_dets_from_arrays`,
-:mod:`~dfrmot_jax.metrics.ab3dmot.arrays`). They share these rules:
+:mod:`~dfrmot_jax.metrics.samota.arrays`). They share these rules:
 
 * **No 3D box.** ``h w l = -1 -1 -1`` with ``x y z = -1000 -1000 -1000`` (any ``rot_y``) is the
   placeholder of a 2D-only row (what ``--columns kitti`` writes for a row without a 3D detection,

@@ -11,7 +11,7 @@ modules it calls::
 
 and the digest of their source (:func:`source_digest`, taken when the kernel is defined) is part of
 its cache key: any change in the callees' modules compiles it anew, while an unchanged install
-loads it from disk. ``tests/test_metrics_units.py`` checks both. (The kernel itself is the cached
+loads it from disk. ``tests/metrics/kitti2d/test_metrics_units.py`` checks both. (The kernel itself is the cached
 entry point: a cached wrapper around an uncached kernel, keyed by a closure over the digest, cost a
 second LLVM optimisation and code generation of the whole call tree, about 1.2-1.6 s of CPU per
 kernel on its first run.)

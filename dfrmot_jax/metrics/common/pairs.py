@@ -86,7 +86,7 @@ def pairwise_sum(values, start, n):
     """``values[start:start + n].sum()`` as numpy sums a contiguous float64 row, bit for bit (its
     pairwise summation: up to 7 terms one after the other from 0, up to 128 in eight interleaved
     partial sums, more split in two at a multiple of 8), for compiled callers; numpy's own is
-    what :func:`numpy_row_sums` calls. ``tests/test_metrics_units.py`` checks it against numpy."""
+    what :func:`numpy_row_sums` calls. ``tests/metrics/kitti2d/test_metrics_units.py`` checks it against numpy."""
     if n < 8:
         res = 0.0
         for i in range(n):

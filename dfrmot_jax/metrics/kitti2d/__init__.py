@@ -7,7 +7,7 @@ bit), ``box_table`` (the IoU of each distinct (frame, box) of a batch, computed 
 ``lane_scorer`` (many lanes, each distinct output of a sequence scored once: ``LaneScorer``,
 ``evaluate_arrays``), ``tracker_files`` (result files read as TrackEval reads them), ``table`` (the
 family's columns, TrackEval's summary view). What it shares with AB3DMOT's family is in
-:mod:`dfrmot_jax.metrics.common`; it imports nothing of :mod:`dfrmot_jax.metrics.ab3dmot`.
+:mod:`dfrmot_jax.metrics.common`; it imports nothing of :mod:`dfrmot_jax.metrics.samota`.
 """
 
 from . import box_table, boxes, clear, evaluate, hota, identity, kitti, lane_scorer, similarity, table, tracker_files
