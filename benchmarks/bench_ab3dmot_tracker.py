@@ -9,6 +9,9 @@
   ``AB3DMOT_DRIVER``) are given: a subprocess runs the driver over ``--ab3dmot-sequences`` (default
   ``--sequences``); its frames/s are those of its ``track()`` calls alone; without them the run says
   so and the ratios are against the NumPy oracle only;
+- JAX, ``--distinct`` lanes (default 64) that all track differently (16 thresholds -0.6 .. 0.15 x
+  max_age 1..4, min_hits 3: no two lanes share a tracking lane) over ``--distinct-sequences``
+  (default ``--sequences``): config-frames/s, warm;
 - JAX, ``--batch`` lanes (default 64: thresholds -0.4 .. 0.1 x min_hits 1..4 x max_age 1..4, the
   car preset's program) over ``--batch-sequences`` (default 0000-0003, 978 frames): config-frames/s,
   warm (the second call, with the capacities the first one grew to).
@@ -38,12 +41,15 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from machine import cpu_model  # noqa: E402
 
 from dfrmot_jax.trackers import ab3dmot as J  # noqa: E402
+from dfrmot_jax.trackers.ab3dmot import batch as ab_batch  # noqa: E402
 from dfrmot_jax.io.kitti import sequence_lengths  # noqa: E402
 from dfrmot_jax.paths import default_data_root  # noqa: E402
 from dfrmot_jax.testing import ab3dmot_oracle as ab  # noqa: E402
@@ -63,6 +69,9 @@ def main(argv=None):
     ap.add_argument("--oracle-sequences", default=",".join(J.ALL_SEQUENCES))
     ap.add_argument("--batch-sequences", default="0000,0001,0002,0003")
     ap.add_argument("--batch", type=int, default=64)
+    ap.add_argument("--distinct", type=int, default=64,
+                    help="a batch of this many configs that all track differently (16 thresholds x 4 max_age; 0: none)")
+    ap.add_argument("--distinct-sequences", default=None, help="its sequences (default --sequences)")
     ap.add_argument("--buckets", type=int, default=3)
     ap.add_argument("--tracks", type=int, default=48)
     ap.add_argument("--skip-oracle", action="store_true")
@@ -73,6 +82,7 @@ def main(argv=None):
                          "(env AB3DMOT_DRIVER)")
     ap.add_argument("--ab3dmot-sequences", default=None, help="AB3DMOT's own run (default: --sequences)")
     args = ap.parse_args(argv)
+    args.distinct_sequences = args.distinct_sequences or args.sequences
     root = Path(args.data)
     res = {"load_start": os.getloadavg()}
     params, options = J.ab3dmot_car(capacity=args.tracks, pairs=32, buckets=args.buckets)
@@ -127,10 +137,28 @@ def main(argv=None):
     print(f"JAX B={len(grid)}: {t} frames, first call {res['batch_first_s']:.1f} s, warm {wall:.2f} s "
           f"({cpu:.2f} s CPU): {len(grid) * t / wall:.0f} config-frames/s; peak {res['batch_peak']} tracks, "
           f"ran with {grown.capacity}", flush=True)
+    if args.distinct:
+        # 64 configs that all track differently: 16 thresholds x 4 max_age (no lane shares tracking)
+        th = np.round(np.linspace(-0.6, 0.15, 16), 4)
+        grid_d = [(float(a), 3, ma) for a in th for ma in (1, 2, 3, 4)][:args.distinct]
+        dist = J.stack_params([J.Params(a, mh, ma) for a, mh, ma in grid_d])
+        split = J.read_split(root, "car", args.distinct_sequences.split(","))
+        t = len(split.frames.reset)
+        out, wall, cpu = timed(lambda: J.run(dist, split.frames, options))
+        res.update(distinct=len(grid_d), distinct_frames=t, distinct_first_s=wall,
+                   distinct_tracking_lanes=len(ab_batch.tracking_lanes(ab_batch.broadcast_lanes(dist))[0].threshold))
+        grown = out.options
+        out, wall, cpu = timed(lambda: J.run(dist, split.frames, grown))
+        res.update(distinct_warm_s=wall, distinct_cpu_s=cpu, distinct_config_fps=len(grid_d) * t / wall,
+                   distinct_config_fps_cpu=len(grid_d) * t / cpu)
+        print(f"JAX B={len(grid_d)} distinct lanes: {t} frames, first call {res['distinct_first_s']:.1f} s, warm "
+              f"{wall:.2f} s ({cpu:.2f} s CPU): {len(grid_d) * t / wall:.0f} config-frames/s", flush=True)
     for name, base in (("ab3dmot", res.get("ab3dmot_fps")), ("oracle", res.get("oracle_fps"))):
         if base:
             res[f"b1_vs_{name}"] = res["b1_fps"] / base
             res[f"batch_vs_{name}"] = res["batch_config_fps"] / base
+            if "distinct_config_fps" in res:
+                res[f"distinct_vs_{name}"] = res["distinct_config_fps"] / base
             print(f"against {name}: B=1 {res[f'b1_vs_{name}']:.0f}x, B={len(grid)} {res[f'batch_vs_{name}']:.0f}x",
                   flush=True)
     res.update(load_end=os.getloadavg(), cpu_model=cpu_model(), cpus=os.cpu_count(), buckets=args.buckets,

@@ -15,6 +15,7 @@ import jax
 import numpy as np
 from jax import lax
 
+from ...devices import call_compiled, setup_host_devices
 from .config import AUTO_BUCKETS_MIN_T, Options, Params, as_arrays, validate
 import jax.numpy as jnp
 
@@ -307,6 +308,7 @@ def run(params: Params, frames: Frames, options: Options, first_id: int = 1, gro
     ``lanes``: the call holds at least this many tracking lanes (the last repeated; its output
     dropped): calls of different lane counts share one compiled program."""
     validate(params, options)
+    setup_host_devices()        # before the first JAX operation; the compile cache DFR-FastMOT's runs use
     p = broadcast_lanes(params)
     b = len(p.threshold)
     if frame_of is not None:
@@ -331,7 +333,7 @@ def run(params: Params, frames: Frames, options: Options, first_id: int = 1, gro
         capacity = np.zeros(run_c, np.int64)            # (each tracking lane's own: the first it fits)
         while True:
             states = jax.tree.map(lambda v: np.repeat(np.asarray(v)[None], run_c, 0), init(options, first_id))
-            out, counters = _program(options)(core, f, states)
+            out, counters = call_compiled(lambda: _program(options)(core, f, states))
             out = jax.tree.map(np.asarray, out)
             counters = [np.asarray(v) for v in counters]        # overflow first
             capacity[(capacity == 0) & (counters[0] == 0)] = options.capacity

@@ -41,7 +41,8 @@ from .exact import runtime_zero
 from .greedy import greedy
 from .hungarian import assign
 
-__all__ = ["Frames", "State", "StepOutput", "Predicted", "Decision", "init", "step", "predict", "decide", "finish"]
+__all__ = ["Frames", "State", "StepOutput", "Predicted", "Decision", "init", "step", "predict", "decide", "finish",
+           "finite_affinity", "NON_FINITE_STAND_IN"]
 
 
 class Frames(NamedTuple):
@@ -73,7 +74,8 @@ class State(NamedTuple):
     overflow:    births dropped for want of a slot (results differ from AB3DMOT's from there on).
     peak:        the most slots a frame needed (live tracks plus births).
     pairs_left:  IoU metrics: pairs beyond ``Options.pairs`` taken as apart (not AB3DMOT's).
-    degenerate:  pairs where AB3DMOT's geometry raises (its run would have stopped there).
+    degenerate:  pairs where AB3DMOT's geometry raises or whose affinity is not finite (its run would have
+                 stopped there).
     fallback:    greedy sorts that reached NumPy's heapsort, not reproduced.
     """
 
@@ -197,6 +199,20 @@ def predict(state: State, frame: Frames) -> Predicted:
                      kalman.predict(state.filt), state.age + 1)
 
 
+#: what a non-finite affinity is replaced by before the assignment (its pair counted as degenerate)
+NON_FINITE_STAND_IN = float(np.finfo(np.float32).min)
+
+
+def finite_affinity(a32, bad):
+    """(A, degenerate) with every non-finite affinity (NaN: 0 / 0 of zero-size or zero-height
+    boxes; -inf: a distance beyond float32) replaced by ``NON_FINITE_STAND_IN`` and marked
+    degenerate: AB3DMOT's scipy raises on such a matrix (its run stops), and the assignments'
+    loops need finite costs to end (a NaN cost never enters Hungarian's shortest-path tree, whose
+    augmenting walk then never reaches its root; NaN keys unsettle the greedy introsort)."""
+    ok = jnp.isfinite(a32)
+    return jnp.where(ok, a32, jnp.float32(NON_FINITE_STAND_IN)), bad | ~ok
+
+
 def decide(params: Params, pred: Predicted, frame: Frames, options: Options, size=None, matrix=None) -> Decision:
     """Step 3 on the first ``size = (n, k)`` detection and track slots (default all; every valid
     detection and live track must lie there): the decision, padded back to N detections.
@@ -212,6 +228,7 @@ def decide(params: Params, pred: Predicted, frame: Frames, options: Options, siz
                                   kalman.innovation(filt), pairs, options.pairs or None)
     else:
         a32, bad, left = matrix[0][:nb, :kb], matrix[1][:nb, :kb], matrix[2]
+    a32, bad = finite_affinity(a32, bad)
     n = jnp.sum(valid).astype(jnp.int32)
     det_track, kept, key, fallback = _associate(a32, n, pred.count, params, options)
     pad = lambda v, fill: jnp.concatenate([v, jnp.full((n_det - nb,), fill, v.dtype)])    # noqa: E731
