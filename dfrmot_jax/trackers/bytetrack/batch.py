@@ -70,6 +70,7 @@ def run(params: Params, options: Options, frames: Frames, capacity: int | None =
     """All lanes of ``params`` (leaves [B]) over ``frames``; ``capacity`` track slots (default
     :func:`data_capacity`)."""
     k = capacity or data_capacity(frames)
+    options = options._replace(demo_filter=False)         # a writer's filter: not in the program
     with jax.enable_x64(True):
         p = Params(np.asarray(params.track_thresh, np.float64).reshape(-1),
                    np.asarray(params.match_thresh, np.float64).reshape(-1),

@@ -12,7 +12,8 @@ __all__ = ["demo_keep", "lane_lines"]
 def demo_keep(tlwh: np.ndarray) -> np.ndarray:
     """``tools/demo_track.py``'s writer filter: ``w * h > 10`` and not ``w / h > 1.6``."""
     w, h = tlwh[..., 2], tlwh[..., 3]
-    return (w * h > 10) & ~(w / h > 1.6)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (w * h > 10) & ~(w / h > 1.6)
 
 
 def lane_lines(out: RunOutput, lane: int, typ: str = "Car", demo_filter: bool = False,
@@ -29,3 +30,14 @@ def lane_lines(out: RunOutput, lane: int, typ: str = "Car", demo_filter: bool = 
         lines.append(f"{t + frame_offset} {tid[t, k]} {typ} 0 0 -10 {x1:.6f} {y1:.6f} {x1 + w:.6f} "
                      f"{y1 + h:.6f} -1 -1 -1 -1000 -1000 -1000 -10 {score[t, k]:.6f}")
     return lines
+
+
+def sequence_lines(out: RunOutput, lane: int, lengths: list[int], typ: str = "Car",
+                   demo_filter: bool = False) -> list[list[str]]:
+    """The lines of each sequence of a run packed from sequences of ``lengths`` frames
+    (``batch.pack_frames``), frames numbered from 0 in each."""
+    res, t0 = [], 0
+    for n in lengths:
+        res.append(lane_lines(out, lane, typ, demo_filter, 0, slice(t0, t0 + n)))
+        t0 += n
+    return res
