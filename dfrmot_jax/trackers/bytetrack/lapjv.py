@@ -296,13 +296,17 @@ def assign(cost, rmask, rkey, cmask, limit):
     k, dd = cost.shape
     ok, cand = fast_path(cost, rmask, cmask, limit)
     quick = jnp.max(jnp.where(cand, jnp.arange(dd)[None, :], -1), axis=1).astype(jnp.int32)
-    ext, dim, rperm, cperm, n, m = extended(cost, rmask, rkey, cmask, limit)
-    x = lapjv_square(ext, jnp.where(ok, 0, dim))
-    s = ext.shape[0]
-    pos = jnp.arange(s)
-    xr = x[:k] if s >= k else x
-    real_col = (pos[:k] < n) & (xr >= 0) & (xr < m)
-    col_of_pos = jnp.where(real_col, cperm[jnp.clip(xr, 0, dd - 1)], -1)       # by row position
-    slot_hit = (rperm[:, None] == jnp.arange(k)[None, :]) & (pos[:k, None] < n)  # [position, slot]
-    full = jnp.max(jnp.where(slot_hit, col_of_pos[:, None], -1), axis=0).astype(jnp.int32)
-    return jnp.where(ok, quick, full), ~ok
+
+    def solve():
+        ext, dim, rperm, cperm, n, m = extended(cost, rmask, rkey, cmask, limit)
+        x = lapjv_square(ext, dim)
+        s = ext.shape[0]
+        pos = jnp.arange(s)
+        xr = x[:k]
+        real_col = (pos[:k] < n) & (xr >= 0) & (xr < m)
+        col_of_pos = jnp.where(real_col, cperm[jnp.clip(xr, 0, dd - 1)], -1)       # by row position
+        slot_hit = (rperm[:, None] == jnp.arange(k)[None, :]) & (pos[:k, None] < n)  # [position, slot]
+        return jnp.max(jnp.where(slot_hit, col_of_pos[:, None], -1), axis=0).astype(jnp.int32)
+
+    # a real branch where the predicate is one lane's (B = 1); under vmap both run, selected
+    return lax.cond(ok, lambda: quick, solve), ~ok

@@ -19,9 +19,16 @@ def _params(s):
         Options(not s.mot20, s.frame_rate, s.demo_filter)
 
 
+T_PAD, D_PAD = 48, 16     # every scene in one shape: one program per Options
+
+
+def _pad(frames):
+    return list(frames) + [np.zeros((0, 5))] * (T_PAD - len(frames))
+
+
 def _jax_lines(frames, s, capacity=None):
     p, o = _params(s)
-    out = batch.run(p, o, batch.pack_frames([frames]), capacity)
+    out = batch.run(p, o, batch.pack_frames([_pad(frames)], D_PAD), capacity)
     return results.lane_lines(out, 0, "Car", s.demo_filter), out
 
 
@@ -29,8 +36,8 @@ def _jax_lines(frames, s, capacity=None):
 @pytest.mark.parametrize("si", range(len(SETTINGS)))
 def test_scene_jax_equals_oracle(name, si):
     s = SETTINGS[si]
-    got, out = _jax_lines(S.SCENES[name], s, capacity=32)
-    want = O.run_sequence(S.SCENES[name], s)
+    got, out = _jax_lines(S.SCENES[name], s, capacity=48)
+    want = O.run_sequence(_pad(S.SCENES[name]), s)
     assert sorted(got) == sorted(want)            # ids too: the same counter
     assert out.overflow[0] == 0
 
@@ -40,16 +47,16 @@ def test_random_scene_jax_equals_oracle(seed):
     frames = S.random_scene(seed)
     for s in SETTINGS[:2]:
         got, _ = _jax_lines(frames, s, capacity=48)
-        assert sorted(got) == sorted(O.run_sequence(frames, s))
+        assert sorted(got) == sorted(O.run_sequence(_pad(frames), s))
 
 
 def test_batch_lanes_equal_single_runs():
     frames = S.random_scene(11)
     lanes = SETTINGS[0], O.Settings(track_thresh=0.3, track_buffer=60, match_thresh=0.9), O.Settings(match_thresh=0.5)
     p = Params(*(np.array(v) for v in zip(*[_params(s)[0] for s in lanes])))
-    out = batch.run(p, Options(), batch.pack_frames([frames]), 48)
+    out = batch.run(p, Options(), batch.pack_frames([_pad(frames)], D_PAD), 48)
     for i, s in enumerate(lanes):
-        assert sorted(results.lane_lines(out, i)) == sorted(O.run_sequence(frames, s))
+        assert sorted(results.lane_lines(out, i)) == sorted(O.run_sequence(_pad(frames), s))
 
 
 def test_capacity_overflow_counted():
@@ -57,7 +64,7 @@ def test_capacity_overflow_counted():
     got, out = _jax_lines(frames, O.Settings(), capacity=8)
     assert out.overflow[0] == 4                    # 12 births, 8 slots
     got, out = _jax_lines(frames, O.Settings(), capacity=16)
-    assert out.overflow[0] == 0 and sorted(got) == sorted(O.run_sequence(frames, O.Settings()))
+    assert out.overflow[0] == 0 and sorted(got) == sorted(O.run_sequence(_pad(frames), O.Settings()))
 
 
 def _run_reference(root, run, seqs):
