@@ -62,7 +62,7 @@ def test_batch_lanes_equal_single_runs():
 def test_capacity_overflow_counted():
     frames = S.SCENES["crowd"]
     got, out = _jax_lines(frames, O.Settings(), capacity=8)
-    assert out.overflow[0] == 4                    # 12 births, 8 slots
+    assert out.overflow[0] == 12                   # 12 detections, 8 slots: 4 births dropped in each of 3 frames
     got, out = _jax_lines(frames, O.Settings(), capacity=16)
     assert out.overflow[0] == 0 and sorted(got) == sorted(O.run_sequence(_pad(frames), O.Settings()))
 
