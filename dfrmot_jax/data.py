@@ -152,7 +152,8 @@ def class_rows_3d(det: Detections3D, cls: str, path=None) -> np.ndarray:
 def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
                    image_size=DEFAULT_IMAGE_SIZE, lift: LiftSettings | None = None) -> list[SequenceDets]:
     """Read detections and calib of each sequence (default: those whose ground truth has the class).
-    ``det2d=None``: no 2D detections (every sequence's are empty), for a tracker that reads 3D ones only.
+    ``det2d=None``: no 2D detections (every sequence's are empty), for a tracker that reads 3D ones only;
+    ``det3d=None``: no 3D detections, for a tracker that reads 2D ones only (a camera-only family).
 
     A root without ``label_02/`` raises ValueError (the KITTI root is wrong), a missing detection or
     calib file :class:`KittiFormatError` (``file not found``); an empty file is a sequence without
@@ -169,10 +170,12 @@ def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
     if not (root / "label_02").is_dir():
         raise ValueError(missing_data_message(root))
     d2 = None if det2d is None else detection_dir(root, det2d, cls)
-    scans = lidar_dir(det3d)
+    scans = None if det3d is None else lidar_dir(det3d)
     if d2 is None and scans is not None:
         raise ValueError(f"det3d={det3d!r} lifts the 2D detections: give det2d")
-    d3 = None if scans is not None else detection_dir(root, det3d, cls)
+    if d2 is None and det3d is None:
+        raise ValueError("no detections to read: give det2d, det3d or both")
+    d3 = None if scans is not None or det3d is None else detection_dir(root, det3d, cls)
     if sequences is None:
         sequences = sequences_with_class(root, cls)
     lengths = sequence_lengths(root, sequences)
@@ -186,7 +189,11 @@ def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
         calib_path = root / "calib" / f"{name}.txt"
         calib = read_calib(calib_path)
         checks = [("2D", det2, p2)] if p2 is not None else []
-        if scans is None:
+        if d3 is None and scans is None:        # (a tracker that reads 2D detections only)
+            p3, det3 = None, Detections3D(*(np.zeros((0,) + shape, dtype) for shape, dtype in (
+                ((), np.int64), ((), object), ((4,), np.float64), ((), np.float64), ((3,), np.float64),
+                ((3,), np.float64), ((), np.float64), ((), np.float64))))
+        elif scans is None:
             p3 = d3 / f"{name}.txt"
             det3 = read_detections_3d(p3)
             checks.append(("3D", det3, p3))
@@ -202,7 +209,7 @@ def load_sequences(root, det2d, det3d, cls: str = "car", sequences=None,
             out.append(SequenceDets(name=name, n_frames=lengths[name], det2d=det2, det3d=det3, calib=calib,
                                     fused3d=True))
             continue
-        keep = class_rows_3d(det3, cls, p3)
+        keep = class_rows_3d(det3, cls, p3) if p3 is not None else np.ones(0, bool)
         if not keep.all():
             det3 = Detections3D(*(np.asarray(v)[keep] for v in det3))
         out.append(SequenceDets(name=name, n_frames=lengths[name], det2d=det2, det3d=det3, calib=calib))
@@ -291,7 +298,7 @@ def cached_split(root, det2d, det3d, cls: str, sequences, lift: LiftSettings | N
     root = Path(root)
     sequences = tuple(sequences)
     files = [root / sub / f"{s}.txt" for sub in ("label_02", "calib") for s in sequences]
-    scans = lidar_dir(det3d)
+    scans = None if det3d is None else lidar_dir(det3d)
     for det in [d for d in ((det2d,) if scans is not None else (det2d, det3d)) if d is not None]:
         folder = detection_dir(root, det, cls)
         files += [folder / f"{s}.txt" for s in sequences]

@@ -153,11 +153,12 @@ def _track(args, classes, settings, family) -> int:
     root = Path(args.data) if args.data else default_data_root()
     lift = lift_of(args)
     det2d = args.det2d if "2d" in family.config.detections or lidar_dir(args.det3d) is not None else None
+    det3d = args.det3d if "3d" in family.config.detections else None        # (a camera-only family reads none)
     t0 = time.perf_counter()
     runs, status = [], 0
     for cls in classes:
         params, options = settings[cls]
-        split = load_split(root, det2d, args.det3d, cls, parse_seqs(args.seqs), lift=lift)
+        split = load_split(root, det2d, det3d, cls, parse_seqs(args.seqs), lift=lift)
         res = family.track(split, params, options, detail=True)
         runs.append(family.class_run(split, res, 0))
         n = int((res.ids[0] >= 0).sum())

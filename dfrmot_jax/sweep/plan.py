@@ -106,7 +106,8 @@ def resolve_data(spec, data_root=None, cls: str | None = None) -> DataSettings:
             raise config_error("data.sequences", f"no ground truth for {missing} under {root / 'label_02'}", src)
         seqs = spec.sequences
     lengths = sequence_lengths(root, list(seqs))
-    return DataSettings(str(root), det2d if det2d is None else str(det2d), str(spec.det3d), spec.cls, tuple(seqs),
+    det3d = str(spec.det3d) if "3d" in reads or scans is not None else None        # (a camera-only family: none)
+    return DataSettings(str(root), det2d if det2d is None else str(det2d), det3d, spec.cls, tuple(seqs),
                         tuple(int(lengths[s]) for s in seqs))
 
 

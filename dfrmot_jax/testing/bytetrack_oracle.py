@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.kitti import read_detections_2d, sequence_lengths
+
 __all__ = [
     "PRESETS", "Settings", "Track", "Tracker", "lapjv", "linear_assignment", "iou", "load_frames",
     "run_sequence", "format_line", "demo_filter",
@@ -546,7 +548,6 @@ class Tracker:
 def load_frames(root, cls: str, seq: str) -> list[np.ndarray]:
     """The frames of one sequence: [n, 5] float64 per frame (file order), frames 0..N-1 with N from
     ``label_02`` (the reference's driver)."""
-    from ..io.kitti import read_detections_2d, sequence_lengths
     root = Path(root)
     n = sequence_lengths(root, [seq])[seq]
     d = read_detections_2d(root / "detections" / "rrc" / cls / f"{seq}.txt")

@@ -76,7 +76,9 @@ class TrackResult(NamedTuple):
     own 3D box (a family without them: None, or its own per-row record); capacity [B] the track
     slots each lane ran with; frames: the frames tracked (the family's own record); options: the
     validated ``Options``; distortion: with a distortion study, a ``distort.LaneDistortion`` (each
-    lane's levels, the spec, the frames it read), else None.
+    lane's levels, the spec, the frames it read), else None; score [B, T, K] float64 (or Rows): the
+    score each row carries where the family keeps it per row (a family whose rows' scores follow from
+    their detections: None).
     """
 
     ids: np.ndarray
@@ -91,6 +93,7 @@ class TrackResult(NamedTuple):
     frames: Any
     options: Any
     distortion: Any = None
+    score: Any = None
 
     def lane_boxes(self, b: int) -> np.ndarray:
         """Lane b's boxes [T, K, 4] (NaN off its rows where they are kept as rows only)."""
@@ -268,7 +271,8 @@ def family_problems(family: TrackerFamily) -> list[str]:
     field of the tracker present."""
     out = config_problems(family.config)
     out += [f"{name} is not callable" for name in TrackerFamily._fields
-            if name not in ("config", "box_format", "oracle") and not callable(getattr(family, name))]
+            if name not in ("config", "box_format", "oracle") and not callable(getattr(family, name))
+            and not (name == "distortion_spec" and family.distortion_spec is None)]
     if family.box_format not in BOX_FORMATS:
         out.append(f"box_format {family.box_format!r}: expected one of {BOX_FORMATS}")
     if not isinstance(family.oracle, str) or not family.oracle.startswith("dfrmot_jax.testing."):

@@ -16,6 +16,7 @@ from __future__ import annotations
 import importlib
 
 from .ab3dmot import config as ab3dmot
+from .bytetrack import config as bytetrack
 from .dfr import config as dfr
 from .protocol import DEFAULT_FAMILY, FamilyConfig, TrackerFamily, family_problems
 
@@ -23,7 +24,7 @@ __all__ = ["CONFIGS", "FAMILIES", "DEFAULT_FAMILY", "all_presets", "family_confi
            "preset_family", "register", "unregister"]
 
 #: family name -> its settings (:func:`register` adds one)
-CONFIGS: dict[str, FamilyConfig] = {fc.name: fc for fc in (dfr.FAMILY_CONFIG, ab3dmot.FAMILY_CONFIG)}
+CONFIGS: dict[str, FamilyConfig] = {fc.name: fc for fc in (dfr.FAMILY_CONFIG, ab3dmot.FAMILY_CONFIG, bytetrack.FAMILY_CONFIG)}
 
 
 def load_family(name: str) -> TrackerFamily:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import filecmp
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -21,7 +22,8 @@ from dfrmot_jax.synthetic import make_scene
 ROOT = Path(__file__).resolve().parents[2]
 FIXTURE = ROOT / "tests" / "fixtures" / "toy_family"
 REGISTRY_LINE = "from .dfr import config as dfr\n"
-REGISTRY_ENTRY = "(dfr.FAMILY_CONFIG, ab3dmot.FAMILY_CONFIG)"
+#: the tuple of the registry's configs (its last entry closes it)
+REGISTRY_ENTRY = re.compile(r"\(dfr\.FAMILY_CONFIG(, \w+\.FAMILY_CONFIG)*\)")
 
 
 def _add_toy_family(pkg: Path) -> None:
@@ -30,9 +32,10 @@ def _add_toy_family(pkg: Path) -> None:
     shutil.copy(FIXTURE / "oracle.py", pkg / "testing" / "toy_oracle.py")
     reg = pkg / "trackers" / "registry.py"
     text = reg.read_text()
-    assert REGISTRY_LINE in text and REGISTRY_ENTRY in text, "the registry's family lines moved: update the recipe"
+    entry = REGISTRY_ENTRY.search(text)
+    assert REGISTRY_LINE in text and entry, "the registry's family lines moved: update the recipe"
     text = text.replace(REGISTRY_LINE, REGISTRY_LINE + "from .toy import config as toy\n")
-    reg.write_text(text.replace(REGISTRY_ENTRY, REGISTRY_ENTRY[:-1] + ", toy.FAMILY_CONFIG)"))
+    reg.write_text(text.replace(entry.group(0), entry.group(0)[:-1] + ", toy.FAMILY_CONFIG)"))
 
 
 def _changed(a: Path, b: Path, rel=Path()) -> list[str]:

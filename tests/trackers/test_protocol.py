@@ -86,7 +86,7 @@ def test_dfr_is_the_first_family_and_follows_the_protocol():
     fam = family_of()
     assert fam is family_of("dfr") is FAMILIES["dfr"] is dfr.FAMILY and fam.name == DEFAULT_FAMILY == "dfr"
     assert fam.config is family_config() is config.FAMILY_CONFIG is CONFIGS["dfr"]
-    assert family_names() == ("dfr", "ab3dmot") and family_problems(fam) == [] and config_problems(fam.config) == []
+    assert family_names() == ("dfr", "ab3dmot", "bytetrack") and family_problems(fam) == [] and config_problems(fam.config) == []
     # the family wraps DFR's own code, it does not copy it
     assert (fam.init, fam.step, fam.run_batch) == (core_step.init, core_step.step, core_run.run_batch)
     assert (fam.track, fam.default_capacity) == (api.track, api.default_capacity)
@@ -96,7 +96,7 @@ def test_dfr_is_the_first_family_and_follows_the_protocol():
     assert fam.config.preset("tuned_both", "pedestrian") == config.preset("tuned_both", "pedestrian")
     assert fam.config.detections == ("2d", "3d")
     assert importlib.import_module(fam.oracle).__name__ == "dfrmot_jax.testing.reference"
-    with pytest.raises(ValueError, match=r"unknown tracker family 'nope': expected one of \['dfr', 'ab3dmot'\]"):
+    with pytest.raises(ValueError, match=r"unknown tracker family 'nope': expected one of \['dfr', 'ab3dmot', 'bytetrack'\]"):
         family_of("nope")
 
 
@@ -110,8 +110,10 @@ def test_ab3dmot_is_the_second_family_and_follows_the_protocol():
     assert (fam.init, fam.step, fam.run_batch) == (ab_tracker.init, ab_tracker.step, ab_batch.run)
     assert fam.box_format == "f6" and family_of().box_format == "g6"
     assert preset_family("ab3dmot_pedestrian") is fam.config and preset_family("tuned_both") is config.FAMILY_CONFIG
-    assert all_presets()[:1] == ("dfr2023",) and all_presets()[-4:] == ("ab3dmot_car", "ab3dmot_pedestrian", "ab3dmot_car_tuned",
-                                                                     "ab3dmot_pedestrian_tuned")
+    ab = all_presets().index("ab3dmot_car")
+    assert all_presets()[:1] == ("dfr2023",) and all_presets()[ab:ab + 4] == (
+        "ab3dmot_car", "ab3dmot_pedestrian", "ab3dmot_car_tuned", "ab3dmot_pedestrian_tuned")
+    assert all_presets()[-2:] == ("bytetrack_car", "bytetrack_pedestrian")
     with pytest.raises(ValueError, match="unknown preset 'nope': expected one of .*'ab3dmot_car'"):
         preset_family("nope")
     assert importlib.import_module(fam.oracle).__name__ == "dfrmot_jax.testing.ab3dmot_oracle"

@@ -18,13 +18,16 @@ __all__ = ["RunOutput", "pack_frames", "run", "data_capacity"]
 
 
 class RunOutput(NamedTuple):
-    """Per lane, per frame, per slot: tid, tlwh, score, written [B, T, K]; overflow / solver [B]."""
+    """Per lane, per frame, per slot: tid, tlwh, score, written [B, T, K]; overflow / solver [B]; key
+    [B, T, K] each track's order in its list (a frame's written tracks in ByteTrack's output order:
+    ascending key)."""
     tid: np.ndarray
     tlwh: np.ndarray
     score: np.ndarray
     written: np.ndarray
     overflow: np.ndarray
     solver: np.ndarray
+    key: np.ndarray | None = None
 
 
 def pack_frames(sequences: list[list[np.ndarray]], d: int | None = None) -> Frames:
@@ -83,4 +86,4 @@ def run(params: Params, options: Options, frames: Frames, capacity: int | None =
             outs, ov, sv = jax.tree.map(lambda a: np.asarray(a)[None], (outs, ov, sv))
         else:
             outs, ov, sv = jax.tree.map(np.asarray, _program(options, k, True)(p, f))
-    return RunOutput(outs.tid, outs.tlwh, outs.score, outs.written, ov, sv)
+    return RunOutput(outs.tid, outs.tlwh, outs.score, outs.written, ov, sv, outs.key)

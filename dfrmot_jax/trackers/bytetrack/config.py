@@ -12,8 +12,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..capacity import MAX_CAPACITY
+from ..protocol import FamilyConfig, number_problem
+
 __all__ = ["Params", "Options", "PRESETS", "bytetrack_car", "bytetrack_pedestrian", "stack_params",
-           "max_time_lost"]
+           "max_time_lost", "FAMILY_CONFIG", "preset", "param_problem", "option_problem", "parse_assignment",
+           "as_arrays", "validate"]
 
 
 class Params(NamedTuple):
@@ -41,6 +45,9 @@ class Options(NamedTuple):
     #: ``tools/demo_track.py``'s writer filter (``--min_box_area`` 10, ``--aspect_ratio_thresh``
     #: 1.6): a written box needs ``w * h > 10`` and not ``w / h > 1.6`` (not part of the tracker)
     demo_filter: bool = False
+    #: track slots per lane (0 = from the data, grown where a lane overflows:
+    #: ``trackers.capacity``); ByteTrack's lists have no bound
+    capacity: int = 0
 
 
 def bytetrack_car() -> tuple[Params, Options]:
@@ -67,3 +74,93 @@ def stack_params(params: list[Params]) -> Params:
 def max_time_lost(frame_rate: int, track_buffer) -> np.ndarray:
     """``int(frame_rate / 30.0 * track_buffer)`` (float64, truncated)."""
     return np.floor(frame_rate / 30.0 * np.asarray(track_buffer, np.float64)).astype(np.int64)
+
+
+# ---- the family's settings (``FAMILY_CONFIG``) ------------------------------------------------------
+
+CLASSES = ("car", "pedestrian")
+#: preset name -> (Params, Options)
+PRESET_SETTINGS = {name: make() for name, make in PRESETS.items()}
+PARAM_RANGES: dict[str, tuple[float, float]] = {"track_thresh": (0.0, 1.0), "match_thresh": (0.0, 1.0),
+                                                "track_buffer": (0, 100000), "det_thresh_margin": (-1.0, 1.0)}
+INT_PARAMS = frozenset({"track_buffer"})
+BOOL_OPTIONS = ("fuse_score", "demo_filter")
+OPTION_RANGES: dict[str, tuple[int, int]] = {"frame_rate": (1, 1000), "capacity": (0, MAX_CAPACITY)}
+
+
+def preset(name: str, cls: str = "car") -> tuple[Params, Options]:
+    """A preset's (Params, Options) (each preset the same for every class of ``CLASSES``)."""
+    if name not in PRESET_SETTINGS:
+        raise ValueError(f"unknown preset {name!r}: expected one of {sorted(PRESET_SETTINGS)}")
+    if cls not in CLASSES:
+        raise ValueError(f"unknown class {cls!r}: expected one of {list(CLASSES)}")
+    return PRESET_SETTINGS[name]
+
+
+def param_problem(name: str, value) -> str | None:
+    """What is wrong with ``value`` for parameter ``name`` (None: nothing): the one check of parameters."""
+    if name not in PARAM_RANGES:
+        return f"unknown parameter; parameters are {list(Params._fields)}"
+    return number_problem(value, PARAM_RANGES[name], name in INT_PARAMS)
+
+
+def option_problem(name: str, value) -> str | None:
+    """What is wrong with ``value`` for option ``name`` (None: nothing): the one check of options."""
+    if name in BOOL_OPTIONS:
+        return None if isinstance(value, (bool, np.bool_)) else "expected true or false"
+    if name in OPTION_RANGES:
+        lo, hi = OPTION_RANGES[name]
+        ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and lo <= value <= hi
+        return None if ok else f"expected an integer from {lo} to {hi}"
+    return f"unknown option; options are {list(Options._fields)}"
+
+
+def validate(params: Params, options: Options) -> None:
+    """ValueError naming every setting that is wrong."""
+    bad = [f"{k}={v!r}: {e}" for k, v in params._asdict().items() if (e := param_problem(k, v))]
+    bad += [f"{k}={v!r}: {e}" for k, v in options._asdict().items() if (e := option_problem(k, v))]
+    if bad:
+        raise ValueError("ByteTrack: " + "; ".join(bad))
+
+
+def parse_assignment(text: str, params: Params, options: Options) -> tuple[Params, Options]:
+    """Apply one ``name=value`` (``dfrmot track --set``) to params or options; ValueError naming
+    ``--set name`` and what is wrong."""
+    if "=" not in text:
+        raise ValueError(f"--set {text!r}: expected name=value")
+    name, raw = (s.strip() for s in text.split("=", 1))
+    if name in BOOL_OPTIONS:
+        if raw.lower() not in ("true", "false", "1", "0"):
+            raise ValueError(f"--set {name}: {raw!r} is not true/false")
+        return params, options._replace(**{name: raw.lower() in ("true", "1")})
+    if name in Params._fields or name in OPTION_RANGES:
+        try:
+            value = float(raw)
+        except ValueError:
+            raise ValueError(f"--set {name}: {raw!r} is not a number") from None
+        if (name in INT_PARAMS or name in OPTION_RANGES) and np.isfinite(value) and value == int(value):
+            value = int(value)
+        problem = param_problem(name, value) if name in Params._fields else option_problem(name, value)
+        if problem:
+            raise ValueError(f"--set {name}={raw}: {problem}")
+        if name in Params._fields:
+            return params._replace(**{name: value}), options
+        return params, options._replace(**{name: value})
+    raise ValueError(f"--set {name}: unknown; parameters are {list(Params._fields)}, options {list(Options._fields)}")
+
+
+def as_arrays(params: Params) -> Params:
+    """Leaves as NumPy arrays: the thresholds float64, the buffer int32 (any leading batch axis kept)."""
+    return Params(*(np.asarray(v, np.int32 if name in INT_PARAMS else np.float64)
+                    for name, v in zip(Params._fields, params)))
+
+
+#: ByteTrack's settings as a family's (:class:`dfrmot_jax.trackers.protocol.FamilyConfig`):
+#: ``family = "bytetrack"``; its tracker is ``trackers.bytetrack.family.FAMILY``. It reads 2D detections only.
+FAMILY_CONFIG = FamilyConfig(
+    name="bytetrack", title="ByteTrack", Params=Params, Options=Options, presets=PRESET_SETTINGS,
+    default_preset="bytetrack_car", classes=CLASSES, class_defaults={c: {} for c in CLASSES}, preset=preset,
+    param_ranges=PARAM_RANGES, int_params=INT_PARAMS, option_choices={}, option_ranges=OPTION_RANGES,
+    param_problem=param_problem, option_problem=option_problem, parse_assignment=parse_assignment,
+    as_arrays=as_arrays, late_params={}, late_options={}, detections=("2d",),
+    tracker="dfrmot_jax.trackers.bytetrack.family")

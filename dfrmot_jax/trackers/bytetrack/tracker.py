@@ -27,7 +27,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax.numpy as jnp
-from jax import lax
 
 from .config import Options, Params
 from .exact import guard, mul, runtime_zero
@@ -73,6 +72,7 @@ class StepOutput(NamedTuple):
     tlwh: jnp.ndarray      # [K, 4]
     score: jnp.ndarray     # [K]
     written: jnp.ndarray   # [K] bool
+    key: jnp.ndarray       # [K] int32: order in its list (the written tracks' output order: ascending)
 
 
 def init(k: int) -> State:
@@ -166,6 +166,7 @@ def _pick(onehot, values):
     return jnp.sum(jnp.where(onehot[..., None], values[None, :, :], 0.0), axis=1)
 
 
+# over 80 lines: BYTETracker.update in its own order, one stage after another, so it reads beside the code
 def step(params: Params, options: Options, st: State, dets, valid, reset):
     """One frame (``BYTETracker.update``). Returns (state, output)."""
     k = st.tid.shape[0]
@@ -292,4 +293,4 @@ def step(params: Params, options: Options, st: State, dets, valid, reset):
     solver = st.solver + s1.astype(jnp.int32) + s2.astype(jnp.int32) + s3.astype(jnp.int32)
     new = State(mean, cov, tid, lst, state, active, score, start, last, key, gone, count, frame, keys,
                 overflow, solver)
-    return new, StepOutput(tid, _tlwh(mean, zero), score, written)
+    return new, StepOutput(tid, _tlwh(mean, zero), score, written, key)
