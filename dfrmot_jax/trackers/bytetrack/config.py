@@ -21,7 +21,17 @@ __all__ = ["Params", "Options", "PRESETS", "bytetrack_car", "bytetrack_pedestria
 
 
 class Params(NamedTuple):
-    """Dynamic settings (a batch: every leaf [B])."""
+    """Dynamic settings (a batch: every leaf [B]), with ByteTrack's own words for each.
+
+    track_thresh:      "tracking confidence threshold" (--track_thresh): high detections score >
+                       track_thresh, low ones 0.1 < score < track_thresh
+    match_thresh:      "matching threshold for tracking" (--match_thresh): the first association's
+                       cost limit
+    track_buffer:      "the frames for keep lost tracks" (--track_buffer): a lost track is removed after
+                       int(frame_rate / 30 * track_buffer) frames
+    det_thresh_margin: det_thresh = track_thresh + 0.1 in its code: a new track needs score >=
+                       track_thresh + det_thresh_margin
+    """
     #: "tracking confidence threshold" (``--track_thresh``, 0.5): high detections ``score >
     #: track_thresh``, low ones ``0.1 < score < track_thresh``
     track_thresh: float = 0.5
@@ -36,7 +46,16 @@ class Params(NamedTuple):
 
 
 class Options(NamedTuple):
-    """Static settings (one compilation each)."""
+    """Static settings (one compilation each), with ByteTrack's own words for each.
+
+    fuse_score:  not --mot20 ("test mot20."): the IoU cost fused with the detection score in the first
+                 and the unconfirmed associations
+    frame_rate:  BYTETracker(args, frame_rate), --fps "frame rate (fps)" (KITTI: 10)
+    demo_filter: tools/demo_track.py's writer filter (--min_box_area 10, --aspect_ratio_thresh 1.6): a
+                 written box needs w * h > 10 and not w / h > 1.6 (not part of the tracker)
+    capacity:    track slots per lane (0 = from the data; an overflowing lane runs again with twice as
+                 many); ByteTrack's lists have no bound
+    """
     #: ``not args.mot20`` ("test mot20." ``--mot20``, default False): the IoU cost fused with the
     #: detection score (``matching.fuse_score``) in the first and the unconfirmed associations
     fuse_score: bool = True
