@@ -14,7 +14,7 @@ from .version import __version__
 
 __all__ = ["Options", "Params", "Split", "TrackResult", "default_capacity", "default_data_root", "load_split",
            "prepare_frames", "preset", "setup_host_devices", "stack_params", "track", "__version__", "run_sweep",
-           "sweep", "sweep_report", "tune", "ab3dmot", "dfr"]
+           "sweep", "sweep_report", "tune", "ab3dmot", "bytetrack", "dfr"]
 
 
 def __getattr__(name: str):
@@ -35,6 +35,10 @@ def __getattr__(name: str):
         return value
     elif name == "dfr":
         from .trackers import dfr as value
+        globals()[name] = value
+        return value
+    elif name == "bytetrack":
+        from .trackers import bytetrack as value
         globals()[name] = value
         return value
     elif name == "default_data_root":
