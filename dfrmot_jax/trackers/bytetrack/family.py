@@ -100,15 +100,20 @@ def distorted_lanes(split: Split, frames: Frames, dps, spec: distort.DistortSpec
     (:meth:`distort.LaneDistortion.lanes` on the 2D detections alone, :func:`distort.distortion_2d`;
     3D levels ignored), each frame's detections packed to its first slots in their order (as a
     detection file holding only them lists them), the clutter after the real ones; a lane whose
-    levels are all 0 the undistorted ``frames`` themselves."""
+    levels are all 0 the undistorted ``frames`` themselves (one entry, whatever their seeds)."""
     lanes = distort.distortion_2d(split, dps, spec)
     b = len(np.asarray(dps.seed))
     of = np.zeros(b, np.int64)
-    out = []
+    out, zero_at = [], None
     for d in lanes.lanes(None, np.arange(b), detections_of(frames)):
+        if distort.is_zero(distort.lane_params(lanes.params, int(d.which[0]))):      # (whatever the seed)
+            zero_at = len(out) if zero_at is None else zero_at
+            of[d.which] = zero_at
+            if zero_at == len(out):
+                out.append(frames)
+            continue
         of[d.which] = len(out)
-        zero = distort.is_zero(distort.lane_params(lanes.params, int(d.which[0])))
-        out.append(frames if zero else frames_of(d.dets2.packed(), frames.reset))
+        out.append(frames_of(d.dets2.packed(), frames.reset))
     return LaneFrames(tuple(out), of), lanes
 
 
