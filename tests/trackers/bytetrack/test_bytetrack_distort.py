@@ -160,15 +160,16 @@ def test_a_bytetrack_robustness_sweep_runs_on_kitti(kitti_root, tmp_path):
     spec = {"name": "bt_robust", "chunk": 8, "data": {"root": str(kitti_root), "det2d": "rrc",
                                                       "sequences": ["0012", "0017"]},
             "options": {"family": "bytetrack"}, "baseline": {"preset": "bytetrack_car"},
+            "params": {"track_thresh": [0.5]},
             "distortion": {"kind": ["drop", "burst", "clutter"], "levels": {"drop": [0, 0.3], "burst": [5],
                                                                                "clutter": [1.0]},
                            "seeds": 1, "clutter_slots": 2}}
     table = run_sweep(spec, out=tmp_path / "out", progress=False, workers=0, log=lambda m: None)
     comb = table[table["sequence"] == COMBINED]
-    assert len(comb) == 4 and comb["HOTA"].notna().all()
+    assert len(comb) >= 4 and comb["HOTA"].notna().all()
     assert set(comb["distortion.kind"]) == {"none", "drop", "burst", "clutter"}
-    by = comb.set_index("distortion.kind")["HOTA"]
+    by = comb.groupby("distortion.kind")["HOTA"].first()
     assert by["drop"] < by["none"] and len(set(by.round(12))) == 4
     plain = run_sweep({k: v for k, v in spec.items() if k != "distortion"} | {"name": "bt_plain"},
                       out=tmp_path / "plain", progress=False, workers=0, log=lambda m: None)
-    assert plain[plain["sequence"] == COMBINED]["HOTA"].iloc[0] == by["none"]
+    assert set(plain[plain["sequence"] == COMBINED]["HOTA"]) == {by["none"]}
