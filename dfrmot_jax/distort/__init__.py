@@ -92,7 +92,12 @@ the result back as result files carry it (:func:`read_back`, ``lanes``): the sam
 physical shift of the box centre (``jitter_3d``: DFR-FastMOT's ``lo3`` shift in its convention,
 mapped to camera x y z), ``jitter_box3`` on the image box AB3DMOT writes (untruncated), and the same
 3D clutter (:func:`place_3d`: position, heading, score; AB3DMOT tracks the rotated ``CAR_DIMS`` box,
-DFR-FastMOT its axis-aligned ``lo3/hi3``). The 2D levels (``drop_2d``, ``jitter_2d``,
+DFR-FastMOT its axis-aligned ``lo3/hi3``). ByteTrack, reading 2D detections alone, is the mirror image
+(``bytetrack.family.track(distortion=...)``): its lanes run the draws on a ``Frames`` holding the
+split's 2D detections only (:func:`frames_2d`: the detector's untruncated box, ``gid2`` as
+DFR-FastMOT's), read back by :func:`read_back_2d`; the 3D levels (:data:`LEVELS_3D`) change nothing of
+a 2D detection: it ignores them (:func:`only_2d`), and its sweeps refuse the kinds that set only them.
+The 2D levels (``drop_2d``, ``jitter_2d``,
 ``score_noise_2d``, ``clutter_2d``) change nothing of a 3D detection: AB3DMOT ignores them
 (:func:`only_3d`), and its sweeps refuse the kinds that set only them. DFR-FastMOT's rows of a
 distorted lane (its sAMOTA) read that lane's 3D detections back by the same rule
@@ -113,8 +118,9 @@ random draws), ``bursts``, ``noise`` (jitter, score noise), ``clutter`` (reserve
 positives), ``exact`` (float32 arithmetic with exact products, the clutter's projection),
 ``hook`` (:func:`distort_frame`, :class:`FrameDistortion`, :func:`distort_split`,
 :func:`distort_lanes`), ``identity`` (host side: ground-truth ids from the label files), ``lanes``
-(host side: a lane's 3D detections read back, :class:`Detections3D`, :class:`LaneDistortion`,
-:func:`frames_3d`, :func:`distortion_3d`). Every name below is importable from
+(host side: a lane's detections read back, :class:`Detections3D` / :class:`Detections2D`,
+:class:`LaneDistortion`, :func:`frames_3d` / :func:`frames_2d`, :func:`distortion_3d` /
+:func:`distortion_2d`). Every name below is importable from
 ``dfrmot_jax.distort`` itself.
 """
 
@@ -128,17 +134,26 @@ from .hook import FrameDistortion, distort_frame, distort_lanes, distort_split
 from .identity import gt_identity, pad_identity
 from .lanes import (
                     LEVELS_2D,
+                    LEVELS_3D,
+                    Detections2D,
                     Detections3D,
                     DistortedLane,
                     LaneDistortion,
                     distinct_lanes,
+                    distortion_2d,
                     distortion_3d,
+                    frames_2d,
                     frames_3d,
                     is_zero,
                     lane_params,
+                    only_2d,
                     only_3d,
+                    packed_slots,
+                    padded_slots,
                     read_back,
+                    read_back_2d,
                     split_detections,
+                    split_detections_2d,
 )
 from .spec import (
                    ASPECT2_Q,
@@ -174,10 +189,11 @@ __all__ = [
     "ASPECT2_Q", "BURST_DISTS", "BURST_LEN", "BURST_RATE", "BURST_TAG", "CAR_DIMS", "CAR_Y", "CLUTTER_XZ",
     "CLUTTER_Z", "DEFAULT_P2", "FREE_DIST", "FREE_IOU", "GROUPS", "KINDS", "METRES_PER_PIXEL", "N_QUANTILES",
     "SCORE2_Q", "SCORE3_PER_SCORE2", "SCORE3_Q", "WIDTH2_Q",
-    "LEVELS_2D", "Detections3D", "DistortParams", "DistortSpec", "FrameDistortion", "DistortedLane", "LaneDistortion", "Placement3D",
+    "LEVELS_2D", "LEVELS_3D", "Detections2D", "Detections3D", "DistortParams", "DistortSpec", "FrameDistortion", "DistortedLane", "LaneDistortion", "Placement3D",
     "burst_draw", "burst_length", "cast_params", "check_params", "distort_frame", "distort_lanes", "distort_split",
-    "distinct_lanes", "distortion_3d", "frames_3d", "is_zero", "lane_params", "only_3d", "place_3d", "read_back",
-    "split_detections",
+    "distinct_lanes", "distortion_2d", "distortion_3d", "frames_2d", "frames_3d", "is_zero", "lane_params", "only_2d",
+    "only_3d", "packed_slots", "padded_slots", "place_3d", "read_back", "read_back_2d", "split_detections",
+    "split_detections_2d",
     "ground_xz", "gt_identity", "lane_hash", "level_params", "make_spec", "normal", "occluded", "pad_for_clutter",
     "pad_identity", "project_box", "stack_distort", "stream_hash", "uniform", "used_groups",
 ]

@@ -181,26 +181,44 @@ def _check_level(kind: str, v, key: str, source, clutter_slots: int, burst_max: 
     return v
 
 
-def kinds_2d() -> tuple[str, ...]:
-    """The kinds that distort 2D detections only (every level they set is one of
-    ``distort.LEVELS_2D``): nothing of a 3D detection moves."""
+def kinds_only(levels) -> tuple[str, ...]:
+    """The kinds every level of which is one of ``levels`` (``distort.LEVELS_2D``: the kinds that
+    distort 2D detections only, nothing of a 3D detection moves; ``distort.LEVELS_3D``: 3D only)."""
     return tuple(k for k in distort.KINDS if k != "none" and all(
-        v == 0 or n in distort.LEVELS_2D for n, v in distort.level_params(k, 1.0)._asdict().items() if n != "seed"))
+        v == 0 or n in levels for n, v in distort.level_params(k, 1.0)._asdict().items() if n != "seed"))
+
+
+def kinds_2d() -> tuple[str, ...]:
+    """The kinds that distort 2D detections only (:func:`kinds_only` of ``distort.LEVELS_2D``)."""
+    return kinds_only(distort.LEVELS_2D)
+
+
+def kinds_3d() -> tuple[str, ...]:
+    """The kinds that distort 3D detections only (:func:`kinds_only` of ``distort.LEVELS_3D``)."""
+    return kinds_only(distort.LEVELS_3D)
+
+
+def refused_kinds(detections) -> dict[str, tuple[str, ...]]:
+    """The kinds a family reading ``detections`` (``FamilyConfig.detections``) refuses, by what they
+    distort alone ("2D" / "3D"): those of the detections it does not read (its lanes would be the
+    undistorted run)."""
+    return {**({} if "2d" in detections else dict.fromkeys(kinds_2d(), "2D")),
+            **({} if "3d" in detections else dict.fromkeys(kinds_3d(), "3D"))}
 
 
 def parse_distortion(d, source, detections=("2d", "3d"), title: str = "") -> DistortionAxes | None:
     """The [distortion] table of a sweep document (None without it); bad values raise
     :class:`~dfrmot_jax.sweep.checks.SweepConfigError` naming the key. ``detections``: what the
     sweep's tracker family reads (``FamilyConfig.detections``, ``title`` its name): a family reading
-    no 2D detections refuses the kinds that distort only those (:func:`kinds_2d`: its lanes would be
-    the undistorted run)."""
+    no 2D (3D) detections refuses the kinds that distort only those (:func:`refused_kinds`: its lanes
+    would be the undistorted run)."""
     if d is None:
         return None
     t = Table(d, "distortion", source, DISTORTION_KEYS)
     levels_doc = d.get("levels")
     if levels_doc is not None and not isinstance(levels_doc, Mapping):
         raise config_error("distortion.levels", f"expected a table kind = [levels], got {levels_doc!r}", source)
-    kinds = _parse_kinds(d.get("kind"), levels_doc, source, () if "2d" in detections else kinds_2d(), title)
+    kinds = _parse_kinds(d.get("kind"), levels_doc, source, refused_kinds(detections), title)
     clutter_slots = t.integer("clutter_slots", 0, minimum=0)
     burst_max = t.integer("burst_max", 30)
     burst_dist = t.choice("burst_dist", "fixed", distort.BURST_DISTS)
@@ -234,8 +252,10 @@ def parse_distortion(d, source, detections=("2d", "3d"), title: str = "") -> Dis
     return axes
 
 
-def _parse_kinds(kinds_doc, levels_doc, source, refused=(), title: str = "") -> list[str]:
-    """``distortion.kind`` (a kind or a list; without it, the kinds of ``distortion.levels``), checked."""
+def _parse_kinds(kinds_doc, levels_doc, source, refused=None, title: str = "") -> list[str]:
+    """``distortion.kind`` (a kind or a list; without it, the kinds of ``distortion.levels``), checked;
+    ``refused``: {kind: what alone it distorts} (:func:`refused_kinds`)."""
+    refused = refused or {}
     if kinds_doc is None:
         if not levels_doc:
             raise config_error("distortion.kind", "missing: the distortion kind(s) to sweep, e.g. kind = [\"drop\", "
@@ -253,9 +273,11 @@ def _parse_kinds(kinds_doc, levels_doc, source, refused=(), title: str = "") -> 
             hint = " (level 0 of every kind is the undistorted run: add 0 to the levels)" if k == "none" else ""
             raise config_error(key, f"unknown distortion kind {k!r}{hint}; expected one of {list(known)}", source)
         if k in refused:
-            raise config_error(key, f"kind {k!r} distorts 2D detections only, which {title or 'this family'} does not "
-                                    f"read (its lanes would be the undistorted run); use {k[:-3]!r} or "
-                                    f"{k[:-3] + ('_box3' if k == 'jitter_2d' else '_3d')!r}", source)
+            base = k.split("_")[0]
+            use = [base] + [o for o in known if o.split("_")[0] == base and o != base and o not in refused]
+            raise config_error(key, f"kind {k!r} distorts {refused[k]} detections only, which {title or 'this family'} "
+                                    f"does not read (its lanes would be the undistorted run); use "
+                                    f"{' or '.join(map(repr, use))}", source)
     names = [k for _, k in kinds]
     if len(set(names)) != len(names):
         raise config_error("distortion.kind", "a kind is listed twice", source)

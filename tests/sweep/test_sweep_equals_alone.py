@@ -6,7 +6,8 @@ boxes: option groups sharing ids but not boxes (``truncate``, ``merge``, ``modal
 other's scores. The same for a tune's trials and for ``evaluate_arrays`` on mixed option groups, and
 for sweeps of the second tracker family, AB3DMOT (``[options] family = "ab3dmot"``): a row is its config
 tracked alone by the family's ``track``, written by its ``write_runs`` and scored from the files (and
-its AB3DMOT figures, ``[metrics] ab3dmot``, those of ``dfrmot eval --metrics ab3dmot`` of the files)."""
+its AB3DMOT figures, ``[metrics] ab3dmot``, those of ``dfrmot eval --metrics ab3dmot`` of the files), and of
+the third, ByteTrack (camera only; with and without a ``[distortion]`` table)."""
 
 from __future__ import annotations
 
@@ -304,3 +305,58 @@ def test_the_scores_key_names_the_boxes_the_lanes_share(ground):
     assert LaneScorer.digests(ids, boxes) != LaneScorer.digests(ids, other)
     written = LaneScorer(gt, split.offsets, as_written=True)
     assert written.seq_digests(ids, boxes)[0] != a[0]          # scored another way: another key
+
+
+@pytest.fixture(scope="module")
+def ground2d(scene):
+    """The split as a family reading 2D detections only reads it (no 3D detections), its ground truth."""
+    split = dm.load_split(scene, "synth2d", None, "car")
+    return split, prepare_gt(scene, "car", split.names)
+
+
+#: ByteTrack's sweeps: two settings, without and with a [distortion] table (level 0, drops and bursts,
+#: every 2D fault in a kind of its own: clutter, jitter, score noise)
+BYTETRACK_DISTORTIONS = (None, {"kind": ["drop", "burst", "clutter", "jitter", "score"],
+                                "levels": {"drop": [0, 0.3], "burst": [4], "clutter": [1.0], "jitter": [3.0],
+                                           "score": [0.1]},
+                                "seeds": [3], "clutter_slots": 2})
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("dist", BYTETRACK_DISTORTIONS, ids=["plain", "distorted"])
+def test_every_bytetrack_sweep_row_equals_its_config_run_alone(scene, ground2d, tmp_path, dist):
+    """A ByteTrack sweep (``[options] family = "bytetrack"``: its columns, chunks, the scores' memo, its
+    rows as its files print them): every (config, sequence) row == the config tracked alone by the
+    family's ``track`` (with a ``[distortion]`` table, on the row's distortion lane), written by its
+    ``write_runs`` and scored from the files, every metric field exactly."""
+    split, gt = ground2d
+    spec = {"name": "alone_bytetrack", "chunk": 3, "data": {"root": str(scene), "det2d": "synth2d"},
+            "options": {"family": "bytetrack"}, "params": {"track_thresh": [0.4, 0.6], "track_buffer": [5]}}
+    if dist is not None:
+        spec["distortion"] = dist
+    axes = parse_spec(spec).distortion
+    table = run_sweep(spec, progress=False, workers=0, log=lambda m: None)
+    fam = family_of("bytetrack")
+    fc = fam.config
+    assert set(fc.Params._fields) <= set(table.columns) and "a_l" not in table.columns
+    n = 2 * (1 if dist is None else axes.n_lanes)
+    assert table["config"].nunique() >= n          # (and the baseline's config)
+    for cfg, rows in table.groupby("config", sort=False):
+        row = rows.iloc[0]
+        params = fc.Params(**{k: row[k] for k in fc.Params._fields})
+        options = fc.Options(**{k: type(fc.Options._field_defaults[k])(row[k]) for k in fc.Options._fields})
+        kw = {}
+        if dist is not None:
+            dp = axes.lane(row["distortion.kind"], row["distortion.level"], row["distortion.seed"])
+            kw = dict(distortion=stack_distort([dp]), clutter_slots=axes.clutter_slots)
+        res = fam.track(split, params, options, **kw)
+        out = tmp_path / f"config{cfg}"
+        fam.write_runs(out, [fam.class_run(split, res, 0)])
+        expect = metrics_table(evaluate_files(out, gt))
+        got = rows.set_index("sequence")
+        assert list(got.index) == list(expect.index)
+        for col in expect.columns:
+            np.testing.assert_array_equal(got[col].to_numpy(), expect[col].to_numpy(), err_msg=f"config {cfg}, {col}")
+    if dist is not None:
+        comb = table[table["sequence"] == COMBINED]
+        assert comb.groupby("distortion.kind")["HOTA"].mean().nunique() == len(dist["kind"]) + 1

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .config import Options
-from ...distort import split_detections
+from ...distort import split_detections, split_detections_2d
 from ...data import CLASS_NAMES, Split
 from ...frames import Frames
 from .frames import object_boxes, object_slots
@@ -156,10 +156,10 @@ def lane_detections(split: Split, res, lane: np.ndarray, t: np.ndarray, k: np.nd
     out = RowDetections(np.full(n, np.nan), np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)))
     lanes, pos = np.unique(lane, return_inverse=True)
     pos = pos.reshape(-1)
-    for d in res.distortion.lanes(split_detections(split), lanes, split.score2d):
+    for d in res.distortion.lanes(split_detections(split), lanes, split_detections_2d(split)):
         r = np.isin(pos, d.which)
         at = (tt[r], jj[r])
-        slot = slot_scores(split, frames, options, (d.score2, d.valid2), (d.dets.score, d.dets.valid))
+        slot = slot_scores(split, frames, options, (d.dets2.score, d.dets2.valid), (d.dets.score, d.dets.valid))
         if slot is not None:
             out.slot[r] = slot[t[r], k[r]]
         out.score3[r], out.rot_y[r], out.dims[r], out.loc[r] = (d.dets.score[at], d.dets.rot_y[at], d.dets.dims[at],
