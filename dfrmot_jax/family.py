@@ -31,7 +31,7 @@ from typing import Any, Callable, Mapping, NamedTuple
 import numpy as np
 
 __all__ = ["BOX_FORMATS", "DEFAULT_FAMILY", "FamilyConfig", "TrackerFamily", "config_problems", "family_problems",
-           "number_problem"]
+           "number_problem", "preset_class_note"]
 
 #: the family of a sweep or a stored table that names none (every table written before families existed)
 DEFAULT_FAMILY = "dfr"
@@ -88,6 +88,9 @@ class FamilyConfig(NamedTuple):
                       a stored row without its column has the default.
     late_options:     the same for options.
     detections:       the detections it reads: ``("2d", "3d")``, ``("3d",)``, ...
+    preset_classes:   preset -> the one class it was chosen for (AB3DMOT's ``ab3dmot_pedestrian``:
+                      ``"pedestrian"``); a preset not named is for every class. Running a preset on
+                      another class is said in a warning (:func:`preset_class_note`).
     """
 
     name: str
@@ -110,6 +113,19 @@ class FamilyConfig(NamedTuple):
     late_params: Mapping[str, Any]
     late_options: Mapping[str, Any]
     detections: tuple[str, ...]
+    preset_classes: Mapping[str, str] = {}
+
+
+def preset_class_note(fc: FamilyConfig, preset: str, classes, how: str = "") -> str | None:
+    """The warning for running ``preset`` (of family ``fc``) on ``classes`` when it was chosen for one
+    other class (``FamilyConfig.preset_classes``), else None; ``how`` says where the preset was given."""
+    own = fc.preset_classes.get(preset)
+    other = [c for c in classes if own is not None and c != own]
+    if not other:
+        return None
+    return (f"preset {preset!r}{how} was chosen for {own}, and runs here on {', '.join(other)}: its settings "
+            f"are {fc.title}'s for {own} (for {', '.join(other)} pick a preset of that class: "
+            f"{', '.join(sorted(p for p, c in fc.preset_classes.items() if c in other)) or 'none'})")
 
 
 class TrackerFamily(NamedTuple):
@@ -208,6 +224,9 @@ def config_problems(fc: FamilyConfig) -> list[str]:
         out.append(f"default preset {fc.default_preset!r} is not a preset")
     if set(fc.class_defaults) != set(fc.classes):
         out.append("class_defaults does not hold exactly the classes")
+    bad = {p: c for p, c in fc.preset_classes.items() if p not in fc.presets or c not in fc.classes}
+    if bad:
+        out.append(f"preset_classes {bad!r}: expected presets of the family, each with one of its classes")
     if not fc.detections or set(fc.detections) - {"2d", "3d"}:
         out.append(f"detections {fc.detections!r}: expected some of '2d', '3d'")
     for name in fc.presets:

@@ -51,8 +51,10 @@ __all__ = ["main", "build_parser", "guarded", "EXIT_OK", "EXIT_INTERNAL", "EXIT_
 #: The subcommands, in the order ``dfrmot --help`` lists them.
 COMMANDS = tuple(HELP)
 
-DESCRIPTION = ("DFR-FastMOT camera+LiDAR tracking as batched JAX: track KITTI splits, score them "
-               "exactly like TrackEval, run and report parameter sweeps.")
+DESCRIPTION = ("Multi-object trackers as batched JAX, two tracker families: dfr (DFR-FastMOT camera+LiDAR, the "
+               "default) and ab3dmot (AB3DMOT, from 3D detections; --preset ab3dmot_car, a sweep file's [options] "
+               "family = \"ab3dmot\"). Track KITTI splits, score them exactly like TrackEval (and AB3DMOT's "
+               "sAMOTA), run and report parameter sweeps.")
 EPILOG = ("exit status: 0 ok, 1 unexpected error (rerun with --debug for the traceback), 2 bad input, "
           "3 a lane overflowed its track memory, 130 interrupted. 'dfrmot COMMAND --help' describes a command.")
 

@@ -5,17 +5,28 @@ imports only the named command's parser module, and that command's own module wh
 
 from __future__ import annotations
 
-__all__ = ["HELP", "PARSERS"]
+__all__ = ["HELP", "PARSERS", "FAMILIES", "OBJECTIVES"]
+
+#: the tracker families, as the help names them (each family of ``family_configs.CONFIGS``: a test
+#: checks that every one is named here); a sweep file picks one with ``[options] family``
+FAMILIES = "dfr (DFR-FastMOT, the default) or ab3dmot (AB3DMOT)"
+#: what an ``--objective`` may name, as the help says it (``metrics.columns.OBJECTIVE_FIELDS``)
+OBJECTIVES = ("HOTA (default), MOTA, IDF1, AssA, DetA, IDSW, Frag (minimised), ...; AB3DMOT's sAMOTA, AMOTA, AMOTP, "
+              "ab3dmot_MOTA, ... (sweeps scored with [metrics] ab3dmot; not cross-validated)")
 
 #: command -> its line in ``dfrmot --help`` (each command's ``add_parser`` registers it with this help)
 HELP = {
     "track": "track a KITTI split and write one result file per sequence",
     "demo": "a small parameter sweep on a synthetic scene, with its HTML report (no data needed)",
-    "eval": "evaluate KITTI tracking result folders (TrackEval's KITTI 2D box HOTA/CLEAR/Identity)",
+    "eval": "evaluate KITTI tracking result folders (TrackEval's KITTI 2D box HOTA/CLEAR/Identity; AB3DMOT's "
+            "sAMOTA/AMOTA with --metrics ab3dmot)",
     "compare": "compare two result folders: per-sequence differences, paired bootstrap intervals over sequences",
-    "sweep": "run a sweep file (tracking + metrics for every config), resumable",
-    "tune": "tune a sweep file's parameters with batched Optuna search (+ gradient refinement)",
-    "report": "best configs, baseline, sensitivity and cross-validation of a sweep directory",
+    "sweep": "run a sweep file of either tracker family, dfr or ab3dmot (tracking + metrics for every config), "
+             "resumable",
+    "tune": "tune a sweep file's parameters (either tracker family) with batched Optuna search (+ gradient "
+            "refinement)",
+    "report": "best configs, baseline, sensitivity and cross-validation of a sweep or tune directory (either "
+              "tracker family)",
     "lidar": "simulate LiDAR scans; lift 2D detections to 3D boxes from scans",
 }
 

@@ -29,6 +29,7 @@ from ..report.compare import compare_outputs, comparison_text
 from ..metrics.ab3dmot.table import other_sum_line, recall_table
 from ..report.compare_ab3dmot import ab3dmot_rows
 from ..report.compare_html import write_compare_html
+from .args import ab3dmot_settings, check_output_files
 from .eval import check_class_rows, check_folders, chosen_sequences, ground_truth, label_root
 
 __all__ = ["run", "parse_reference", "check_outputs", "check_reference"]
@@ -101,7 +102,10 @@ def check_reference(directory: Path, manifest: dict, classes, seqs) -> None:
 
 def run(args) -> int:
     """Run ``compare`` for parsed ``args``: 0, or raises ValueError (bad ground truth, folders, arguments)."""
+    ab3dmot_settings(args)
     check_outputs(args.csv, args.html)
+    check_output_files([("--csv", args.csv), ("--html", args.html), ("--recall-table", args.recall_table)],
+                       [("--seqmap", args.seqmap)], [("A", args.a), ("B", args.b)])
     refs = [parse_reference(str(x)) for x in (args.a, args.b)]
     manifests = [None if r is None else read_manifest(r[0]) for r in refs]
     root, label_dir = label_root(scoring_root(args.data, refs, manifests, args.cls))

@@ -73,7 +73,7 @@ from ..metrics.kitti2d.evaluate import AVERAGE, cached_gt, class_average, evalua
 from ..metrics.kitti2d.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
 from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
 from ..paths import default_data_root
-from .args import parse_seqs
+from .args import ab3dmot_settings, check_output_files, parse_seqs
 
 __all__ = ["run", "check_folder", "check_folders", "check_class_rows", "chosen_sequences", "ground_truth",
            "label_root", "tracker_name"]
@@ -232,7 +232,13 @@ def ground_truth(root: Path, cls, seqs, kitti2d: bool) -> tuple[dict, dict]:
 
 def run(args) -> int:
     """Run ``eval`` for parsed ``args``: 0, or raises (bad ground truth, results or arguments)."""
+    ab3dmot_settings(args)
+    check_output_files([("--csv", args.csv), ("--recall-table", getattr(args, "recall_table", None))],
+                       [("--seqmap", getattr(args, "seqmap", None))],
+                       [("RESULTS_DIR", d) for d in args.results])
     root, label_dir = label_root(args.data)
+    check_output_files([("--csv", args.csv), ("--recall-table", getattr(args, "recall_table", None))],
+                       input_dirs=[("the ground truth", label_dir)])
     seqs = chosen_sequences(args.seqs, getattr(args, "seqmap", None), root)
     families = getattr(args, "metrics", ("kitti2d",))
     recall_csv = getattr(args, "recall_table", None)

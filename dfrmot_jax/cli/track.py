@@ -18,10 +18,12 @@ The command's parser and ``--help`` (every parameter, option and preset) are
 from __future__ import annotations
 
 import time
+import warnings
 from pathlib import Path
 
 from ..data import load_split
 from ..families import family_of
+from ..family import preset_class_note
 from ..family_configs import preset_family
 from ..io.lock import LOCK_NAME, folder_lock
 from ..lidar import LiftSettings, lidar_dir, lift_setting_name, tie_scores, with_setting
@@ -29,6 +31,9 @@ from ..paths import default_data_root
 from ..results import result_files
 from .args import parse_seqs
 from .track_parser import add_parser, config_help  # this command's parser (it needs only config)
+
+#: the 2D detector ``--det2d`` names by default (a family that reads 2D detections)
+DEFAULT_DET2D = "rrc"
 
 __all__ = ["add_parser", "run", "config_help", "parse_seqs", "class_settings"]
 
@@ -138,6 +143,14 @@ def run(args) -> int:
     classes = _classes(args.cls, fc.classes)
     settings = {cls: class_settings(args, cls) for cls in classes}
     untracked_settings(args, classes)
+    reads_2d = "2d" in fc.detections or lidar_dir(args.det3d) is not None
+    if args.det2d is not None and not reads_2d:
+        warnings.warn(f"--det2d {args.det2d}: {fc.title} reads 3D detections only (--det3d {args.det3d}), so no 2D "
+                      f"detection is read: the option changes nothing (drop it)")
+    args.det2d = args.det2d if args.det2d is not None else DEFAULT_DET2D
+    note = preset_class_note(fc, args.preset, classes, " (--preset)")
+    if note is not None:
+        warnings.warn(f"--class {','.join(classes)}: {note}")
     for cls, (p, o) in settings.items():
         problem = family.setting_problem(f"the {cls} settings (--preset {args.preset} and --set)", p, o)
         if problem:

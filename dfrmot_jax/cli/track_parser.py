@@ -147,9 +147,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
                            "sequence. Exit status 3 when a lane overflowed its track memory.", width),
                        epilog=families_help(width), formatter_class=argparse.RawDescriptionHelpFormatter)
     t.add_argument("--data", help=f"KITTI tracking training root (default ${ENV_VAR} or ../shared/data/kitti/training)")
-    t.add_argument("--det2d", default="rrc",
+    t.add_argument("--det2d", default=None,
                    help="2D detector: name under ROOT/detections, or a directory (of SSSS.txt files, or of a folder "
-                        "per class)")
+                        "per class) (default rrc; a family reading 3D detections only reads none: a --det2d given "
+                        "to it is named in a warning)")
     t.add_argument("--det3d", default="pointrcnn",
                    help="3D detector: name under ROOT/detections, or a directory (of SSSS.txt files, or of a folder "
                         "per class), or lidar:DIR: the 2D detections lifted to 3D from the scans "

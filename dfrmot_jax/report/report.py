@@ -63,6 +63,7 @@ class SweepReport:
     folds_note: str = ""                        # how the folds were chosen, when the report chose them
     intervals: dict | None = None               # the paired bootstrap's figures (report.intervals)
     family: str | None = None                   # the tracker family of the table's configs (its columns)
+    cv_note: str = ""                           # why there is no cross-validation, when the file asked for one
 
     def __str__(self) -> str:
         return self.text
@@ -195,6 +196,15 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     if src.folds:
         rep.cv = cross_validate(full, src.folds, objective, cls, fam)
         lines += _cv_lines(rep, src.folds, comb, axes, best, objective)
+    elif objective in AB3DMOT_COLUMNS:
+        file_folds = (src.manifest or {}).get("folds")
+        rep.cv_note = ("no cross-validation: " + (f"the sweep file's folds ({file_folds}) are not used for "
+                                                  if file_folds else f"none for ")
+                       + f"{objective}, AB3DMOT's figures are not sums over sequences and cannot be folded; the "
+                       f"in-sample ranking above overstates what unseen sequences would give (rank by HOTA for a "
+                       f"cross-validated figure)")
+        if file_folds:                     # the file asked for folds: say why there are none
+            lines += ["", paragraph(rep.cv_note)]
     tune_summary = None
     if src.manifest is not None and src.manifest.get("kind") == "tune":
         tune_lines, tune_summary = _tune_section(src.directory, src.manifest, objective)
