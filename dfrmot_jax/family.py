@@ -91,6 +91,10 @@ class FamilyConfig(NamedTuple):
     preset_classes:   preset -> the one class it was chosen for (AB3DMOT's ``ab3dmot_pedestrian``:
                       ``"pedestrian"``); a preset not named is for every class. Running a preset on
                       another class is said in a warning (:func:`preset_class_note`).
+    default_sequences: what a run without ``--seqs`` tracks: ``"with_class"`` (the sequences whose
+                      ground truth has the class) or ``"all"`` (every ``label_02`` sequence, as the
+                      family's own code runs them: AB3DMOT's reference runs cover all 21 with one id
+                      counter, so that its default run gives its files line for line).
     """
 
     name: str
@@ -114,6 +118,7 @@ class FamilyConfig(NamedTuple):
     late_options: Mapping[str, Any]
     detections: tuple[str, ...]
     preset_classes: Mapping[str, str] = {}
+    default_sequences: str = "with_class"
 
 
 def preset_class_note(fc: FamilyConfig, preset: str, classes, how: str = "") -> str | None:
@@ -224,6 +229,8 @@ def config_problems(fc: FamilyConfig) -> list[str]:
         out.append(f"default preset {fc.default_preset!r} is not a preset")
     if set(fc.class_defaults) != set(fc.classes):
         out.append("class_defaults does not hold exactly the classes")
+    if fc.default_sequences not in ("with_class", "all"):
+        out.append(f"default_sequences {fc.default_sequences!r}: expected 'with_class' or 'all'")
     bad = {p: c for p, c in fc.preset_classes.items() if p not in fc.presets or c not in fc.classes}
     if bad:
         out.append(f"preset_classes {bad!r}: expected presets of the family, each with one of its classes")

@@ -238,4 +238,5 @@ FAMILY_CONFIG = FamilyConfig(
     option_problem=option_problem, parse_assignment=parse_assignment, as_arrays=as_arrays, late_params={},
     late_options={}, detections=("3d",),
     preset_classes={"ab3dmot_car": "car", "ab3dmot_car_tuned": "car", "ab3dmot_pedestrian": "pedestrian",
-                    "ab3dmot_pedestrian_tuned": "pedestrian"})
+                    "ab3dmot_pedestrian_tuned": "pedestrian"},
+    default_sequences="all")

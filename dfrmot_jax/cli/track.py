@@ -160,6 +160,16 @@ def run(args) -> int:
         return _track(args, classes, settings, family)
 
 
+def _sequences(args, family, root: Path) -> list[str] | None:
+    """The sequences to track: ``--seqs``, else the family's default (``FamilyConfig.default_sequences``):
+    every ``label_02`` sequence for a family run as its own code runs (AB3DMOT), None (those whose
+    ground truth has the class) for the others."""
+    seqs = parse_seqs(args.seqs)
+    if seqs is None and family.config.default_sequences == "all" and (root / "label_02").is_dir():
+        seqs = sorted(p.stem for p in (root / "label_02").glob("*.txt"))
+    return seqs
+
+
 def _track(args, classes, settings, family) -> int:
     """Track and write, holding the lock of ``--out``."""
     old = _old_results(Path(args.out), args.overwrite)
@@ -170,7 +180,7 @@ def _track(args, classes, settings, family) -> int:
     runs, status = [], 0
     for cls in classes:
         params, options = settings[cls]
-        split = load_split(root, det2d, args.det3d, cls, parse_seqs(args.seqs), lift=lift)
+        split = load_split(root, det2d, args.det3d, cls, _sequences(args, family, root), lift=lift)
         res = family.track(split, params, options, detail=True)
         runs.append(family.class_run(split, res, 0))
         n = int((res.ids[0] >= 0).sum())

@@ -167,7 +167,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
     t.add_argument("--class", dest="cls", default="car",
                    help="car | pedestrian | car,pedestrian (each class with its own settings, one file per sequence)")
     t.add_argument("--seqs", type=seqs_arg,
-                   help="comma-separated sequences (default: those whose ground truth has the class)")
+                   help="comma-separated sequences (default: those whose ground truth has the class; an AB3DMOT "
+                        "preset: every sequence, as AB3DMOT's own runs, so that its ids are AB3DMOT's)")
     t.add_argument("--columns", default="kitti", choices=["kitti", "kitti-stale", "authors"],
                    help="result columns: kitti (standard KITTI rows with each row's own 3D box and score; rows "
                         "without one: placeholders) | kitti-stale (as kitti, but a row without its own 3D box "
