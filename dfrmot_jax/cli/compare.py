@@ -159,7 +159,7 @@ def _ab3dmot(args, root: Path, seq_lists: dict, folders: list, result) -> None:
                                         args.seed, args.ab3dmot_iou, sum_mode=args.ab3dmot_sum, progress=True)
         rows += got
         result.ab3dmot[cls] = tuple(points)
-        recalls += [recall_table(r, output=k, **{"class": cls}) for k, r in zip("AB", points)]
+        recalls += [recall_table(r, tracker=k, **{"class": cls}) for k, r in zip("AB", points)]
         print(f"\n{cls}, AB3DMOT (IoU {args.ab3dmot_iou}, {args.ab3dmot_sum} sum): {args.ab3dmot_resamples:,} paired "
               f"resamples, each rescored ({per:.2f} s per resample)")
         for r in got:

@@ -66,7 +66,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help=f"{SUM_HELP}; where the other gives other figures, a line shows them")
     p.add_argument("--recall-table", dest="recall_table", default=None, metavar="F", type=output_file,
                    help="write AB3DMOT's recall points of A and B as CSV (implies --metrics ab3dmot; the columns of "
-                        "dfrmot eval --recall-table, with output A or B)")
+                        "dfrmot eval --recall-table, with tracker A or B)")
     p.add_argument("--ab3dmot-resamples", dest="ab3dmot_resamples", default=None,
                    type=ab3dmot_resamples_arg,
                    help=f"resamples of AB3DMOT's figures, each a full evaluation of both outputs (default "
