@@ -95,6 +95,10 @@ class FamilyConfig(NamedTuple):
                       ground truth has the class) or ``"all"`` (every ``label_02`` sequence, as the
                       family's own code runs them: AB3DMOT's reference runs cover all 21 with one id
                       counter, so that its default run gives its files line for line).
+    unit_of:          parameter -> the option whose value sets the parameter's unit (AB3DMOT's
+                      ``threshold``: an IoU for the IoU metrics, metres for the distances: ``metric``);
+                      a report's sensitivity shows such a parameter once per value of that option
+                      (``threshold [metric=giou_3d]``, ...), never one axis binning both units.
     """
 
     name: str
@@ -119,6 +123,7 @@ class FamilyConfig(NamedTuple):
     detections: tuple[str, ...]
     preset_classes: Mapping[str, str] = {}
     default_sequences: str = "with_class"
+    unit_of: Mapping[str, str] = {}
 
 
 def preset_class_note(fc: FamilyConfig, preset: str, classes, how: str = "") -> str | None:
@@ -229,6 +234,8 @@ def config_problems(fc: FamilyConfig) -> list[str]:
         out.append(f"default preset {fc.default_preset!r} is not a preset")
     if set(fc.class_defaults) != set(fc.classes):
         out.append("class_defaults does not hold exactly the classes")
+    if any(p not in params or o not in options for p, o in fc.unit_of.items()):
+        out.append(f"unit_of {dict(fc.unit_of)!r}: expected parameter -> option of the family")
     if fc.default_sequences not in ("with_class", "all"):
         out.append(f"default_sequences {fc.default_sequences!r}: expected 'with_class' or 'all'")
     bad = {p: c for p, c in fc.preset_classes.items() if p not in fc.presets or c not in fc.classes}

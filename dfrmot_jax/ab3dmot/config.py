@@ -239,4 +239,4 @@ FAMILY_CONFIG = FamilyConfig(
     late_options={}, detections=("3d",),
     preset_classes={"ab3dmot_car": "car", "ab3dmot_car_tuned": "car", "ab3dmot_pedestrian": "pedestrian",
                     "ab3dmot_pedestrian_tuned": "pedestrian"},
-    default_sequences="all")
+    default_sequences="all", unit_of={"threshold": "metric"})
