@@ -269,7 +269,9 @@ def render_html(rep: SweepReport) -> str:
                                                     float(baseline[objective])),
                          f"{objective} against each swept axis: the best config having each value (solid) and the "
                          f"mean over all configs having it (dashed); numeric axes with more than 8 values in "
-                         f"quantile bins (at their median). Axes that always move together are one panel."),
+                         f"quantile bins (at their median). Axes that always move together are one panel; a parameter "
+                         f"whose unit an option sets (AB3DMOT's threshold: IoU or metres by metric) one panel per "
+                         f"value of the option."),
                  _table(rep.sensitivity)]
     heat = _heatmap(rep, objective, baseline)
     if heat:
