@@ -70,3 +70,18 @@ def test_eval_names_the_sequences_without_the_class(scene_without_cars_in_0000, 
                                       "pedestrian", "--allow-missing"])
     assert code == 0, err
     assert "hold no pedestrian" in " ".join(out.split()) and "no sequence named holds one" in " ".join(out.split())
+
+
+@pytest.mark.slow
+def test_the_default_car_run_gives_ab3dmots_files(kitti_root, tmp_path, capsys):
+    """``dfrmot track --preset ab3dmot_car`` without ``--seqs``: AB3DMOT's reference run, every file byte
+    for byte (it tracked 20 sequences, and the ids from 0018 on were off by 166)."""
+    ref = kitti_root / "reference" / "ab3dmot_tracker" / "head61f3bd7_car_default"
+    if not ref.is_dir():
+        pytest.skip(f"no AB3DMOT reference run at {ref}")
+    code, _, err = run_cli(capsys, ["track", "--preset", "ab3dmot_car", "--data", kitti_root, "--out",
+                                    tmp_path / "car"])
+    assert code == 0, err
+    want = {p.name: p.read_bytes() for p in sorted(ref.glob("*.txt"))}
+    got = {p.name: p.read_bytes() for p in sorted((tmp_path / "car").glob("*.txt"))}
+    assert len(want) == 21 and got == want
