@@ -44,7 +44,7 @@ def test_the_readme_compare_block_is_the_commands_output(kitti_root, tmp_path, m
     got = capsys.readouterr().out.splitlines()
     assert got == output
     # the prose beside it: HOTA's interval straddles 0, CLR_FP's and CLR_FN's do not
-    rows = {s.split()[0]: s for s in got if re.match(r"^(HOTA|CLR_FP|CLR_FN) ", s)}
+    rows = {s.split()[0]: s for s in got if re.match(r"^(HOTA|CLR_FP|CLR_FN) +[\d.]+ ", s)}
     lo, hi = (float(v) for v in re.search(r"\[\s*([-+\d.]+),\s*([-+\d.]+)\]", rows["HOTA"]).groups())
     assert lo < 0 < hi
     for k in ("CLR_FP", "CLR_FN"):
