@@ -40,7 +40,7 @@ from contextlib import nullcontext
 
 from ..paths import COMPILE_CACHE_VAR, default_compile_cache
 from ..version import __version__
-from .commands import HELP, PARSERS
+from .commands import FAMILIES, HELP, PARSERS
 from .errors import (EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_OVERFLOW, CommandParser,
                      guarded, warning_lines)
 
@@ -51,8 +51,9 @@ __all__ = ["main", "build_parser", "guarded", "EXIT_OK", "EXIT_INTERNAL", "EXIT_
 #: The subcommands, in the order ``dfrmot --help`` lists them.
 COMMANDS = tuple(HELP)
 
-DESCRIPTION = ("DFR-FastMOT camera+LiDAR tracking as batched JAX: track KITTI splits, score them "
-               "exactly like TrackEval, run and report parameter sweeps.")
+DESCRIPTION = (f"Multi-object trackers as batched JAX, tracker families {FAMILIES} (a preset names its family, "
+               "e.g. --preset ab3dmot_car or bytetrack_car; a sweep file's [options] family). Track KITTI splits, "
+               "score them exactly like TrackEval (and AB3DMOT's sAMOTA), run and report parameter sweeps.")
 EPILOG = ("exit status: 0 ok, 1 unexpected error (rerun with --debug for the traceback), 2 bad input, "
           "3 a lane overflowed its track memory, 130 interrupted. 'dfrmot COMMAND --help' describes a command.")
 

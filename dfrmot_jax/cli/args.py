@@ -4,11 +4,13 @@ that ``--help`` stays fast; the names a user picks are :mod:`dfrmot_jax.choices`
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from ..choices import BACKENDS, parse_classes, parse_iou, parse_metric_families
+from ..choices import (AB3DMOT_RESAMPLES, BACKENDS, DEFAULT_AB3DMOT_IOU, DEFAULT_SUM, parse_classes, parse_iou,
+                       parse_metric_families)
 
 __all__ = ["parse_seqs", "seqs_arg", "output_file", "seed_arg", "classes_arg", "families_arg", "iou_arg",
-           "add_backend_arguments"]
+           "add_backend_arguments", "ab3dmot_settings", "check_output_files"]
 
 
 def parse_seqs(text: str | None) -> list[str] | None:
@@ -95,3 +97,50 @@ def add_backend_arguments(p) -> None:
                         "default: a local Ray instance")
     p.add_argument("--worker-cpus", type=int, metavar="N",
                    help="Ray: one worker per N CPUs of a node (default: one worker per node, all its CPUs)")
+
+
+#: the options of ``eval`` / ``compare`` that only AB3DMOT's metric family reads, and their defaults
+AB3DMOT_OPTIONS = {"ab3dmot_iou": DEFAULT_AB3DMOT_IOU, "ab3dmot_sum": DEFAULT_SUM, "ab3dmot_resamples": AB3DMOT_RESAMPLES}
+
+
+def ab3dmot_settings(args) -> None:
+    """Refuse (ValueError naming the flag) ``--ab3dmot-iou`` / ``--ab3dmot-sum`` / ``--ab3dmot-resamples``
+    given without AB3DMOT's figures (``--metrics ab3dmot`` or ``--recall-table``): they would change
+    nothing; then fill in the defaults of those not given (their parsers' default is None, so that a
+    given one is told apart)."""
+    wanted = "ab3dmot" in getattr(args, "metrics", ()) or getattr(args, "recall_table", None)
+    for name, default in AB3DMOT_OPTIONS.items():
+        if not hasattr(args, name):
+            continue
+        if getattr(args, name) is not None and not wanted:
+            flag = "--" + name.replace("_", "-")
+            raise ValueError(f"{flag} {getattr(args, name)}: AB3DMOT's figures are not computed (--metrics "
+                             f"{','.join(getattr(args, 'metrics', ('kitti2d',)))}), so it would change nothing: add "
+                             f"--metrics kitti2d,ab3dmot, or drop {flag}")
+        if getattr(args, name) is None:
+            setattr(args, name, default)
+
+
+def check_output_files(outputs, inputs=(), input_dirs=()) -> None:
+    """Refuse (ValueError naming both) before anything runs: two outputs naming one file (the second
+    would replace the first: ``--csv F --recall-table F``), or an output naming an input (a file of
+    ``inputs``, or a result file ``SSSS.txt`` / any ``*.txt`` of a folder of ``input_dirs``, which
+    would be replaced after being scored). ``outputs``: (flag, path or None) pairs; ``inputs``:
+    (what, path or None); ``input_dirs``: (what, folder)."""
+    given = [(flag, Path(p)) for flag, p in outputs if p]
+    seen: dict[Path, str] = {}
+    for flag, path in given:
+        r = path.resolve()
+        if r in seen:
+            raise ValueError(f"{seen[r]} and {flag} name one file ({path}): the second would replace the first; "
+                             f"give each its own")
+        seen[r] = f"{flag} {path}"
+    for flag, path in given:
+        r = path.resolve()
+        for what, p in inputs:
+            if p and Path(p).resolve() == r:
+                raise ValueError(f"{flag} {path} is an input ({what}): it would be overwritten; write elsewhere")
+        for what, d in input_dirs:
+            if d and Path(d).is_dir() and r.parent == Path(d).resolve() and r.suffix == ".txt":
+                raise ValueError(f"{flag} {path} is a file of the result folder {d} ({what}), whose *.txt files are "
+                                 f"read as results: it would overwrite or join them; write elsewhere")

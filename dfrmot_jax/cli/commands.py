@@ -5,17 +5,32 @@ imports only the named command's parser module, and that command's own module wh
 
 from __future__ import annotations
 
-__all__ = ["HELP", "PARSERS"]
+from ..trackers.registry import CONFIGS, DEFAULT_FAMILY, family_names
+
+__all__ = ["HELP", "PARSERS", "FAMILIES", "FAMILY_NAMES", "OBJECTIVES"]
+
+#: the tracker families, as the help names them (every family of the registry, ``trackers.registry``,
+#: NumPy only); a sweep file picks one with ``[options] family``
+FAMILIES = ", ".join(f"{n} ({CONFIGS[n].title}{', the default' if n == DEFAULT_FAMILY else ''})" for n in family_names())
+#: the families' names alone, "dfr, ab3dmot, ..."
+FAMILY_NAMES = ", ".join(family_names())
+#: what an ``--objective`` may name, as the help says it (``metrics.columns.OBJECTIVE_FIELDS``)
+OBJECTIVES = ("HOTA (default), MOTA, IDF1, AssA, DetA, IDSW, Frag (minimised), ...; AB3DMOT's sAMOTA, AMOTA, AMOTP, "
+              "ab3dmot_MOTA, ... (sweeps scored with [metrics] ab3dmot; not cross-validated)")
 
 #: command -> its line in ``dfrmot --help`` (each command's ``add_parser`` registers it with this help)
 HELP = {
     "track": "track a KITTI split and write one result file per sequence",
     "demo": "a small parameter sweep on a synthetic scene, with its HTML report (no data needed)",
-    "eval": "evaluate KITTI tracking result folders (TrackEval's KITTI 2D box HOTA/CLEAR/Identity)",
+    "eval": "evaluate KITTI tracking result folders (TrackEval's KITTI 2D box HOTA/CLEAR/Identity; AB3DMOT's "
+            "sAMOTA/AMOTA with --metrics ab3dmot)",
     "compare": "compare two result folders: per-sequence differences, paired bootstrap intervals over sequences",
-    "sweep": "run a sweep file (tracking + metrics for every config), resumable",
-    "tune": "tune a sweep file's parameters with batched Optuna search (+ gradient refinement)",
-    "report": "best configs, baseline, sensitivity and cross-validation of a sweep directory",
+    "sweep": f"run a sweep file of any tracker family ({FAMILY_NAMES}; tracking + metrics for every config), "
+             "resumable",
+    "tune": f"tune a sweep file's parameters (any tracker family: {FAMILY_NAMES}) with batched Optuna search (+ "
+            "gradient refinement)",
+    "report": f"best configs, baseline, sensitivity and cross-validation of a sweep or tune directory (any "
+              f"tracker family: {FAMILY_NAMES})",
     "lidar": "simulate LiDAR scans; lift 2D detections to 3D boxes from scans",
 }
 

@@ -29,6 +29,7 @@ from ..report.compare import compare_outputs, comparison_text
 from ..metrics.samota.table import other_sum_line, recall_table
 from ..report.compare_samota import ab3dmot_rows
 from ..report.compare_html import write_compare_html
+from .args import ab3dmot_settings, check_output_files
 from .eval import check_class_rows, check_folders, chosen_sequences, ground_truth, label_root
 
 __all__ = ["run", "parse_reference", "check_outputs", "check_reference"]
@@ -101,7 +102,10 @@ def check_reference(directory: Path, manifest: dict, classes, seqs) -> None:
 
 def run(args) -> int:
     """Run ``compare`` for parsed ``args``: 0, or raises ValueError (bad ground truth, folders, arguments)."""
+    ab3dmot_settings(args)
     check_outputs(args.csv, args.html)
+    check_output_files([("--csv", args.csv), ("--html", args.html), ("--recall-table", args.recall_table)],
+                       [("--seqmap", args.seqmap)], [("A", args.a), ("B", args.b)])
     refs = [parse_reference(str(x)) for x in (args.a, args.b)]
     manifests = [None if r is None else read_manifest(r[0]) for r in refs]
     root, label_dir = label_root(scoring_root(args.data, refs, manifests, args.cls))
@@ -155,7 +159,7 @@ def _ab3dmot(args, root: Path, seq_lists: dict, folders: list, result) -> None:
                                         args.seed, args.ab3dmot_iou, sum_mode=args.ab3dmot_sum, progress=True)
         rows += got
         result.ab3dmot[cls] = tuple(points)
-        recalls += [recall_table(r, output=k, **{"class": cls}) for k, r in zip("AB", points)]
+        recalls += [recall_table(r, tracker=k, **{"class": cls}) for k, r in zip("AB", points)]
         print(f"\n{cls}, AB3DMOT (IoU {args.ab3dmot_iou}, {args.ab3dmot_sum} sum): {args.ab3dmot_resamples:,} paired "
               f"resamples, each rescored ({per:.2f} s per resample)")
         for r in got:

@@ -60,14 +60,14 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--metrics", default=("kitti2d",), type=families_arg, metavar="FAMILIES",
                    help="kitti2d (TrackEval's, default) and/or ab3dmot: AB3DMOT's sAMOTA / AMOTA / MOTA / IDS / FP / FN "
                         "(--ab3dmot-iou), each resample rescored")
-    p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default=DEFAULT_AB3DMOT_IOU, type=iou_arg, metavar="2d:T|3d:T",
+    p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default=None, type=iou_arg, metavar="2d:T|3d:T",
                    help=f"AB3DMOT's matching (default {DEFAULT_AB3DMOT_IOU})")
-    p.add_argument("--ab3dmot-sum", dest="ab3dmot_sum", default=DEFAULT_SUM, choices=SUMS,
+    p.add_argument("--ab3dmot-sum", dest="ab3dmot_sum", default=None, choices=SUMS,
                    help=f"{SUM_HELP}; where the other gives other figures, a line shows them")
     p.add_argument("--recall-table", dest="recall_table", default=None, metavar="F", type=output_file,
                    help="write AB3DMOT's recall points of A and B as CSV (implies --metrics ab3dmot; the columns of "
-                        "dfrmot eval --recall-table, with output A or B)")
-    p.add_argument("--ab3dmot-resamples", dest="ab3dmot_resamples", default=AB3DMOT_RESAMPLES,
+                        "dfrmot eval --recall-table, with tracker A or B)")
+    p.add_argument("--ab3dmot-resamples", dest="ab3dmot_resamples", default=None,
                    type=ab3dmot_resamples_arg,
                    help=f"resamples of AB3DMOT's figures, each a full evaluation of both outputs (default "
                         f"{AB3DMOT_RESAMPLES}, at most {AB3DMOT_MAX_RESAMPLES:,}; about 0.2 s each for 11 sequences; "

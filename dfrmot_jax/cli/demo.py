@@ -27,7 +27,7 @@ from ..report.text import paragraph, text_table
 from ..sweep import load_spec, run_sweep
 from ..sweep.folder import clear, read_old_manifest
 from ..synthetic import make_scene
-from .demo_parser import BASELINES, GRID, GRIDS, NAME, grid_shape
+from .demo_parser import BASELINES, GRID, GRIDS, NAME, default_out, grid_shape
 
 __all__ = ["run", "GRID", "sweep_file"]
 
@@ -39,9 +39,11 @@ def run(args) -> int:
     """Scene, sweep file, sweep, report; prints the best configs beside the baseline."""
     if args.sequences < 1:
         raise ValueError(f"--sequences {args.sequences}: expected a whole number >= 1")
+    if args.frames < 1:
+        raise ValueError(f"--frames {args.frames}: expected a whole number >= 1 (frames per sequence)")
     if args.top < 1:
         raise ValueError(f"--top {args.top}: expected a whole number >= 1 (configs printed)")
-    work = Path(args.out)
+    work = Path(args.out) if args.out is not None else default_out(getattr(args, "family", "dfr"))
     root = make_scene(work / "scene", n_sequences=args.sequences, n_frames=args.frames, seed=args.seed)
     names = [f"{s:04d}" for s in range(args.sequences)]
     print(f"scene: {len(names)} synthetic sequences x {args.frames} frames in KITTI layout (labels, calib, 2D and 3D "

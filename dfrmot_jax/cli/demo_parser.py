@@ -10,7 +10,7 @@ from .args import seed_arg
 from .commands import HELP
 from .errors import run_later
 
-__all__ = ["add_parser", "GRID", "GRIDS", "BASELINES", "NAME", "grid_shape"]
+__all__ = ["add_parser", "GRID", "GRIDS", "BASELINES", "NAME", "grid_shape", "default_out"]
 
 #: the demo's grid: the 2D score threshold and the fixed-gain filter's beta and gamma (27 settings)
 GRID = {"score_2d": [0.35, 0.45, 0.55], "gain_beta": [0.5, 0.7, 0.9], "gain_gamma": [0.02, 0.05, 0.1]}
@@ -22,6 +22,13 @@ GRIDS = {"dfr": GRID,
 BASELINES = {"dfr": "dfr2023", "ab3dmot": "ab3dmot_car"}
 #: the demo sweep's name, and its work directory's under ``results/``
 NAME = "demo"
+
+
+def default_out(family: str = "dfr") -> Path:
+    """The demo's work directory when ``--out`` is not given: ``results/demo`` for DFR-FastMOT, the
+    default family, and ``results/demo_FAMILY`` for another (each family's demo its own folder, so
+    that one does not replace the other's sweep and page)."""
+    return Path("results") / (NAME if family == "dfr" else f"{NAME}_{family}")
 
 
 def grid_shape(family: str = "dfr") -> str:
@@ -37,9 +44,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                                    "tracked in one vmapped call and scored), print the best configs "
                                    "beside the baseline and write the HTML report next to the results; no data "
                                    "needed.")
-    d.add_argument("--out", metavar="DIR", default=str(Path("results") / NAME),
+    d.add_argument("--out", metavar="DIR", default=None,
                    help="work directory, kept: DIR/scene, DIR/demo.toml, DIR/sweep (results and report.html) "
-                        "(default: results/demo)")
+                        f"(default: {default_out()}; with --family ab3dmot {default_out('ab3dmot')})")
     d.add_argument("--sequences", type=int, default=4, help="synthetic sequences (default 4)")
     d.add_argument("--frames", type=int, default=120, help="frames per sequence (default 120)")
     d.add_argument("--seed", type=seed_arg, default=0, help="scene seed, >= 0 (default 0)")

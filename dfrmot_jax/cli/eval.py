@@ -66,9 +66,10 @@ from ..metrics.kitti2d.evaluate import AVERAGE, cached_gt, class_average, evalua
 from ..metrics.kitti2d.table import COMPACT_FIELDS, COUNT_FIELDS, classes_table
 from ..metrics.kitti2d.tracker_files import inspect_results, read_tracker_files
 from ..paths import default_data_root
-from .args import parse_seqs
+from .args import ab3dmot_settings, check_output_files, parse_seqs
 
 __all__ = ["run", "check_folder", "check_folders", "check_class_rows", "chosen_sequences", "ground_truth",
+           "empty_sequence_lines",
            "label_root", "tracker_name"]
 
 
@@ -205,6 +206,21 @@ def _print_ab3dmot(df, seq_lists: dict, iou: str, note_avg: str, others: list) -
         print(line)
 
 
+def empty_sequence_lines(root: Path, seq_lists: dict) -> list[str]:
+    """One line per class for the sequences named (``--seqs``, ``--seqmap``) whose ground truth holds no
+    object of it: every row there can only be a false positive (e.g. 0003 and pedestrians)."""
+    out = []
+    for c, named in seq_lists.items():
+        held = set(cached_class_sequences(root, c))
+        empty = [s for s in named if s not in held]
+        if empty:
+            out.append(f"note: {len(empty)} of the {len(named)} sequences named hold no {c} in their ground truth "
+                       f"({_names(empty)}): their {c} rows can only be false positives"
+                       + ("; no sequence named holds one" if len(empty) == len(named) else "")
+                       + f" (sequences with {c}: {_names(sorted(held), 25)})")
+    return out
+
+
 def ground_truth(root: Path, cls, seqs, kitti2d: bool) -> tuple[dict, dict]:
     """(class -> prepared ground truth, for the kitti2d family only; class -> its sequences: ``seqs``,
     else those whose ground truth has the class); anything wrong with the ground truth is a
@@ -225,7 +241,13 @@ def ground_truth(root: Path, cls, seqs, kitti2d: bool) -> tuple[dict, dict]:
 
 def run(args) -> int:
     """Run ``eval`` for parsed ``args``: 0, or raises (bad ground truth, results or arguments)."""
+    ab3dmot_settings(args)
+    check_output_files([("--csv", args.csv), ("--recall-table", getattr(args, "recall_table", None))],
+                       [("--seqmap", getattr(args, "seqmap", None))],
+                       [("RESULTS_DIR", d) for d in args.results])
     root, label_dir = label_root(args.data)
+    check_output_files([("--csv", args.csv), ("--recall-table", getattr(args, "recall_table", None))],
+                       input_dirs=[("the ground truth", label_dir)])
     seqs = chosen_sequences(args.seqs, getattr(args, "seqmap", None), root)
     families = getattr(args, "metrics", ("kitti2d",))
     recall_csv = getattr(args, "recall_table", None)
@@ -274,6 +296,9 @@ def run(args) -> int:
             print(note)
     if "ab3dmot" in families:
         _print_ab3dmot(df, seq_lists, args.ab3dmot_iou, note_avg, others)
+    if seqs is not None:
+        for line in empty_sequence_lines(root, seq_lists):
+            print(line)
     for path, table in ((args.csv, df), (recall_csv, pd.concat(recalls, ignore_index=True) if recalls else None)):
         if path:
             out = Path(path)

@@ -19,7 +19,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "eval",
         help=HELP["eval"],
-        description="Evaluate KITTI tracking results (RESULTS_DIR/SSSS.txt) exactly like TrackEval's Kitti2DBox "
+        description="Evaluate KITTI tracking results (RESULTS_DIR/SSSS.txt, of any tracker family or any "
+                    "tracker) exactly like TrackEval's Kitti2DBox (and, with --metrics ab3dmot, like AB3DMOT's "
+                    "KITTI evaluation: sAMOTA/AMOTA/AMOTP) "
                     "(files are read as TrackEval reads them: rows in any order, x2 < x1 allowed). Refused: a "
                     "sequence without a result file (see --allow-missing), a result file name that is a "
                     "directory or a dangling symlink, *.txt files that are no sequence of the ground truth "
@@ -42,10 +44,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--metrics", default=("kitti2d",), type=families_arg, metavar="FAMILIES",
                    help="metric families, comma-separated: kitti2d (TrackEval's HOTA/CLEAR/Identity, default), "
                         "ab3dmot (AB3DMOT's KITTI sAMOTA/AMOTA/AMOTP and best-threshold MOTA/MOTP/IDS/FRAG/FP/FN)")
-    p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default=DEFAULT_AB3DMOT_IOU, type=iou_arg, metavar="2d:T|3d:T",
+    p.add_argument("--ab3dmot-iou", dest="ab3dmot_iou", default=None, type=iou_arg, metavar="2d:T|3d:T",
                    help=f"AB3DMOT matching: image-box IoU (2d) or 3D IoU of the rotated boxes (3d) at threshold T "
                         f"(default {DEFAULT_AB3DMOT_IOU}; AB3DMOT uses 2d:0.5 and 3d:0.25/0.5/0.7)")
-    p.add_argument("--ab3dmot-sum", dest="ab3dmot_sum", default=DEFAULT_SUM, choices=SUMS,
+    p.add_argument("--ab3dmot-sum", dest="ab3dmot_sum", default=None, choices=SUMS,
                    help=f"{SUM_HELP}; where the other gives other figures, a line after the table shows them")
     p.add_argument("--recall-table", dest="recall_table", default=None, metavar="F", type=output_file,
                    help="write AB3DMOT's recall points as CSV (implies --metrics ab3dmot): per tracker, class, sum "

@@ -15,6 +15,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..metrics.columns import canonical_objective
 from ..report import RAW_COLUMN, load_results, read_manifest, report_folds, sweep_report, write_html
 
 __all__ = ["run", "parse_contrast"]
@@ -47,7 +48,13 @@ def run(args) -> int:
     (whose folds, when nobody set them, are then :func:`report_folds`'s, printed too)."""
     contrast = parse_contrast(args.contrast) if getattr(args, "contrast", None) else None
     html = getattr(args, "html", None)
-    objective = args.objective or _manifest_objective(args.dir)
+    if args.objective is not None:      # an empty --objective is refused, not read as "the file's"
+        try:
+            objective = canonical_objective(args.objective)
+        except ValueError as e:
+            raise ValueError(f"--objective {args.objective!r}: {str(e).partition(': ')[2]}") from None
+    else:
+        objective = _manifest_objective(args.dir)
     folds, note = report_folds(args.dir, args.folds, objective) if html is not None else (args.folds, "")
     rep = sweep_report(Path(args.dir), objective=objective, folds=folds,
                        top=10 if args.top is None else args.top, contrast=contrast, cls=getattr(args, "cls", None),

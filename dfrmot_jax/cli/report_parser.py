@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 
 from .args import output_file
-from .commands import HELP
+from .commands import FAMILIES, HELP, OBJECTIVES
 from .errors import run_later
 
 __all__ = ["add_parser"]
@@ -16,12 +16,13 @@ def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``report`` on an argparse ``subparsers`` object; returns its parser."""
     p = sub.add_parser(
         "report", help=HELP["report"],
-        description="Print the best configs of a sweep (by --objective), the baseline row beside them, how "
+        description=f"Print the best configs of a sweep or tune directory of any tracker family ({FAMILIES}) "
+                    "by --objective, the baseline row beside them, how "
                     "sensitive the score is to each swept axis and, with --folds, the cross-validated best "
                     "(a tune directory: also its own figures). The last line is one JSON object. With --html, "
                     "also one self-contained page to open in a browser and share.")
     p.add_argument("dir", metavar="DIR", help="a sweep or tune directory (dfrmot sweep / tune --out DIR)")
-    p.add_argument("--objective", help="HOTA (default), MOTA, IDF1, AssA, DetA, IDSW (minimised), ...")
+    p.add_argument("--objective", help=f"{OBJECTIVES} (default: the file's objective, else HOTA)")
     p.add_argument("--folds", type=int, help="k-fold cross-validation over sequences (default: the sweep's --folds)")
     p.add_argument("--top", type=int, help="configs listed (default 10)")
     p.add_argument("--class", dest="cls", metavar="CLASS",

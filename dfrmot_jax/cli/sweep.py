@@ -66,7 +66,7 @@ def run(args) -> int:
     print(f"{df['config'].nunique():,} configs x {df['sequence'].nunique() - 1} sequences -> "
           f"{out / 'results.parquet'}")
     if args.summary:
-        rep = sweep_report(df, objective=args.objective or spec.objective,
+        rep = sweep_report(out, objective=args.objective or spec.objective,
                            folds=args.folds if args.folds is not None else spec.folds, top=spec.top if args.top is None else args.top,
                            contrast=spec.contrast, cls=args.cls or spec.report_class, family=spec.family)
         print(rep.text)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 
 from .args import add_backend_arguments
-from .commands import HELP
+from .commands import FAMILIES, HELP, OBJECTIVES
 from .errors import run_later
 
 __all__ = ["add_parser"]
@@ -16,7 +16,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``sweep`` on an argparse ``subparsers`` object; returns its parser."""
     p = sub.add_parser(
         "sweep", help=HELP["sweep"],
-        description="Expand a sweep file (sweeps/*.toml) into configs, track and score them in chunks "
+        description=f"Expand a sweep file (sweeps/*.toml; tracker family {FAMILIES}, picked by [options] "
+                    f"family) into configs, track and score them in chunks "
                     "(one compilation per static option value), append each finished chunk to Parquet under "
                     "--out; a rerun skips finished chunks. The result is one tidy table: one row per "
                     "(config, sequence) plus a COMBINED row per config (OUT/results.parquet). Exit status 2: "
@@ -28,7 +29,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--chunk", type=int, help="configs per chunk (overrides the file)")
     p.add_argument("--folds", type=int, help="k-fold cross-validation over sequences in the report (k >= 2)")
     p.add_argument("--summary", action="store_true", help="print the report when the sweep is done")
-    p.add_argument("--objective", help="report objective (default: the file's, else HOTA); IDSW etc. are minimised")
+    p.add_argument("--objective", help=f"report objective (default: the file's, else HOTA): {OBJECTIVES}")
     p.add_argument("--top", type=int, help="configs listed in the report (default 10)")
     p.add_argument("--class", dest="cls", metavar="CLASS",
                    help="report on one class of the sweep, or 'average' (default for several classes: the "

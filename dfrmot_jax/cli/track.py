@@ -18,17 +18,22 @@ The command's parser and ``--help`` (every parameter, option and preset) are
 from __future__ import annotations
 
 import time
+import warnings
 from pathlib import Path
 
 from ..data import load_split
 from ..trackers.registry import family_of
 from ..trackers.registry import preset_family
+from ..trackers.protocol import preset_class_note
 from ..io.lock import LOCK_NAME, folder_lock
 from ..lidar import LiftSettings, lidar_dir, lift_setting_name, tie_scores, with_setting
 from ..paths import default_data_root
 from ..io.result_writer import result_files
 from .args import parse_seqs
 from .track_parser import add_parser, config_help  # this command's parser (it needs only config)
+
+#: the 2D detector ``--det2d`` names by default (a family that reads 2D detections)
+DEFAULT_DET2D = "rrc"
 
 __all__ = ["add_parser", "run", "config_help", "parse_seqs", "class_settings"]
 
@@ -138,6 +143,14 @@ def run(args) -> int:
     classes = _classes(args.cls, fc.classes)
     settings = {cls: class_settings(args, cls) for cls in classes}
     untracked_settings(args, classes)
+    reads_2d = "2d" in fc.detections or lidar_dir(args.det3d) is not None
+    if args.det2d is not None and not reads_2d:
+        warnings.warn(f"--det2d {args.det2d}: {fc.title} reads 3D detections only (--det3d {args.det3d}), so no 2D "
+                      f"detection is read: the option changes nothing (drop it)")
+    args.det2d = args.det2d if args.det2d is not None else DEFAULT_DET2D
+    note = preset_class_note(fc, args.preset, classes, " (--preset)")
+    if note is not None:
+        warnings.warn(f"--class {','.join(classes)}: {note}")
     for cls, (p, o) in settings.items():
         problem = family.setting_problem(f"the {cls} settings (--preset {args.preset} and --set)", p, o)
         if problem:
@@ -145,6 +158,16 @@ def run(args) -> int:
     with folder_lock(args.out, "track"):
         family.write_runs(args.out, [], columns=args.columns)       # (columns the family cannot write: refused now)
         return _track(args, classes, settings, family)
+
+
+def _sequences(args, family, root: Path) -> list[str] | None:
+    """The sequences to track: ``--seqs``, else the family's default (``FamilyConfig.default_sequences``):
+    every ``label_02`` sequence for a family run as its own code runs (AB3DMOT), None (those whose
+    ground truth has the class) for the others."""
+    seqs = parse_seqs(args.seqs)
+    if seqs is None and family.config.default_sequences == "all" and (root / "label_02").is_dir():
+        seqs = sorted(p.stem for p in (root / "label_02").glob("*.txt"))
+    return seqs
 
 
 def _track(args, classes, settings, family) -> int:
@@ -158,7 +181,7 @@ def _track(args, classes, settings, family) -> int:
     runs, status = [], 0
     for cls in classes:
         params, options = settings[cls]
-        split = load_split(root, det2d, det3d, cls, parse_seqs(args.seqs), lift=lift)
+        split = load_split(root, det2d, det3d, cls, _sequences(args, family, root), lift=lift)
         res = family.track(split, params, options, detail=True)
         runs.append(family.class_run(split, res, 0))
         n = int((res.ids[0] >= 0).sum())

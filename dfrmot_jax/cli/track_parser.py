@@ -147,9 +147,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
                            "sequence. Exit status 3 when a lane overflowed its track memory.", width),
                        epilog=families_help(width), formatter_class=argparse.RawDescriptionHelpFormatter)
     t.add_argument("--data", help=f"KITTI tracking training root (default ${ENV_VAR} or ../shared/data/kitti/training)")
-    t.add_argument("--det2d", default="rrc",
+    t.add_argument("--det2d", default=None,
                    help="2D detector: name under ROOT/detections, or a directory (of SSSS.txt files, or of a folder "
-                        "per class)")
+                        "per class) (default rrc; a family reading 3D detections only reads none: a --det2d given "
+                        "to it is named in a warning)")
     t.add_argument("--det3d", default="pointrcnn",
                    help="3D detector: name under ROOT/detections, or a directory (of SSSS.txt files, or of a folder "
                         "per class), or lidar:DIR: the 2D detections lifted to 3D from the scans "
@@ -166,7 +167,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
     t.add_argument("--class", dest="cls", default="car",
                    help="car | pedestrian | car,pedestrian (each class with its own settings, one file per sequence)")
     t.add_argument("--seqs", type=seqs_arg,
-                   help="comma-separated sequences (default: those whose ground truth has the class)")
+                   help="comma-separated sequences (default: those whose ground truth has the class; an AB3DMOT "
+                        "preset: every sequence, as AB3DMOT's own runs, so that its ids are AB3DMOT's)")
     t.add_argument("--columns", default="kitti", choices=["kitti", "kitti-stale", "authors"],
                    help="result columns: kitti (standard KITTI rows with each row's own 3D box and score; rows "
                         "without one: placeholders) | kitti-stale (as kitti, but a row without its own 3D box "

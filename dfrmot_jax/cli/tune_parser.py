@@ -7,7 +7,7 @@ import argparse
 
 from ..choices import SAMPLERS
 from .args import add_backend_arguments
-from .commands import HELP
+from .commands import FAMILIES, HELP
 from .errors import run_later
 
 __all__ = ["add_parser"]
@@ -17,7 +17,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``tune`` on an argparse ``subparsers`` object; returns its parser."""
     p = sub.add_parser(
         "tune", help=HELP["tune"],
-        description="Search the [params] / [options] of a tune file (a sweep file with a [tune] table) with an "
+        description=f"Search the [params] / [options] of a tune file (a sweep file with a [tune] table; tracker "
+                    f"family {FAMILIES}, picked by [options] family) with an "
                     "Optuna sampler, each batch of trials tracked and scored in one vmapped call; the study lives "
                     "in --out (a rerun resumes). With --folds, nested cross-validation: the tune runs per fold "
                     "on the training sequences and each chosen config is scored on its held-out fold.")

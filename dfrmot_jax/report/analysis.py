@@ -84,12 +84,32 @@ def _profile(comb: pd.DataFrame, group: tuple[str, ...], objective: str, bins: i
     return out.reset_index(drop=True)
 
 
+def _axis_views(comb: pd.DataFrame, family=None) -> list[tuple[str, tuple[str, ...], pd.DataFrame]]:
+    """(name, axis group, its configs) per axis of the sensitivity: every group on all configs, but a
+    parameter whose unit an option sets (``FamilyConfig.unit_of``: AB3DMOT's ``threshold`` by
+    ``metric``) while that option varies is one axis per value of the option, on its configs
+    (``threshold [metric=giou_3d]``): IoUs and metres are never binned into one axis."""
+    fc = table_family(comb.columns, family)
+    out = []
+    for g in _axis_groups(comb, _sensitivity_axes(comb, family)):
+        opt = fc.unit_of.get(g[0]) if len(g) == 1 else None
+        if opt is None or opt not in comb.columns or comb[opt].nunique() < 2:
+            out.append(("+".join(g), g, comb))
+            continue
+        for v in pd.unique(comb[opt]):
+            sub = comb[comb[opt] == v].reset_index(drop=True)
+            if sub[g[0]].nunique() > 1:
+                out.append((f"{g[0]} [{opt}={fmt_value(v)}]", g, sub))
+    return out
+
+
 def axis_profiles(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5, family=None) -> dict[str, pd.DataFrame]:
-    """Per varied axis (axes that always move together: one, ``a+b+c``) the objective per value
-    (:func:`_profile`: ``value``, ``label``, ``best``, ``mean``, ``n``): what :func:`sensitivity`
-    measures the spread of, for plots."""
+    """Per varied axis (axes that always move together: one, ``a+b+c``; a parameter whose unit an option
+    sets: one per value of the option, :func:`_axis_views`) the objective per value (:func:`_profile`:
+    ``value``, ``label``, ``best``, ``mean``, ``n``): what :func:`sensitivity` measures the spread of,
+    for plots."""
     comb = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True), family)
-    return {"+".join(g): _profile(comb, g, objective, bins) for g in _axis_groups(comb, _sensitivity_axes(comb, family))}
+    return {name: _profile(sub, g, objective, bins) for name, g, sub in _axis_views(comb, family)}
 
 
 def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5, family=None) -> pd.DataFrame:
@@ -103,28 +123,31 @@ def sensitivity(df: pd.DataFrame, objective: str = "HOTA", bins: int = 5, family
     axis moves away from the best config (NaN when the sweep has no such configs). Axes that always
     move together (e.g. gains swept as one set through [[variants]]) are one row, ``a+b+c``; values
     that are one setting (:func:`~.columns.canonical_params`) are one value; a distortion lane's seed
-    (:data:`REPLICATE_AXES`) is no axis. Sorted by ``spread_best``, largest first. ``family``: the
-    table's tracker family (None: read from its columns).
+    (:data:`REPLICATE_AXES`) is no axis; a parameter whose unit an option sets is one row per value of
+    the option, each on its configs (:func:`_axis_views`: AB3DMOT's ``threshold [metric=iou_3d]``,
+    ``threshold [metric=dist_3d]``; ``best_value`` and ``oat_range`` then of that variant's best
+    config). Sorted by ``spread_best``, largest first. ``family``: the table's tracker family (None:
+    read from its columns).
     """
-    comb = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True), family)
-    axes = _sensitivity_axes(comb, family)
-    y = comb[objective].to_numpy(np.float64)
-    best = int(rank_configs(y, objective)[0])
+    full = canonical_params(df[df["sequence"] == COMBINED].reset_index(drop=True), family)
+    axes = _sensitivity_axes(full, family)
     rows = []
-    for group in _axis_groups(comb, axes):
+    for name, group, comb in _axis_views(full, family):
+        y = comb[objective].to_numpy(np.float64)
+        best = int(rank_configs(y, objective)[0])
         a = group[0]
         col = comb[a]
         numeric = len(group) == 1 and pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col)
         prof = _profile(comb, group, objective, bins)
         by_best, by_mean = prof["best"], prof["mean"]
         mask = np.ones(len(comb), bool)
-        for other in _axis_groups(comb, axes):
+        for other in _axis_groups(full, axes):
             if other != group:
                 for o in other:
                     mask &= (comb[o] == comb.at[best, o]).to_numpy()
         oat = y[mask]
         corr = float(col.rank().corr(comb[objective].rank())) if numeric else float("nan")
-        rows.append({"axis": "+".join(group), "values": len(prof),
+        rows.append({"axis": name, "values": len(prof),
                      "spread_best": float(by_best.max() - by_best.min()),
                      "spread_mean": float(by_mean.max() - by_mean.min()), "corr": corr,
                      "best_value": "/".join(fmt_value(comb.at[best, o]) for o in group) if len(group) > 1

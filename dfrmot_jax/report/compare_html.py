@@ -13,10 +13,11 @@ import pandas as pd
 from ..io.atomic import write_text_atomic
 from ..metrics.kitti2d.bootstrap import LOWER_IS_BETTER
 from ..version import __version__
-from ..metrics.samota.table import other_sum_line, recall_table
+from ..metrics.samota.table import AB3DMOT_COUNT_COLUMNS, other_sum_line, recall_table
 from ..table_columns import COMBINED
 from .compare import Comparison
 from .compare_views import bev_svg, timeline_svg
+from .figures import recall_points_figure
 from .html import CSS
 
 __all__ = ["render_compare_html", "write_compare_html"]
@@ -44,12 +45,31 @@ def _combined(comb: pd.DataFrame) -> pd.DataFrame:
     """The combined figures as shown: counts (IDSW, FP, FN, Frag) as whole numbers, their differences
     and interval bounds signed, as the printed comparison shows them; other figures as :func:`_cell`."""
     out = comb.astype(object)
-    counts = out["metric"].isin(LOWER_IS_BETTER)
+    counts = out["metric"].map(_is_count).astype(bool)
     for col in ("a", "b", "diff", "ci_low", "ci_high"):
         signed = col != "a" and col != "b"
         out.loc[counts, col] = [("" if pd.isna(v) else f"{int(round(v)):+d}" if signed else f"{int(round(v))}")
                                 for v in out.loc[counts, col]]
     return out
+
+
+def _is_count(metric: str) -> bool:
+    """A count, shown whole: TrackEval's IDSW, FP, FN, Frag and AB3DMOT's (``ab3dmot_FP@3d:0.25``, ...)."""
+    base = str(metric).split("@")[0]
+    return base in LOWER_IS_BETTER or base in AB3DMOT_COUNT_COLUMNS
+
+
+def _resamples_text(c: Comparison) -> str:
+    """How many resamples each row used: the kitti2d figures ``c.resamples``; AB3DMOT's rows (each
+    resample a full rescoring) their own, as the table's ``resamples`` column says."""
+    t = c.table
+    other = sorted({int(n) for m, n in zip(t["metric"], t["resamples"])
+                    if "@" in str(m) and not pd.isna(n) and int(n) != c.resamples})
+    text = f"{c.resamples:,} resamples (seed {c.seed}), each recombined as TrackEval combines sequences"
+    if other:
+        text += (f"; AB3DMOT's rows (metric@IoU) {', '.join(f'{n:,}' for n in other)} resamples, each a full "
+                 f"rescoring of both outputs (the resamples column gives each row's)")
+    return text
 
 
 def _views(c: Comparison, cls: str) -> list[str]:
@@ -89,14 +109,22 @@ def _recall_points(c: Comparison, cls: str) -> list[str]:
     if not c.ab3dmot or cls not in c.ab3dmot:
         return []
     a, b = c.ab3dmot[cls]
-    table = pd.concat([recall_table(r, output=k).query("sum == @r['sum']") for k, r in (("A", a), ("B", b))],
-                      ignore_index=True)
+    both = pd.concat([recall_table(r, tracker=k) for k, r in (("A", a), ("B", b))], ignore_index=True)
+    table = both[both["sum"] == a["sum"]]
     others = [line for k, r in (("A", a), ("B", b)) if (line := other_sum_line(r, k)) is not None]
     return [f"<h2>{escape(cls)}: AB3DMOT's recall points</h2>",
-            f"<p>Per recall point r of AB3DMOT's evaluator ({escape(a['sum'])} sum of track scores): the score "
-            "threshold it chose, the recall reached, the pass's counts, sMOTA, the matches to ignored ground truth "
-            "(in the recall that places the points, not in sMOTA's denominator) and the tracks dropped only by the "
-            "sequential sum's drift.</p>", *(f"<p>{escape(x)}</p>" for x in others), _table(table)]
+            f"<p>Per recall point r of AB3DMOT's evaluator: sMOTA and the matches to ignored ground truth "
+            f"(TP_ignored: in the recall that places the points, not in sMOTA's denominator) of A and B, with "
+            f"both sums of track scores (solid: compensated, dashed: sequential); a cross marks a pass where the "
+            f"sequential sum's drift dropped tracks. Ratios in percent, the recall point too.</p>",
+            _figure(recall_points_figure(both)), *(f"<p>{escape(x)}</p>" for x in others),
+            f"<details><summary>the table ({len(table)} rows, {escape(a['sum'])} sum): per recall point the "
+            f"score threshold chosen, the recall reached, the pass's counts, sMOTA, TP_ignored and the tracks "
+            f"dropped by the drift</summary>{_table(table)}</details>"]
+
+
+def _figure(svg: str) -> str:
+    return f"<figure>{svg}</figure>"
 
 
 def render_compare_html(c: Comparison) -> str:
@@ -104,11 +132,10 @@ def render_compare_html(c: Comparison) -> str:
     pct = int(round(100 * c.level))
     body = [f"<h1>{escape(c.name_a)} vs {escape(c.name_b)}</h1>",
             f'<p class="lead">A = {escape(c.name_a)}; B = {escape(c.name_b)}. Paired bootstrap over sequences: '
-            f"{c.resamples:,} resamples (seed {c.seed}), each recombined as TrackEval combines sequences; "
-            f"{pct} % interval of B &minus; A; P(B better): the share of resamples where B is better (fewer IDSW, "
+            f"{_resamples_text(c)}; {pct} % interval of B &minus; A; P(B better): the share of resamples where B is better (fewer IDSW, "
             f"FP, FN, Frag). dfrmot_jax {escape(__version__)}, {time.strftime('%Y-%m-%d %H:%M')}.</p>"]
     for cls, g in c.table.groupby("class", sort=False):
-        comb = g[g["seq"] == COMBINED][["metric", "a", "b", "diff", "ci_low", "ci_high", "p_b_better"]]
+        comb = g[g["seq"] == COMBINED][["metric", "a", "b", "diff", "ci_low", "ci_high", "p_b_better", "resamples"]]
         per = g[(g["seq"] != COMBINED) & (g["metric"] == "HOTA")][["seq", "a", "b", "diff"]]
         body += [f"<h2>{escape(cls)}: combined</h2>", _table(_combined(comb)),
                  f"<h2>{escape(cls)}: HOTA per sequence</h2>", _table(per),

@@ -243,3 +243,30 @@ def pareto_figure(trials: pd.DataFrame, front: pd.DataFrame, objectives: Sequenc
         ax.set_ylabel(b)
         ax.legend(loc="best")
         return to_svg(fig)
+
+
+def recall_points_figure(table: pd.DataFrame) -> str:
+    """AB3DMOT's recall points of one class (:func:`~dfrmot_jax.metrics.samota.table.recall_table`
+    rows of one or more ``tracker`` values, each sum's): two panels against the recall point, sMOTA and
+    TP_ignored (the matches to ignored ground truth), one line per output and sum (solid: compensated,
+    dashed: sequential), and a red cross on each pass where the sequential sum's drift dropped tracks
+    (``drifted`` > 0)."""
+    keys = [k for k in ("tracker", "sum") if k in table.columns]
+    with _rc():
+        fig, axes = _draw(8.0, 2.8, 1, 2)
+        for i, (key, g) in enumerate(table.groupby(keys, sort=False)):
+            key = key if isinstance(key, tuple) else (key,)
+            label = " ".join(str(k) for k in key)
+            style = "--" if "sequential" in key else "-"
+            colour = COLOURS[i % len(COLOURS)]
+            for ax, col in zip(axes[0], ("sMOTA", "TP_ignored")):
+                ax.plot(g["recall_point"], g[col], style, color=colour, lw=1.2, marker=".", ms=3, label=label)
+                hit = g[g["drifted"] > 0]
+                if len(hit):
+                    ax.plot(hit["recall_point"], hit[col], "x", color=COLOURS[5], ms=6, mew=1.5,
+                            label=f"{label}: tracks dropped by the drift" if col == "sMOTA" else None)
+        for ax, col in zip(axes[0], ("sMOTA (%)", "TP_ignored (matches)")):
+            ax.set_xlabel("recall point (%)")
+            ax.set_ylabel(col)
+        axes[0, 1].legend(*axes[0, 0].get_legend_handles_labels(), loc="center left", bbox_to_anchor=(1.0, 0.5))
+        return to_svg(fig)

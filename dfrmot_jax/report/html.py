@@ -113,10 +113,22 @@ def _top(rep, objective: str) -> str:
     best = rep.top.iloc[0]
     text = (f"<p>Best {escape(objective)} {best[objective]:.3f} (config {int(best['config'])})"
             + (f", baseline {baseline[objective]:.3f} ({best[objective] - baseline[objective]:+.3f})"
-               if baseline is not None else "") + ". In-sample: ranked on every sequence (COMBINED); the "
-            "cross-validated figure below is the honest estimate for unseen sequences. The baseline is the "
-            "highlighted last row.</p>")
+               if baseline is not None else "") + ". In-sample: ranked on every sequence (COMBINED). "
+            + _honest(rep) + " The baseline is the highlighted last row.</p>")
     return text + _interval(rep, objective) + _table(view, "top")
+
+
+def _honest(rep) -> str:
+    """What the in-sample ranking is to be read beside: the cross-validated figure below, a tune's nested
+    one, or (none on the page) that there is none and why."""
+    nested = rep.directory is not None and (rep.directory / "nested.json").is_file() and \
+        (rep.manifest or {}).get("kind") == "tune"
+    if rep.cv is not None or nested:
+        return "The cross-validated figure below is the honest estimate for unseen sequences."
+    if rep.cv_note:
+        return escape(rep.cv_note[0].upper() + rep.cv_note[1:]) + "."
+    return ("There is no cross-validation on this page (dfrmot report --folds K adds one), so it overstates what "
+            "unseen sequences would give.")
 
 
 def _interval(rep, objective: str) -> str:
@@ -257,7 +269,9 @@ def render_html(rep: SweepReport) -> str:
                                                     float(baseline[objective])),
                          f"{objective} against each swept axis: the best config having each value (solid) and the "
                          f"mean over all configs having it (dashed); numeric axes with more than 8 values in "
-                         f"quantile bins (at their median). Axes that always move together are one panel."),
+                         f"quantile bins (at their median). Axes that always move together are one panel; a parameter "
+                         f"whose unit an option sets (AB3DMOT's threshold: IoU or metres by metric) one panel per "
+                         f"value of the option."),
                  _table(rep.sensitivity)]
     heat = _heatmap(rep, objective, baseline)
     if heat:

@@ -63,6 +63,7 @@ class SweepReport:
     folds_note: str = ""                        # how the folds were chosen, when the report chose them
     intervals: dict | None = None               # the paired bootstrap's figures (report.intervals)
     family: str | None = None                   # the tracker family of the table's configs (its columns)
+    cv_note: str = ""                           # why there is no cross-validation, when the file asked for one
 
     def __str__(self) -> str:
         return self.text
@@ -186,8 +187,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         diff = [f"{a}={fmt_value(best[a])} (baseline {fmt_value(baseline[a])})" for a in axes if best[a] != baseline[a]]
         lines.append(paragraph(f"best vs baseline: {objective} {best[objective]:.3f} vs {baseline[objective]:.3f} "
                                f"({best[objective] - baseline[objective]:+.3f}); changed: {', '.join(diff) or 'nothing'}"))
-    sum_line = ab3dmot_sum_line(comb, best, baseline, src.manifest)
-    if sum_line:
+    if sum_line := ab3dmot_sum_line(comb, best, baseline, src.manifest):
         lines.append(paragraph(sum_line))
     lines += _interval_lines(rep, df, cls, objective)
     rep.sensitivity = sensitivity(df, objective, family=fam) if axes else pd.DataFrame()
@@ -195,6 +195,7 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
     if src.folds:
         rep.cv = cross_validate(full, src.folds, objective, cls, fam)
         lines += _cv_lines(rep, src.folds, comb, axes, best, objective)
+    lines += _no_cv(rep, src, objective)
     tune_summary = None
     if src.manifest is not None and src.manifest.get("kind") == "tune":
         tune_lines, tune_summary = _tune_section(src.directory, src.manifest, objective)
@@ -208,6 +209,20 @@ def sweep_report(results, objective: str = "HOTA", folds: int | None = None, top
         rep.summary["contrast"] = {**contrast_doc(src.contrast), "answer": rep.contrast}
     rep.text = "\n".join(lines + ["", json.dumps(rep.summary)])
     return rep
+
+
+def _no_cv(rep: SweepReport, src: _Source, objective: str) -> list[str]:
+    """An AB3DMOT ``objective``'s report has no cross-validation: why (``rep.cv_note``, which the page
+    says), printed when the sweep file asked for folds (they are not dropped without a word)."""
+    if src.folds or objective not in AB3DMOT_COLUMNS:
+        return []
+    file_folds = (src.manifest or {}).get("folds")
+    rep.cv_note = ("no cross-validation: " + (f"the sweep file's folds ({file_folds}) are not used for "
+                                              if file_folds else "none for ")
+                   + f"{objective}, AB3DMOT's figures are not sums over sequences and cannot be folded; the "
+                   f"in-sample ranking above overstates what unseen sequences would give (rank by HOTA for a "
+                   f"cross-validated figure)")
+    return ["", paragraph(rep.cv_note)] if file_folds else []
 
 
 def ab3dmot_sum_line(comb: pd.DataFrame, best, baseline, manifest: Mapping | None) -> str | None:

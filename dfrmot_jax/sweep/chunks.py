@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -79,6 +80,24 @@ def progress_bar(progress: bool, total: int, done: int, label: str):
     if not progress:
         return None
     return tqdm(total=total, initial=done, unit="cfg", desc=label, dynamic_ncols=True, smoothing=0.05, file=sys.stderr)
+
+
+def warm_scoring_kernels(scorer: LaneScorer) -> threading.Thread:
+    """Start compiling the scoring kernels (:meth:`LaneScorer.warm`, on a scorer of its own) in a
+    daemon thread, beside the split's compaction and the first chunk's tracking (XLA's compilation and
+    run release the GIL, as do LLVM's passes of numba's compilation): after an install the kernels'
+    one-time compilation, most of a first run's time, then overlaps the tracker's instead of following
+    it. Where they are cached already it scores one small lane. A failure here is the scoring's to
+    meet again, and to report, on the real outputs."""
+    def run() -> None:
+        try:
+            scorer.warm()
+        except Exception:           # (the real scoring meets it again, and reports it)
+            pass
+
+    t = threading.Thread(target=run, name="dfrmot-warm-kernels", daemon=True)
+    t.start()
+    return t
 
 
 def load_data(d: DataSettings):
@@ -166,6 +185,7 @@ class ChunkRunner:
             ab3dmot = Ab3dmotLanes(gt3, split, spec.ab3dmot, spec.ab3dmot_columns, spec.ab3dmot_sum, family)
         timing = Timing()
         scorer = LaneScorer(gt, split.offsets, as_written=family.box_format)     # rows as the files carry them
+        warm_scoring_kernels(LaneScorer(gt, split.offsets, as_written=family.box_format))
         per_call = LANES_PER_CALL if chosen_platform() == "cpu" else default_lanes_per_call()
         if spec.ab3dmot is not None:        # the rows' 3D detail: each call's device output 2.5x larger
             per_call = max(1, per_call // 4)      # (8 lanes per call on the CPU)

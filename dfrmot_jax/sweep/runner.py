@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..trackers.protocol import preset_class_note
+from ..trackers.registry import family_config
 from ..io.lock import folder_lock
 from .backend import make_backend
 from ..checks import SweepConfigError
@@ -46,6 +48,10 @@ def prepare_sweep(spec, *, data_root=None, chunk: int | None = None, folds: int 
     config table (or take ``table``), resolve each class's data and plan the chunks. A bad file,
     setting or data fails here with a :class:`SweepConfigError` naming the key."""
     spec = as_spec(spec)
+    note = preset_class_note(family_config(spec.family), spec.baseline,
+                             [spec.baseline_class] if spec.baseline_class else spec.classes, " (the baseline)")
+    if note is not None:
+        warnings.warn(f"{spec.source or 'the sweep'}: data.class {', '.join(spec.classes)}: {note}", stacklevel=2)
     if chunk is not None:
         if chunk < 1:
             raise SweepConfigError("chunk", f"{chunk}: expected an integer >= 1", spec.source)
@@ -152,7 +158,7 @@ def _run(spec: SweepSpec, table: pd.DataFrame, datas, chunks, outdir: Path | Non
 
             bar = progress_bar(progress, n_cfg, n_done, name)
             try:
-                backend.run_chunks(spec, table, d, todo, keep, bar, log, compact=compact)
+                backend.run_chunks(spec, table, d, todo, keep, bar, _beside(bar, log), compact=compact)
             finally:
                 if bar is not None:
                     bar.close()
@@ -167,6 +173,25 @@ def _run(spec: SweepSpec, table: pd.DataFrame, datas, chunks, outdir: Path | Non
     if not raw:
         df = df.drop(columns=[RAW_COLUMN])
     return df
+
+
+def _beside(bar, log):
+    """``log`` for lines written while the progress ``bar`` (or None) is shown: each on a line of its own,
+    never run into the bar's. A finished bar is closed first (its last line ends, and the run's summary
+    follows it); an unfinished one is cleared, the line written, and the bar drawn again below it."""
+    if bar is None:
+        return log
+
+    def write(message: str) -> None:
+        if bar.total is not None and bar.n >= bar.total:
+            bar.close()
+            log(message)
+            return
+        bar.clear()
+        log(message)
+        bar.refresh()
+
+    return write
 
 
 def sweep(*args, **kwargs) -> pd.DataFrame:

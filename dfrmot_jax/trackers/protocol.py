@@ -34,8 +34,8 @@ import numpy as np
 
 from ..rows import Rows
 
-__all__ = ["BOX_FORMATS", "DEFAULT_FAMILY", "FamilyConfig", "class_columns", "split_class_column", "TrackResult", "TrackerFamily", "config_problems", "family_problems",
-           "number_problem"]
+__all__ = ["BOX_FORMATS", "DEFAULT_FAMILY", "FamilyConfig", "class_columns", "split_class_column", "TrackResult", "TrackerFamily",
+           "config_problems", "family_problems", "number_problem", "preset_class_note"]
 
 #: the family of a sweep or a stored table that names none (every table written before families existed)
 DEFAULT_FAMILY = "dfr"
@@ -133,6 +133,17 @@ class FamilyConfig(NamedTuple):
     detections:       the detections it reads: ``("2d", "3d")``, ``("3d",)``, ...
     tracker:          the module holding its ``TrackerFamily`` as ``FAMILY`` (imported by the
                       registry when the tracker is first asked for, so that settings need no JAX).
+    preset_classes:   preset -> the one class it was chosen for (AB3DMOT's ``ab3dmot_pedestrian``:
+                      ``"pedestrian"``); a preset not named is for every class. Running a preset on
+                      another class is said in a warning (:func:`preset_class_note`).
+    default_sequences: what a run without ``--seqs`` tracks: ``"with_class"`` (the sequences whose
+                      ground truth has the class) or ``"all"`` (every ``label_02`` sequence, as the
+                      family's own code runs them: AB3DMOT's reference runs cover all 21 with one id
+                      counter, so that its default run gives its files line for line).
+    unit_of:          parameter -> the option whose value sets the parameter's unit (AB3DMOT's
+                      ``threshold``: an IoU for the IoU metrics, metres for the distances: ``metric``);
+                      a report's sensitivity shows such a parameter once per value of that option
+                      (``threshold [metric=giou_3d]``, ...), never one axis binning both units.
     """
 
     name: str
@@ -155,7 +166,22 @@ class FamilyConfig(NamedTuple):
     late_params: Mapping[str, Any]
     late_options: Mapping[str, Any]
     detections: tuple[str, ...]
+    preset_classes: Mapping[str, str] = {}
+    default_sequences: str = "with_class"
+    unit_of: Mapping[str, str] = {}
     tracker: str = ""
+
+
+def preset_class_note(fc: FamilyConfig, preset: str, classes, how: str = "") -> str | None:
+    """The warning for running ``preset`` (of family ``fc``) on ``classes`` when it was chosen for one
+    other class (``FamilyConfig.preset_classes``), else None; ``how`` says where the preset was given."""
+    own = fc.preset_classes.get(preset)
+    other = [c for c in classes if own is not None and c != own]
+    if not other:
+        return None
+    return (f"preset {preset!r}{how} was chosen for {own}, and runs here on {', '.join(other)}: its settings "
+            f"are {fc.title}'s for {own} (for {', '.join(other)} pick a preset of that class: "
+            f"{', '.join(sorted(p for p, c in fc.preset_classes.items() if c in other)) or 'none'})")
 
 
 class TrackerFamily(NamedTuple):
@@ -254,6 +280,13 @@ def config_problems(fc: FamilyConfig) -> list[str]:
         out.append(f"default preset {fc.default_preset!r} is not a preset")
     if set(fc.class_defaults) != set(fc.classes):
         out.append("class_defaults does not hold exactly the classes")
+    if any(p not in params or o not in options for p, o in fc.unit_of.items()):
+        out.append(f"unit_of {dict(fc.unit_of)!r}: expected parameter -> option of the family")
+    if fc.default_sequences not in ("with_class", "all"):
+        out.append(f"default_sequences {fc.default_sequences!r}: expected 'with_class' or 'all'")
+    bad = {p: c for p, c in fc.preset_classes.items() if p not in fc.presets or c not in fc.classes}
+    if bad:
+        out.append(f"preset_classes {bad!r}: expected presets of the family, each with one of its classes")
     if not fc.detections or set(fc.detections) - {"2d", "3d"}:
         out.append(f"detections {fc.detections!r}: expected some of '2d', '3d'")
     for name in fc.presets:

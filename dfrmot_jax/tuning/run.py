@@ -80,6 +80,12 @@ def run_tune(tune, out=None, *, data_root=None, sampler: str | None = None, budg
     if spec.ab3dmot is None and any(o in AB3DMOT_COLUMNS for o in settings.objectives):
         spec = replace(spec, ab3dmot=DEFAULT_AB3DMOT_IOU)      # the objective needs AB3DMOT's figures
     data = resolve_data(spec, data_root)
+    n_seq = len(data.sequences)
+    if settings.folds is not None and not 2 <= settings.folds <= n_seq:   # before anything is written
+        why = f"{settings.folds}: expected 2 .. {n_seq} (the sequences of the data)"
+        if folds is not None:
+            raise ValueError(f"--folds {why}")
+        raise SweepConfigError("tune.folds", why, spec.source)
     space = search_space(spec)
     finite = {"grid": ("categorical",), "pairwise": ("categorical", "int")}.get(settings.sampler)
     bad = next((d for d in space.dims if finite and d.kind not in finite), None)

@@ -95,7 +95,7 @@ def test_bad_input_on_each_command_is_one_line_exit_2(scene, tmp_path, capsys):
     assert status == 2 and "unknown detector 'nope'" in error_line(err, "track", alone=True)
 
     status, _, err = run_cli(capsys, ["demo", "--out", str(tmp_path / "d"), "--frames", "0"])
-    assert status == 2 and "n_frames >= 1" in error_line(err, "demo", alone=True)
+    assert status == 2 and "--frames 0" in error_line(err, "demo", alone=True)
 
     res = tmp_path / "res"
     res.mkdir()

@@ -463,7 +463,7 @@ def test_the_page_shows_counts_as_whole_numbers(outputs, tmp_path, capsys):
         cells = re.findall(r"<td>(.*?)</td>", row)
         assert all(re.fullmatch(r"[+-]?\d+", v) for v in cells[:5]) and "." in cells[5], (metric, cells)
     [hota] = re.findall(r"<tr><td>HOTA</td>(.*?)</tr>", html)
-    assert all("." in v for v in re.findall(r"<td>(.*?)</td>", hota))
+    assert all("." in v for v in re.findall(r"<td>(.*?)</td>", hota)[:6])      # (then its resamples, whole)
 
 
 @pytest.mark.slow

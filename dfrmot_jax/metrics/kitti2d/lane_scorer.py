@@ -195,6 +195,46 @@ class LaneScorer:
     def evaluate(self, dets: TrackerDets) -> dict:
         return evaluate_lanes(self.gt, dets, self.lanes_per_batch, self.similarity)
 
+    def warm(self, frames: int = 60) -> None:
+        """Compile (or load from numba's cache) the scoring kernels this scorer's lanes call, by scoring
+        one made-up lane as a tracker's would be: the ground truth's own rows on each sequence's first
+        ``frames`` frames (ids int32 [1, T, K] and float32 boxes as a tracker writes them, every other
+        frame's last row dropped and a shifted copy added, so that matches, misses and false positives
+        all occur), through :meth:`seq_digests`, :meth:`new_items`, :meth:`dets` and :meth:`evaluate`.
+        Nothing is kept (call it on a scorer of its own). Run in a thread beside data loading and the
+        tracker's compilation, it moves the kernels' one-time compilation (~20 s of CPU after an
+        install) off the critical path: numba compiles under one lock, so a scoring call that needs a
+        kernel meanwhile waits for it and then uses it."""
+        gt = self.gt
+        if self.similarity != "2d" or not len(gt.sequences):
+            return
+        T = int(self.offsets.max() + gt.lengths[int(np.argmax(self.offsets))]) if len(self.offsets) else 0
+        keep = np.zeros(gt.n_frames, bool)
+        for s in range(len(gt.sequences)):
+            keep[gt.offsets[s]:gt.offsets[s] + min(int(gt.lengths[s]), frames)] = True
+        counts = np.where(keep, gt.eval_count, 0)
+        K = int(counts.max(initial=0)) + 1
+        if T == 0 or K == 1:
+            return
+        ids = np.full((1, T, K), -1, np.int32)
+        boxes = np.zeros((1, T, K, 4), np.float32)
+        eval_box = gt.row_box[gt.row_eval]
+        for s in range(len(gt.sequences)):
+            for f in range(gt.offsets[s], gt.offsets[s + 1]):
+                n = int(counts[f])
+                if not n:
+                    continue
+                t = int(self.offsets[s] + f - gt.offsets[s])
+                rows = slice(int(gt.eval_start[f]), int(gt.eval_start[f]) + n)
+                n_kept = n - (f % 2 and n > 1)
+                ids[0, t, :n_kept] = gt.gid_label[gt.eval_gid[rows]][:n_kept]
+                boxes[0, t, :n_kept] = eval_box[rows][:n_kept]
+                ids[0, t, n_kept] = 100_000 + f % 7                 # a false positive beside them
+                boxes[0, t, n_kept] = eval_box[rows][0] + np.float32(37.0)
+        rows = Rows.of(ids, boxes)
+        digests = self.seq_digests(ids, rows)
+        self.evaluate(self.dets(ids, rows, self.new_items(digests)))
+
     def submit(self, pool: ProcessPoolExecutor, dets: TrackerDets) -> "PoolParts":
         """Score ``dets`` in the pool, ``lanes_per_batch`` lanes per task (a sweep chunk's lanes spread over
         every process): a future-like :class:`PoolParts` whose ``result()`` equals :meth:`evaluate`'s."""

@@ -42,10 +42,10 @@ AB3DMOT_COLUMNS = AB3DMOT_RATIO_COLUMNS + AB3DMOT_COUNT_COLUMNS
 #: the headline figures with the other way of summing track scores (result key ``other``), percent
 AB3DMOT_OTHER_COLUMNS = ("other_sAMOTA", "other_AMOTA", "other_ab3dmot_MOTA")
 _OTHER = {"other_sAMOTA": "sAMOTA", "other_AMOTA": "AMOTA", "other_ab3dmot_MOTA": "MOTA"}
-#: :func:`recall_table`'s columns after its keys (ratios in percent; ``recall_point`` a fraction, ``threshold``
-#: a track score)
+#: :func:`recall_table`'s columns after its keys (ratios in percent, ``recall_point`` too; ``threshold`` a
+#: track score)
 RECALL_TABLE_COLUMNS = PASS_FIELDS
-_RECALL_PERCENT = ("recall", "precision", "MOTA", "MOTP", "sMOTA")
+_RECALL_PERCENT = ("recall_point", "recall", "precision", "MOTA", "MOTP", "sMOTA")
 #: the result dict's keys -> column names
 _RENAME = {"sAMOTA": "sAMOTA", "AMOTA": "AMOTA", "AMOTP": "AMOTP", "MOTA": "ab3dmot_MOTA", "MOTP": "ab3dmot_MOTP",
            "IDS": "ab3dmot_IDS", "FRAG": "ab3dmot_FRAG", "FP": "ab3dmot_FP", "FN": "ab3dmot_FN"}
@@ -84,6 +84,7 @@ def recall_table(res: Mapping[str, object], **keys) -> pd.DataFrame:
     """Where the recall points go: one row per (sum, recall point) of a result dict (its own sum,
     then ``other``'s when computed) -> columns ``*keys, sum,`` + :data:`RECALL_TABLE_COLUMNS`.
 
+    Every ratio is a percent, the recall point too (``recall_point`` 2.5, 5, 7.5, ... as ``recall``).
     Per pass: the recall point ``r`` and its score threshold, the recall reached, the pass's TP,
     FP, FN, IDS, FRAG, MOTA, MOTP, sMOTA (percent), ``TP_ignored`` (matches to ignored ground truth:
     counted in the recall that places the points, not in sMOTA's denominator) and ``drifted`` (tracks
@@ -95,6 +96,7 @@ def recall_table(res: Mapping[str, object], **keys) -> pd.DataFrame:
         p = pd.DataFrame({k: r["passes"][k] for k in PASS_FIELDS})
         for k in _RECALL_PERCENT:
             p[k] = RATIO_SCALE * p[k].astype(np.float64)
+        p["recall_point"] = np.round(p["recall_point"], 9)       # a label: 7.5, not 7.500000000000001
         p.insert(0, "sum", r["sum"])
         parts.append(p)
     df = pd.concat(parts, ignore_index=True)

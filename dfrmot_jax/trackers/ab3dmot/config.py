@@ -236,4 +236,8 @@ FAMILY_CONFIG = FamilyConfig(
     classes=CLASSES, class_defaults={c: {} for c in CLASSES}, preset=preset, param_ranges=PARAM_RANGES,
     int_params=INT_PARAMS, option_choices=OPTION_CHOICES, option_ranges=OPTION_RANGES, param_problem=param_problem,
     option_problem=option_problem, parse_assignment=parse_assignment, as_arrays=as_arrays, late_params={},
-    late_options={}, detections=("3d",), tracker="dfrmot_jax.trackers.ab3dmot.family")
+    late_options={}, detections=("3d",),
+    preset_classes={"ab3dmot_car": "car", "ab3dmot_car_tuned": "car", "ab3dmot_pedestrian": "pedestrian",
+                    "ab3dmot_pedestrian_tuned": "pedestrian"},
+    default_sequences="all", unit_of={"threshold": "metric"},
+    tracker="dfrmot_jax.trackers.ab3dmot.family")

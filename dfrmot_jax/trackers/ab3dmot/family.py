@@ -229,7 +229,7 @@ def track(split: Split | Prepared, params: Params, options: Options = Options(),
     ``distortion`` the ``distort.LaneDistortion``; its rows carry each lane's distorted detections."""
     validate(params, options)
     if not options.boxes:
-        raise ValueError("AB3DMOT: boxes = false writes no 3D boxes, which the result rows carry; keep boxes = true")
+        raise ValueError(f"AB3DMOT: {BOXES_PROBLEM}")
     prep = split if isinstance(split, Prepared) else prepare_frames(split, options)
     p = batch.broadcast_lanes(params)
     b = len(p.threshold)
@@ -375,8 +375,16 @@ def write_runs(out_dir, runs: list[Ab3dmotRun], *, columns: str = "kitti") -> li
     return write_sequence_files(out_dir, files)
 
 
+BOXES_PROBLEM = "boxes = false writes no 3D boxes, which the result rows carry; keep boxes = true"
+
+
 def table_problem(table) -> tuple[str, str] | None:
-    """None: AB3DMOT runs every valid setting."""
+    """(``options.boxes``, why) when a config has ``boxes = false`` (its rows would have no 3D boxes:
+    refused before anything is written), else None: AB3DMOT runs every other valid setting."""
+    if "boxes" in table.columns and not table["boxes"].astype(bool).all():
+        r = table[~table["boxes"].astype(bool)].iloc[0]
+        return "options.boxes", (f"{int((~table['boxes'].astype(bool)).sum())} of {len(table)} configs (e.g. config "
+                                 f"{int(r['config']) if 'config' in table.columns else r.name}): {BOXES_PROBLEM}")
     return None
 
 
@@ -386,8 +394,8 @@ def failing_rows(table) -> np.ndarray:
 
 
 def setting_problem(what: str, params: Params, options: Options) -> str | None:
-    """None: every valid AB3DMOT setting runs (``TrackerFamily.setting_problem``)."""
-    return None
+    """Why one setting is refused (``TrackerFamily.setting_problem``): ``boxes = false``; None when it runs."""
+    return None if options.boxes else f"{what}: {BOXES_PROBLEM}"
 
 
 def lane_keys(res: TrackResult, base) -> list[bytes]:

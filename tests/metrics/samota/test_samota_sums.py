@@ -237,4 +237,4 @@ def test_recall_points_on_the_compare_page(tmp_path, capsys):
     assert "AB3DMOT's recall points" in html and "TP_ignored" in html and "drifted" in html
     import pandas as pd
     t = pd.read_csv(points)
-    assert set(t["output"]) == {"A", "B"} and set(t["sum"]) == {"compensated", "sequential"}
+    assert set(t["tracker"]) == {"A", "B"} and set(t["sum"]) == {"compensated", "sequential"}
