@@ -113,7 +113,7 @@ def test_ab3dmot_is_the_second_family_and_follows_the_protocol():
     ab = all_presets().index("ab3dmot_car")
     assert all_presets()[:1] == ("dfr2023",) and all_presets()[ab:ab + 4] == (
         "ab3dmot_car", "ab3dmot_pedestrian", "ab3dmot_car_tuned", "ab3dmot_pedestrian_tuned")
-    assert all_presets()[-2:] == ("bytetrack_car", "bytetrack_pedestrian")
+    assert all_presets()[-3:] == ("bytetrack_car", "bytetrack_pedestrian", "bytetrack_car_tuned")
     with pytest.raises(ValueError, match="unknown preset 'nope': expected one of .*'ab3dmot_car'"):
         preset_family("nope")
     assert importlib.import_module(fam.oracle).__name__ == "dfrmot_jax.testing.ab3dmot_oracle"
