@@ -192,7 +192,8 @@ def main(argv=None):
         jax.block_until_ready(fn(bj, dj[0], tj[0], zero, cap))
         compile_s = time.perf_counter() - w
         s = best_time(lambda: [fn(bj, a, b, zero, cap) for a, b in zip(dj, tj)], args.repeat)
-        rec = dict(base, metric=metric, seconds=round(s, 4), pairs_per_s=round(p / s), ns_per_pair=round(s / p * 1e9, 1),
+        rec = dict(base, metric=metric, seconds=round(s, 4), pairs_per_s=round(p / s),
+                   ns_per_pair=round(s / p * 1e9, 1),
                    compile_s=round(compile_s, 2), frac_clipped=round(float(np.mean(~apart)), 4) if "iou" in metric
                    else None, load=[round(v, 2) for v in load0])
         if metric in own:
