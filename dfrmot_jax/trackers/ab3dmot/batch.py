@@ -80,6 +80,12 @@ def affinity_sizes(n_det: int, tracks: int, buckets: int) -> tuple[tuple[int, in
 #: B = 8 8.5, 8.2, 9.6 s (dist_3d: 48 and 128 alike).
 PAIR_BLOCK = 48
 CLIP_BLOCK = 8
+#: lanes per block unit of the shared-detection path (``_shared_affinity``): its blocks hold
+#: ``PAIR_BLOCK * ceil(B / SHARED_LANES)`` pairs, the lanes' tracks being mostly the same ones
+SHARED_LANES = 8
+#: whether lanes sharing detections pair each distinct track once (``_shared_affinity``; read when a
+#: program is traced: the same values either way, a switch for benchmarks)
+SHARE_TRACKS = True
 
 
 def blockwise(mask, block: int, values):
@@ -100,6 +106,35 @@ def blockwise(mask, block: int, values):
     init = tuple(jnp.zeros(mask.size, v.dtype) for v in jax.eval_shape(lambda: at(0)[1]))
     outs = lax.fori_loop(0, (jnp.sum(mask) + block - 1) // block, body, init)
     return tuple(o.reshape(mask.shape) for o in outs)
+
+
+_HASH = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9, 0xD6E8FEB86659FD93,
+                  0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53, 0x94D049BB133111EB, 0xBF58476D1CE4E5B9,
+                  0x2545F4914F6CDD1D, 0x9FB21C651E98DF25, 0x85EBCA77C2B2AE63, 0x27D4EB2F165667C5,
+                  0xA0761D6478BD642F, 0xE7037ED1A0B428DB], np.uint64).view(np.int64)
+
+
+def distinct_rows(rows, live):
+    """The distinct rows of ``rows`` [M, W] (float64, compared bit for bit) among the ``live`` [M]
+    ones: (group [M] int32: each row's group, rep [M] int32: each group's first row in sort order
+    (groups 0 .. count - 1; the rest point at row 0), group_live [M]: the groups of live rows).
+    Dead rows form groups of their own after the live ones. One sort by a hash of the row's bits;
+    rows of equal hash but different bits (a collision) start groups of their own: each group holds
+    equal rows only, whatever the hash."""
+    m, w = rows.shape
+    words = jax.lax.bitcast_convert_type(rows, jnp.int64)
+    h = jnp.sum(words * jnp.asarray(_HASH[:w]), -1)                             # (wrapping int64)
+    h = h ^ (h >> 29)
+    idx = jnp.arange(m, dtype=jnp.int32)
+    dead = (~live).astype(jnp.int32)
+    _, _, order = lax.sort((dead, h, idx), num_keys=2)
+    sw, sl = words[order], live[order]
+    new = jnp.concatenate([jnp.ones(1, bool), jnp.any(sw[1:] != sw[:-1], -1) | (sl[1:] != sl[:-1])])
+    gid = (jnp.cumsum(new) - 1).astype(jnp.int32)
+    group = jnp.zeros(m, jnp.int32).at[order].set(gid)
+    rep = jnp.zeros(m, jnp.int32).at[jnp.where(new, gid, m)].set(order, mode="drop")
+    group_live = jnp.zeros(m, bool).at[jnp.where(new, gid, m)].set(sl, mode="drop")
+    return group, rep, group_live
 
 
 def pooled_affinity(frame: Frames, pred, options: Options):
@@ -128,6 +163,9 @@ def pooled_affinity(frame: Frames, pred, options: Options):
         """(lane, detection, track slot) of each listed pair (flat index into [B, N, K])."""
         sel = jnp.minimum(sel, full - 1)
         return sel // (n * k), (sel // k) % n, sel % k
+
+    if not own and b > 1 and SHARE_TRACKS and "iou" in metric:      # (distances: cheaper than the sort)
+        return _shared_affinity(frame, pred, options, zero)
 
     if "iou" not in metric:
         def dist(sel):
@@ -168,6 +206,71 @@ def pooled_affinity(frame: Frames, pred, options: Options):
     inter, clip_bad = blockwise(mask & ~apart, CLIP_BLOCK * b, clip)
     value = combine(det[:, :, None] if own else det[None, :, None], trk[:, None, :], metric, inter, hull, zero)
     return value.astype(jnp.float32), (bad | clip_bad) & mask
+
+
+def _shared_affinity(frame: Frames, pred, options: Options, zero):
+    """``pooled_affinity`` for detections shared by the lanes: each distinct live track (its box,
+    and for ``m_dis`` its innovation, bit for bit: lanes mostly hold the same tracks) paired with
+    the frame's detections once, its values given to every lane holding it. The same elementwise
+    functions on the same bits: the same values."""
+    metric = options.metric
+    b, k = pred.count.shape[0], pred.age.shape[1]
+    n = frame.valid.shape[-1]
+    m = b * k
+    trk = pred.filt.x[..., :7].reshape(m, 7)
+    det = frame.boxes                                                           # [N, 7]
+    live = (jnp.arange(k)[None, :] < pred.count[:, None]).reshape(m)
+    inn = kalman.innovation(pred.filt).reshape(m, 7) if metric == "m_dis" else None
+    group, rep, group_live = distinct_rows(trk if inn is None else jnp.concatenate([trk, inn], -1), live)
+    trk_u = trk[rep]                                                            # [M, 7] (the first U distinct)
+    inn_u = None if inn is None else inn[rep]
+    mask = frame.valid[:, None] & group_live[None, :]                           # [N, M]
+    shared = -(-b // SHARED_LANES)                      # (blocks for the distinct tracks: fewer than B K)
+
+    def pair(sel):
+        sel = jnp.minimum(sel, n * m - 1)
+        return sel // m, sel % m
+
+    def back(v):
+        """[N, M] per distinct track -> [B, N, K] per lane."""
+        return jnp.moveaxis(v[:, group].reshape(n, b, k), 1, 0)
+
+    if "iou" not in metric:
+        def dist(sel):
+            i, u = pair(sel)
+            return (distance(det[i], trk_u[u], metric, zero, None if inn_u is None else inn_u[u]),)
+
+        value, = blockwise(mask, PAIR_BLOCK * shared, dist)
+        return back(value).astype(jnp.float32), jnp.zeros((b, n, k), bool)
+
+    det_fp, trk_fp = footprint(det, zero), footprint(trk_u, zero)               # x, z [N, 4], [M, 4]
+    det_c, trk_c = circle(det, zero), circle(trk_u, zero)
+
+    def geometry(sel):
+        i, u = pair(sel)
+        return (tuple(v[i] for v in det_fp), tuple(v[u] for v in trk_fp), tuple(v[i] for v in det_c),
+                tuple(v[u] for v in trk_c))
+
+    def near(sel):
+        dfp, tfp, dc, tc = geometry(sel)
+        apart = circles_apart(dc, tc, zero)
+        if not metric.startswith("giou"):
+            return (apart,)
+        hull, bad = footprint_hull(dfp, tfp, zero)
+        return apart, bad, hull
+
+    def clip(sel):
+        dfp, tfp, _, _ = geometry(sel)
+        return footprint_intersection(dfp, tfp, zero)
+
+    apart, *rest = blockwise(mask, PAIR_BLOCK * shared, near)
+    bad, hull = rest if rest else (jnp.zeros_like(mask), None)
+    inter, clip_bad = blockwise(mask & ~apart, CLIP_BLOCK * shared, clip)
+    inter, bad = back(inter), back(bad | clip_bad)
+    hull = None if hull is None else back(hull)
+    lanes = (jnp.arange(k)[None, :] < pred.count[:, None])[:, None, :] & frame.valid[None, :, None]
+    value = combine(det[None, :, None], pred.filt.x[..., :7][:, None, :], metric, inter, hull, zero)
+    return value.astype(jnp.float32), bad & lanes
 
 
 def run_lanes(params: Params, frames: Frames, states: State, options: Options) -> tuple[State, StepOutput]:
