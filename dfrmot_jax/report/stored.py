@@ -185,8 +185,9 @@ def load_results(out, *, allow_partial: bool = False) -> pd.DataFrame:
 
 
 #: the fields of a manifest's ``data`` (the sweep's data: ``sweep.plan.DataSettings.identity``) that its
-#: readers use, with their JSON types (``det2d`` null: a tracker family that reads 3D detections only)
-_DATA_FIELDS = {"root": str, "det2d": (str, type(None)), "det3d": str, "sequences": list}
+#: readers use, with their JSON types (``det2d`` null: a tracker family that reads 3D detections only;
+#: ``det3d`` null: one that reads 2D detections only)
+_DATA_FIELDS = {"root": str, "det2d": (str, type(None)), "det3d": (str, type(None)), "sequences": list}
 #: fields a manifest may lack, and their JSON types where present
 _OPTIONAL_FIELDS = {"kind": (str,), "family": (str,), "objective": (str,), "classes": (list,), "lengths": (list,),
                     "folds": (int, type(None)), "report_class": (str, type(None))}
