@@ -31,10 +31,13 @@ emulation.
 
 from __future__ import annotations
 
+import itertools
+
+import numpy as np
 import jax.numpy as jnp
 from jax import lax
 
-__all__ = ["LARGE", "lapjv_square", "extended", "assign", "fast_path"]
+__all__ = ["LARGE", "lapjv_square", "extended", "assign", "fast_path", "unique_small", "solve"]
 
 LARGE = 1000000.0          # lap's LARGE (lapjv.h)
 _BIG = 1 << 30
@@ -289,24 +292,88 @@ def fast_path(cost, rmask, cmask, limit):
     return ok, cand
 
 
+#: the small block's side: every partial matching of an ``A x A`` block, enumerated
+A = 4
+
+
+def _matchings(a: int) -> np.ndarray:
+    """[P, A, A] bool: every partial matching of an ``a x a`` block (the empty one first)."""
+    out = [np.zeros((a, a), bool)]
+    for k in range(1, a + 1):
+        for rows in itertools.combinations(range(a), k):
+            for cols in itertools.permutations(range(a), k):
+                m = np.zeros((a, a), bool)
+                m[list(rows), list(cols)] = True
+                out.append(m)
+    return np.array(out)
+
+
+_MATCH = _matchings(A)
+
+
+def unique_small(cost, rmask, cmask, limit):
+    """The optimum where it is unique and small: (ok, column of every row slot [K] int32).
+
+    The extended problem's total is a constant minus the sum of ``limit - cost`` over the matched
+    real pairs, so lapjv (exact, its float64 sums of a few terms bounded by 2) returns the matching
+    of the real entries below the limit of the largest such sum whenever it is the only one within
+    ``1e-9`` (and no entry lies within ``1e-9`` of the limit). Components of the graph of entries
+    below the limit with one edge are matched as they are; the rows and columns of the others (at
+    most ``A`` each) form a block whose partial matchings are all enumerated."""
+    k, dd = cost.shape
+    both = rmask[:, None] & cmask[None, :]
+    cand = both & (cost < limit)
+    amb = jnp.any(both & (jnp.abs(cost - limit) <= _EPS))
+    dr = jnp.sum(cand, axis=1)
+    dc = jnp.sum(cand, axis=0)
+    single = cand & (dr == 1)[:, None] & (dc == 1)[None, :]
+    ra = (dr >= 2) | jnp.any(cand & (dc >= 2)[None, :], axis=1)
+    ca = (dc >= 2) | jnp.any(cand & (dr >= 2)[:, None], axis=0)
+    na = jnp.sum(ra)
+    nc = jnp.sum(ca)
+    rpos = jnp.cumsum(ra) - 1
+    cpos = jnp.cumsum(ca) - 1
+    ai = jnp.arange(A)
+    rsel = (rpos[None, :] == ai[:, None]) & ra[None, :]            # [A, K]
+    csel = (cpos[None, :] == ai[:, None]) & ca[None, :]            # [A, D]
+    w = jnp.where(cand, limit - cost, 0.0)
+    w1 = jnp.sum(jnp.where(rsel[:, :, None], w[None], 0.0), axis=1)          # [A, D]
+    wa = jnp.sum(jnp.where(csel[None, :, :], w1[:, None, :], 0.0), axis=2)   # [A, A]
+    c1 = jnp.any(rsel[:, :, None] & cand[None], axis=1)
+    sub = jnp.any(csel[None, :, :] & c1[:, None, :], axis=2)                 # [A, A]
+    mt = jnp.asarray(_MATCH)
+    fine = ~jnp.any(mt & ~sub[None], axis=(1, 2))
+    tot = jnp.where(fine, jnp.sum(jnp.where(mt, wa[None], 0.0), axis=(1, 2)), -jnp.inf)
+    best = jnp.argmax(tot)
+    top = tot[best]
+    second = jnp.max(jnp.where(jnp.arange(mt.shape[0]) == best, -jnp.inf, tot))
+    ok = ~amb & (na <= A) & (nc <= A) & ~(second >= top - _EPS)
+    mb = mt[best]                                                             # [A, A]
+    cidx = jnp.sum(jnp.where(csel, jnp.arange(dd)[None, :], 0), axis=1)      # [A]
+    bcol = jnp.max(jnp.where(mb, cidx[None, :], -1), axis=1)                  # [A]: column of each block row
+    amatch = jnp.max(jnp.where(rsel, bcol[:, None], -1), axis=0)              # [K]
+    smatch = jnp.max(jnp.where(single, jnp.arange(dd)[None, :], -1), axis=1)
+    return ok, jnp.where(ra, amatch, smatch).astype(jnp.int32)
+
+
+def solve(cost, rmask, rkey, cmask, limit):
+    """The full emulation's answer: the matched column of every row slot [K] int32 (-1: none)."""
+    k, dd = cost.shape
+    ext, dim, rperm, cperm, n, m = extended(cost, rmask, rkey, cmask, limit)
+    x = lapjv_square(ext, dim)
+    s = ext.shape[0]
+    pos = jnp.arange(s)
+    xr = x[:k]
+    real_col = (pos[:k] < n) & (xr >= 0) & (xr < m)
+    col_of_pos = jnp.where(real_col, cperm[jnp.clip(xr, 0, dd - 1)], -1)       # by row position
+    slot_hit = (rperm[:, None] == jnp.arange(k)[None, :]) & (pos[:k, None] < n)  # [position, slot]
+    return jnp.max(jnp.where(slot_hit, col_of_pos[:, None], -1), axis=0).astype(jnp.int32)
+
+
 def assign(cost, rmask, rkey, cmask, limit):
     """``linear_assignment(cost[rows][:, cols], limit)`` for the rows ``rmask`` (in ``rkey`` order) and
     the columns ``cmask`` (in index order) of ``cost`` [K, D]. Returns the matched column of every
     row slot [K] int32 (-1: none) and whether the full solver ran."""
-    k, dd = cost.shape
-    ok, cand = fast_path(cost, rmask, cmask, limit)
-    quick = jnp.max(jnp.where(cand, jnp.arange(dd)[None, :], -1), axis=1).astype(jnp.int32)
-
-    def solve():
-        ext, dim, rperm, cperm, n, m = extended(cost, rmask, rkey, cmask, limit)
-        x = lapjv_square(ext, dim)
-        s = ext.shape[0]
-        pos = jnp.arange(s)
-        xr = x[:k]
-        real_col = (pos[:k] < n) & (xr >= 0) & (xr < m)
-        col_of_pos = jnp.where(real_col, cperm[jnp.clip(xr, 0, dd - 1)], -1)       # by row position
-        slot_hit = (rperm[:, None] == jnp.arange(k)[None, :]) & (pos[:k, None] < n)  # [position, slot]
-        return jnp.max(jnp.where(slot_hit, col_of_pos[:, None], -1), axis=0).astype(jnp.int32)
-
+    ok, quick = unique_small(cost, rmask, cmask, limit)
     # a real branch where the predicate is one lane's (B = 1); under vmap both run, selected
-    return lax.cond(ok, lambda: quick, solve), ~ok
+    return lax.cond(ok, lambda: quick, lambda: solve(cost, rmask, rkey, cmask, limit)), ~ok
