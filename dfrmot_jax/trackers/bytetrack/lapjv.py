@@ -292,8 +292,10 @@ def fast_path(cost, rmask, cmask, limit):
     return ok, cand
 
 
-#: the small block's side: every partial matching of an ``A x A`` block, enumerated
+#: a block's side (every partial matching of an ``A x A`` block is enumerated) and the most blocks
 A = 4
+C = 4
+_HOPS = 3        # label propagation rounds: a component of A rows and A columns is settled in A - 1
 
 
 def _matchings(a: int) -> np.ndarray:
@@ -309,51 +311,69 @@ def _matchings(a: int) -> np.ndarray:
 
 
 _MATCH = _matchings(A)
+_MATCH_F = _MATCH.reshape(len(_MATCH), A * A).astype(np.float64)
+_OUT = -1e6     # the weight of a block entry not below the limit
 
 
 def unique_small(cost, rmask, cmask, limit):
-    """The optimum where it is unique and small: (ok, column of every row slot [K] int32).
+    """The optimum where it is unique and its parts small: (ok, column of every row slot [K] int32).
 
     The extended problem's total is a constant minus the sum of ``limit - cost`` over the matched
     real pairs, so lapjv (exact, its float64 sums of a few terms bounded by 2) returns the matching
     of the real entries below the limit of the largest such sum whenever it is the only one within
-    ``1e-9`` (and no entry lies within ``1e-9`` of the limit). Components of the graph of entries
-    below the limit with one edge are matched as they are; the rows and columns of the others (at
-    most ``A`` each) form a block whose partial matchings are all enumerated."""
+    ``1e-9`` (and no entry lies within ``1e-9`` of the limit). That matching is the union of the
+    best matchings of the connected components of the graph of the entries below the limit, and it
+    is the only one within ``1e-9`` iff each component's is: components of one edge are matched as
+    they are; the others (at most ``C``, each of at most ``A`` rows and ``A`` columns) are blocks
+    whose partial matchings are all enumerated. Any other case: ``ok`` False."""
     k, dd = cost.shape
+    f = cost.dtype
     both = rmask[:, None] & cmask[None, :]
     cand = both & (cost < limit)
     amb = jnp.any(both & (jnp.abs(cost - limit) <= _EPS))
     dr = jnp.sum(cand, axis=1)
     dc = jnp.sum(cand, axis=0)
     single = cand & (dr == 1)[:, None] & (dc == 1)[None, :]
-    ra = (dr >= 2) | jnp.any(cand & (dc >= 2)[None, :], axis=1)
+    ra = (dr >= 2) | jnp.any(cand & (dc >= 2)[None, :], axis=1)              # rows of components > 1 edge
     ca = (dc >= 2) | jnp.any(cand & (dr >= 2)[:, None], axis=0)
-    na = jnp.sum(ra)
-    nc = jnp.sum(ca)
-    rpos = jnp.cumsum(ra) - 1
-    cpos = jnp.cumsum(ca) - 1
-    ai = jnp.arange(A)
-    rsel = (rpos[None, :] == ai[:, None]) & ra[None, :]            # [A, K]
-    csel = (cpos[None, :] == ai[:, None]) & ca[None, :]            # [A, D]
-    w = jnp.where(cand, limit - cost, 0.0)
-    w1 = jnp.sum(jnp.where(rsel[:, :, None], w[None], 0.0), axis=1)          # [A, D]
-    wa = jnp.sum(jnp.where(csel[None, :, :], w1[:, None, :], 0.0), axis=2)   # [A, A]
-    c1 = jnp.any(rsel[:, :, None] & cand[None], axis=1)
-    sub = jnp.any(csel[None, :, :] & c1[:, None, :], axis=2)                 # [A, A]
-    mt = jnp.asarray(_MATCH)
-    fine = ~jnp.any(mt & ~sub[None], axis=(1, 2))
-    tot = jnp.where(fine, jnp.sum(jnp.where(mt, wa[None], 0.0), axis=(1, 2)), -jnp.inf)
-    best = jnp.argmax(tot)
-    top = tot[best]
-    second = jnp.max(jnp.where(jnp.arange(mt.shape[0]) == best, -jnp.inf, tot))
-    ok = ~amb & (na <= A) & (nc <= A) & ~(second >= top - _EPS)
-    mb = mt[best]                                                             # [A, A]
-    cidx = jnp.sum(jnp.where(csel, jnp.arange(dd)[None, :], 0), axis=1)      # [A]
-    bcol = jnp.max(jnp.where(mb, cidx[None, :], -1), axis=1)                  # [A]: column of each block row
-    amatch = jnp.max(jnp.where(rsel, bcol[:, None], -1), axis=0)              # [K]
-    smatch = jnp.max(jnp.where(single, jnp.arange(dd)[None, :], -1), axis=1)
-    return ok, jnp.where(ra, amatch, smatch).astype(jnp.int32)
+    # components: the smallest row index of each, propagated along the entries below the limit
+    ki = jnp.arange(k)
+    big = jnp.int32(_BIG)
+    rl = jnp.where(ra, ki, big)
+    for _ in range(_HOPS):
+        cl = jnp.min(jnp.where(cand, rl[:, None], big), axis=0)
+        rl = jnp.minimum(rl, jnp.min(jnp.where(cand, cl[None, :], big), axis=1))
+    cl = jnp.min(jnp.where(cand, rl[:, None], big), axis=0)
+    settled = jnp.all(rl == jnp.minimum(rl, jnp.min(jnp.where(cand, cl[None, :], big), axis=1)))
+    lead = ra & (rl == ki)                                                     # a component's first row
+    lrank = jnp.cumsum(lead) - 1
+    rslot = jnp.sum(jnp.where((rl[:, None] == ki[None, :]) & lead[None, :], lrank[None, :], 0), axis=1)
+    cslot = jnp.sum(jnp.where((cl[:, None] == ki[None, :]) & lead[None, :], lrank[None, :], 0), axis=1)
+    same_r = ra[:, None] & ra[None, :] & (rl[:, None] == rl[None, :])
+    rpos = jnp.sum(same_r & (ki[None, :] < ki[:, None]), axis=1)               # place inside its component
+    di = jnp.arange(dd)
+    same_c = ca[:, None] & ca[None, :] & (cl[:, None] == cl[None, :])
+    cpos = jnp.sum(same_c & (di[None, :] < di[:, None]), axis=1)
+    fits = (settled & (jnp.sum(lead) <= C) & jnp.all(~ra | (rpos < A)) & jnp.all(~ca | (cpos < A)))
+    ci = jnp.arange(C)[:, None, None]
+    ai = jnp.arange(A)[None, :, None]
+    rsel = (ra[None, None, :] & (rslot[None, None, :] == ci) & (rpos[None, None, :] == ai)).astype(f)  # [C, A, K]
+    csel = (ca[None, None, :] & (cslot[None, None, :] == ci) & (cpos[None, None, :] == ai)).astype(f)  # [C, A, D]
+    # the blocks' weights and entries below the limit (one-hot products: exact)
+    both_w = jnp.stack([jnp.where(cand, limit - cost, 0.0), cand.astype(f)])                 # [2, K, D]
+    blk = jnp.einsum("cak,skd,cbd->scab", rsel, both_w, csel, precision="highest")         # [2, C, A, A]
+    wa = jnp.where(blk[1] > 0.5, blk[0], _OUT).reshape(C, A * A)
+    # every partial matching's total; one with an entry not below the limit totals < -1e5
+    tot = jnp.dot(wa, jnp.asarray(_MATCH_F.T), precision="highest")                        # [C, P]
+    top = jnp.max(tot, axis=1, keepdims=True)
+    near = tot >= top - _EPS
+    ok = ~amb & fits & jnp.all(jnp.sum(near, axis=1) == 1)
+    mb = jnp.dot(near.astype(f), jnp.asarray(_MATCH_F)).reshape(C, A, A) > 0.5
+    cidx = jnp.sum(csel * di.astype(f), axis=2)                                               # [C, A]
+    bcol = jnp.max(jnp.where(mb, cidx[:, None, :], -1.0), axis=2)                             # [C, A]
+    amatch = jnp.max(jnp.where(rsel > 0.5, bcol[:, :, None], -1.0), axis=(0, 1))              # [K]
+    smatch = jnp.max(jnp.where(single, di[None, :], -1), axis=1)
+    return ok, jnp.where(ra, amatch.astype(jnp.int32), smatch).astype(jnp.int32)
 
 
 def solve(cost, rmask, rkey, cmask, limit):
