@@ -1,6 +1,7 @@
-"""Many lanes (``Params`` [B]) of ByteTrack over one run of padded frames: ``vmap`` over lanes of a
-``lax.scan`` over frames of ``tracker.step``, one compilation per ``Options`` and shape (B = 1 runs
-the unbatched program: its loops then branch for real instead of computing every branch)."""
+"""Many lanes (``Params`` [B]) of ByteTrack over one run of padded frames: a ``lax.scan`` over
+frames of ``tracker.step_batch`` (the lanes vmapped inside each frame's step, so that lapjv's full
+emulation runs only for the lanes whose association needs it, one lane at a time), one compilation
+per ``Options`` and shape; B = 1 runs ``tracker.step`` (its branches then taken for real)."""
 
 from __future__ import annotations
 

@@ -13,12 +13,17 @@ runs (one free row of the row reduction, one column of a search's find or scan, 
 the augmenting path); the vector parts (column minima, a row's two smallest reduced costs, the
 final ``v`` update of a search) are vector operations.
 
-The shortcut (:func:`assign`): when every real row and column has at most one entry below the
+The shortcut (:func:`fast_path`): when every real row and column has at most one entry below the
 limit and no entry lies within ``1e-9`` of it, the extended problem's optimum is unique (each such
 pair saves ``limit - cost > 0`` against leaving both to dummies, any entry above the limit costs
 more than the two dummies) and lapjv, an exact solver whose float64 sums here are of a few terms
-bounded by 2 (rounding errors far below 1e-9), returns it; the solver then runs for 0 steps (its
-size set to 0). Every other case runs the emulation.
+bounded by 2 (rounding errors far below 1e-9), returns it. :func:`unique_small` widens it: the
+optimum is the union of the best matchings of the connected components of the entries below the
+limit; where each component is small (at most ``C`` of them with more than one entry, each within
+``A`` rows and ``A`` columns) every partial matching of each is enumerated in closed form, and
+where each component's best is the only one within ``1e-9`` that union is lapjv's answer. Every
+other case (ties, large components: a few per cent of the KITTI associations) runs the emulation
+(:func:`solve`), one lane at a time.
 
 Where lapjv's choices differ from ``scipy.optimize.linear_sum_assignment`` (checked with lap
 0.5.13 and scipy 1.10.1; tests: ``test_bytetrack_lapjv.py``): tied totals. ``[[0.3, 0.3], [0.3,
