@@ -42,7 +42,7 @@ import numpy as np
 import jax.numpy as jnp
 from jax import lax
 
-__all__ = ["LARGE", "lapjv_square", "extended", "assign", "fast_path", "unique_small", "solve"]
+__all__ = ["LARGE", "lapjv_square", "extended", "assign", "fast_path", "shortcut", "unique_small", "solve"]
 
 LARGE = 1000000.0          # lap's LARGE (lapjv.h)
 _BIG = 1 << 30
@@ -295,6 +295,12 @@ def fast_path(cost, rmask, cmask, limit):
     amb = both & (jnp.abs(cost - limit) <= _EPS)
     ok = ~jnp.any(amb) & jnp.all(jnp.sum(cand, axis=1) <= 1) & jnp.all(jnp.sum(cand, axis=0) <= 1)
     return ok, cand
+
+
+def shortcut(cost, rmask, cmask, limit):
+    """(ok, the column of every row slot [K] int32) where the shortcut's conditions hold."""
+    ok, cand = fast_path(cost, rmask, cmask, limit)
+    return ok, jnp.max(jnp.where(cand, jnp.arange(cost.shape[1])[None, :], -1), axis=1).astype(jnp.int32)
 
 
 #: a block's side (every partial matching of an ``A x A`` block is enumerated) and the most blocks

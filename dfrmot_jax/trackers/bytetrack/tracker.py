@@ -32,7 +32,7 @@ from jax import lax
 
 from .config import Options, Params
 from .exact import guard, mul, runtime_zero
-from .lapjv import solve, unique_small
+from .lapjv import shortcut, solve, unique_small
 
 __all__ = ["Frames", "State", "StepOutput", "init", "step", "step_batch", "resolve", "iou_matrix"]
 
@@ -236,7 +236,10 @@ def _associate(st: State, ctx, batched: bool):
     def stage(s, carry):
         ms, ns = carry
         prob = lane(_problem, 0, 0, None, 0)(st, ctx, s, ms[0])
-        ok, quick = lane(unique_small, 0, 0, 0, 0)(prob[0], prob[1], prob[3], prob[4])
+        args = (prob[0], prob[1], prob[3], prob[4])
+        ok0, quick0 = lane(shortcut, 0, 0, 0, 0)(*args)
+        # the blocks only where some lane's shortcut fails (B = 1: a real branch)
+        ok, quick = lax.cond(jnp.all(ok0), lambda: (ok0, quick0), lambda: lane(unique_small, 0, 0, 0, 0)(*args))
         if batched:
             res = resolve(prob, ok, quick)
         else:
