@@ -66,6 +66,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", default=None)
     ap.add_argument("--batch", type=int, default=64)
+    ap.add_argument("--batch-sequences", type=int, default=21,
+                    help="the batched run over the first N sequences only (default all 21)")
+    ap.add_argument("--label", default="", help="a label written in every line (e.g. before / after)")
     ap.add_argument("--bytetrack-python", default=os.environ.get("BYTETRACK_PYTHON"))
     ap.add_argument("--bytetrack-driver", default=os.environ.get("BYTETRACK_DRIVER"))
     a = ap.parse_args(argv)
@@ -74,7 +77,7 @@ def main(argv=None):
     lens = [len(f) for f in frs]
     frames = batch.pack_frames(frs)
     t_frames = sum(lens)
-    base = {"cpu_model": cpu_model(), "cpus": os.cpu_count(), "frames": t_frames}
+    base = {"cpu_model": cpu_model(), "cpus": os.cpu_count(), "frames": t_frames, "label": a.label}
 
     own = None
     if a.bytetrack_python and a.bytetrack_driver:
@@ -86,7 +89,7 @@ def main(argv=None):
 
     p1 = Params(0.5, 0.8, 30, 0.1)
     opt = Options()
-    out, w_cold, _ = timed(lambda: batch.run(p1, opt, frames))
+    out, w_cold, c_cold = timed(lambda: batch.run(p1, opt, frames))
     out, w1, c1 = timed(lambda: batch.run(p1, opt, frames))
     per = results.sequence_lines(out, 0, lens)
     matched = total = 0
@@ -94,23 +97,29 @@ def main(argv=None):
         c = compare_lines(lines, reference_lines(root, "car_default", q))
         matched += c.matched
         total += c.total
-    r1 = {**base, "what": "jax_b1", "compile_and_first_s": w_cold, "wall_s": w1, "cpu_s": c1,
+    r1 = {**base, "what": "jax_b1", "compile_and_first_s": w_cold, "compile_and_first_cpu_s": c_cold,
+          "compile_s_est": w_cold - w1, "wall_s": w1, "cpu_s": c1,
           "fps": t_frames / w1, "fps_cpu": t_frames / c1, "lines_matched": matched, "lines": total,
           "solver_calls": int(out.solver[0]), "load": load()}
     print(json.dumps(r1), flush=True)
 
     pb = grid(a.batch)
-    outb, wb_cold, _ = timed(lambda: batch.run(pb, opt, frames))
+    nb = sum(lens[:a.batch_sequences])
+    if a.batch_sequences < len(SEQS):
+        frames = batch.pack_frames(frs[:a.batch_sequences])
+    outb, wb_cold, cb_cold = timed(lambda: batch.run(pb, opt, frames))
     outb, wb, cb = timed(lambda: batch.run(pb, opt, frames))
     import hashlib
     distinct = len({hashlib.sha1(outb.written[i].tobytes() + (outb.tid[i] * outb.written[i]).tobytes()).hexdigest()
                     for i in range(a.batch)})
-    rb = {**base, "what": f"jax_b{a.batch}", "compile_and_first_s": wb_cold, "wall_s": wb, "cpu_s": cb,
-          "config_fps": a.batch * t_frames / wb, "config_fps_cpu": a.batch * t_frames / cb,
+    rb = {**base, "frames": nb, "what": f"jax_b{a.batch}", "compile_and_first_s": wb_cold,
+          "compile_and_first_cpu_s": cb_cold, "compile_s_est": wb_cold - wb, "wall_s": wb, "cpu_s": cb,
+          "config_fps": a.batch * nb / wb, "config_fps_cpu": a.batch * nb / cb,
           "overflow": int(outb.overflow.sum()), "distinct_lanes": distinct, "load": load()}
     print(json.dumps(rb), flush=True)
     summary = {**base, "what": "summary", "b1_fps": r1["fps"], f"b{a.batch}_config_fps": rb["config_fps"],
-               "b1_exact": matched == total, "load": load()}
+               "b1_exact": matched == total, "b1_compile_s_est": r1["compile_s_est"],
+               f"b{a.batch}_compile_s_est": rb["compile_s_est"], "load": load()}
     if own:
         summary.update(bytetrack_fps_cpu=own["fps_cpu"], ratio_b1_cpu=r1["fps_cpu"] / own["fps_cpu"],
                        ratio_batch_cpu=rb["config_fps_cpu"] / own["fps_cpu"], goals="30x at B=1, 300x at B=64")

@@ -1,6 +1,7 @@
-"""Many lanes (``Params`` [B]) of ByteTrack over one run of padded frames: ``vmap`` over lanes of a
-``lax.scan`` over frames of ``tracker.step``, one compilation per ``Options`` and shape (B = 1 runs
-the unbatched program: its loops then branch for real instead of computing every branch)."""
+"""Many lanes (``Params`` [B]) of ByteTrack over one run of padded frames: a ``lax.scan`` over
+frames of ``tracker.step_batch`` (the lanes vmapped inside each frame's step, so that lapjv's full
+emulation runs only for the lanes whose association needs it, one lane at a time), one compilation
+per ``Options`` and shape; B = 1 runs ``tracker.step`` (its branches then taken for real)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .config import Options, Params
-from .tracker import Frames, init, step
+from .tracker import Frames, init, step, step_batch
 
 __all__ = ["RunOutput", "pack_frames", "run", "data_capacity"]
 
@@ -59,14 +60,22 @@ def data_capacity(frames: Frames) -> int:
 
 @lru_cache(maxsize=32)
 def _program(options: Options, k: int, batched: bool):
+    """One lane (``Params`` scalars): outputs [T, ...]; batched (``Params`` [B]): outputs [T, B, ...]
+    (the lanes vmapped inside the frame's step, so that the full assignment solver runs only for
+    the lanes that need it, one at a time)."""
     def one(p, frames):
+        if batched:
+            b = p.track_thresh.shape[0]
+            st0 = jax.tree.map(lambda a: jnp.broadcast_to(a, (b,) + a.shape), init(k))
+            fn = step_batch
+        else:
+            st0, fn = init(k), step
+
         def body(st, fr):
-            st, out = step(p, options, st, fr[0], fr[1], fr[2])
-            return st, out
-        st, outs = jax.lax.scan(body, init(k), (frames.dets, frames.valid, frames.reset))
+            return fn(p, options, st, fr[0], fr[1], fr[2])
+        st, outs = jax.lax.scan(body, st0, (frames.dets, frames.valid, frames.reset))
         return outs, st.overflow, st.solver
-    f = jax.vmap(one, in_axes=(0, None)) if batched else one
-    return jax.jit(f)
+    return jax.jit(one)
 
 
 def run(params: Params, options: Options, frames: Frames, capacity: int | None = None) -> RunOutput:
@@ -85,5 +94,7 @@ def run(params: Params, options: Options, frames: Frames, capacity: int | None =
             outs, ov, sv = _program(options, k, False)(Params(*(v[0] for v in p)), f)
             outs, ov, sv = jax.tree.map(lambda a: np.asarray(a)[None], (outs, ov, sv))
         else:
-            outs, ov, sv = jax.tree.map(np.asarray, _program(options, k, True)(p, f))
+            outs, ov, sv = _program(options, k, True)(p, f)
+            outs = jax.tree.map(lambda a: np.swapaxes(np.asarray(a), 0, 1), outs)
+            ov, sv = np.asarray(ov), np.asarray(sv)
     return RunOutput(outs.tid, outs.tlwh, outs.score, outs.written, ov, sv, outs.key)

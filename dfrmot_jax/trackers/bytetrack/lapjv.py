@@ -13,12 +13,17 @@ runs (one free row of the row reduction, one column of a search's find or scan, 
 the augmenting path); the vector parts (column minima, a row's two smallest reduced costs, the
 final ``v`` update of a search) are vector operations.
 
-The shortcut (:func:`assign`): when every real row and column has at most one entry below the
+The shortcut (:func:`fast_path`): when every real row and column has at most one entry below the
 limit and no entry lies within ``1e-9`` of it, the extended problem's optimum is unique (each such
 pair saves ``limit - cost > 0`` against leaving both to dummies, any entry above the limit costs
 more than the two dummies) and lapjv, an exact solver whose float64 sums here are of a few terms
-bounded by 2 (rounding errors far below 1e-9), returns it; the solver then runs for 0 steps (its
-size set to 0). Every other case runs the emulation.
+bounded by 2 (rounding errors far below 1e-9), returns it. :func:`unique_small` widens it: the
+optimum is the union of the best matchings of the connected components of the entries below the
+limit; where each component is small (at most ``C`` of them with more than one entry, each within
+``A`` rows and ``A`` columns) every partial matching of each is enumerated in closed form, and
+where each component's best is the only one within ``1e-9`` that union is lapjv's answer. Every
+other case (ties, large components: a few per cent of the KITTI associations) runs the emulation
+(:func:`solve`), one lane at a time.
 
 Where lapjv's choices differ from ``scipy.optimize.linear_sum_assignment`` (checked with lap
 0.5.13 and scipy 1.10.1; tests: ``test_bytetrack_lapjv.py``): tied totals. ``[[0.3, 0.3], [0.3,
@@ -31,10 +36,13 @@ emulation.
 
 from __future__ import annotations
 
+import itertools
+
+import numpy as np
 import jax.numpy as jnp
 from jax import lax
 
-__all__ = ["LARGE", "lapjv_square", "extended", "assign", "fast_path"]
+__all__ = ["LARGE", "lapjv_square", "extended", "assign", "fast_path", "shortcut", "unique_small", "solve"]
 
 LARGE = 1000000.0          # lap's LARGE (lapjv.h)
 _BIG = 1 << 30
@@ -290,24 +298,114 @@ def fast_path(cost, rmask, cmask, limit):
     return ok, cand
 
 
+def shortcut(cost, rmask, cmask, limit):
+    """(ok, the column of every row slot [K] int32) where the shortcut's conditions hold."""
+    ok, cand = fast_path(cost, rmask, cmask, limit)
+    return ok, jnp.max(jnp.where(cand, jnp.arange(cost.shape[1])[None, :], -1), axis=1).astype(jnp.int32)
+
+
+#: a block's side (every partial matching of an ``A x A`` block is enumerated) and the most blocks
+A = 4
+C = 4
+_HOPS = 3        # label propagation rounds: a component of A rows and A columns is settled in A - 1
+
+
+def _matchings(a: int) -> np.ndarray:
+    """[P, A, A] bool: every partial matching of an ``a x a`` block (the empty one first)."""
+    out = [np.zeros((a, a), bool)]
+    for k in range(1, a + 1):
+        for rows in itertools.combinations(range(a), k):
+            for cols in itertools.permutations(range(a), k):
+                m = np.zeros((a, a), bool)
+                m[list(rows), list(cols)] = True
+                out.append(m)
+    return np.array(out)
+
+
+_MATCH = _matchings(A)
+_MATCH_F = _MATCH.reshape(len(_MATCH), A * A).astype(np.float64)
+_OUT = -1e6     # the weight of a block entry not below the limit
+
+
+def unique_small(cost, rmask, cmask, limit):
+    """The optimum where it is unique and its parts small: (ok, column of every row slot [K] int32).
+
+    The extended problem's total is a constant minus the sum of ``limit - cost`` over the matched
+    real pairs, so lapjv (exact, its float64 sums of a few terms bounded by 2) returns the matching
+    of the real entries below the limit of the largest such sum whenever it is the only one within
+    ``1e-9`` (and no entry lies within ``1e-9`` of the limit). That matching is the union of the
+    best matchings of the connected components of the graph of the entries below the limit, and it
+    is the only one within ``1e-9`` iff each component's is: components of one edge are matched as
+    they are; the others (at most ``C``, each of at most ``A`` rows and ``A`` columns) are blocks
+    whose partial matchings are all enumerated. Any other case: ``ok`` False."""
+    k, dd = cost.shape
+    f = cost.dtype
+    both = rmask[:, None] & cmask[None, :]
+    cand = both & (cost < limit)
+    amb = jnp.any(both & (jnp.abs(cost - limit) <= _EPS))
+    dr = jnp.sum(cand, axis=1)
+    dc = jnp.sum(cand, axis=0)
+    single = cand & (dr == 1)[:, None] & (dc == 1)[None, :]
+    ra = (dr >= 2) | jnp.any(cand & (dc >= 2)[None, :], axis=1)              # rows of components > 1 edge
+    ca = (dc >= 2) | jnp.any(cand & (dr >= 2)[:, None], axis=0)
+    # components: the smallest row index of each, propagated along the entries below the limit
+    ki = jnp.arange(k)
+    big = jnp.int32(_BIG)
+    rl = jnp.where(ra, ki, big)
+    for _ in range(_HOPS):
+        cl = jnp.min(jnp.where(cand, rl[:, None], big), axis=0)
+        rl = jnp.minimum(rl, jnp.min(jnp.where(cand, cl[None, :], big), axis=1))
+    cl = jnp.min(jnp.where(cand, rl[:, None], big), axis=0)
+    settled = jnp.all(rl == jnp.minimum(rl, jnp.min(jnp.where(cand, cl[None, :], big), axis=1)))
+    lead = ra & (rl == ki)                                                     # a component's first row
+    lrank = jnp.cumsum(lead) - 1
+    rslot = jnp.sum(jnp.where((rl[:, None] == ki[None, :]) & lead[None, :], lrank[None, :], 0), axis=1)
+    cslot = jnp.sum(jnp.where((cl[:, None] == ki[None, :]) & lead[None, :], lrank[None, :], 0), axis=1)
+    same_r = ra[:, None] & ra[None, :] & (rl[:, None] == rl[None, :])
+    rpos = jnp.sum(same_r & (ki[None, :] < ki[:, None]), axis=1)               # place inside its component
+    di = jnp.arange(dd)
+    same_c = ca[:, None] & ca[None, :] & (cl[:, None] == cl[None, :])
+    cpos = jnp.sum(same_c & (di[None, :] < di[:, None]), axis=1)
+    fits = (settled & (jnp.sum(lead) <= C) & jnp.all(~ra | (rpos < A)) & jnp.all(~ca | (cpos < A)))
+    ci = jnp.arange(C)[:, None, None]
+    ai = jnp.arange(A)[None, :, None]
+    rsel = (ra[None, None, :] & (rslot[None, None, :] == ci) & (rpos[None, None, :] == ai)).astype(f)  # [C, A, K]
+    csel = (ca[None, None, :] & (cslot[None, None, :] == ci) & (cpos[None, None, :] == ai)).astype(f)  # [C, A, D]
+    # the blocks' weights and entries below the limit (one-hot products: exact)
+    both_w = jnp.stack([jnp.where(cand, limit - cost, 0.0), cand.astype(f)])                 # [2, K, D]
+    blk = jnp.einsum("cak,skd,cbd->scab", rsel, both_w, csel, precision="highest")         # [2, C, A, A]
+    wa = jnp.where(blk[1] > 0.5, blk[0], _OUT).reshape(C, A * A)
+    # every partial matching's total; one with an entry not below the limit totals < -1e5
+    tot = jnp.dot(wa, jnp.asarray(_MATCH_F.T), precision="highest")                        # [C, P]
+    top = jnp.max(tot, axis=1, keepdims=True)
+    near = tot >= top - _EPS
+    ok = ~amb & fits & jnp.all(jnp.sum(near, axis=1) == 1)
+    mb = jnp.dot(near.astype(f), jnp.asarray(_MATCH_F)).reshape(C, A, A) > 0.5
+    cidx = jnp.sum(csel * di.astype(f), axis=2)                                               # [C, A]
+    bcol = jnp.max(jnp.where(mb, cidx[:, None, :], -1.0), axis=2)                             # [C, A]
+    amatch = jnp.max(jnp.where(rsel > 0.5, bcol[:, :, None], -1.0), axis=(0, 1))              # [K]
+    smatch = jnp.max(jnp.where(single, di[None, :], -1), axis=1)
+    return ok, jnp.where(ra, amatch.astype(jnp.int32), smatch).astype(jnp.int32)
+
+
+def solve(cost, rmask, rkey, cmask, limit):
+    """The full emulation's answer: the matched column of every row slot [K] int32 (-1: none)."""
+    k, dd = cost.shape
+    ext, dim, rperm, cperm, n, m = extended(cost, rmask, rkey, cmask, limit)
+    x = lapjv_square(ext, dim)
+    s = ext.shape[0]
+    pos = jnp.arange(s)
+    xr = x[:k]
+    real_col = (pos[:k] < n) & (xr >= 0) & (xr < m)
+    col_of_pos = jnp.where(real_col, cperm[jnp.clip(xr, 0, dd - 1)], -1)       # by row position
+    slot_hit = (rperm[:, None] == jnp.arange(k)[None, :]) & (pos[:k, None] < n)  # [position, slot]
+    return jnp.max(jnp.where(slot_hit, col_of_pos[:, None], -1), axis=0).astype(jnp.int32)
+
+
 def assign(cost, rmask, rkey, cmask, limit):
     """``linear_assignment(cost[rows][:, cols], limit)`` for the rows ``rmask`` (in ``rkey`` order) and
     the columns ``cmask`` (in index order) of ``cost`` [K, D]. Returns the matched column of every
     row slot [K] int32 (-1: none) and whether the full solver ran."""
-    k, dd = cost.shape
-    ok, cand = fast_path(cost, rmask, cmask, limit)
-    quick = jnp.max(jnp.where(cand, jnp.arange(dd)[None, :], -1), axis=1).astype(jnp.int32)
-
-    def solve():
-        ext, dim, rperm, cperm, n, m = extended(cost, rmask, rkey, cmask, limit)
-        x = lapjv_square(ext, dim)
-        s = ext.shape[0]
-        pos = jnp.arange(s)
-        xr = x[:k]
-        real_col = (pos[:k] < n) & (xr >= 0) & (xr < m)
-        col_of_pos = jnp.where(real_col, cperm[jnp.clip(xr, 0, dd - 1)], -1)       # by row position
-        slot_hit = (rperm[:, None] == jnp.arange(k)[None, :]) & (pos[:k, None] < n)  # [position, slot]
-        return jnp.max(jnp.where(slot_hit, col_of_pos[:, None], -1), axis=0).astype(jnp.int32)
-
+    ok, quick = unique_small(cost, rmask, cmask, limit)
     # a real branch where the predicate is one lane's (B = 1); under vmap both run, selected
-    return lax.cond(ok, lambda: quick, solve), ~ok
+    return lax.cond(ok, lambda: quick, lambda: solve(cost, rmask, rkey, cmask, limit)), ~ok

@@ -26,13 +26,15 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
+from jax import lax
 
 from .config import Options, Params
 from .exact import guard, mul, runtime_zero
-from .lapjv import assign
+from .lapjv import shortcut, solve, unique_small
 
-__all__ = ["Frames", "State", "StepOutput", "init", "step", "iou_matrix"]
+__all__ = ["Frames", "State", "StepOutput", "init", "step", "step_batch", "resolve", "iou_matrix"]
 
 SP = 1.0 / 20
 SV = 1.0 / 160
@@ -166,24 +168,18 @@ def _pick(onehot, values):
     return jnp.sum(jnp.where(onehot[..., None], values[None, :, :], 0.0), axis=1)
 
 
-# over 80 lines: BYTETracker.update in its own order, one stage after another, so it reads beside the code
-def step(params: Params, options: Options, st: State, dets, valid, reset):
-    """One frame (``BYTETracker.update``). Returns (state, output)."""
+def _begin(params: Params, options: Options, st: State, dets, valid, reset):
+    """A frame up to its associations: (the state after ``reset``, the frame's context)."""
     k = st.tid.shape[0]
-    dn = dets.shape[0]
     st = State(*[jnp.where(reset, a, b) for a, b in zip(init(k), st)])
     frame = st.frame + 1
     zero = runtime_zero(frame)
     tt = params.track_thresh
-    det_thresh = tt + params.det_thresh_margin
-    max_lost = jnp.floor((options.frame_rate / 30.0) * params.track_buffer.astype(jnp.float64)).astype(jnp.int32)
     sc = dets[:, 4]
     high = valid & (sc > tt)
     low = valid & (sc > 0.1) & (sc < tt)
     dtlwh = jnp.stack([dets[:, 0], dets[:, 1], dets[:, 2] - dets[:, 0], dets[:, 3] - dets[:, 1]], -1)
     dtlbr = _tlbr_of_tlwh(dtlwh)
-    dxyah = _xyah(dtlwh)
-
     intr = st.lst == IN_TRACKED
     inlost = st.lst == IN_LOST
     unconf = intr & ~st.active
@@ -197,20 +193,98 @@ def step(params: Params, options: Options, st: State, dets, valid, reset):
     iou = iou_matrix(tlbr, dtlbr, zero)
     cost = 1.0 - iou
     fused = 1.0 - mul(1.0 - cost, sc[None, :], zero) if options.fuse_score else cost
+    ctx = dict(frame=frame, zero=zero, sc=sc, high=high, low=low, dxyah=_xyah(dtlwh), intr=intr,
+               inlost=inlost, unconf=unconf, pool=pool, pkey=pkey, mean=mean, cov=cov, cost=cost,
+               fused=fused, match_thresh=jnp.asarray(params.match_thresh, jnp.float64))
+    return st, ctx
 
-    # first association
-    m1, s1 = assign(fused, pool, pkey, high, params.match_thresh)
+
+def _problem(st: State, ctx, s, m1):
+    """The association ``s`` (0: pool x high, 1: the pool's unmatched Tracked tracks x low, 2:
+    unconfirmed x the high detections left) given the first one's matches ``m1``: (cost, rows,
+    row order keys, columns, limit)."""
+    dn = ctx["sc"].shape[0]
+    hit1 = m1 >= 0
+    rest = ctx["pool"] & ~hit1 & (st.state == TRACKED)
+    left = ctx["high"] & ~jnp.any(_onehot_rows(m1, dn), axis=0)
+    first, second = s == 0, s == 1
+    cost = jnp.where(second, ctx["cost"], ctx["fused"])
+    rmask = jnp.where(first, ctx["pool"], jnp.where(second, rest, ctx["unconf"]))
+    rkey = jnp.where(s == 2, st.key, ctx["pkey"])
+    cmask = jnp.where(first, ctx["high"], jnp.where(second, ctx["low"], left))
+    limit = jnp.where(first, ctx["match_thresh"], jnp.where(second, 0.5, 0.7))
+    return cost, rmask, rkey, cmask, limit
+
+
+def resolve(problem, ok, quick):
+    """The matches of a batch [B] of associations: ``quick`` where ``ok``, the full emulation
+    (:func:`lapjv.solve`, unbatched: one lane at a time) for the other lanes."""
+    def body(c):
+        res, todo = c
+        i = jnp.argmax(todo)
+        x = solve(*(a[i] for a in problem))
+        return res.at[i].set(x), todo.at[i].set(False)
+    return lax.while_loop(lambda c: jnp.any(c[1]), body, (quick, ~ok))[0]
+
+
+def _associate(st: State, ctx, batched: bool):
+    """The three associations, one after the other through ONE solver site: (m1, m2, m3, the
+    number that ran the full emulation). Batched: ``st`` and ``ctx`` carry a leading lane axis."""
+    lane = (lambda f, *ax: jax.vmap(f, in_axes=ax)) if batched else (lambda f, *ax: f)
+    k = st.tid.shape[-1]
+    shape = st.tid.shape
+
+    def stage(s, carry):
+        ms, ns = carry
+        prob = lane(_problem, 0, 0, None, 0)(st, ctx, s, ms[0])
+        args = (prob[0], prob[1], prob[3], prob[4])
+        ok0, quick0 = lane(shortcut, 0, 0, 0, 0)(*args)
+        # the blocks only where some lane's shortcut fails (B = 1: a real branch)
+        ok, quick = lax.cond(jnp.all(ok0), lambda: (ok0, quick0), lambda: lane(unique_small, 0, 0, 0, 0)(*args))
+        if batched:
+            res = resolve(prob, ok, quick)
+        else:
+            res = lax.cond(ok, lambda: quick, lambda: solve(*prob))
+        return ms.at[s].set(res), ns + (~ok).astype(jnp.int32)
+
+    ms0 = jnp.full((3,) + shape, -1, jnp.int32)
+    ms, ns = lax.fori_loop(0, 3, stage, (ms0, jnp.zeros(shape[:-1], jnp.int32)))
+    del k
+    return ms[0], ms[1], ms[2], ns
+
+
+def step(params: Params, options: Options, st: State, dets, valid, reset):
+    """One frame (``BYTETracker.update``). Returns (state, output)."""
+    st, ctx = _begin(params, options, st, dets, valid, reset)
+    m1, m2, m3, ns = _associate(st, ctx, False)
+    return _finish(params, options, st, ctx, m1, m2, m3, ns)
+
+
+def step_batch(params: Params, options: Options, st: State, dets, valid, reset):
+    """One frame of every lane: ``params`` and ``st`` [B] (leading lane axis), the frame shared."""
+    st, ctx = jax.vmap(lambda p, s: _begin(p, options, s, dets, valid, reset))(params, st)
+    m1, m2, m3, ns = _associate(st, ctx, True)
+    return jax.vmap(lambda p, *a: _finish(p, options, *a))(params, st, ctx, m1, m2, m3, ns)
+
+
+# over 80 lines: BYTETracker.update's second half in its own order (updates, births, removal, duplicates)
+def _finish(params: Params, options: Options, st: State, ctx, m1, m2, m3, nsolved):
+    """The frame after its associations. Returns (state, output)."""
+    k = st.tid.shape[0]
+    dn = ctx["sc"].shape[0]
+    frame, zero, sc, high, dxyah = ctx["frame"], ctx["zero"], ctx["sc"], ctx["high"], ctx["dxyah"]
+    intr, inlost, unconf, pool, pkey = ctx["intr"], ctx["inlost"], ctx["unconf"], ctx["pool"], ctx["pkey"]
+    mean, cov = ctx["mean"], ctx["cov"]
+    tt = params.track_thresh
+    det_thresh = tt + params.det_thresh_margin
+    max_lost = jnp.floor((options.frame_rate / 30.0) * params.track_buffer.astype(jnp.float64)).astype(jnp.int32)
     hit1 = m1 >= 0
     refound = hit1 & (st.state != TRACKED)
-    # second association: the pool's unmatched Tracked tracks x low
     rest = pool & ~hit1 & (st.state == TRACKED)
-    m2, s2 = assign(cost, rest, pkey, low, 0.5)
     hit2 = m2 >= 0
     lost_now = rest & ~hit2
-    # unconfirmed x the high detections left
     used1 = jnp.any(_onehot_rows(m1, dn), axis=0)
     left = high & ~used1
-    m3, s3 = assign(fused, unconf, st.key, left, 0.7)
     hit3 = m3 >= 0
     unc_removed = unconf & ~hit3
     used3 = jnp.any(_onehot_rows(m3, dn), axis=0)
@@ -290,7 +364,7 @@ def step(params: Params, options: Options, st: State, dets, valid, reset):
     lst = lst.astype(jnp.int32)
     state = state.astype(jnp.int32)
     written = (lst == IN_TRACKED) & active
-    solver = st.solver + s1.astype(jnp.int32) + s2.astype(jnp.int32) + s3.astype(jnp.int32)
+    solver = st.solver + nsolved
     new = State(mean, cov, tid, lst, state, active, score, start, last, key, gone, count, frame, keys,
                 overflow, solver)
     return new, StepOutput(tid, _tlwh(mean, zero), score, written, key)
