@@ -1,5 +1,6 @@
 """The JAX tracker against the oracle (edge scenes, id for id) and the reference runs."""
 
+import jax
 import numpy as np
 import pytest
 
@@ -92,7 +93,6 @@ def test_jax_reference_all(kitti_root, run):
 def test_lanes_in_step_equal_lanes_one_by_one():
     """The vmapped step (``tracker.step_batch``, the path off CPU) equals the lanes one after the
     other (``lax.map``, the path on CPU), array for array."""
-    import jax
     frames = batch.pack_frames([_pad(S.random_scene(5))], D_PAD)
     lanes = SETTINGS[0], O.Settings(track_thresh=0.3, track_buffer=60, match_thresh=0.9), O.Settings(match_thresh=0.5)
     p = Params(*(np.array(v) for v in zip(*[_params(s)[0] for s in lanes])))
