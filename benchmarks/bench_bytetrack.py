@@ -15,7 +15,7 @@ same run.
 Times are wall and CPU seconds; the machine is shared, so the load average goes with them. Every
 line is one JSON object; the LAST one is the summary.
 
-    python benchmarks/bench_bytetrack.py [--data ROOT] [--batch 64] \
+    python benchmarks/bench_bytetrack.py [--data ROOT] [--batch 64] [--batch-sequences 21] [--label TEXT] \
         [--bytetrack-python /tmp/bt_env/bin/python --bytetrack-driver /tmp/bt_driver/drive.py]
 """
 

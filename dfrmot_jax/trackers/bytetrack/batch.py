@@ -59,23 +59,28 @@ def data_capacity(frames: Frames) -> int:
 
 
 @lru_cache(maxsize=32)
-def _program(options: Options, k: int, batched: bool):
-    """One lane (``Params`` scalars): outputs [T, ...]; batched (``Params`` [B]): outputs [T, B, ...]
-    (the lanes vmapped inside the frame's step, so that the full assignment solver runs only for
-    the lanes that need it, one at a time)."""
-    def one(p, frames):
-        if batched:
-            b = p.track_thresh.shape[0]
-            st0 = jax.tree.map(lambda a: jnp.broadcast_to(a, (b,) + a.shape), init(k))
-            fn = step_batch
-        else:
-            st0, fn = init(k), step
-
+def _program(options: Options, k: int, batched: bool, lanes_in_step: bool = False):
+    """One lane (``Params`` scalars): outputs [T, ...]. Batched (``Params`` [B]): outputs [B, T, ...],
+    the lanes one after the other (``lax.map`` of the one-lane scan: its branches taken for real,
+    the fastest on CPU), or with ``lanes_in_step`` vmapped inside each frame's step
+    (``tracker.step_batch``: lapjv's full emulation one lane at a time, the rest vectorised)."""
+    def scan(p, frames, st0, fn):
         def body(st, fr):
             return fn(p, options, st, fr[0], fr[1], fr[2])
         st, outs = jax.lax.scan(body, st0, (frames.dets, frames.valid, frames.reset))
         return outs, st.overflow, st.solver
-    return jax.jit(one)
+
+    def one(p, frames):
+        return scan(p, frames, init(k), step)
+
+    def lanes(p, frames):
+        if lanes_in_step:
+            b = p.track_thresh.shape[0]
+            st0 = jax.tree.map(lambda a: jnp.broadcast_to(a, (b,) + a.shape), init(k))
+            outs, ov, sv = scan(p, frames, st0, step_batch)
+            return jax.tree.map(lambda a: jnp.swapaxes(a, 0, 1), outs), ov, sv
+        return jax.lax.map(lambda q: one(q, frames), p)
+    return jax.jit(lanes if batched else one)
 
 
 def run(params: Params, options: Options, frames: Frames, capacity: int | None = None) -> RunOutput:
@@ -94,7 +99,5 @@ def run(params: Params, options: Options, frames: Frames, capacity: int | None =
             outs, ov, sv = _program(options, k, False)(Params(*(v[0] for v in p)), f)
             outs, ov, sv = jax.tree.map(lambda a: np.asarray(a)[None], (outs, ov, sv))
         else:
-            outs, ov, sv = _program(options, k, True)(p, f)
-            outs = jax.tree.map(lambda a: np.swapaxes(np.asarray(a), 0, 1), outs)
-            ov, sv = np.asarray(ov), np.asarray(sv)
+            outs, ov, sv = jax.tree.map(np.asarray, _program(options, k, True, jax.default_backend() != "cpu")(p, f))
     return RunOutput(outs.tid, outs.tlwh, outs.score, outs.written, ov, sv, outs.key)

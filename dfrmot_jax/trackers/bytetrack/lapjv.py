@@ -56,7 +56,7 @@ def _first_argmin(r):
     return jnp.argmin(r).astype(jnp.int32)
 
 
-# over 80 lines: lap's lapjv_internal as one program-counter loop, its phases side by side as in the C
+# Whole on purpose (over 80 lines): lap's lapjv_internal, one branch per unit of work of the C code.
 def lapjv_square(c, n):
     """``lapjv_internal`` on the top-left ``n x n`` block of ``c`` [S, S] (float64; entries outside
     are never read). Returns ``x`` [S] int32: row -> column (rows >= n: -1)."""

@@ -267,7 +267,7 @@ def step_batch(params: Params, options: Options, st: State, dets, valid, reset):
     return jax.vmap(lambda p, *a: _finish(p, options, *a))(params, st, ctx, m1, m2, m3, ns)
 
 
-# over 80 lines: BYTETracker.update's second half in its own order (updates, births, removal, duplicates)
+# Whole on purpose (over 80 lines): BYTETracker.update after its associations, read straight through.
 def _finish(params: Params, options: Options, st: State, ctx, m1, m2, m3, nsolved):
     """The frame after its associations. Returns (state, output)."""
     k = st.tid.shape[0]

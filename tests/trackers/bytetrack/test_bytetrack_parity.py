@@ -1,5 +1,6 @@
 """The JAX tracker against the oracle (edge scenes, id for id) and the reference runs."""
 
+import jax
 import numpy as np
 import pytest
 
@@ -87,3 +88,17 @@ def test_jax_reference_fast(kitti_root):
 @pytest.mark.parametrize("run", list(O.PRESETS))
 def test_jax_reference_all(kitti_root, run):
     _run_reference(kitti_root, run, SEQS)
+
+
+def test_lanes_in_step_equal_lanes_one_by_one():
+    """The vmapped step (``tracker.step_batch``, the path off CPU) equals the lanes one after the
+    other (``lax.map``, the path on CPU), array for array."""
+    frames = batch.pack_frames([_pad(S.random_scene(5))], D_PAD)
+    lanes = SETTINGS[0], O.Settings(track_thresh=0.3, track_buffer=60, match_thresh=0.9), O.Settings(match_thresh=0.5)
+    p = Params(*(np.array(v) for v in zip(*[_params(s)[0] for s in lanes])))
+    with jax.enable_x64(True):
+        p = Params(*(np.asarray(v, np.int32 if i == 2 else np.float64) for i, v in enumerate(p)))
+        f = batch.Frames(*(jax.numpy.asarray(a) for a in frames))
+        got = [jax.tree.map(np.asarray, batch._program(Options(), 48, True, s)(p, f)) for s in (False, True)]
+    for a, b in zip(jax.tree.leaves(got[0]), jax.tree.leaves(got[1])):
+        np.testing.assert_array_equal(a, b)
