@@ -77,11 +77,12 @@ def sweep_file(root: Path, sequences: list[str], family: str = "dfr") -> str:
     shape, axes, base = grid_shape(family), ", ".join(GRIDS[family]), BASELINES[family]
     fc = family_config(family)
     det2d = "det2d = \"synth2d\"\n" if "2d" in fc.detections else ""
+    det3d = "det3d = \"synth3d\"\n" if "3d" in fc.detections else ""
     options = f"\n[options]\nfamily = {json.dumps(family)}\n" if family != "dfr" else ""
     return (f"# dfrmot demo: {fc.title}, the {base} preset and a {shape} grid of {axes} on a synthetic scene.\n"
             f"name = {json.dumps(NAME)}\n"
             f"description = \"the {base} baseline + a {shape} grid of {axes} (dfrmot demo)\"\n"
-            f"chunk = 64\n\n[data]\nroot = {json.dumps(str(root))}\n{det2d}det3d = \"synth3d\"\n"
+            f"chunk = 64\n\n[data]\nroot = {json.dumps(str(root))}\n{det2d}{det3d}"
             f"class = \"car\"\nsequences = {json.dumps(sequences)}\n\n[baseline]\npreset = \"{base}\"\n\n"
             f"[params]\n# values equal to the preset's are written as its exact constants (the authors' float gains)\n"
             f"{grid}\n{options}" + (f"\n[report]\nfolds = {folds}\n" if folds >= 2 else ""))

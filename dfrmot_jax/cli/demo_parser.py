@@ -15,11 +15,13 @@ __all__ = ["add_parser", "GRID", "GRIDS", "BASELINES", "NAME", "grid_shape", "de
 #: the demo's grid: the 2D score threshold and the fixed-gain filter's beta and gamma (27 settings)
 GRID = {"score_2d": [0.35, 0.45, 0.55], "gain_beta": [0.5, 0.7, 0.9], "gain_gamma": [0.02, 0.05, 0.1]}
 #: each tracker family's demo grid (``--family``; 27 settings each): DFR-FastMOT's :data:`GRID`;
-#: AB3DMOT's threshold (generalised 3D IoU), min_hits and max_age around its car preset
+#: AB3DMOT's threshold (generalised 3D IoU), min_hits and max_age around its car preset; ByteTrack's
+#: track_thresh, match_thresh and track_buffer around its defaults
 GRIDS = {"dfr": GRID,
-         "ab3dmot": {"threshold": [-0.4, -0.2, 0.0], "min_hits": [1, 2, 3], "max_age": [2, 3, 4]}}
+         "ab3dmot": {"threshold": [-0.4, -0.2, 0.0], "min_hits": [1, 2, 3], "max_age": [2, 3, 4]},
+         "bytetrack": {"track_thresh": [0.4, 0.5, 0.6], "match_thresh": [0.7, 0.8, 0.9], "track_buffer": [10, 30, 60]}}
 #: each family's baseline preset (a point of its grid)
-BASELINES = {"dfr": "dfr2023", "ab3dmot": "ab3dmot_car"}
+BASELINES = {"dfr": "dfr2023", "ab3dmot": "ab3dmot_car", "bytetrack": "bytetrack_car"}
 #: the demo sweep's name, and its work directory's under ``results/``
 NAME = "demo"
 
@@ -52,8 +54,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     d.add_argument("--seed", type=seed_arg, default=0, help="scene seed, >= 0 (default 0)")
     d.add_argument("--top", type=int, default=5, help="configs printed above the baseline (default 5)")
     d.add_argument("--family", choices=list(GRIDS), default="dfr",
-                   help="the tracker family swept: dfr (DFR-FastMOT, the default: " + ", ".join(GRID) + ") or "
-                        "ab3dmot (AB3DMOT, from its 3D detections: " + ", ".join(GRIDS["ab3dmot"]) + "), its "
+                   help="the tracker family swept: dfr (DFR-FastMOT, the default: " + ", ".join(GRID) + "), "
+                        "ab3dmot (AB3DMOT, from its 3D detections: " + ", ".join(GRIDS["ab3dmot"]) + ") or "
+                        "bytetrack (ByteTrack, from its 2D detections: " + ", ".join(GRIDS["bytetrack"]) + "), its "
                         "preset " + " / ".join(BASELINES.values()) + " as the baseline")
     d.set_defaults(func=run_later("dfrmot_jax.cli.demo"))
     return d

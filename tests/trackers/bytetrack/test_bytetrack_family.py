@@ -76,3 +76,19 @@ def test_every_reference_run_byte_for_byte(kitti_root, tmp_path, capsys, run):
     want = {f.name: f.read_bytes() for f in sorted((kitti_root / REF / run).iterdir()) if f.suffix == ".txt"}
     assert set(got) == set(want)
     assert [n for n in want if got[n] != want[n]] == []
+
+
+def test_the_demos_sweep_file_of_bytetrack_reads_2d_detections_only(tmp_path):
+    from dfrmot_jax.cli.demo import sweep_file
+    from dfrmot_jax.cli.demo_parser import BASELINES, GRIDS, default_out
+    text = sweep_file(tmp_path, ["0000", "0001"], "bytetrack")
+    assert 'det2d = "synth2d"' in text and "det3d" not in text and 'family = "bytetrack"' in text
+    assert BASELINES["bytetrack"] == "bytetrack_car" and set(GRIDS["bytetrack"]) <= set(Params._fields)
+    assert default_out("bytetrack").name == "demo_bytetrack"
+
+
+@pytest.mark.slow
+def test_dfrmot_demo_family_bytetrack_sweeps_its_grid(tmp_path, capsys):
+    status, out, err = run_cli(capsys, ["demo", "--family", "bytetrack", "--out", str(tmp_path / "demo")])
+    assert status == 0, err
+    assert "track_thresh" in out and (tmp_path / "demo" / "sweep" / "report.html").is_file()
