@@ -86,7 +86,10 @@ def test_every_data_file_reads_the_same_both_ways(kitti_root, monkeypatch):
     checked = 0
     for path in labels + results:
         for reader in (kio.read_tracking_labels, result_rows.read_result_rows):
-            fast = _one_pass_only(monkeypatch, reader, path)   # every label and result file is plain
+            if plain_text(path) is None:                        # an empty result file (ByteTrack's runs have some)
+                _agree(monkeypatch, reader, path)
+                continue
+            fast = _one_pass_only(monkeypatch, reader, path)   # every other label and result file is plain
             assert _same(fast, _line_reader(monkeypatch, reader, path)), path
             checked += 1
     for path in dets:
