@@ -12,7 +12,7 @@ import numpy as np
 from .atomic import write_text_atomic
 from .columns import format_lines
 
-__all__ = ["RESULT_FILE", "result_files", "write_sequence_files", "write_tracking_results", "tracking_lines"]
+__all__ = ["RESULT_FILE", "result_files", "write_class_files", "write_sequence_files", "write_tracking_results", "tracking_lines"]
 
 
 def _as_int(name: str, value, n: int) -> np.ndarray:
@@ -130,3 +130,15 @@ def write_sequence_files(out_dir, lines: dict[str, list[str]]) -> list[Path]:
         write_text_atomic(path, "".join(line + "\n" for line in lines[name]))
         paths.append(path)
     return paths
+
+
+def write_class_files(out_dir, per_seq: dict[str, list[tuple[np.ndarray, list[str]]]]) -> list[Path]:
+    """Several classes' lines in one file per sequence: ``per_seq`` name -> [(frames [n] int, n lines)]
+    one part per class in writing order; each file's lines ordered by frame, the parts' order kept
+    within a frame (a stable sort), written by :func:`write_sequence_files`."""
+    files = {}
+    for name, parts in per_seq.items():
+        frames = np.concatenate([np.asarray(f, np.int64) for f, _ in parts])
+        lines = [line for _, ls in parts for line in ls]
+        files[name] = [lines[i] for i in np.argsort(frames, kind="stable")]
+    return write_sequence_files(out_dir, files)

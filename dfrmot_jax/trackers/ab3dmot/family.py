@@ -29,7 +29,7 @@ from ...data import CLASS_NAMES, Split
 from .. import capacity
 from ..lanes import calls_of_groups, widen
 from ..protocol import TrackerFamily
-from ...io.result_writer import write_sequence_files
+from ...io.result_writer import write_class_files
 from ...io.columns import as_written_fixed
 from ...rows import KittiRows, padded_rows
 from ...rows import Rows, RowSelection, lane_values, row_starts
@@ -367,12 +367,7 @@ def write_runs(out_dir, runs: list[Ab3dmotRun], *, columns: str = "kitti") -> li
             frames = np.array([int(line.split(" ", 1)[0]) for line in lines], np.int64)
             per_seq.setdefault(name, []).append((frames, lines))
             top[name] = max(top.get(name, 0), most)
-    files = {}
-    for name, parts in per_seq.items():
-        frames = np.concatenate([f for f, _ in parts])
-        lines = [line for _, ls in parts for line in ls]
-        files[name] = [lines[i] for i in np.argsort(frames, kind="stable")]
-    return write_sequence_files(out_dir, files)
+    return write_class_files(out_dir, per_seq)
 
 
 BOXES_PROBLEM = "boxes = false writes no 3D boxes, which the result rows carry; keep boxes = true"

@@ -30,7 +30,7 @@ import numpy as np
 from ... import distort
 from ...data import CLASS_NAMES, Split
 from ...io.columns import as_written_fixed
-from ...io.result_writer import write_sequence_files
+from ...io.result_writer import write_class_files
 from ...rows import KittiRows, Rows, RowSelection, padded_rows
 from .. import capacity as slots
 from ..lanes import calls_by_key, widen
@@ -293,12 +293,7 @@ def write_runs(out_dir, runs: list[ByteTrackRun], *, columns: str = "kitti") -> 
             lines = [LINE % (frame[i], tid[i], name_of, *box[i], score[i]) for i in range(len(t))]
             per_seq.setdefault(name, []).append((frame, lines))
             top[name] = max(top.get(name, 0), int(tid.max(initial=offset)))
-    files = {}
-    for name, parts in per_seq.items():
-        frames = np.concatenate([f for f, _ in parts])
-        lines = [line for _, ls in parts for line in ls]
-        files[name] = [lines[i] for i in np.argsort(frames, kind="stable")]
-    return write_sequence_files(out_dir, files)
+    return write_class_files(out_dir, per_seq)
 
 
 def table_problem(table) -> tuple[str, str] | None:
