@@ -35,7 +35,7 @@ import numpy as np
 from ..rows import Rows
 
 __all__ = ["BOX_FORMATS", "DEFAULT_FAMILY", "FamilyConfig", "class_columns", "split_class_column", "TrackResult", "TrackerFamily",
-           "config_problems", "family_problems", "number_problem", "preset_class_note"]
+           "config_problems", "family_problems", "number_problem", "parse_setting", "preset_class_note"]
 
 #: the family of a sweep or a stored table that names none (every table written before families existed)
 DEFAULT_FAMILY = "dfr"
@@ -326,3 +326,40 @@ def class_columns(columns, fc: FamilyConfig) -> list[str]:
     """The per-class parameter columns (``<class>.<parameter>``) of the family ``fc`` among
     ``columns``, in their order."""
     return [c for c in columns if split_class_column(c, fc) is not None]
+
+
+def parse_setting(text: str, params, options, *, int_names, number_options, bool_options, param_problem,
+                  option_problem) -> tuple:
+    """Apply one ``name=value`` (``dfrmot track --set``) to a family's ``params`` or ``options``: a
+    parameter or an option of ``number_options`` read as a number (an integer where ``int_names`` or
+    ``number_options`` name it and it is whole), an option of ``bool_options`` as true / false, any
+    other option as its text; each checked by the family's ``param_problem`` / ``option_problem``.
+    ValueError naming ``--set name`` and what is wrong."""
+    if "=" not in text:
+        raise ValueError(f"--set {text!r}: expected name=value")
+    name, raw = (s.strip() for s in text.split("=", 1))
+    p_fields, o_fields = type(params)._fields, type(options)._fields
+    if name in p_fields or name in number_options:
+        try:
+            value = float(raw)
+        except ValueError:
+            raise ValueError(f"--set {name}: {raw!r} is not a number") from None
+        if (name in int_names or name in number_options) and np.isfinite(value) and value == int(value):
+            value = int(value)
+        problem = param_problem(name, value) if name in p_fields else option_problem(name, value)
+        if problem:
+            raise ValueError(f"--set {name}={raw}: {problem}")
+        if name in p_fields:
+            return params._replace(**{name: value}), options
+        return params, options._replace(**{name: value})
+    if name in o_fields:
+        value = raw
+        if name in bool_options:
+            if raw.lower() not in ("true", "false", "1", "0"):
+                raise ValueError(f"--set {name}: {raw!r} is not true/false")
+            value = raw.lower() in ("true", "1")
+        problem = option_problem(name, value)
+        if problem:
+            raise ValueError(f"--set {name}={raw}: {problem}")
+        return params, options._replace(**{name: value})
+    raise ValueError(f"--set {name}: unknown; parameters are {list(p_fields)}, options {list(o_fields)}")

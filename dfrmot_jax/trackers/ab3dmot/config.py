@@ -10,7 +10,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..protocol import FamilyConfig, number_problem
+from ..protocol import FamilyConfig, number_problem, parse_setting
 from ..capacity import MAX_CAPACITY
 
 __all__ = ["Params", "Options", "ALGORITHMS", "METRICS", "DISTANCE_METRICS", "PARAM_RANGES", "INT_PARAMS",
@@ -189,33 +189,8 @@ def validate(params: Params, options: Options) -> tuple[Params, Options]:
 def parse_assignment(text: str, params: Params, options: Options) -> tuple[Params, Options]:
     """Apply one ``name=value`` (``dfrmot track --set``) to params or options; ValueError naming
     ``--set name`` and what is wrong."""
-    if "=" not in text:
-        raise ValueError(f"--set {text!r}: expected name=value")
-    name, raw = (s.strip() for s in text.split("=", 1))
-    if name in Params._fields or name in OPTION_RANGES:
-        try:
-            value = float(raw)
-        except ValueError:
-            raise ValueError(f"--set {name}: {raw!r} is not a number") from None
-        if (name in INT_PARAMS or name in OPTION_RANGES) and np.isfinite(value) and value == int(value):
-            value = int(value)
-        problem = param_problem(name, value) if name in Params._fields else option_problem(name, value)
-        if problem:
-            raise ValueError(f"--set {name}={raw}: {problem}")
-        if name in Params._fields:
-            return params._replace(**{name: value}), options
-        return params, options._replace(**{name: value})
-    if name in Options._fields:
-        value = raw
-        if name == "boxes":
-            if raw.lower() not in ("true", "false", "1", "0"):
-                raise ValueError(f"--set boxes: {raw!r} is not true/false")
-            value = raw.lower() in ("true", "1")
-        problem = option_problem(name, value)
-        if problem:
-            raise ValueError(f"--set {name}={raw}: {problem}")
-        return params, options._replace(**{name: value})
-    raise ValueError(f"--set {name}: unknown; parameters are {list(Params._fields)}, options {list(Options._fields)}")
+    return parse_setting(text, params, options, int_names=INT_PARAMS, number_options=OPTION_RANGES,
+                         bool_options=("boxes",), param_problem=param_problem, option_problem=option_problem)
 
 
 def as_arrays(params: Params) -> Params:
